@@ -1,0 +1,26 @@
+# Small helpers so every folder declares its libraries, tests and benchmarks the same way.
+include_guard(GLOBAL)
+include(GoogleTest)
+
+# mfc_test(NAME SOURCES a.cpp b.cpp LIBS lib1 lib2 [LABELS l1 l2])
+# One GoogleTest executable; each TEST() becomes its own ctest entry.
+function(mfc_test name)
+  cmake_parse_arguments(T "" "" "SOURCES;LIBS;LABELS" ${ARGN})
+  add_executable(${name} ${T_SOURCES})
+  target_link_libraries(${name} PRIVATE ${T_LIBS} GTest::gtest GTest::gtest_main mfc_warnings)
+  target_compile_definitions(${name} PRIVATE MFC_SOURCE_DIR="${PROJECT_SOURCE_DIR}"
+                             MFC_BINARY_DIR="${PROJECT_BINARY_DIR}")
+  gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60
+                       PROPERTIES LABELS "${T_LABELS}" ENVIRONMENT "OMP_NUM_THREADS=1")
+endfunction()
+
+# mfc_benchmark(NAME SOURCES a.cpp LIBS lib1)
+function(mfc_benchmark name)
+  if(NOT MFC_BUILD_BENCHMARKS)
+    return()
+  endif()
+  cmake_parse_arguments(B "" "" "SOURCES;LIBS" ${ARGN})
+  add_executable(${name} ${B_SOURCES})
+  target_link_libraries(${name} PRIVATE ${B_LIBS} benchmark::benchmark mfc_warnings)
+  set_target_properties(${name} PROPERTIES RUNTIME_OUTPUT_DIRECTORY ${PROJECT_BINARY_DIR}/bench)
+endfunction()
