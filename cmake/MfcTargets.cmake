@@ -10,8 +10,11 @@ function(mfc_test name)
   target_link_libraries(${name} PRIVATE ${T_LIBS} GTest::gtest GTest::gtest_main mfc_warnings)
   target_compile_definitions(${name} PRIVATE MFC_SOURCE_DIR="${PROJECT_SOURCE_DIR}"
                              MFC_BINARY_DIR="${PROJECT_BINARY_DIR}")
-  gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60
-                       PROPERTIES LABELS "${T_LABELS}" ENVIRONMENT "OMP_NUM_THREADS=1")
+  set(props ENVIRONMENT "OMP_NUM_THREADS=2")
+  if(T_LABELS)
+    list(APPEND props LABELS "${T_LABELS}")
+  endif()
+  gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60 PROPERTIES ${props})
 endfunction()
 
 # mfc_benchmark(NAME SOURCES a.cpp LIBS lib1)

@@ -1,0 +1,66 @@
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "vision/common/segment.hpp"
+
+using namespace mfcd::vision;
+
+namespace {
+std::string errorOf(const std::string& text) {
+  try {
+    parseLineText(text, "t.lines");
+  } catch (const std::runtime_error& e) {
+    return e.what();
+  }
+  return "";
+}
+}  // namespace
+
+TEST(LineFile, RoundTrips) {
+  LineSet set;
+  set.q = 60;
+  set.size = cv::Size(120, 90);
+  set.origin = cv::Point2f(60, 45);
+  set.lines.push_back({cv::Point2f(10, 10), cv::Point2f(70, 10), 0, 61});
+  set.lines.push_back({cv::Point2f(20, 30), cv::Point2f(20, 80), 30, 51});
+  const auto path = std::filesystem::temp_directory_path() / "mfcd_roundtrip.lines";
+  writeLineFile(path, set);
+  const LineSet back = readLineFile(path);
+  EXPECT_EQ(back.q, 60);
+  EXPECT_EQ(back.size, set.size);
+  EXPECT_FLOAT_EQ(back.origin.x, 60);
+  ASSERT_EQ(back.lines.size(), 2u);
+  EXPECT_EQ(back.lines[0].channel, 0);
+  EXPECT_EQ(back.lines[1].channel, 30);
+  EXPECT_FLOAT_EQ(back.lines[1].b.y, 80);
+  std::filesystem::remove(path);
+}
+
+TEST(LineFile, MalformedInputNamesFileLineAndReason) {
+  EXPECT_NE(errorOf("").find("empty line file"), std::string::npos);
+  EXPECT_NE(errorOf("hello 1\n").find("t.lines:1: not an mfcd line file"), std::string::npos);
+  EXPECT_NE(errorOf("mfcd-lines 2\n").find("unsupported line file version"), std::string::npos);
+  const std::string head = "mfcd-lines 1\nq 60\nsize 100 100\n";
+  EXPECT_NE(errorOf(head + "1 2 3\n").find("t.lines:4: segment 'x1 y1 x2 y2': expected 4 numbers, got 3"),
+            std::string::npos);
+  EXPECT_NE(errorOf(head + "1 2 x 4\n").find("t.lines:4: segment 'x1 y1 x2 y2': 'x' is not a number"),
+            std::string::npos);
+  EXPECT_NE(errorOf(head + "5 5 5.2 5.1\n").find("t.lines:4: zero-length segment"), std::string::npos);
+  EXPECT_NE(errorOf("mfcd-lines 1\nq 0\n").find("t.lines:2: q must be an integer"), std::string::npos);
+  EXPECT_NE(errorOf("mfcd-lines 1\nq -4\n").find("q must be"), std::string::npos);
+  EXPECT_NE(errorOf("mfcd-lines 1\nsize 100 100\n1 1 9 9\n").find("missing 'q"), std::string::npos);
+  EXPECT_NE(errorOf("mfcd-lines 1\nq 60\n1 1 9 9\n").find("missing 'size"), std::string::npos);
+  EXPECT_NE(errorOf(head).find("no segments"), std::string::npos);
+  EXPECT_NE(errorOf(head + "1 1 nan 4\n").find("not a number"), std::string::npos);
+}
+
+TEST(LineFile, MissingFileIsReported) {
+  try {
+    readLineFile("/nonexistent/dir/x.lines");
+    FAIL();
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("/nonexistent/dir/x.lines: cannot open"), std::string::npos);
+  }
+}

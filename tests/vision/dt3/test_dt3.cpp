@@ -1,0 +1,101 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "tests/vision/support/synthetic.hpp"
+#include "vision/dt3/directional_distance_transform.hpp"
+
+using namespace mfcd::vision;
+using namespace mfcd::vision::testing;
+
+namespace {
+struct EdgePixel {
+  int x, y, c;
+};
+std::vector<EdgePixel> edgePixels(const cv::Mat1b& map) {
+  std::vector<EdgePixel> v;
+  for (int y = 0; y < map.rows; ++y)
+    for (int x = 0; x < map.cols; ++x)
+      if (map(y, x) != kNoChannel) v.push_back({x, y, map(y, x)});
+  return v;
+}
+}  // namespace
+
+// Twin: Eq. 8 evaluated directly, min over every edge pixel of distance + lambda * channel
+// distance, in the same fixed point (exact integer equality) and in floating point (within the
+// 1/16 px rounding of the storage).
+TEST(Dt3, EqualsBruteForceMinimumOverEdgePixels) {
+  std::mt19937 rng(2024);
+  const int qs[] = {1, 2, 7, 16, 60};
+  for (int trial = 0; trial < 25; ++trial) {
+    Dt3Params p;
+    p.q = qs[trial % 5];
+    p.lambda = std::array<double, 4>{0.5, 0.25, 1.0, 2.0}[trial % 4];
+    p.maxCost = std::array<double, 3>{30.0, 8.0, 15.5}[trial % 3];
+    const cv::Size size(20 + static_cast<int>(rng() % 50), 15 + static_cast<int>(rng() % 40));
+    const cv::Mat1b map = randomChannelMap(rng, size, p.q, static_cast<int>(rng() % 6), static_cast<int>(rng() % 10));
+    DirectionalDistanceTransform dt3;
+    dt3.compute(map, p);
+    const auto edges = edgePixels(map);
+    const OrientationChannels ch(p.q);
+    for (int c = 0; c < p.q; ++c)
+      for (int y = 0; y < size.height; ++y)
+        for (int x = 0; x < size.width; ++x) {
+          int bestUnits = p.capUnits();
+          double bestPx = p.maxCost;
+          for (const auto& e : edges) {
+            const double d = std::hypot(e.x - x, e.y - y);
+            const int units = static_cast<int>(std::lround(kCostScale * d)) + p.lambdaUnits() * ch.distance(c, e.c);
+            bestUnits = std::min(bestUnits, units);
+            bestPx = std::min(bestPx, d + p.lambda * ch.distance(c, e.c));
+          }
+          ASSERT_EQ(dt3.at(c, x, y), bestUnits) << "trial " << trial << " c " << c << " at " << x << "," << y;
+          ASSERT_NEAR(dt3.at(c, x, y) / double(kCostScale), bestPx, 0.5 / kCostScale + 1e-9);
+        }
+  }
+}
+
+TEST(Dt3, NoEdgesGivesTheTruncationEverywhere) {
+  DirectionalDistanceTransform dt3;
+  Dt3Params p;
+  dt3.compute(cv::Mat1b(30, 40, kNoChannel), p);
+  for (int c = 0; c < p.q; ++c)
+    for (int y = 0; y < 30; ++y)
+      for (int x = 0; x < 40; ++x) ASSERT_EQ(dt3.at(c, x, y), p.capUnits());
+}
+
+TEST(Dt3, OrientationPenaltyUsesPaperUnits) {
+  // A single horizontal edge pixel: a query of the perpendicular channel (30 steps away) pays
+  // 30 * 0.5 = 15 px, i.e. 6 degrees cost one pixel at q = 60.
+  cv::Mat1b map(21, 21, kNoChannel);
+  map(10, 10) = 0;
+  DirectionalDistanceTransform dt3;
+  dt3.compute(map, {});
+  EXPECT_EQ(dt3.at(0, 10, 10), 0);
+  EXPECT_EQ(dt3.at(2, 10, 10), 1 * kCostScale) << "2 channels = 6 degrees = 1 px";
+  EXPECT_EQ(dt3.at(30, 10, 10), 15 * kCostScale);
+  EXPECT_EQ(dt3.at(58, 10, 10), 1 * kCostScale) << "orientation wraps around";
+  EXPECT_EQ(dt3.at(0, 13, 14), 5 * kCostScale);
+}
+
+TEST(Dt3, BadInputIsRefused) {
+  DirectionalDistanceTransform dt3;
+  Dt3Params p;
+  EXPECT_THROW(dt3.compute(cv::Mat1b(), p), std::invalid_argument);
+  p.q = 0;
+  EXPECT_THROW(dt3.compute(cv::Mat1b(4, 4, kNoChannel), p), std::invalid_argument);
+  p = {};
+  p.maxCost = 40;
+  EXPECT_THROW(dt3.compute(cv::Mat1b(4, 4, kNoChannel), p), std::invalid_argument);
+  p = {};
+  p.q = 10;
+  cv::Mat1b map(4, 4, kNoChannel);
+  map(1, 1) = 12;
+  try {
+    dt3.compute(map, p);
+    FAIL();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("channel 12 but q = 10"), std::string::npos);
+  }
+}

@@ -1,0 +1,151 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include <opencv2/imgproc.hpp>
+
+#include "tests/vision/support/synthetic.hpp"
+#include "vision/lines/line_fitter.hpp"
+
+using namespace mfcd::vision;
+using namespace mfcd::vision::testing;
+
+namespace {
+double pointToSegment(cv::Point2d p, cv::Point2d a, cv::Point2d b) {
+  const cv::Point2d d = b - a;
+  const double t = std::clamp((p - a).dot(d) / d.dot(d), 0.0, 1.0);
+  return cv::norm(p - (a + d * t));
+}
+}  // namespace
+
+// Polygons with random edge directions (corners turning by 30..150 degrees, edges >= 40 px), drawn as 8-connected
+// lines. Every fitted segment lies on a polygon edge: endpoints within 1 px of the edge's line,
+// direction within one channel. Along the edge, an end may pass a vertex by up to 3 px: near a
+// corner the two edges' pixels are within the fitting band of each other for a pixel or two
+// (~ residual / sin(turn)), and the first segment accepted keeps them. The segments cover every
+// edge except at most those corner pixels, and every vertex has a segment end within 3 px.
+TEST(LineFitter, RecoversRandomPolygons) {
+  std::mt19937 rng(11);
+  const OrientationChannels ch(60);
+  int edgesChecked = 0;
+  double worstPerpendicular = 0;
+  for (int trial = 0; trial < 40; ++trial) {
+    cv::Mat1b img(300, 300, uchar(0));
+    const int nv = 3 + trial % 6;
+    const auto poly = randomPolygon(rng, {150, 150}, 120, nv);
+    std::vector<cv::Point> ipoly;
+    for (const auto& p : poly) ipoly.emplace_back(cvRound(p.x), cvRound(p.y));
+    cv::polylines(img, ipoly, true, 255, 1, cv::LINE_8);
+    const LineFitResult r = fitLines(img);
+    ASSERT_FALSE(r.set.lines.empty());
+    std::vector<std::vector<std::pair<double, double>>> spans(nv);
+    for (const auto& s : r.set.lines) {
+      int best = -1;
+      double bestD = 1e9;
+      for (int i = 0; i < nv; ++i) {
+        const double d = pointToSegment((cv::Point2d(s.a) + cv::Point2d(s.b)) * 0.5, poly[i], poly[(i + 1) % nv]);
+        if (d < bestD) bestD = d, best = i;
+      }
+      const cv::Point2d a = poly[best], b = poly[(best + 1) % nv];
+      const double len = cv::norm(b - a);
+      const cv::Point2d u = (b - a) / len, n(-u.y, u.x);
+      double t[2];
+      int k = 0;
+      for (const cv::Point2d e : {cv::Point2d(s.a), cv::Point2d(s.b)}) {
+        const double perp = std::abs((e - a).dot(n));
+        worstPerpendicular = std::max(worstPerpendicular, perp);
+        EXPECT_LE(perp, 1.0) << "trial " << trial;
+        t[k] = (e - a).dot(u);
+        EXPECT_GE(t[k], -3.0) << "trial " << trial;
+        EXPECT_LE(t[k], len + 3.0) << "trial " << trial;
+        ++k;
+      }
+      EXPECT_LE(ch.distance(s.channel, ch.channelOf(std::atan2(u.y, u.x))), 1) << "trial " << trial;
+      spans[best].emplace_back(std::min(t[0], t[1]), std::max(t[0], t[1]));
+    }
+    for (int i = 0; i < nv; ++i) {
+      const double len = cv::norm(poly[(i + 1) % nv] - poly[i]);
+      auto& sp = spans[i];
+      std::sort(sp.begin(), sp.end());
+      double covered = 0, reach = 0;
+      for (auto [t0, t1] : sp) {
+        t0 = std::max({t0, reach, 0.0});
+        t1 = std::min(t1, len);
+        if (t1 > t0) covered += t1 - t0;
+        reach = std::max(reach, t1);
+      }
+      EXPECT_GE(covered, len - 6.0) << "trial " << trial << " edge " << i << " length " << len;
+      double nearestEnd = 1e9;
+      for (const auto& s : r.set.lines)
+        nearestEnd = std::min({nearestEnd, cv::norm(cv::Point2d(s.a) - poly[i]), cv::norm(cv::Point2d(s.b) - poly[i])});
+      EXPECT_LE(nearestEnd, 3.0) << "trial " << trial << " vertex " << i;
+      ++edgesChecked;
+    }
+  }
+  EXPECT_GT(edgesChecked, 150);
+  std::printf("worst endpoint distance from its polygon edge line: %.3f px\n", worstPerpendicular);
+}
+
+TEST(LineFitter, ChannelAlignedSegmentsComeBackWhole) {
+  // A segment drawn exactly along a channel direction is one fitted segment with that channel,
+  // its endpoints within 1 px of the drawn ones.
+  const OrientationChannels ch(60);
+  std::mt19937 rng(3);
+  for (int c = 0; c < 60; ++c) {
+    cv::Mat1b img(200, 200, uchar(0));
+    const double phi = ch.angleOf(c);
+    const cv::Point2d a(100 - 60 * std::cos(phi), 100 - 60 * std::sin(phi));
+    const cv::Point2d b(100 + 60 * std::cos(phi), 100 + 60 * std::sin(phi));
+    cv::line(img, cv::Point(cvRound(a.x), cvRound(a.y)), cv::Point(cvRound(b.x), cvRound(b.y)), 255, 1, cv::LINE_8);
+    const LineFitResult r = fitLines(img);
+    ASSERT_GE(r.set.lines.size(), 1u) << "channel " << c;
+    const auto& s = r.set.lines.front();
+    EXPECT_LE(ch.distance(s.channel, c), 1) << "channel " << c;
+    EXPECT_GE(s.length(), 110) << "channel " << c;
+    const double e1 = std::min(cv::norm(cv::Point2d(s.a) - a), cv::norm(cv::Point2d(s.a) - b));
+    const double e2 = std::min(cv::norm(cv::Point2d(s.b) - a), cv::norm(cv::Point2d(s.b) - b));
+    EXPECT_LE(e1, 1.5) << "channel " << c;
+    EXPECT_LE(e2, 1.5) << "channel " << c;
+  }
+}
+
+TEST(LineFitter, DropsIsolatedNoise) {
+  std::mt19937 rng(5);
+  cv::Mat1b img(240, 320, uchar(0));
+  cv::line(img, {20, 200}, {300, 200}, 255);
+  for (int i = 0; i < 400; ++i) img(static_cast<int>(rng() % 180), static_cast<int>(rng() % 320)) = 255;
+  const LineFitResult r = fitLines(img);
+  ASSERT_GE(r.set.lines.size(), 1u);
+  EXPECT_EQ(r.set.lines.front().channel, 0);
+  EXPECT_GE(r.set.lines.front().length(), 270);
+  int noiseKept = 0;
+  for (int y = 0; y < 180; ++y)
+    for (int x = 0; x < 320; ++x) noiseKept += r.channelMap(y, x) != kNoChannel;
+  EXPECT_LT(noiseKept, 20) << "isolated pixels must not survive as lines";
+}
+
+TEST(LineFitter, SortedLongestFirst) {
+  std::mt19937 rng(9);
+  cv::Mat1b img(300, 300, uchar(0));
+  cv::rectangle(img, {40, 50}, {250, 120}, 255);
+  cv::line(img, {30, 200}, {90, 260}, 255);
+  const LineFitResult r = fitLines(img);
+  for (size_t i = 1; i < r.set.lines.size(); ++i) EXPECT_GE(r.set.lines[i - 1].length(), r.set.lines[i].length());
+}
+
+TEST(LineFitter, BadInputIsRefused) {
+  EXPECT_THROW(fitLines(cv::Mat1b()), std::invalid_argument);
+  LineFitParams p;
+  p.q = 0;
+  EXPECT_THROW(fitLines(cv::Mat1b(10, 10, uchar(0)), p), std::invalid_argument);
+  p = {};
+  p.residual = 0;
+  EXPECT_THROW(fitLines(cv::Mat1b(10, 10, uchar(0)), p), std::invalid_argument);
+  p = {};
+  p.minSupport = 1;
+  EXPECT_THROW(fitLines(cv::Mat1b(10, 10, uchar(0)), p), std::invalid_argument);
+  cv::Mat1f wrong(5, 5, 0.f);
+  EXPECT_THROW(fitLines(cv::Mat1b(10, 10, uchar(0)), {}, &wrong), std::invalid_argument);
+  EXPECT_TRUE(fitLines(cv::Mat1b(10, 10, uchar(0))).set.lines.empty()) << "no edges: no lines, no error";
+}

@@ -1,0 +1,59 @@
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "tests/vision/support/synthetic.hpp"
+#include "vision/lines/line_fitter.hpp"
+#include "vision/search/exhaustive_search.hpp"
+#include "vision/search/line_search.hpp"
+
+using namespace mfcd::vision;
+using namespace mfcd::vision::testing;
+
+// The 1-D search along major lines finds a planted, rotated template as well as the exhaustive
+// search does, while evaluating far fewer hypotheses.
+TEST(LineSearch, FindsPlantedTemplateWithFewHypotheses) {
+  std::mt19937 rng(42);
+  const OrientationChannels ch(60);
+  int found = 0;
+  for (int trial = 0; trial < 8; ++trial) {
+    Dt3Params p;
+    const LineSet set = randomLineSet(rng, p.q, 8, 15, 60, 35);
+    const int rot = static_cast<int>(rng() % 120);
+    const OrientedTemplate planted = orientTemplate(set, 0, Warp{rot * ch.step(), 1, 1});
+    LineSet drawn;
+    drawn.q = p.q;
+    drawn.lines = planted.lines;
+    cv::Mat1b edges(240, 320, uchar(0));
+    cv::Mat1b map = randomChannelMap(rng, edges.size(), p.q, 30, 50);
+    drawLineSet(map, drawn, {160, 120});
+    for (int y = 0; y < map.rows; ++y)
+      for (int x = 0; x < map.cols; ++x) edges(y, x) = map(y, x) != kNoChannel ? 255 : 0;
+    const LineFitResult fit = fitLines(edges);
+    DirectionalDistanceTransform dt3;
+    dt3.compute(fit.channelMap, p);
+    IntegralDistanceTransform idt;
+    idt.compute(dt3);
+    WarpGrid grid;
+    std::vector<OrientedTemplate> ts;
+    for (const Warp& w : grid.warps(p.q)) ts.push_back(orientTemplate(set, 0, w));
+    const FdcmMatcher m(idt);
+    LineSearchParams lp;
+    const SearchResult r = lineSearch(m, ts, fit.set.lines, lp);
+    SearchParams ep;
+    const SearchResult e = exhaustiveSearch(m, ts, ep);
+    ASSERT_EQ(e.candidates.size(), 1u);
+    EXPECT_LT(r.stats.hypotheses * 20, e.stats.hypotheses) << "1-D search evaluates a small fraction";
+    if (r.candidates.empty()) continue;
+    const auto& c = r.candidates[0];
+    const bool right = std::abs(c.tx - 160) <= 2 && std::abs(c.ty - 120) <= 2 &&
+                       std::abs(std::remainder(ts[c.oriented].warp.angle - rot * ch.step(), 2 * CV_PI)) < 2.5 * ch.step();
+    found += right;
+    // Whenever the line search lands on the planted copy, its cost is within rounding of the
+    // exhaustive optimum.
+    if (right) {
+      EXPECT_LE(c.cost(), e.candidates[0].cost() + 0.35);
+    }
+  }
+  EXPECT_GE(found, 7) << "planted template found in most trials";
+}

@@ -1,0 +1,47 @@
+#pragma once
+// Line segments: the line-based representation of an edge map (paper Sec. 3.3).
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <opencv2/core/types.hpp>
+
+#include "vision/common/orientation.hpp"
+
+namespace mfcd::vision {
+
+// A fitted segment. Its direction is exactly the centre of `channel` (the fitter enforces this),
+// a and b lie on the fitted line, and `support` counts the edge pixels it explains.
+struct LineSegment {
+  cv::Point2f a, b;
+  int channel = 0;
+  int support = 0;
+  float length() const { return static_cast<float>(cv::norm(b - a)); }
+};
+
+// A set of segments with the geometry it was made for. `origin` is the template's reference point
+// (detections report where the origin lands), `size` the edge map the lines came from.
+struct LineSet {
+  int q = 60;
+  cv::Size size;
+  cv::Point2f origin;
+  std::vector<LineSegment> lines;  // longest first
+
+  size_t totalPixels() const;  // sum over segments of their pixel counts (the template's |U|)
+};
+
+void sortLongestFirst(std::vector<LineSegment>& lines);
+
+// Text line files (format in docs/line-file.md):
+//   mfcd-lines 1
+//   q 60
+//   size <width> <height>
+//   origin <x> <y>
+//   <x1> <y1> <x2> <y2>        one segment per line, any count; '#' starts a comment
+// The channel of each segment is recomputed from its endpoints. Malformed input throws
+// std::runtime_error naming the file, the line number and what was wrong.
+LineSet readLineFile(const std::filesystem::path& path);
+LineSet parseLineText(const std::string& text, const std::string& sourceName);
+void writeLineFile(const std::filesystem::path& path, const LineSet& set);
+
+}  // namespace mfcd::vision

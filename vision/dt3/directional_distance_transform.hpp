@@ -1,0 +1,52 @@
+#pragma once
+// DT3, the three-dimensional distance transform (paper Sec. 3.4, Eqs. 8-11):
+//   DT3(x, c) = min over query edge pixels v of ( |x - v| + lambda * dist(c, channel(v)) ),
+// truncated at maxCost. Computed as q per-channel exact Euclidean distance transforms followed,
+// per pixel, by the forward and backward circular recursions over orientation.
+//
+// Storage: one byte per entry in fixed point (1/kCostScale px), channel-major planes of
+// width x height. At 640x480 and q = 60 that is 18.4 MB; see docs/benchmarks.md.
+#include <cstdint>
+#include <vector>
+
+#include <opencv2/core/mat.hpp>
+
+#include "vision/common/orientation.hpp"
+
+namespace mfcd::vision {
+
+struct Dt3Params {
+  int q = 60;
+  double lambda = 0.5;    // px per channel step (q = 60: 6 degrees ~ 1 px); quantised to 1/8 px
+  double maxCost = 30.0;  // truncation, px; at most 255/kCostScale = 31.875
+
+  void validate() const;  // throws std::invalid_argument naming the field
+  int lambdaUnits() const;
+  int capUnits() const;
+};
+
+class DirectionalDistanceTransform {
+public:
+  // `channelMap`: per pixel the orientation channel of the query edge there, or kNoChannel
+  // (the line fitter's channelMap). Buffers are reused between calls of the same size.
+  void compute(const cv::Mat1b& channelMap, const Dt3Params& params);
+
+  int width() const { return width_; }
+  int height() const { return height_; }
+  int q() const { return q_; }
+  const Dt3Params& params() const { return params_; }
+  const uint8_t* plane(int channel) const { return data_.data() + static_cast<size_t>(channel) * width_ * height_; }
+  uint8_t at(int channel, int x, int y) const { return plane(channel)[static_cast<size_t>(y) * width_ + x]; }
+  size_t bytes() const { return data_.size(); }
+
+private:
+  void channelDistance(int channel, const std::vector<int>& pixels, std::vector<uint8_t>& scratch);
+  void orientationRecursion(int row);
+
+  Dt3Params params_;
+  int width_ = 0, height_ = 0, q_ = 0;
+  std::vector<uint8_t> data_;
+  std::vector<uint8_t> sqrtTable_;  // squared distance -> fixed-point distance, capped
+};
+
+}  // namespace mfcd::vision

@@ -1,0 +1,52 @@
+#include "vision/idt3/integral_distance_transform.hpp"
+
+#include <algorithm>
+#include <cstring>
+
+namespace mfcd::vision {
+
+void IntegralDistanceTransform::compute(const DirectionalDistanceTransform& dt3) {
+  const bool resized = width_ != dt3.width() || height_ != dt3.height() || q_ != dt3.q();
+  width_ = dt3.width();
+  height_ = dt3.height();
+  q_ = dt3.q();
+  const int s = stride(), rows = height_ + 2;
+  const size_t planeSize = static_cast<size_t>(s) * rows;
+  if (resized) {
+    data_.assign(planeSize * q_, 0);  // guards stay zero from here on
+    lines_ = DigitalLineTable(OrientationChannels(q_), s, rows);
+  }
+
+#pragma omp parallel for schedule(dynamic, 1)
+  for (int c = 0; c < q_; ++c) {
+    uint16_t* I = data_.data() + planeSize * c;
+    const uint8_t* D = dt3.plane(c);
+    const int16_t* m = lines_.minor(c);
+    if (lines_.xMajor(c)) {
+      // Predecessor of (X, Y) is (X-1, Y - (m[X] - m[X-1])): one step left, at most one row
+      // up (rising lines) or down (falling lines). Sweep rows in the direction that makes the
+      // predecessor row available, columns left to right.
+      const bool rising = m[2] >= m[1] && m[s - 1] >= m[1];
+      for (int i = 0; i < height_; ++i) {
+        const int Y = rising ? 1 + i : height_ - i;
+        uint16_t* row = I + static_cast<size_t>(Y) * s;
+        const uint8_t* d = D + static_cast<size_t>(Y - 1) * width_;
+        for (int X = 1; X <= width_; ++X) {
+          const int dy = m[X] - m[X - 1];
+          row[X] = static_cast<uint16_t>(d[X - 1] + row[X - 1 - static_cast<ptrdiff_t>(dy) * s]);
+        }
+      }
+    } else {
+      // Predecessor of (X, Y) is (X - (m[Y] - m[Y-1]), Y-1): the whole previous row, shifted.
+      for (int Y = 1; Y <= height_; ++Y) {
+        const int dx = m[Y] - m[Y - 1];
+        uint16_t* row = I + static_cast<size_t>(Y) * s;
+        const uint16_t* prev = row - s - dx;
+        const uint8_t* d = D + static_cast<size_t>(Y - 1) * width_;
+        for (int X = 1; X <= width_; ++X) row[X] = static_cast<uint16_t>(d[X - 1] + prev[X]);
+      }
+    }
+  }
+}
+
+}  // namespace mfcd::vision

@@ -1,0 +1,220 @@
+#include "vision/lines/line_fitter.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <queue>
+#include <stdexcept>
+#include <vector>
+
+namespace mfcd::vision {
+
+void LineFitParams::validate() const {
+  if (q <= 0 || q > kMaxChannels) throw std::invalid_argument("line fitting: q must be in 1..180");
+  if (!(residual > 0 && residual <= 5)) throw std::invalid_argument("line fitting: residual must be in (0, 5] px");
+  if (maxGap < 0 || maxGap > 50) throw std::invalid_argument("line fitting: maxGap must be in 0..50 px");
+  if (minSupport < 2) throw std::invalid_argument("line fitting: minSupport must be >= 2");
+  if (directionRadius < 1 || directionRadius > 10)
+    throw std::invalid_argument("line fitting: directionRadius must be in 1..10");
+  if (channelSpread < 0 || channelSpread > q / 4)
+    throw std::invalid_argument("line fitting: channelSpread must be in 0..q/4");
+  if (refineIterations < 0 || refineIterations > 10)
+    throw std::invalid_argument("line fitting: refineIterations must be in 0..10");
+}
+
+namespace {
+
+struct Hypothesis {
+  int score;
+  int seed;     // index into the edge pixel list
+  int channel;  // hypothesised direction
+  bool operator<(const Hypothesis& o) const {
+    return score != o.score ? score < o.score : seed != o.seed ? seed > o.seed : channel > o.channel;
+  }
+};
+
+class Tracer {
+public:
+  Tracer(const cv::Mat1b& alive, const LineFitParams& p) : alive_(alive), p_(p) {}
+
+  // Walks the line of direction `phi` through `origin` in both directions and collects alive pixels
+  // within the residual band, as long as gaps stay <= maxGap. Returns the support count; when
+  // `out` is given, appends the support pixels.
+  int trace(cv::Point2d origin, double phi, std::vector<cv::Point>* out) const {
+    const bool xm = std::abs(std::cos(phi)) >= std::abs(std::sin(phi));
+    // minor = minor0 + slope * (major - major0)
+    const double slope = xm ? std::tan(phi) : std::cos(phi) / std::sin(phi);
+    const double major0 = xm ? origin.x : origin.y;
+    const double minor0 = xm ? origin.y : origin.x;
+    // Perpendicular residual r corresponds to a minor-axis band of r * sqrt(1 + slope^2).
+    const double band = p_.residual * std::sqrt(1.0 + slope * slope);
+    const int majorLimit = xm ? alive_.cols : alive_.rows;
+    const int minorLimit = xm ? alive_.rows : alive_.cols;
+    int count = 0;
+    const int start = static_cast<int>(std::lround(major0));
+    for (int dir = +1; dir >= -1; dir -= 2) {
+      int gap = 0;
+      for (int k = dir > 0 ? start : start - 1; k >= 0 && k < majorLimit; k += dir) {
+        const double mid = minor0 + slope * (k - major0);
+        const int lo = std::max(0, static_cast<int>(std::ceil(mid - band)));
+        const int hi = std::min(minorLimit - 1, static_cast<int>(std::floor(mid + band)));
+        int here = 0;
+        for (int m = lo; m <= hi; ++m) {
+          const int x = xm ? k : m, y = xm ? m : k;
+          if (alive_(y, x)) {
+            ++here;
+            if (out) out->emplace_back(x, y);
+          }
+        }
+        if (here) {
+          count += here;
+          gap = 0;
+        } else if (++gap > p_.maxGap) {
+          break;
+        }
+      }
+    }
+    return count;
+  }
+
+private:
+  const cv::Mat1b& alive_;
+  const LineFitParams& p_;
+};
+
+// Local tangent angle of each edge pixel from the principal axis of its edge neighbours.
+std::vector<float> localDirections(const std::vector<cv::Point>& pts, const cv::Mat1b& edges, int r) {
+  std::vector<float> dir(pts.size(), 0.f);
+  for (size_t i = 0; i < pts.size(); ++i) {
+    double sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0;
+    int n = 0;
+    for (int dy = -r; dy <= r; ++dy) {
+      const int y = pts[i].y + dy;
+      if (y < 0 || y >= edges.rows) continue;
+      for (int dx = -r; dx <= r; ++dx) {
+        const int x = pts[i].x + dx;
+        if (x < 0 || x >= edges.cols || !edges(y, x)) continue;
+        sx += dx; sy += dy; sxx += dx * dx; syy += dy * dy; sxy += dx * dy;
+        ++n;
+      }
+    }
+    if (n < 2) continue;
+    const double cxx = sxx / n - (sx / n) * (sx / n);
+    const double cyy = syy / n - (sy / n) * (sy / n);
+    const double cxy = sxy / n - (sx / n) * (sy / n);
+    dir[i] = static_cast<float>(0.5 * std::atan2(2 * cxy, cxx - cyy));
+  }
+  return dir;
+}
+
+}  // namespace
+
+LineFitResult fitLines(const cv::Mat1b& edges, const LineFitParams& params, const cv::Mat1f* direction) {
+  params.validate();
+  if (edges.empty()) throw std::invalid_argument("line fitting: empty edge image");
+  if (direction && direction->size() != edges.size())
+    throw std::invalid_argument("line fitting: direction map size differs from the edge map");
+  const OrientationChannels ch(params.q);
+
+  LineFitResult result;
+  result.set.q = params.q;
+  result.set.size = edges.size();
+  result.set.origin = cv::Point2f(edges.cols / 2.0f, edges.rows / 2.0f);
+  result.channelMap = cv::Mat1b(edges.size(), kNoChannel);
+
+  std::vector<cv::Point> pts;
+  cv::Mat1b alive(edges.size(), uchar(0));
+  for (int y = 0; y < edges.rows; ++y)
+    for (int x = 0; x < edges.cols; ++x)
+      if (edges(y, x)) {
+        pts.emplace_back(x, y);
+        alive(y, x) = 1;
+      }
+  result.inputEdgePixels = static_cast<int>(pts.size());
+  if (pts.empty()) return result;
+
+  std::vector<float> dir;
+  if (direction) {
+    dir.resize(pts.size());
+    for (size_t i = 0; i < pts.size(); ++i) dir[i] = (*direction)(pts[i]);
+  } else {
+    dir = localDirections(pts, edges, params.directionRadius);
+  }
+
+  const Tracer tracer(alive, params);
+  std::priority_queue<Hypothesis> queue;
+  for (size_t i = 0; i < pts.size(); ++i) {
+    const int c0 = ch.channelOf(dir[i]);
+    for (int s = -params.channelSpread; s <= params.channelSpread; ++s) {
+      const int c = ch.wrap(c0 + s);
+      const int score = tracer.trace(cv::Point2d(pts[i]), ch.angleOf(c), nullptr);
+      if (score >= params.minSupport) queue.push({score, static_cast<int>(i), c});
+    }
+  }
+
+  std::vector<cv::Point> support;
+  while (!queue.empty()) {
+    Hypothesis h = queue.top();
+    queue.pop();
+    // Lazy greedy: supports only shrink as points are claimed, so a re-scored hypothesis that
+    // still beats every stored (optimistic) score is the true best.
+    h.score = tracer.trace(cv::Point2d(pts[h.seed]), ch.angleOf(h.channel), nullptr);
+    if (h.score < params.minSupport) continue;
+    if (!queue.empty() && h.score < queue.top().score) {
+      queue.push(h);
+      continue;
+    }
+    // Accept, then refine: the channel direction only found the group of points; the segment
+    // itself is the total-least-squares line of its support (free direction), re-traced so that
+    // it reaches the true ends of an edge lying between two channel directions.
+    double phi = ch.angleOf(h.channel);
+    cv::Point2d p0(pts[h.seed]);
+    support.clear();
+    tracer.trace(p0, phi, &support);
+    for (int it = 0; it < params.refineIterations && static_cast<int>(support.size()) >= 2; ++it) {
+      cv::Point2d mean(0, 0);
+      for (const auto& sp : support) mean += cv::Point2d(sp);
+      mean /= static_cast<double>(support.size());
+      double cxx = 0, cyy = 0, cxy = 0;
+      for (const auto& sp : support) {
+        const cv::Point2d d = cv::Point2d(sp) - mean;
+        cxx += d.x * d.x; cyy += d.y * d.y; cxy += d.x * d.y;
+      }
+      const double fitted = 0.5 * std::atan2(2 * cxy, cxx - cyy);
+      // Keep the hypothesis direction if the support is too short to define one.
+      if (std::abs(std::remainder(fitted - phi, CV_PI)) <= ch.step()) phi = fitted;
+      p0 = mean;
+      std::vector<cv::Point> next;
+      tracer.trace(p0, phi, &next);
+      if (next.size() < support.size()) break;  // refinement must not lose support
+      support.swap(next);
+    }
+    const cv::Point2d d(std::cos(phi), std::sin(phi)), nrm(-std::sin(phi), std::cos(phi));
+    // Near a corner the neighbouring edge stays inside the band for a few pixels; trim ends whose
+    // residual is beyond what a digitised straight line produces, so segments stop at corners.
+    std::sort(support.begin(), support.end(), [&](const cv::Point& u, const cv::Point& v) {
+      return (cv::Point2d(u) - p0).dot(d) < (cv::Point2d(v) - p0).dot(d);
+    });
+    const double trim = std::min(params.residual, 0.75);
+    size_t lo = 0, hi = support.size();
+    while (hi - lo > 0 && std::abs((cv::Point2d(support[lo]) - p0).dot(nrm)) > trim) ++lo;
+    while (hi - lo > 0 && std::abs((cv::Point2d(support[hi - 1]) - p0).dot(nrm)) > trim) --hi;
+    if (static_cast<int>(hi - lo) < params.minSupport) continue;
+    const double tmin = (cv::Point2d(support[lo]) - p0).dot(d);
+    const double tmax = (cv::Point2d(support[hi - 1]) - p0).dot(d);
+    LineSegment seg;
+    seg.a = cv::Point2f(p0 + d * tmin);
+    seg.b = cv::Point2f(p0 + d * tmax);
+    seg.channel = ch.channelOf(phi);
+    seg.support = static_cast<int>(hi - lo);
+    for (size_t i = lo; i < hi; ++i) {
+      alive(support[i]) = 0;
+      result.channelMap(support[i]) = static_cast<uchar>(seg.channel);
+    }
+    result.explainedEdgePixels += seg.support;
+    result.set.lines.push_back(seg);
+  }
+  sortLongestFirst(result.set.lines);
+  return result;
+}
+
+}  // namespace mfcd::vision

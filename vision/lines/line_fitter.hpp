@@ -1,0 +1,44 @@
+#pragma once
+// Line-based representation of an edge map (paper Sec. 3.3): a RANSAC variant that hypothesises
+// segments from edge points and their local directions, keeps the one with the largest contiguous
+// support, removes its points and repeats until the best remaining support is below a few points.
+//
+// Hypotheses are lines of the q channel directions through every edge pixel (around its local
+// direction); the accepted one is refitted to its support with a free direction so its endpoints
+// are where the edge really ends, and labelled with the nearest channel. Matching needs segments
+// along channel directions (Sec. 3.5): the digitiser (search/oriented_template.hpp) splits a
+// segment whose true direction is between channels into pieces that stay within half a pixel.
+#include <opencv2/core/mat.hpp>
+
+#include "vision/common/segment.hpp"
+
+namespace mfcd::vision {
+
+struct LineFitParams {
+  int q = 60;                // orientation channels
+  double residual = 1.0;     // gamma: max perpendicular distance of a support point, px
+  int maxGap = 2;            // longest run of missing pixels bridged inside one segment, px
+  int minSupport = 10;       // a segment must explain at least this many edge pixels
+  int directionRadius = 2;   // neighbourhood (2r+1)^2 for local edge directions
+  int channelSpread = 1;     // hypotheses per seed: its local channel +- this many channels
+  int refineIterations = 2;  // re-centre the line on its support this many times
+
+  void validate() const;  // throws std::invalid_argument naming the bad field
+};
+
+struct LineFitResult {
+  LineSet set;
+  // Per pixel: the channel of the segment that claimed it, or kNoChannel. This is the
+  // directional edge map DT3 is built from (noise pixels no segment explains are dropped).
+  cv::Mat1b channelMap;
+  int inputEdgePixels = 0;
+  int explainedEdgePixels = 0;
+};
+
+// `edges`: nonzero = edge pixel. `direction` (optional, same size, radians): the edge tangent per
+// pixel, e.g. from the depth-edge extractor; without it local directions come from the
+// neighbourhood's principal axis. Throws std::invalid_argument on an empty image.
+LineFitResult fitLines(const cv::Mat1b& edges, const LineFitParams& params = {},
+                       const cv::Mat1f* direction = nullptr);
+
+}  // namespace mfcd::vision

@@ -1,0 +1,87 @@
+#include "vision/search/line_search.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <unordered_set>
+
+namespace mfcd::vision {
+
+SearchResult lineSearch(const FdcmMatcher& matcher, const std::vector<OrientedTemplate>& templates,
+                        const std::vector<LineSegment>& queryLines, const LineSearchParams& params) {
+  const int W = matcher.width(), H = matcher.height();
+  const bool detect = params.mode == SearchMode::Detect;
+  SearchResult result;
+  const size_t nq = std::min<size_t>(queryLines.size(), std::max(0, params.queryLines));
+  FdcmMatcher::State state;
+  Candidate best;
+  bool haveBest = false;
+  std::vector<Candidate> found;
+  std::unordered_set<uint64_t> seen;  // (tx, ty) already evaluated for this oriented template
+  for (int o = 0; o < static_cast<int>(templates.size()); ++o) {
+    const OrientedTemplate& t = templates[o];
+    if (t.pixels <= 0 || t.lines.empty()) continue;
+    const int txMin = t.txMin(), txMax = t.txMax(W), tyMin = t.tyMin(), tyMax = t.tyMax(H);
+    if (txMin > txMax || tyMin > tyMax) continue;
+    const int n = t.pixels;
+    const uint32_t tauSum = detail::thresholdSum(params.threshold, n);
+    matcher.prepare(t, tyMin, tyMax, state);
+    seen.clear();
+    // The template's guide segments: its longest transformed source lines.
+    std::vector<const LineSegment*> guides;
+    for (const auto& l : t.lines) guides.push_back(&l);
+    std::stable_sort(guides.begin(), guides.end(),
+                     [](const LineSegment* a, const LineSegment* b) { return a->length() > b->length(); });
+    if (guides.size() > static_cast<size_t>(params.templateLines)) guides.resize(params.templateLines);
+    for (const LineSegment* g : guides) {
+      for (size_t qi = 0; qi < nq; ++qi) {
+        const LineSegment& ql = queryLines[qi];
+        if (ql.channel != g->channel) continue;
+        // Unit direction shared by both segments; order endpoints along it.
+        cv::Point2d d(ql.b - ql.a);
+        const double qlen = cv::norm(d);
+        if (qlen < 1e-6) continue;
+        d /= qlen;
+        cv::Point2d ta(g->a), tb(g->b);
+        if ((tb - ta).dot(d) < 0) std::swap(ta, tb);
+        const double tlen = (tb - ta).dot(d);
+        const cv::Point2d qa(ql.a);
+        // Translation placing template point ta at qa + (k - tlen) * d.
+        const int steps = static_cast<int>(std::ceil(tlen + qlen));
+        for (int k = 0; k <= steps; ++k) {
+          const cv::Point2d tr = qa - ta + d * (k - tlen);
+          const int tx = static_cast<int>(std::lround(tr.x)), ty = static_cast<int>(std::lround(tr.y));
+          if (tx < txMin || tx > txMax || ty < tyMin || ty > tyMax) continue;
+          const uint64_t key = (uint64_t(uint32_t(tx)) << 32) | uint32_t(ty);
+          if (!seen.insert(key).second) continue;
+          ++result.stats.hypotheses;
+          uint32_t thr = tauSum;
+          if (!detect && haveBest) thr = std::min<uint64_t>(thr, uint64_t(best.sum) * n / best.pixels);
+          matcher.beginColumn(state, tx);
+          const uint32_t stop = params.hypothesisBound ? thr : std::numeric_limits<uint32_t>::max();
+          const uint32_t sum = matcher.evaluate(state, ty, stop, result.stats.segments);
+          ++result.stats.evaluated;
+          if (sum > thr) continue;
+          const Candidate c{o, tx, ty, sum, n};
+          if (detect) found.push_back(c);
+          else if (!haveBest || better(c, best)) {
+            best = c;
+            haveBest = true;
+          }
+        }
+      }
+    }
+  }
+  if (detect) {
+    std::sort(found.begin(), found.end(), better);
+    if (found.size() > params.maxCandidates) {
+      found.resize(params.maxCandidates);
+      result.truncated = true;
+    }
+    result.candidates = std::move(found);
+  } else if (haveBest) {
+    result.candidates.push_back(best);
+  }
+  return result;
+}
+
+}  // namespace mfcd::vision

@@ -1,0 +1,27 @@
+#pragma once
+// One-dimensional search along major lines (paper Sec. 4.4): under the right alignment a long
+// template segment lies on a long query segment. For each oriented template (rotations in whole
+// channel steps) and each of its longest segments, and each long query segment of the same
+// channel, the template is slid along the query segment, from "template end on query start" to
+// "template start on query end", one pixel at a time, and evaluated with FDCM. This reduces the
+// 3-DoF (theta, tx, ty) search to 1-DoF searches whose count depends only on line counts.
+#include <vector>
+
+#include "vision/search/exhaustive_search.hpp"
+
+namespace mfcd::vision {
+
+struct LineSearchParams {
+  int templateLines = 5;   // longest template segments used as guides
+  int queryLines = 40;     // longest query segments used as guides
+  SearchMode mode = SearchMode::Best;
+  double threshold = std::numeric_limits<double>::infinity();
+  bool hypothesisBound = true;
+  size_t maxCandidates = 200000;
+};
+
+// `queryLines`: the query's fitted segments, longest first (LineFitResult::set.lines).
+SearchResult lineSearch(const FdcmMatcher& matcher, const std::vector<OrientedTemplate>& templates,
+                        const std::vector<LineSegment>& queryLines, const LineSearchParams& params);
+
+}  // namespace mfcd::vision

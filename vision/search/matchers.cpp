@@ -1,0 +1,147 @@
+#include "vision/search/matchers.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "vision/common/euclidean_dt.hpp"
+
+namespace mfcd::vision {
+
+void FdcmMatcher::prepare(const OrientedTemplate& t, int tyMin, int tyMax, State& s) const {
+  s.t = &t;
+  s.tyMin = tyMin;
+  s.items.assign(t.segments.size(), Item{});
+  const int rows = std::max(0, tyMax - tyMin + 1);
+  size_t yMajor = 0;
+  for (const auto& seg : t.segments) yMajor += idt_.lines().xMajor(seg.channel) ? 0 : 1;
+  s.fixes.assign(yMajor * 2 * rows, 0);
+  size_t f = 0;
+  for (size_t i = 0; i < t.segments.size(); ++i) {
+    const auto& seg = t.segments[i];
+    s.items[i].plane = idt_.plane(seg.channel);
+    if (idt_.lines().xMajor(seg.channel)) continue;
+    // For y-major segments the pattern is indexed by the row, so the end offsets depend on ty
+    // beyond the plain row shift: store the difference per ty.
+    int16_t* ef = s.fixes.data() + f;
+    int16_t* bf = ef + rows;
+    f += 2 * rows;
+    const int16_t* m = idt_.lines().minor(seg.channel);
+    for (int k = 0; k < rows; ++k) {
+      const int Y = seg.y + tyMin + k + 1;
+      ef[k] = static_cast<int16_t>(m[Y + seg.span] - m[Y]);
+      bf[k] = static_cast<int16_t>(-(m[Y] - m[Y - 1]));
+    }
+    s.items[i].endFix = ef;
+    s.items[i].beforeFix = bf;
+  }
+}
+
+void FdcmMatcher::beginColumn(State& s, int tx) const {
+  const int st = idt_.stride();
+  for (size_t i = 0; i < s.items.size(); ++i) {
+    const auto& seg = s.t->segments[i];
+    Item& it = s.items[i];
+    if (!it.endFix) {
+      const auto e = idt_.ends(seg.channel, seg.x + tx, seg.y, seg.span);
+      it.end0 = e.end;
+      it.before0 = e.before;
+    } else {
+      const int X = seg.x + tx + 1;
+      it.end0 = (seg.y + 1 + seg.span) * st + X;
+      it.before0 = seg.y * st + X;
+    }
+  }
+}
+
+void ChamferCosts::compute(const cv::Mat1b& channelMap, const Dt3Params& params) {
+  params.validate();
+  q = params.q;
+  lambdaUnits = params.lambdaUnits();
+  capUnits = params.capUnits();
+  cv::Mat1b sites = channelMap != kNoChannel;
+  cv::Mat1i d2, nearest;
+  squaredEuclideanDistance(sites, d2, &nearest);
+  distance.create(channelMap.size());
+  nearestChannel.create(channelMap.size());
+  for (int y = 0; y < channelMap.rows; ++y)
+    for (int x = 0; x < channelMap.cols; ++x) {
+      const int n = nearest(y, x);
+      const double d = n == kNoSite ? 1e9 : std::sqrt(double(d2(y, x)));
+      distance(y, x) = static_cast<uchar>(std::min<long>(capUnits, std::lround(d * kCostScale)));
+      nearestChannel(y, x) = n == kNoSite ? kNoChannel : channelMap(n / channelMap.cols, n % channelMap.cols);
+    }
+}
+
+ChamferMatcher::ChamferMatcher(const ChamferCosts& costs, Kind kind) : costs_(costs), kind_(kind) {
+  const int q = costs.q;
+  const OrientationChannels ch(q);
+  orientationCost_.assign(static_cast<size_t>(q) * 256, 0);
+  for (int a = 0; a < q; ++a)
+    for (int b = 0; b < 256; ++b)
+      orientationCost_[a * 256 + b] =
+          static_cast<uint8_t>(std::min(255, b < q ? costs.lambdaUnits * ch.distance(a, b) : costs.capUnits));
+}
+
+void ChamferMatcher::prepare(const OrientedTemplate& t, int, int, State& s) const {
+  // CM and OCM use the template as a fixed point set: each segment's pixels follow the line
+  // pattern anchored at the segment's own start, so the set is translation invariant.
+  const int w = costs_.distance.cols;
+  const OrientationChannels ch(costs_.q);
+  s.offsets.clear();
+  s.segments.clear();
+  for (const auto& seg : t.segments) {
+    const double phi = ch.angleOf(seg.channel);
+    const bool xm = ch.xMajor(seg.channel);
+    const double slope = xm ? std::tan(phi) : std::cos(phi) / std::sin(phi);
+    Segment rs{static_cast<int>(s.offsets.size()), 0, seg.channel};
+    for (int k = 0; k <= seg.span; ++k) {
+      const int minor = static_cast<int>(std::floor(k * slope + 0.5));
+      const int x = xm ? seg.x + k : seg.x + minor, y = xm ? seg.y + minor : seg.y + k;
+      s.offsets.push_back(y * w + x);
+    }
+    rs.end = static_cast<int>(s.offsets.size());
+    s.segments.push_back(rs);
+  }
+}
+
+uint32_t ChamferMatcher::evaluate(const State& s, int ty, uint32_t stop, uint64_t& segments) const {
+  const int32_t base = ty * costs_.distance.cols + s.column;
+  const uint8_t* dist = costs_.distance.ptr<uint8_t>(0) + base;
+  uint32_t sum = 0;
+  if (kind_ == Kind::Chamfer) {
+    for (const auto& seg : s.segments) {
+      for (int i = seg.begin; i < seg.end; ++i) sum += dist[s.offsets[i]];
+      ++segments;
+      if (sum > stop) break;
+    }
+  } else {
+    const uint8_t* nn = costs_.nearestChannel.ptr<uint8_t>(0) + base;
+    const int cap = costs_.capUnits;
+    for (const auto& seg : s.segments) {
+      const uint8_t* oc = orientationCost_.data() + seg.channel * 256;
+      for (int i = seg.begin; i < seg.end; ++i) {
+        const int o = s.offsets[i];
+        sum += static_cast<uint32_t>(std::min(cap, dist[o] + oc[nn[o]]));
+      }
+      ++segments;
+      if (sum > stop) break;
+    }
+  }
+  return sum;
+}
+
+DirectDcmMatcher::DirectDcmMatcher(const DirectionalDistanceTransform& dt3)
+    : dt3_(dt3), lines_(OrientationChannels(dt3.q()), dt3.width() + 2, dt3.height() + 2) {}
+
+uint32_t DirectDcmMatcher::evaluate(const State& s, int ty, uint32_t stop, uint64_t& segments) const {
+  uint32_t sum = 0;
+  for (const auto& seg : s.t->segments) {
+    forEachPixel(lines_, seg.channel, seg.x + s.tx, seg.y + ty, seg.span, 1,
+                 [&](int x, int y) { sum += dt3_.at(seg.channel, x, y); });
+    ++segments;
+    if (sum > stop) break;
+  }
+  return sum;
+}
+
+}  // namespace mfcd::vision

@@ -1,0 +1,132 @@
+#pragma once
+// Cost evaluators for the search, one per matching method, with one interface so that every
+// comparison runs the same search over the same hypotheses:
+//   FdcmMatcher       DCM via IDT3: O(1) per segment (paper Sec. 3.5)
+//   ChamferMatcher    CM (Sec. 3.1) and OCM (Shotton et al.), point by point over the template
+//   DirectDcmMatcher  DCM summed point by point over DT3 along the same digital lines FDCM uses;
+//                     the slow, obviously-right twin of FdcmMatcher (equal to the unit)
+//
+// Interface used by the search (all costs are integer sums in 1/kCostScale px):
+//   struct State;                                       per oriented template, per thread
+//   void prepare(const OrientedTemplate&, int tyMin, int tyMax, State&) const;
+//   void beginColumn(State&, int tx) const;            translation column tx
+//   uint32_t evaluate(const State&, int ty, uint32_t stop, uint64_t& segments) const;
+// evaluate adds segment costs longest first and returns as soon as the sum exceeds `stop` (the
+// bound in the hypothesis domain); otherwise it returns the full sum.
+#include <cstdint>
+#include <vector>
+
+#include <opencv2/core/mat.hpp>
+
+#include "vision/dt3/directional_distance_transform.hpp"
+#include "vision/idt3/integral_distance_transform.hpp"
+#include "vision/search/oriented_template.hpp"
+
+namespace mfcd::vision {
+
+class FdcmMatcher {
+public:
+  explicit FdcmMatcher(const IntegralDistanceTransform& idt) : idt_(idt) {}
+  static constexpr bool kLipschitz = true;  // the spatial bound is valid for this cost
+  int width() const { return idt_.width(); }
+  int height() const { return idt_.height(); }
+
+  struct Item {
+    const uint16_t* plane;
+    int32_t end0, before0;        // offsets at ty = 0 for the current column
+    const int16_t* endFix = nullptr;  // y-major segments: per-ty pattern corrections
+    const int16_t* beforeFix = nullptr;
+  };
+  struct State {
+    std::vector<Item> items;
+    std::vector<int16_t> fixes;
+    const OrientedTemplate* t = nullptr;
+    int tyMin = 0;
+  };
+  void prepare(const OrientedTemplate& t, int tyMin, int tyMax, State& s) const;
+  void beginColumn(State& s, int tx) const;
+  uint32_t evaluate(const State& s, int ty, uint32_t stop, uint64_t& segments) const {
+    const int32_t row = ty * idt_.stride();
+    const int k = ty - s.tyMin;
+    uint32_t sum = 0;
+    for (const Item& it : s.items) {
+      int32_t e = it.end0 + row, b = it.before0 + row;
+      if (it.endFix) {
+        e += it.endFix[k];
+        b += it.beforeFix[k];
+      }
+      sum += static_cast<uint16_t>(it.plane[e] - it.plane[b]);
+      ++segments;
+      if (sum > stop) break;
+    }
+    return sum;
+  }
+
+private:
+  const IntegralDistanceTransform& idt_;
+};
+
+// Per-pixel costs of the point-wise baselines, built from the same directional edge map.
+struct ChamferCosts {
+  cv::Mat1b distance;        // min(maxCost, Euclidean distance to the nearest edge pixel), fixed point
+  cv::Mat1b nearestChannel;  // channel of that nearest edge pixel (OCM), kNoChannel without edges
+  int q = 0;
+  int lambdaUnits = 0, capUnits = 0;
+  void compute(const cv::Mat1b& channelMap, const Dt3Params& params);
+};
+
+class ChamferMatcher {
+public:
+  enum class Kind { Chamfer, OrientedChamfer };
+  ChamferMatcher(const ChamferCosts& costs, Kind kind);
+  int width() const { return costs_.distance.cols; }
+  int height() const { return costs_.distance.rows; }
+  // CM is 1-Lipschitz in translation; OCM's orientation term jumps where the nearest edge
+  // changes, so the spatial bound must not be used with it.
+  bool lipschitz() const { return kind_ == Kind::Chamfer; }
+
+  struct Segment {
+    int begin, end;  // range in offsets
+    int channel;
+  };
+  struct State {
+    std::vector<int32_t> offsets;  // template pixels relative to the origin, row-major
+    std::vector<Segment> segments;
+    int32_t column = 0;
+  };
+  void prepare(const OrientedTemplate& t, int tyMin, int tyMax, State& s) const;
+  void beginColumn(State& s, int tx) const { s.column = tx; }
+  uint32_t evaluate(const State& s, int ty, uint32_t stop, uint64_t& segments) const;
+
+private:
+  const ChamferCosts& costs_;
+  Kind kind_;
+  std::vector<uint8_t> orientationCost_;  // [templateChannel * q + nearestChannel]
+};
+
+class DirectDcmMatcher {
+public:
+  explicit DirectDcmMatcher(const DirectionalDistanceTransform& dt3);
+  static constexpr bool kLipschitz = true;
+  int width() const { return dt3_.width(); }
+  int height() const { return dt3_.height(); }
+  struct State {
+    const OrientedTemplate* t = nullptr;
+    int tx = 0;
+  };
+  void prepare(const OrientedTemplate& t, int, int, State& s) const { s.t = &t; }
+  void beginColumn(State& s, int tx) const { s.tx = tx; }
+  uint32_t evaluate(const State& s, int ty, uint32_t stop, uint64_t& segments) const;
+
+private:
+  const DirectionalDistanceTransform& dt3_;
+  DigitalLineTable lines_;
+};
+
+template <class M>
+inline bool matcherIsLipschitz(const M& m) {
+  if constexpr (requires { m.lipschitz(); }) return m.lipschitz();
+  else return M::kLipschitz;
+}
+
+}  // namespace mfcd::vision
