@@ -41,7 +41,8 @@ OrientedTemplate orientTemplate(const LineSet& set, int templateIndex, const War
     // kMaxDrift from it, and are short enough for exact 16-bit IDT3 sums.
     const double cphi = ch.angleOf(c);
     const double slope = xm ? std::tan(cphi) : std::cos(cphi) / std::sin(cphi);
-    const cv::Vec2d unitMajor = dv / std::max(1e-12, std::abs(xm ? dv[0] : dv[1]));  // 1 major step
+    const cv::Vec2d forward = am <= bm ? dv : cv::Vec2d(-dv);  // from the start s to the other end
+    const cv::Vec2d unitMajor = forward / std::max(1e-12, std::abs(xm ? dv[0] : dv[1]));  // 1 major step
     const double trueSlope = xm ? unitMajor[1] : unitMajor[0];
     const double drift = std::abs(trueSlope - slope);
     constexpr double kMaxDrift = 0.5;

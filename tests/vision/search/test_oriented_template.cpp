@@ -1,0 +1,77 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "tests/vision/support/synthetic.hpp"
+#include "vision/search/oriented_template.hpp"
+
+using namespace mfcd::vision;
+using namespace mfcd::vision::testing;
+
+namespace {
+double pointToSegment(cv::Point2d p, cv::Point2d a, cv::Point2d b) {
+  const cv::Point2d d = b - a;
+  const double t = std::clamp((p - a).dot(d) / d.dot(d), 0.0, 1.0);
+  return cv::norm(p - (a + d * t));
+}
+}  // namespace
+
+// Every digital pixel of a warped template lies on its warped source segment (within the
+// 0.5 px drift allowance, 0.5 px rounding and 1 px pattern anchoring), pixel counts match the
+// segments' extents, spans fit 16-bit IDT3 sums, and the bounding box holds every pixel.
+TEST(OrientedTemplate, DigitalPixelsFollowTheWarpedSegments) {
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<double> ua(-7, 7), us(0.5, 3.0), uas(0.8, 1.25);
+  for (int trial = 0; trial < 200; ++trial) {
+    const LineSet set = randomLineSet(rng, 60, 6, 2, 150, 80);
+    const Warp w{ua(rng), us(rng), uas(rng)};
+    const OrientedTemplate t = orientTemplate(set, 0, w);
+    const OrientationChannels ch(60);
+    const DigitalLineTable lines(ch, 2000, 2000);
+    const cv::Matx22d A = w.matrix();
+    std::vector<std::pair<cv::Point2d, cv::Point2d>> warped;
+    double expectedPixels = 0;
+    for (const auto& l : set.lines) {
+      const cv::Vec2d a = A * cv::Vec2d(l.a.x, l.a.y), b = A * cv::Vec2d(l.b.x, l.b.y);
+      if (cv::norm(b - a) < 1.0) continue;
+      warped.emplace_back(cv::Point2d(a[0], a[1]), cv::Point2d(b[0], b[1]));
+      expectedPixels += std::max(std::abs(b[0] - a[0]), std::abs(b[1] - a[1])) + 1;
+    }
+    EXPECT_NEAR(t.pixels, expectedPixels, 1.0 * warped.size() + 0.02 * expectedPixels);
+    int total = 0;
+    for (const auto& seg : t.segments) {
+      EXPECT_LE(seg.span, kMaxSegmentSpan);
+      // Translate far from the origin so the pattern table sees positive coordinates.
+      forEachPixel(lines, seg.channel, seg.x + 1000, seg.y + 1000, seg.span, 0, [&](int x, int y) {
+        const cv::Point2d p(x - 1000, y - 1000);
+        double best = 1e9;
+        for (const auto& [a, b] : warped) best = std::min(best, pointToSegment(p, a, b));
+        EXPECT_LE(best, 0.5 + 0.5 + 1.0 + 1e-9) << "trial " << trial;
+        EXPECT_GE(p.x, t.x0);
+        EXPECT_LE(p.x, t.x1);
+        EXPECT_GE(p.y, t.y0);
+        EXPECT_LE(p.y, t.y1);
+        ++total;
+      });
+    }
+    EXPECT_EQ(total, t.pixels);
+  }
+}
+
+TEST(WarpGrid, FullTurnInChannelStepsAndSeries) {
+  WarpGrid g;
+  EXPECT_EQ(g.warps(60).size(), 120u);
+  g.angleStepChannels = 2;
+  g.scales = WarpGrid::series(1.0, 1.2, 5);
+  g.aspects = WarpGrid::series(1.0, 1.1, 3);
+  EXPECT_EQ(g.warps(60).size(), 60u * 15u);
+  EXPECT_NEAR(g.scales.front(), 1.0 / 1.44, 1e-12);
+  EXPECT_NEAR(g.scales.back(), 1.44, 1e-12);
+  EXPECT_NEAR(g.aspects[2] / g.aspects[1], 1.1, 1e-12);
+  g.scales = {};
+  EXPECT_THROW(g.warps(60), std::invalid_argument);
+  g.scales = {1};
+  g.angleStepChannels = 0;
+  EXPECT_THROW(g.warps(60), std::invalid_argument);
+}
