@@ -148,6 +148,16 @@ void V4L2Camera::negotiate() {
   // The frame period bounds how long before its timestamp an end-of-frame-stamped frame was exposed.
   v4l2_streamparm parm{};
   parm.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
+  if (config_.frameRate > 0) {
+    parm.parm.capture.timeperframe = {1, static_cast<std::uint32_t>(config_.frameRate)};
+    if (xioctl(fd_, VIDIOC_S_PARM, &parm) < 0 || parm.parm.capture.timeperframe.numerator == 0 ||
+        parm.parm.capture.timeperframe.denominator / parm.parm.capture.timeperframe.numerator !=
+            static_cast<std::uint32_t>(config_.frameRate))
+      syslog(LOG_WARNING, "mfcd hal: %s does not run at %d fps at this size; using what it offers",
+             describe().c_str(), config_.frameRate);
+    parm = {};
+    parm.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
+  }
   exposureLeadNs_ = 0;
   if (xioctl(fd_, VIDIOC_G_PARM, &parm) == 0 && parm.parm.capture.timeperframe.denominator != 0)
     exposureLeadNs_ = static_cast<std::int64_t>(parm.parm.capture.timeperframe.numerator) * 1'000'000'000 /

@@ -18,6 +18,7 @@ struct V4L2CameraConfig {
   int width = 640;
   int height = 480;
   int bitsPerPixel = 8;               // output depth: 8 or 16
+  int frameRate = 0;                  // frames per second to ask for (VIDIOC_S_PARM); 0 = device default
   std::optional<int> exposureUs;      // manual exposure, if the device has the control
   std::optional<int> gain;            // manual gain, if the device has the control
   int bufferCount = 4;
