@@ -16,7 +16,7 @@
 set -euo pipefail
 
 HERE="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
-CACHE_ROOT="${MFC_HIL_CACHE:-${XDG_CACHE_HOME:-$HOME/.cache}/mfcd-hil}"
+CACHE_ROOT="${MFC_HIL_CACHE:-${XDG_CACHE_HOME:-${HOME:-/tmp}/.cache}/mfcd-hil}"
 # Modules the VM's /init loads (their dependencies are resolved with modprobe --show-depends).
 VM_MODULES="configfs vivid vcan can-raw virtio_pci 9pnet_virtio 9p overlay"
 
