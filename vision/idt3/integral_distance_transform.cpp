@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cstring>
+#include <vector>
 
 namespace mfcd::vision {
 
@@ -27,13 +28,20 @@ void IntegralDistanceTransform::compute(const DirectionalDistanceTransform& dt3)
       // up (rising lines) or down (falling lines). Sweep rows in the direction that makes the
       // predecessor row available, columns left to right.
       const bool rising = m[2] >= m[1] && m[s - 1] >= m[1];
+      // Whether the predecessor is on the neighbouring row, per column (the same for all rows).
+      std::vector<uint8_t> hop(width_ + 1);
+      for (int X = 1; X <= width_; ++X) hop[X] = m[X] != m[X - 1];
       for (int i = 0; i < height_; ++i) {
         const int Y = rising ? 1 + i : height_ - i;
         uint16_t* row = I + static_cast<size_t>(Y) * s;
+        const uint16_t* other = rising ? row - s : row + s;  // the row a hop comes from
         const uint8_t* d = D + static_cast<size_t>(Y - 1) * width_;
+        // The running sum stays in a register; only a hop reads the neighbouring row.
+        uint16_t v = 0;
         for (int X = 1; X <= width_; ++X) {
-          const int dy = m[X] - m[X - 1];
-          row[X] = static_cast<uint16_t>(d[X - 1] + row[X - 1 - static_cast<ptrdiff_t>(dy) * s]);
+          const uint16_t pred = hop[X] ? other[X - 1] : v;
+          v = static_cast<uint16_t>(d[X - 1] + pred);
+          row[X] = v;
         }
       }
     } else {

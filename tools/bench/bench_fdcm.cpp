@@ -1,0 +1,215 @@
+// FDCM benchmarks (issue 2 / docs/benchmarks.md). All matching methods run over the same
+// hypothesis sets on the same 640x480 cluttered query, single-threaded unless a name says
+// otherwise, so ratios measured in one run compare like with like.
+#include <benchmark/benchmark.h>
+
+#include <cmath>
+#include <random>
+
+#include <opencv2/imgproc.hpp>
+
+#include "vision/detect/shape_detector.hpp"
+#include "vision/dt3/directional_distance_transform.hpp"
+#include "vision/idt3/integral_distance_transform.hpp"
+#include "vision/search/exhaustive_search.hpp"
+#include "vision/search/matchers.hpp"
+
+using namespace mfcd::vision;
+
+namespace {
+
+const std::vector<cv::Point2d> kTNut{{-40, -30}, {40, -30}, {40, -10}, {15, -10}, {15, 30}, {-15, 30}, {-15, -10}, {-40, -10}};
+
+std::vector<cv::Point> place(const std::vector<cv::Point2d>& shape, cv::Point2d at, double angle, double scale = 1) {
+  std::vector<cv::Point> out;
+  const double c = std::cos(angle), s = std::sin(angle);
+  for (const auto& p : shape) out.emplace_back(cvRound(at.x + scale * (c * p.x - s * p.y)), cvRound(at.y + scale * (s * p.x + c * p.y)));
+  return out;
+}
+
+// Smooth random blob: a closed curve, so larger copies need more lines (Fig. 4 uses curved shapes).
+std::vector<cv::Point2d> blob(std::mt19937& rng, double radius) {
+  std::uniform_real_distribution<double> u(-1, 1);
+  double a1 = u(rng) * 0.25, a2 = u(rng) * 0.15, a3 = u(rng) * 0.1, p1 = u(rng) * 3, p2 = u(rng) * 3, p3 = u(rng) * 3;
+  std::vector<cv::Point2d> pts;
+  const int n = std::max(24, static_cast<int>(radius * 2));
+  for (int i = 0; i < n; ++i) {
+    const double t = 2 * CV_PI * i / n;
+    const double r = radius * (1 + a1 * std::cos(2 * t + p1) + a2 * std::cos(3 * t + p2) + a3 * std::cos(5 * t + p3));
+    pts.emplace_back(r * std::cos(t), 0.7 * r * std::sin(t));
+  }
+  return pts;
+}
+
+// The query: a grey 640x480 scene with parts, 60 clutter lines and noise, through Canny and the
+// line fitter, as the detector would see it.
+struct Query {
+  cv::Mat1b edges;
+  LineFitResult fit;
+  DirectionalDistanceTransform dt3;
+  IntegralDistanceTransform idt;
+  ChamferCosts costs;
+  Query() {
+    std::mt19937 rng(1);
+    cv::Mat1b img(480, 640, uchar(70));
+    std::uniform_int_distribution<int> ux(0, 639), uy(0, 479), ug(30, 150);
+    for (int i = 0; i < 60; ++i) cv::line(img, {ux(rng), uy(rng)}, {ux(rng), uy(rng)}, ug(rng), 1, cv::LINE_AA);
+    for (int k = 0; k < 8; ++k)
+      cv::fillPoly(img, std::vector<std::vector<cv::Point>>{place(kTNut, {90.0 + (k % 4) * 150, 120.0 + (k / 4) * 230}, k * 0.7)}, 200);
+    for (int k = 0; k < 6; ++k) {
+      std::vector<cv::Point> b;
+      for (auto p : blob(rng, 30)) b.emplace_back(cvRound(p.x + ux(rng)), cvRound(p.y + uy(rng)));
+      cv::polylines(img, std::vector<std::vector<cv::Point>>{b}, true, ug(rng), 2);
+    }
+    cv::Mat1s noise(img.size()), tmp;
+    cv::randn(noise, 0, 5);
+    img.convertTo(tmp, CV_16S);
+    tmp += noise;
+    tmp.convertTo(img, CV_8U);
+    cv::Canny(img, edges, 50, 150, 3, true);
+    fit = fitLines(edges);
+    dt3.compute(fit.channelMap, {});
+    idt.compute(dt3);
+    costs.compute(fit.channelMap, {});
+  }
+};
+const Query& query() {
+  static const Query q;
+  return q;
+}
+
+LineSet tnutTemplate() {
+  cv::Mat1b img(120, 120, uchar(0));
+  cv::polylines(img, std::vector<std::vector<cv::Point>>{place(kTNut, {60, 60}, 0)}, true, 255, 1);
+  return templateFromEdges(img, "tnut", {}).lines;
+}
+
+std::vector<OrientedTemplate> orient(const LineSet& set, int stepChannels) {
+  WarpGrid g;
+  g.angleStepChannels = stepChannels;
+  std::vector<OrientedTemplate> v;
+  for (const Warp& w : g.warps(60)) v.push_back(orientTemplate(set, 0, w));
+  return v;
+}
+
+void report(benchmark::State& state, const SearchResult& r, uint64_t iterations) {
+  state.SetItemsProcessed(static_cast<int64_t>(r.stats.hypotheses * iterations));
+  state.counters["hypotheses"] = static_cast<double>(r.stats.hypotheses);
+  state.counters["evaluated_frac"] = double(r.stats.evaluated) / double(r.stats.hypotheses);
+  state.counters["skipped_frac"] = double(r.stats.skipped) / double(r.stats.hypotheses);
+  state.counters["lines_per_eval"] = r.stats.evaluated ? double(r.stats.segments) / double(r.stats.evaluated) : 0;
+  state.counters["best_cost_px"] = r.candidates.empty() ? -1 : r.candidates[0].cost();
+}
+
+}  // namespace
+
+static void BM_LineFit640x480(benchmark::State& state) {
+  const Query& q = query();
+  for (auto _ : state) benchmark::DoNotOptimize(fitLines(q.edges));
+  state.counters["edge_pixels"] = q.fit.inputEdgePixels;
+  state.counters["lines"] = static_cast<double>(q.fit.set.lines.size());
+}
+BENCHMARK(BM_LineFit640x480)->Unit(benchmark::kMillisecond);
+
+// DT3 + IDT3 build at 640x480, q = 60, with 1 and 2 threads.
+static void BM_Dt3Idt3Build(benchmark::State& state) {
+  const Query& q = query();
+  omp_set_num_threads(static_cast<int>(state.range(0)));
+  DirectionalDistanceTransform dt3;
+  IntegralDistanceTransform idt;
+  for (auto _ : state) {
+    dt3.compute(q.fit.channelMap, {});
+    idt.compute(dt3);
+    benchmark::ClobberMemory();
+  }
+  state.counters["threads"] = static_cast<double>(state.range(0));
+  state.counters["dt3_MB"] = dt3.bytes() / 1e6;
+  state.counters["idt3_MB"] = idt.bytes() / 1e6;
+  omp_set_num_threads(2);
+}
+BENCHMARK(BM_Dt3Idt3Build)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// Same hypothesis set for every method: the T-nut at 8 rotations (45 degree steps) over every
+// translation of the 640x480 query, localisation mode (best hypothesis), one thread.
+// Arg 0: bounds off (plain exhaustive evaluation); arg 1: bounds on (each method gets every bound
+// that is valid for it: CM and FDCM both bounds, OCM the hypothesis bound only).
+template <class MakeMatcher>
+static void runSearch(benchmark::State& state, MakeMatcher make, int stepChannels) {
+  const Query& q = query();
+  static const LineSet set = tnutTemplate();
+  const auto ts = orient(set, stepChannels);
+  const auto matcher = make(q);
+  SearchParams p;
+  p.threads = 1;
+  p.hypothesisBound = p.spatialBound = state.range(0) != 0;
+  SearchResult r;
+  for (auto _ : state) r = exhaustiveSearch(matcher, ts, p);
+  report(state, r, state.iterations());
+  state.counters["template_pixels"] = ts[0].pixels;
+  state.counters["template_lines"] = static_cast<double>(ts[0].segments.size());
+}
+static void BM_Search_FDCM(benchmark::State& s) { runSearch(s, [](const Query& q) { return FdcmMatcher(q.idt); }, 15); }
+static void BM_Search_OCM(benchmark::State& s) {
+  runSearch(s, [](const Query& q) { return ChamferMatcher(q.costs, ChamferMatcher::Kind::OrientedChamfer); }, 15);
+}
+static void BM_Search_CM(benchmark::State& s) {
+  runSearch(s, [](const Query& q) { return ChamferMatcher(q.costs, ChamferMatcher::Kind::Chamfer); }, 15);
+}
+BENCHMARK(BM_Search_FDCM)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_Search_OCM)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_Search_CM)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+
+// Full in-plane rotation (120 rotations of 3 degrees) over every translation, bounds on, 1 thread.
+static void BM_Search_FDCM_FullRotation(benchmark::State& s) {
+  runSearch(s, [](const Query& q) { return FdcmMatcher(q.idt); }, 1);
+}
+BENCHMARK(BM_Search_FDCM_FullRotation)->Arg(1)->Unit(benchmark::kMillisecond);
+
+// Fig. 4: evaluated lines vs template points. Curved blobs of growing size; for each, n template
+// pixels, m lines, m_hat = lines needed to cover 30 % of the pixels (the paper's measure), and
+// the mean lines read per evaluated hypothesis in a detection search with the hypothesis bound.
+static void BM_Fig4_LinesVsPoints(benchmark::State& state) {
+  const Query& q = query();
+  std::mt19937 rng(7);
+  const double radius = static_cast<double>(state.range(0));
+  double n = 0, m = 0, mhat = 0, perEval = 0;
+  const int shapes = 10;
+  for (auto _ : state) {
+    n = m = mhat = perEval = 0;
+    for (int k = 0; k < shapes; ++k) {
+      const auto b = blob(rng, radius);
+      const int size = static_cast<int>(radius * 3 + 20);
+      cv::Mat1b img(size, size, uchar(0));
+      std::vector<cv::Point> pts;
+      for (auto p : b) pts.emplace_back(cvRound(p.x + size / 2.0), cvRound(p.y + size / 2.0));
+      cv::polylines(img, std::vector<std::vector<cv::Point>>{pts}, true, 255, 1);
+      const LineSet set = templateFromEdges(img, "blob", {}).lines;
+      std::vector<OrientedTemplate> ts{orientTemplate(set, 0, Warp{})};
+      const OrientedTemplate& t = ts[0];
+      int covered = 0, lines = 0;
+      for (const auto& s : t.segments) {
+        if (covered >= 0.3 * t.pixels) break;
+        covered += s.pixels();
+        ++lines;
+      }
+      SearchParams p;
+      p.mode = SearchMode::Detect;
+      p.threshold = 2.0;
+      p.spatialBound = false;
+      p.threads = 1;
+      const auto r = exhaustiveSearch(FdcmMatcher(q.idt), ts, p);
+      n += t.pixels;
+      m += static_cast<double>(t.segments.size());
+      mhat += lines;
+      perEval += double(r.stats.segments) / double(std::max<uint64_t>(1, r.stats.evaluated));
+    }
+  }
+  state.counters["points_n"] = n / shapes;
+  state.counters["lines_m"] = m / shapes;
+  state.counters["lines_30pct_mhat"] = mhat / shapes;
+  state.counters["mhat_over_n"] = mhat / n;
+  state.counters["lines_read_per_hypothesis"] = perEval / shapes;
+}
+BENCHMARK(BM_Fig4_LinesVsPoints)->Arg(15)->Arg(25)->Arg(40)->Arg(60)->Arg(90)->Arg(130)->Iterations(1)->Unit(benchmark::kMillisecond);
+
+BENCHMARK_MAIN();
