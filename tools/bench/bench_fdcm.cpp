@@ -84,6 +84,22 @@ LineSet tnutTemplate() {
   return templateFromEdges(img, "tnut", {}).lines;
 }
 
+// A circuit-breaker-like outline of ~1500 pixels: rounded body, two holes, a slot and a lever,
+// close to the paper's average template (1,610 points) so CM/OCM/FDCM ratios are comparable.
+LineSet breakerTemplate() {
+  cv::Mat1b img(200, 280, uchar(0));
+  const cv::Rect body(40, 40, 200, 120);
+  cv::rectangle(img, body, 255, 1);
+  cv::circle(img, {80, 100}, 14, 255, 1);
+  cv::circle(img, {200, 100}, 14, 255, 1);
+  cv::rectangle(img, cv::Rect(120, 70, 40, 60), 255, 1);
+  cv::ellipse(img, {140, 40}, {30, 22}, 0, 180, 360, 255, 1);
+  cv::line(img, {20, 80}, {40, 80}, 255);
+  cv::line(img, {20, 80}, {20, 120}, 255);
+  cv::line(img, {20, 120}, {40, 120}, 255);
+  return templateFromEdges(img, "breaker", {}).lines;
+}
+
 std::vector<OrientedTemplate> orient(const LineSet& set, int stepChannels) {
   WarpGrid g;
   g.angleStepChannels = stepChannels;
@@ -129,19 +145,24 @@ static void BM_Dt3Idt3Build(benchmark::State& state) {
 }
 BENCHMARK(BM_Dt3Idt3Build)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
 
-// Same hypothesis set for every method: the T-nut at 8 rotations (45 degree steps) over every
-// translation of the 640x480 query, localisation mode (best hypothesis), one thread.
-// Arg 0: bounds off (plain exhaustive evaluation); arg 1: bounds on (each method gets every bound
-// that is valid for it: CM and FDCM both bounds, OCM the hypothesis bound only).
+// Same hypothesis set for every method: a template at 8 rotations (45 degree steps) over every
+// translation of the 640x480 query, one thread. range(0): 0 = bounds off (plain exhaustive
+// evaluation), 1 = bounds on (each method gets every bound valid for it: CM and FDCM both, OCM
+// the hypothesis bound only). range(1): 0 = localisation (best hypothesis), 1 = detection
+// (threshold 2.5 px). range(2): 0 = T-nut (small), 1 = breaker (~1500 px).
 template <class MakeMatcher>
 static void runSearch(benchmark::State& state, MakeMatcher make, int stepChannels) {
   const Query& q = query();
-  static const LineSet set = tnutTemplate();
-  const auto ts = orient(set, stepChannels);
+  static const LineSet tnut = tnutTemplate(), breaker = breakerTemplate();
+  const auto ts = orient(state.range(2) ? breaker : tnut, stepChannels);
   const auto matcher = make(q);
   SearchParams p;
   p.threads = 1;
   p.hypothesisBound = p.spatialBound = state.range(0) != 0;
+  if (state.range(1)) {
+    p.mode = SearchMode::Detect;
+    p.threshold = 2.5;
+  }
   SearchResult r;
   for (auto _ : state) r = exhaustiveSearch(matcher, ts, p);
   report(state, r, state.iterations());
@@ -155,15 +176,35 @@ static void BM_Search_OCM(benchmark::State& s) {
 static void BM_Search_CM(benchmark::State& s) {
   runSearch(s, [](const Query& q) { return ChamferMatcher(q.costs, ChamferMatcher::Kind::Chamfer); }, 15);
 }
-BENCHMARK(BM_Search_FDCM)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
-BENCHMARK(BM_Search_OCM)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
-BENCHMARK(BM_Search_CM)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+#define SEARCH_ARGS ArgsProduct({{0, 1}, {0, 1}, {0, 1}})->ArgNames({"bounds", "detect", "breaker"})->Unit(benchmark::kMillisecond)
+BENCHMARK(BM_Search_FDCM)->SEARCH_ARGS;
+BENCHMARK(BM_Search_OCM)->SEARCH_ARGS->Iterations(1);
+BENCHMARK(BM_Search_CM)->SEARCH_ARGS->Iterations(1);
 
 // Full in-plane rotation (120 rotations of 3 degrees) over every translation, bounds on, 1 thread.
 static void BM_Search_FDCM_FullRotation(benchmark::State& s) {
   runSearch(s, [](const Query& q) { return FdcmMatcher(q.idt); }, 1);
 }
-BENCHMARK(BM_Search_FDCM_FullRotation)->Arg(1)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_Search_FDCM_FullRotation)->ArgsProduct({{1}, {0, 1}, {0, 1}})->ArgNames({"bounds", "detect", "breaker"})->Unit(benchmark::kMillisecond);
+
+// How far past the threshold a rejected hypothesis is followed so the spatial bound can skip
+// (SearchParams::spatialReach, in tenths of a px), breaker template, full rotation, 1 thread.
+static void BM_SpatialReach(benchmark::State& state) {
+  const Query& q = query();
+  static const LineSet breaker = breakerTemplate();
+  const auto ts = orient(breaker, 1);
+  SearchParams p;
+  p.threads = 1;
+  p.spatialReach = state.range(0) / 10.0;
+  if (state.range(1)) {
+    p.mode = SearchMode::Detect;
+    p.threshold = 2.5;
+  }
+  SearchResult r;
+  for (auto _ : state) r = exhaustiveSearch(FdcmMatcher(q.idt), ts, p);
+  report(state, r, state.iterations());
+}
+BENCHMARK(BM_SpatialReach)->ArgsProduct({{0, 10, 20, 40, 80, 160, 320}, {0, 1}})->ArgNames({"reach_tenths_px", "detect"})->Unit(benchmark::kMillisecond);
 
 // Fig. 4: evaluated lines vs template points. Curved blobs of growing size; for each, n template
 // pixels, m lines, m_hat = lines needed to cover 30 % of the pixels (the paper's measure), and
@@ -210,6 +251,6 @@ static void BM_Fig4_LinesVsPoints(benchmark::State& state) {
   state.counters["mhat_over_n"] = mhat / n;
   state.counters["lines_read_per_hypothesis"] = perEval / shapes;
 }
-BENCHMARK(BM_Fig4_LinesVsPoints)->Arg(15)->Arg(25)->Arg(40)->Arg(60)->Arg(90)->Arg(130)->Iterations(1)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_Fig4_LinesVsPoints)->Arg(15)->Arg(25)->Arg(40)->Arg(60)->Arg(90)->Arg(130)->Arg(200)->Arg(280)->Iterations(1)->Unit(benchmark::kMillisecond);
 
 BENCHMARK_MAIN();

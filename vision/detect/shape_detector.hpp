@@ -42,7 +42,7 @@ struct DetectorParams {
   double threshold = 3.0;      // px: detections have mean DCM cost <= threshold
   bool hypothesisBound = true;
   bool spatialBound = true;
-  double spatialReach = 2.0;
+  double spatialReach = 4.0;
   double nmsMaxIoU = 0.3;
   size_t maxDetections = 20;
   size_t maxCandidates = 200000;

@@ -40,7 +40,7 @@ struct SearchParams {
   double threshold = std::numeric_limits<double>::infinity();  // tau, px (mean cost per pixel)
   bool hypothesisBound = true;
   bool spatialBound = true;
-  double spatialReach = 2.0;    // px followed past tau so that the spatial bound can skip
+  double spatialReach = 4.0;    // px followed past tau so that the spatial bound can skip (docs/benchmarks.md)
   size_t maxCandidates = 200000;
   int threads = 0;              // 0: OpenMP default
 };
@@ -136,15 +136,16 @@ SearchResult exhaustiveSearch(const Matcher& matcher, const std::vector<Oriented
       // Sum beyond the threshold needed before a skip radius becomes positive.
       const double slackSum = double(n) * (kCostScale + 1);
       const uint32_t reach = static_cast<uint32_t>(slackSum + params.spatialReach * unitsPerPx);
-      matcher.prepare(t, tyMin, tyMax, state);
-      if (spatial) cover.assign(tyMax - tyMin + 1, std::numeric_limits<int>::min());
+      matcher.prepare(t, txMin, txMax, state);
+      if (spatial) cover.assign(txMax - txMin + 1, std::numeric_limits<int>::min());
       uint64_t seenBest = ~uint64_t(0);
       uint32_t thr = tauSum;
-      for (int tx = txMin; tx <= txMax; ++tx) {
-        matcher.beginColumn(state, tx);
-        for (int ty = tyMin; ty <= tyMax; ++ty) {
+      for (int ty = tyMin; ty <= tyMax; ++ty) {
+        matcher.beginRow(state, ty);
+        for (int tx = txMin; tx <= txMax; ++tx) {
           ++stats.hypotheses;
-          if (spatial && cover[ty - tyMin] >= tx) {
+          // cover[column] = last row already proven worse than the threshold in that column.
+          if (spatial && cover[tx - txMin] >= ty) {
             ++stats.skipped;
             continue;
           }
@@ -165,7 +166,7 @@ SearchResult exhaustiveSearch(const Matcher& matcher, const std::vector<Oriented
             const uint64_t s = spatial ? uint64_t(thr) + reach : uint64_t(thr);
             stop = static_cast<uint32_t>(std::min<uint64_t>(s, std::numeric_limits<uint32_t>::max()));
           }
-          const uint32_t sum = matcher.evaluate(state, ty, stop, stats.segments);
+          const uint32_t sum = matcher.evaluate(state, tx, stop, stats.segments);
           ++stats.evaluated;
           if (sum <= thr) {
             const Candidate c{o, tx, ty, sum, n};
@@ -193,17 +194,20 @@ SearchResult exhaustiveSearch(const Matcher& matcher, const std::vector<Oriented
             }
           }
           if (spatial && sum > thr) {
+            // Mark the disc |delta| < r ahead of the scan: rest of this row and the rows below.
             const double r = (double(sum) - double(thr) - slackSum) / unitsPerPx - 1e-9;
             if (r > 0) {
               const double r2 = r * r;
               const int ri = static_cast<int>(std::floor(r));
-              const int lo = std::max(tyMin, ty - ri), hi = std::min(tyMax, ty + ri);
-              for (int yy = lo; yy <= hi; ++yy) {
-                const double rem = r2 - double(yy - ty) * (yy - ty);
+              const int lo = std::max(txMin, tx - ri), hi = std::min(txMax, tx + ri);
+              for (int xx = lo; xx <= hi; ++xx) {
+                const double rem = r2 - double(xx - tx) * (xx - tx);
                 if (rem <= 0) continue;
-                const int dx = static_cast<int>(std::ceil(std::sqrt(rem))) - 1;
-                int& c = cover[yy - tyMin];
-                c = std::max(c, tx + dx);
+                const int dy = static_cast<int>(std::ceil(std::sqrt(rem))) - 1;
+                // Rows ty..ty+dy of column xx (row ty only matters for columns ahead of tx,
+                // the ones behind are done), contiguous with any earlier cover from row ty on.
+                int& c = cover[xx - txMin];
+                c = std::max(c, ty + dy);
               }
             }
           }

@@ -24,7 +24,7 @@ SearchResult lineSearch(const FdcmMatcher& matcher, const std::vector<OrientedTe
     if (txMin > txMax || tyMin > tyMax) continue;
     const int n = t.pixels;
     const uint32_t tauSum = detail::thresholdSum(params.threshold, n);
-    matcher.prepare(t, tyMin, tyMax, state);
+    matcher.prepare(t, txMin, txMax, state);
     seen.clear();
     // The template's guide segments: its longest transformed source lines.
     std::vector<const LineSegment*> guides;
@@ -56,9 +56,9 @@ SearchResult lineSearch(const FdcmMatcher& matcher, const std::vector<OrientedTe
           ++result.stats.hypotheses;
           uint32_t thr = tauSum;
           if (!detect && haveBest) thr = std::min<uint64_t>(thr, uint64_t(best.sum) * n / best.pixels);
-          matcher.beginColumn(state, tx);
+          matcher.beginRow(state, ty);
           const uint32_t stop = params.hypothesisBound ? thr : std::numeric_limits<uint32_t>::max();
-          const uint32_t sum = matcher.evaluate(state, ty, stop, result.stats.segments);
+          const uint32_t sum = matcher.evaluate(state, tx, stop, result.stats.segments);
           ++result.stats.evaluated;
           if (sum > thr) continue;
           const Candidate c{o, tx, ty, sum, n};

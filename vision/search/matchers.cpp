@@ -7,48 +7,49 @@
 
 namespace mfcd::vision {
 
-void FdcmMatcher::prepare(const OrientedTemplate& t, int tyMin, int tyMax, State& s) const {
+void FdcmMatcher::prepare(const OrientedTemplate& t, int txMin, int txMax, State& s) const {
   s.t = &t;
-  s.tyMin = tyMin;
+  s.txMin = txMin;
   s.items.assign(t.segments.size(), Item{});
-  const int rows = std::max(0, tyMax - tyMin + 1);
-  size_t yMajor = 0;
-  for (const auto& seg : t.segments) yMajor += idt_.lines().xMajor(seg.channel) ? 0 : 1;
-  s.fixes.assign(yMajor * 2 * rows, 0);
+  const int cols = std::max(0, txMax - txMin + 1);
+  const int st = idt_.stride();
+  size_t xMajor = 0;
+  for (const auto& seg : t.segments) xMajor += idt_.lines().xMajor(seg.channel) ? 1 : 0;
+  s.fixes.assign(xMajor * 2 * cols, 0);
   size_t f = 0;
   for (size_t i = 0; i < t.segments.size(); ++i) {
     const auto& seg = t.segments[i];
     s.items[i].plane = idt_.plane(seg.channel);
-    if (idt_.lines().xMajor(seg.channel)) continue;
-    // For y-major segments the pattern is indexed by the row, so the end offsets depend on ty
-    // beyond the plain row shift: store the difference per ty.
-    int16_t* ef = s.fixes.data() + f;
-    int16_t* bf = ef + rows;
-    f += 2 * rows;
+    if (!idt_.lines().xMajor(seg.channel)) continue;
+    // For x-major segments the pattern is indexed by the column, so the end rows depend on tx
+    // beyond the plain column shift: store the row difference (times the stride) per tx.
+    int32_t* ef = s.fixes.data() + f;
+    int32_t* bf = ef + cols;
+    f += 2 * cols;
     const int16_t* m = idt_.lines().minor(seg.channel);
-    for (int k = 0; k < rows; ++k) {
-      const int Y = seg.y + tyMin + k + 1;
-      ef[k] = static_cast<int16_t>(m[Y + seg.span] - m[Y]);
-      bf[k] = static_cast<int16_t>(-(m[Y] - m[Y - 1]));
+    for (int k = 0; k < cols; ++k) {
+      const int X = seg.x + txMin + k + 1;
+      ef[k] = (m[X + seg.span] - m[X]) * st;
+      bf[k] = -(m[X] - m[X - 1]) * st;
     }
     s.items[i].endFix = ef;
     s.items[i].beforeFix = bf;
   }
 }
 
-void FdcmMatcher::beginColumn(State& s, int tx) const {
+void FdcmMatcher::beginRow(State& s, int ty) const {
   const int st = idt_.stride();
   for (size_t i = 0; i < s.items.size(); ++i) {
     const auto& seg = s.t->segments[i];
     Item& it = s.items[i];
     if (!it.endFix) {
-      const auto e = idt_.ends(seg.channel, seg.x + tx, seg.y, seg.span);
+      const auto e = idt_.ends(seg.channel, seg.x, seg.y + ty, seg.span);
       it.end0 = e.end;
       it.before0 = e.before;
     } else {
-      const int X = seg.x + tx + 1;
-      it.end0 = (seg.y + 1 + seg.span) * st + X;
-      it.before0 = seg.y * st + X;
+      const int Y = seg.y + ty + 1;
+      it.end0 = Y * st + seg.x + 1 + seg.span;
+      it.before0 = Y * st + seg.x;
     }
   }
 }
@@ -104,8 +105,8 @@ void ChamferMatcher::prepare(const OrientedTemplate& t, int, int, State& s) cons
   }
 }
 
-uint32_t ChamferMatcher::evaluate(const State& s, int ty, uint32_t stop, uint64_t& segments) const {
-  const int32_t base = ty * costs_.distance.cols + s.column;
+uint32_t ChamferMatcher::evaluate(const State& s, int tx, uint32_t stop, uint64_t& segments) const {
+  const int32_t base = s.row + tx;
   const uint8_t* dist = costs_.distance.ptr<uint8_t>(0) + base;
   uint32_t sum = 0;
   if (kind_ == Kind::Chamfer) {
@@ -133,10 +134,10 @@ uint32_t ChamferMatcher::evaluate(const State& s, int ty, uint32_t stop, uint64_
 DirectDcmMatcher::DirectDcmMatcher(const DirectionalDistanceTransform& dt3)
     : dt3_(dt3), lines_(OrientationChannels(dt3.q()), dt3.width() + 2, dt3.height() + 2) {}
 
-uint32_t DirectDcmMatcher::evaluate(const State& s, int ty, uint32_t stop, uint64_t& segments) const {
+uint32_t DirectDcmMatcher::evaluate(const State& s, int tx, uint32_t stop, uint64_t& segments) const {
   uint32_t sum = 0;
   for (const auto& seg : s.t->segments) {
-    forEachPixel(lines_, seg.channel, seg.x + s.tx, seg.y + ty, seg.span, 1,
+    forEachPixel(lines_, seg.channel, seg.x + tx, seg.y + s.ty, seg.span, 1,
                  [&](int x, int y) { sum += dt3_.at(seg.channel, x, y); });
     ++segments;
     if (sum > stop) break;

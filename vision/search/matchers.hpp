@@ -8,9 +8,11 @@
 //
 // Interface used by the search (all costs are integer sums in 1/kCostScale px):
 //   struct State;                                       per oriented template, per thread
-//   void prepare(const OrientedTemplate&, int tyMin, int tyMax, State&) const;
-//   void beginColumn(State&, int tx) const;            translation column tx
-//   uint32_t evaluate(const State&, int ty, uint32_t stop, uint64_t& segments) const;
+//   void prepare(const OrientedTemplate&, int txMin, int txMax, State&) const;
+//   void beginRow(State&, int ty) const;               translation row ty
+//   uint32_t evaluate(const State&, int tx, uint32_t stop, uint64_t& segments) const;
+// The search scans translations row by row (tx inner), so consecutive hypotheses read adjacent
+// tensor entries.
 // evaluate adds segment costs longest first and returns as soon as the sum exceeds `stop` (the
 // bound in the hypothesis domain); otherwise it returns the full sum.
 #include <cstdint>
@@ -33,24 +35,23 @@ public:
 
   struct Item {
     const uint16_t* plane;
-    int32_t end0, before0;        // offsets at ty = 0 for the current column
-    const int16_t* endFix = nullptr;  // y-major segments: per-ty pattern corrections
-    const int16_t* beforeFix = nullptr;
+    int32_t end0, before0;            // offsets at tx = 0 for the current row
+    const int32_t* endFix = nullptr;  // x-major segments: per-tx pattern corrections (x stride)
+    const int32_t* beforeFix = nullptr;
   };
   struct State {
     std::vector<Item> items;
-    std::vector<int16_t> fixes;
+    std::vector<int32_t> fixes;
     const OrientedTemplate* t = nullptr;
-    int tyMin = 0;
+    int txMin = 0;
   };
-  void prepare(const OrientedTemplate& t, int tyMin, int tyMax, State& s) const;
-  void beginColumn(State& s, int tx) const;
-  uint32_t evaluate(const State& s, int ty, uint32_t stop, uint64_t& segments) const {
-    const int32_t row = ty * idt_.stride();
-    const int k = ty - s.tyMin;
+  void prepare(const OrientedTemplate& t, int txMin, int txMax, State& s) const;
+  void beginRow(State& s, int ty) const;
+  uint32_t evaluate(const State& s, int tx, uint32_t stop, uint64_t& segments) const {
+    const int k = tx - s.txMin;
     uint32_t sum = 0;
     for (const Item& it : s.items) {
-      int32_t e = it.end0 + row, b = it.before0 + row;
+      int32_t e = it.end0 + tx, b = it.before0 + tx;
       if (it.endFix) {
         e += it.endFix[k];
         b += it.beforeFix[k];
@@ -92,11 +93,11 @@ public:
   struct State {
     std::vector<int32_t> offsets;  // template pixels relative to the origin, row-major
     std::vector<Segment> segments;
-    int32_t column = 0;
+    int32_t row = 0;
   };
-  void prepare(const OrientedTemplate& t, int tyMin, int tyMax, State& s) const;
-  void beginColumn(State& s, int tx) const { s.column = tx; }
-  uint32_t evaluate(const State& s, int ty, uint32_t stop, uint64_t& segments) const;
+  void prepare(const OrientedTemplate& t, int txMin, int txMax, State& s) const;
+  void beginRow(State& s, int ty) const { s.row = ty * costs_.distance.cols; }
+  uint32_t evaluate(const State& s, int tx, uint32_t stop, uint64_t& segments) const;
 
 private:
   const ChamferCosts& costs_;
@@ -112,11 +113,11 @@ public:
   int height() const { return dt3_.height(); }
   struct State {
     const OrientedTemplate* t = nullptr;
-    int tx = 0;
+    int ty = 0;
   };
   void prepare(const OrientedTemplate& t, int, int, State& s) const { s.t = &t; }
-  void beginColumn(State& s, int tx) const { s.tx = tx; }
-  uint32_t evaluate(const State& s, int ty, uint32_t stop, uint64_t& segments) const;
+  void beginRow(State& s, int ty) const { s.ty = ty; }
+  uint32_t evaluate(const State& s, int tx, uint32_t stop, uint64_t& segments) const;
 
 private:
   const DirectionalDistanceTransform& dt3_;

@@ -24,10 +24,10 @@ void build(Query& q, const Dt3Params& p) {
 template <class M>
 uint32_t fullCost(const M& m, const OrientedTemplate& t, int tx, int ty) {
   typename M::State s;
-  m.prepare(t, t.tyMin(), t.tyMax(m.height()), s);
-  m.beginColumn(s, tx);
+  m.prepare(t, t.txMin(), t.txMax(m.width()), s);
+  m.beginRow(s, ty);
   uint64_t segs = 0;
-  return m.evaluate(s, ty, std::numeric_limits<uint32_t>::max(), segs);
+  return m.evaluate(s, tx, std::numeric_limits<uint32_t>::max(), segs);
 }
 }  // namespace
 
