@@ -53,7 +53,14 @@ struct Query {
     std::mt19937 rng(1);
     cv::Mat1b img(480, 640, uchar(70));
     std::uniform_int_distribution<int> ux(0, 639), uy(0, 479), ug(30, 150);
-    for (int i = 0; i < 60; ++i) cv::line(img, {ux(rng), uy(rng)}, {ux(rng), uy(rng)}, ug(rng), 1, cv::LINE_AA);
+    std::uniform_real_distribution<double> ua(0, CV_PI), ul(20, 160);
+    // Clutter: 80 random segments of 20..160 px (the paper corrupts its depth-edge maps with
+    // uniformly sampled line segments).
+    for (int i = 0; i < 80; ++i) {
+      const cv::Point a(ux(rng), uy(rng));
+      const double ang = ua(rng), len = ul(rng);
+      cv::line(img, a, a + cv::Point(cvRound(len * std::cos(ang)), cvRound(len * std::sin(ang))), ug(rng), 1, cv::LINE_AA);
+    }
     for (int k = 0; k < 8; ++k)
       cv::fillPoly(img, std::vector<std::vector<cv::Point>>{place(kTNut, {90.0 + (k % 4) * 150, 120.0 + (k / 4) * 230}, k * 0.7)}, 200);
     for (int k = 0; k < 6; ++k) {

@@ -51,8 +51,8 @@ def main(bench_dir, docs_dir):
       "(`-O3 -march=x86-64-v2`), run %s. These machines are shared and noisy: compare ratios within one run, "
       "not absolute times across runs.\n" % (ctx.get("num_cpus"), ctx.get("mhz_per_cpu"),
                                               " ".join("%.2f" % x for x in ctx.get("load_avg", [])), ctx.get("date")))
-    w("The query for every FDCM benchmark is the same 640x480 grey scene: 8 T-nut parts, 6 curved blobs, 60 "
-      "anti-aliased clutter lines and Gaussian noise (sigma 5), through Canny (50/150) and the line fitter, "
+    w("The query for every FDCM benchmark is the same 640x480 grey scene: 8 T-nut parts, 6 curved blobs, 80 "
+      "anti-aliased clutter segments of 20-160 px and Gaussian noise (sigma 5), through Canny (50/150) and the line fitter, "
       "as `mfc-match` would see it.\n")
 
     fit = b.get("BM_LineFit640x480")
