@@ -378,9 +378,12 @@ void MfcRenderer::draw_scene(std::span<const ScenePart> parts, bool shading) {
     // One perspective shadow map per LED, looking along +z from the LED. Its field of view
     // covers the camera's frustum from the near plane on, whatever the LED's offset.
     const double n = wd * options_.shadow_near_fraction, f = wd * options_.shadow_far_fraction;
-    const double W = size.width, H = size.height;
-    const double tan_x = std::max(camera_.cx() + 0.5, W - 0.5 - camera_.cx()) / camera_.fx();
-    const double tan_y = std::max(camera_.cy() + 0.5, H - 0.5 - camera_.cy()) / camera_.fy();
+    // The frustum comes from the configured full-frame camera, not a cropped one, so that
+    // a window render sees exactly the same shadows as the full frame.
+    const PinholeCamera& full = config_.camera;
+    const double W = full.image_size.width, H = full.image_size.height;
+    const double tan_x = std::max(full.cx() + 0.5, W - 0.5 - full.cx()) / full.fx();
+    const double tan_y = std::max(full.cy() + 0.5, H - 0.5 - full.cy()) / full.fy();
     const int S = options_.shadow_map_size;
     glUseProgram(g.shadow_program);
     glBindFramebuffer(GL_FRAMEBUFFER, g.shadow_fbo);
