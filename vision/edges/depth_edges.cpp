@@ -42,6 +42,7 @@ DepthEdgeExtractor::DepthEdgeExtractor(const PinholeCamera& camera, const FlashR
   ratio_.resize(epipoles_.size());
   for (auto& r : ratio_) r.create(size);
   response_.create(size);
+  inv_max_.create(1, size.width);
   normal_x_.create(size);
   normal_y_.create(size);
   state_.create(size);
@@ -80,9 +81,11 @@ void DepthEdgeExtractor::extract(const MfcFrames& frames, DepthEdges& out) {
         mx[x] = std::max(mx[x], v);
       }
     }
+    float* inv = inv_max_.ptr<float>(0);  // one row of scratch
+    for (int x = 0; x < W; ++x) inv[x] = mx[x] >= min_flash ? 1.f / mx[x] : 0.f;
     for (size_t i = 0; i < n; ++i) {
       float* r = ratio_[i].ptr<float>(y);
-      for (int x = 0; x < W; ++x) r[x] = mx[x] >= min_flash ? r[x] / mx[x] : 1.f;
+      for (int x = 0; x < W; ++x) r[x] = inv[x] > 0.f ? r[x] * inv[x] : 1.f;
     }
   }
 
@@ -106,11 +109,15 @@ void DepthEdgeExtractor::extract(const MfcFrames& frames, DepthEdges& out) {
       const auto ex = static_cast<float>(epipoles_[i].ex), ey = static_cast<float>(epipoles_[i].ey),
                  ez = static_cast<float>(epipoles_[i].ez);
       const float dy_raw = ez * static_cast<float>(y) - ey;
+      // An LED in the lens plane (ez = 0) has its epipole at infinity: one direction for
+      // the whole image, normalised once per row instead of per pixel.
+      const bool constant = ez == 0.f;
+      const float inv_row = constant ? 1.f / std::sqrt(ex * ex + ey * ey + 1e-20f) : 0.f;
       for (int x = 1; x + 1 < W; ++x) {
         const float gx = 0.25f * ((r0[x + 1] - r0[x - 1]) + 2.f * (r1[x + 1] - r1[x - 1]) + (r2[x + 1] - r2[x - 1]));
         const float gy = 0.25f * ((r2[x - 1] + 2.f * r2[x] + r2[x + 1]) - (r0[x - 1] + 2.f * r0[x] + r0[x + 1]));
         const float dx_raw = ez * static_cast<float>(x) - ex;
-        const float inv = 1.f / std::sqrt(dx_raw * dx_raw + dy_raw * dy_raw + 1e-20f);
+        const float inv = constant ? inv_row : 1.f / std::sqrt(dx_raw * dx_raw + dy_raw * dy_raw + 1e-20f);
         const float along = -(gx * dx_raw + gy * dy_raw) * inv;
         const float r = std::max(along, 0.f);
         // Weighting by the response keeps the normal continuous in the inputs: a flash
