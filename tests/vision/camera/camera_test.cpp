@@ -1,0 +1,150 @@
+#include "vision/camera/camera.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <sstream>
+
+using namespace mfcd::vision;
+namespace fs = std::filesystem;
+
+namespace {
+
+fs::path temp_file(const std::string& name) {
+  fs::path dir = fs::temp_directory_path() / ("mfcd-camera-test-" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  return dir / name;
+}
+
+std::string read_all(const fs::path& p) {
+  std::ifstream in(p);
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+void write_all(const fs::path& p, const std::string& s) { std::ofstream(p) << s; }
+
+// Runs load_camera_config and returns the error message (empty if it loaded).
+std::string load_error(const fs::path& p) {
+  try {
+    load_camera_config(p);
+  } catch (const std::runtime_error& e) {
+    return e.what();
+  }
+  return "";
+}
+
+const fs::path kSimYaml = fs::path(MFC_SOURCE_DIR) / "config" / "camera-sim.yaml";
+
+}  // namespace
+
+TEST(CameraConfig, DefaultSimulationFileLoads) {
+  const CameraConfig c = load_camera_config(kSimYaml);
+  EXPECT_EQ(c.camera.image_size, cv::Size(640, 480));
+  EXPECT_DOUBLE_EQ(c.camera.fx(), 1100.0);
+  EXPECT_DOUBLE_EQ(c.working_distance_mm, 300.0);
+  ASSERT_EQ(c.flashes.positions_mm.size(), 8u);
+  ASSERT_TRUE(c.flashes.ring.has_value());
+  // LED 0 on +x (image right), LED 2 on +y (image down), 40 mm from the axis.
+  EXPECT_NEAR(c.flashes.positions_mm[0][0], 40.0, 1e-12);
+  EXPECT_NEAR(c.flashes.positions_mm[2][1], 40.0, 1e-12);
+  for (const auto& p : c.flashes.positions_mm) EXPECT_NEAR(std::hypot(p[0], p[1]), 40.0, 1e-9);
+  // A 40-80 mm part at the working distance spans about 150-290 px, as the file promises.
+  EXPECT_NEAR(c.camera.fx() * 40 / c.working_distance_mm, 146.7, 0.1);
+}
+
+TEST(CameraConfig, RoundTripsRingAndMeasuredPositions) {
+  CameraConfig c = load_camera_config(kSimYaml);
+  c.camera.K(0, 2) = 321.25;
+  c.camera.distortion = {0.1, -0.02, 0.001, 0.002, 0.003};
+  const fs::path ring = temp_file("ring.yaml");
+  save_camera_config(c, ring);
+  const CameraConfig r = load_camera_config(ring);
+  EXPECT_EQ(r.camera.K, c.camera.K);
+  EXPECT_EQ(r.camera.distortion, c.camera.distortion);
+  EXPECT_EQ(r.flashes.positions_mm, c.flashes.positions_mm);
+
+  c.flashes.ring.reset();
+  c.flashes.positions_mm[3] += cv::Vec3d(0.5, -0.25, 1.0);  // a measured, off-ring LED
+  const fs::path measured = temp_file("measured.yaml");
+  save_camera_config(c, measured);
+  const CameraConfig m = load_camera_config(measured);
+  EXPECT_FALSE(m.flashes.ring.has_value());
+  EXPECT_EQ(m.flashes.positions_mm, c.flashes.positions_mm);
+}
+
+TEST(CameraConfig, MissingKeyIsNamedWithTheFile) {
+  std::string text = read_all(kSimYaml);
+  const auto at = text.find("working_distance_mm");
+  text.replace(at, std::string("working_distance_mm").size(), "working_distance_cm");
+  const fs::path p = temp_file("missing.yaml");
+  write_all(p, text);
+  const std::string err = load_error(p);
+  EXPECT_NE(err.find("working_distance_mm"), std::string::npos) << err;
+  EXPECT_NE(err.find(p.string()), std::string::npos) << err;
+}
+
+TEST(CameraConfig, MalformedValuesAreNamed) {
+  struct Case {
+    std::string from, to, key;
+  };
+  const std::vector<Case> cases = {
+      {"image_width: 640", "image_width: wide", "image_width"},
+      {"image_height: 480", "image_height: -4", "image_height"},
+      {"ring_radius_mm: 40.", "ring_radius_mm: [1, 2]", "flashes.ring_radius_mm"},
+      {"count: 8", "count: 6", "flashes.count"},
+      {"data: [ 1100., 0., 319.5", "data: [ -1100., 0., 319.5", "camera_matrix"},
+      {"cols: 5", "cols: 1", "distortion_coefficients"},
+  };
+  for (const auto& c : cases) {
+    std::string text = read_all(kSimYaml);
+    const auto at = text.find(c.from);
+    ASSERT_NE(at, std::string::npos) << c.from;
+    text.replace(at, c.from.size(), c.to);
+    const fs::path p = temp_file("bad.yaml");
+    write_all(p, text);
+    const std::string err = load_error(p);
+    EXPECT_NE(err.find("'" + c.key + "'"), std::string::npos) << c.to << " -> " << err;
+    EXPECT_NE(err.find(p.string()), std::string::npos) << err;
+  }
+}
+
+TEST(CameraConfig, NotYamlOrMissingFileIsAnError) {
+  const fs::path p = temp_file("garbage.yaml");
+  write_all(p, "%YAML:1.0\n---\nimage_width: [unclosed\n");
+  EXPECT_NE(load_error(p).find(p.string()), std::string::npos);
+  EXPECT_NE(load_error(temp_file("does-not-exist.yaml")).find("does-not-exist.yaml"), std::string::npos);
+}
+
+// The closed-form shadow direction against the definition: the image of P + s (P - L)
+// for a small s > 0 (P moved away from the LED along the light ray).
+TEST(FlashEpipole, ShadowDirectionMatchesProjectedLightRay) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-1, 1);
+  PinholeCamera cam;
+  cam.K = cv::Matx33d(1100, 0, 319.5, 0, 1050, 239.5, 0, 0, 1);
+  for (int trial = 0; trial < 1000; ++trial) {
+    const cv::Vec3d L(60 * u(rng), 60 * u(rng), trial % 2 ? 0.0 : 20 * u(rng));
+    const cv::Vec3d P(100 * u(rng), 80 * u(rng), 300 + 100 * u(rng));
+    const cv::Point2d p = cam.project(P);
+    const cv::Point2d q = cam.project(P + 1e-4 * (P - L));
+    const cv::Vec2d expect = cv::normalize(cv::Vec2d(q.x - p.x, q.y - p.y));
+    const cv::Vec2d got = cv::normalize(flash_epipole(cam, L).shadow_direction(p.x, p.y));
+    EXPECT_NEAR(expect.dot(got), 1.0, 1e-6) << "trial " << trial;
+  }
+}
+
+TEST(PinholeCamera, CroppedCameraProjectsIntoTheWindow) {
+  PinholeCamera cam;
+  cam.K = cv::Matx33d(1100, 0, 319.5, 0, 1100, 239.5, 0, 0, 1);
+  const cv::Rect win(100, 50, 200, 150);
+  const PinholeCamera c = cam.cropped(win);
+  EXPECT_EQ(c.image_size, win.size());
+  const cv::Vec3d P(12, -7, 310);
+  EXPECT_NEAR(c.project(P).x, cam.project(P).x - win.x, 1e-9);
+  EXPECT_NEAR(c.project(P).y, cam.project(P).y - win.y, 1e-9);
+}

@@ -1,0 +1,53 @@
+// Per-view cost of the simulated MFC: 8 flash images + ambient + depth + part index.
+#include "vision/render/mfc_renderer.hpp"
+
+#include <benchmark/benchmark.h>
+
+using namespace mfcd::vision;
+
+namespace {
+
+std::vector<ScenePart> scene(MfcRenderer& r) {
+  const cv::Matx33d R(0.9, -0.3, 0.3, 0.36, 0.93, -0.08, -0.26, 0.18, 0.95);  // about 25 deg tilt
+  return {{r.add_mesh(make_plane(800)), cv::Matx33d::eye(), {0, 0, 330}, Material::matte(0.5f)},
+          {r.add_mesh(make_cylinder(25, 30, 128)), R, {0, 0, 305}, Material::matte()}};
+}
+
+void BM_RenderMfcFullFrame(benchmark::State& state) {
+  RenderOptions opt;
+  opt.noise.enabled = state.range(0) != 0;
+  MfcRenderer r(load_camera_config(MFC_SOURCE_DIR "/config/camera-sim.yaml"), opt);
+  const auto parts = scene(r);
+  MfcRender out;
+  for (auto _ : state) r.render(parts, out);
+  state.SetLabel(opt.noise.enabled ? "640x480, noise" : "640x480, no noise");
+}
+BENCHMARK(BM_RenderMfcFullFrame)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+
+// Template generation renders only a window around the part.
+void BM_RenderMfcWindow(benchmark::State& state) {
+  RenderOptions opt;
+  opt.noise.enabled = false;
+  const CameraConfig cfg = load_camera_config(MFC_SOURCE_DIR "/config/camera-sim.yaml");
+  MfcRenderer r(cfg, opt);
+  const auto parts = scene(r);
+  const int side = static_cast<int>(state.range(0));
+  r.set_camera(cfg.camera.cropped({320 - side / 2, 240 - side / 2, side, side}));
+  MfcRender out;
+  for (auto _ : state) r.render(parts, out);
+  state.SetLabel(std::to_string(side) + "x" + std::to_string(side) + " window, no noise");
+}
+BENCHMARK(BM_RenderMfcWindow)->Arg(256)->Unit(benchmark::kMillisecond);
+
+void BM_RenderDepthOnly(benchmark::State& state) {
+  MfcRenderer r(load_camera_config(MFC_SOURCE_DIR "/config/camera-sim.yaml"));
+  const auto parts = scene(r);
+  cv::Mat1f depth;
+  cv::Mat1b index;
+  for (auto _ : state) r.render_depth(parts, depth, index);
+}
+BENCHMARK(BM_RenderDepthOnly)->Unit(benchmark::kMillisecond);
+
+}  // namespace
+
+BENCHMARK_MAIN();

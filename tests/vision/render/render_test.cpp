@@ -1,0 +1,316 @@
+// Rendering checked against analytic ray casting of the same shapes: depth within 0.1 mm,
+// silhouettes within 1 px, LED shadows where the light ray is blocked.
+#include "vision/render/mfc_renderer.hpp"
+
+#include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
+
+#include <cmath>
+#include <functional>
+#include <optional>
+
+using namespace mfcd::vision;
+
+namespace {
+
+CameraConfig sim_config() { return load_camera_config(MFC_SOURCE_DIR "/config/camera-sim.yaml"); }
+
+cv::Matx33d rotation(double rx, double ry, double rz) {
+  // Rodrigues' formula (calib3d is not a dependency of this area).
+  const cv::Vec3d w(rx, ry, rz);
+  const double th = cv::norm(w);
+  if (th < 1e-15) return cv::Matx33d::eye();
+  const cv::Vec3d k = w / th;
+  const cv::Matx33d Kx(0, -k[2], k[1], k[2], 0, -k[0], -k[1], k[0], 0);
+  return cv::Matx33d::eye() + std::sin(th) * Kx + (1 - std::cos(th)) * Kx * Kx;
+}
+
+// Ray o + s d (object frame) against an analytic shape: smallest s > 0, if any.
+using Shape = std::function<std::optional<double>(const cv::Vec3d& o, const cv::Vec3d& d)>;
+
+Shape box_shape(cv::Vec3d half) {
+  return [half](const cv::Vec3d& o, const cv::Vec3d& d) -> std::optional<double> {
+    double lo = -1e300, hi = 1e300;
+    for (int k = 0; k < 3; ++k) {
+      if (std::abs(d[k]) < 1e-15) {
+        if (std::abs(o[k]) > half[k]) return std::nullopt;
+        continue;
+      }
+      double a = (-half[k] - o[k]) / d[k], b = (half[k] - o[k]) / d[k];
+      if (a > b) std::swap(a, b);
+      lo = std::max(lo, a);
+      hi = std::min(hi, b);
+    }
+    if (lo > hi || hi <= 1e-9) return std::nullopt;
+    return lo > 1e-9 ? lo : hi;
+  };
+}
+
+Shape sphere_shape(double r) {
+  return [r](const cv::Vec3d& o, const cv::Vec3d& d) -> std::optional<double> {
+    const double a = d.dot(d), b = 2 * o.dot(d), c = o.dot(o) - r * r;
+    const double disc = b * b - 4 * a * c;
+    if (disc < 0) return std::nullopt;
+    const double s = (-b - std::sqrt(disc)) / (2 * a);
+    return s > 0 ? std::optional<double>(s) : std::nullopt;
+  };
+}
+
+Shape cylinder_shape(double r, double h) {  // axis z, from -h/2 to h/2
+  return [r, h](const cv::Vec3d& o, const cv::Vec3d& d) -> std::optional<double> {
+    std::optional<double> best;
+    auto take = [&](double s) {
+      if (s > 1e-9 && (!best || s < *best)) best = s;
+    };
+    const double a = d[0] * d[0] + d[1] * d[1], b = 2 * (o[0] * d[0] + o[1] * d[1]),
+                 c = o[0] * o[0] + o[1] * o[1] - r * r;
+    const double disc = b * b - 4 * a * c;
+    if (a > 1e-15 && disc >= 0)
+      for (double s : {(-b - std::sqrt(disc)) / (2 * a), (-b + std::sqrt(disc)) / (2 * a)})
+        if (std::abs(o[2] + s * d[2]) <= h / 2) take(s);
+    if (std::abs(d[2]) > 1e-15)
+      for (double zc : {-h / 2, h / 2}) {
+        const double s = (zc - o[2]) / d[2];
+        const double x = o[0] + s * d[0], y = o[1] + s * d[1];
+        if (x * x + y * y <= r * r) take(s);
+      }
+    return best;
+  };
+}
+
+// Depth (camera z) of the analytic shape at each pixel centre, 0 where the ray misses.
+cv::Mat1f analytic_depth(const PinholeCamera& cam, const Shape& shape, const cv::Matx33d& R, const cv::Vec3d& t) {
+  cv::Mat1f depth(cam.image_size, 0.f);
+  const cv::Matx33d Kinv = cam.K.inv();
+  const cv::Vec3d o = R.t() * (-t);
+  for (int v = 0; v < depth.rows; ++v)
+    for (int u = 0; u < depth.cols; ++u) {
+      const cv::Vec3d ray = Kinv * cv::Vec3d(u, v, 1);  // z component 1: s is the depth
+      if (auto s = shape(o, R.t() * ray)) depth(v, u) = static_cast<float>(*s);
+    }
+  return depth;
+}
+
+struct Comparison {
+  double max_depth_error_mm = 0;
+  int compared = 0;
+  int silhouette_mismatches_beyond_1px = 0;
+  int silhouette_mismatches = 0;
+};
+
+// Depth is compared away from silhouettes (where a pixel centre may fall either side
+// of the tessellated outline); every coverage mismatch must have the analytic outline
+// within 1 px (a 3x3 neighbourhood holding both hit and miss).
+Comparison compare(const cv::Mat1f& rendered, const cv::Mat1f& analytic, double max_slope = 3.0) {
+  Comparison c;
+  for (int v = 1; v + 1 < rendered.rows; ++v)
+    for (int u = 1; u + 1 < rendered.cols; ++u) {
+      const bool hr = rendered(v, u) > 0, ha = analytic(v, u) > 0;
+      bool any_hit = false, any_miss = false;
+      double slope = 0;
+      for (int dv = -1; dv <= 1; ++dv)
+        for (int du = -1; du <= 1; ++du) {
+          const float a = analytic(v + dv, u + du);
+          (a > 0 ? any_hit : any_miss) = true;
+          if (a > 0 && ha) slope = std::max(slope, std::abs(double(a) - analytic(v, u)));
+        }
+      if (hr != ha) {
+        ++c.silhouette_mismatches;
+        if (!(any_hit && any_miss)) ++c.silhouette_mismatches_beyond_1px;
+        continue;
+      }
+      // Grazing surfaces (depth changing by more than max_slope mm per pixel) are
+      // dominated by the tessellation, not the renderer.
+      if (hr && !any_miss && slope < max_slope) {
+        c.max_depth_error_mm = std::max(c.max_depth_error_mm, std::abs(double(rendered(v, u)) - analytic(v, u)));
+        ++c.compared;
+      }
+    }
+  return c;
+}
+
+struct ShapeCase {
+  const char* name;
+  Mesh mesh;
+  Shape shape;
+};
+
+std::vector<ShapeCase> shape_cases() {
+  return {{"box", make_box(40, 30, 20), box_shape({20, 15, 10})},
+          {"sphere", make_uv_sphere(25, 512, 256), sphere_shape(25)},
+          {"cylinder", make_cylinder(20, 40, 512), cylinder_shape(20, 40)}};
+}
+
+}  // namespace
+
+TEST(MfcRenderer, UsesAnOpenGlRenderer) {
+  MfcRenderer r(sim_config());
+  EXPECT_FALSE(r.gl_renderer().empty());
+  std::printf("GL renderer: %s\n", r.gl_renderer().c_str());
+}
+
+TEST(MfcRenderer, DepthAndSilhouetteMatchAnalyticShapes) {
+  MfcRenderer r(sim_config());
+  const std::vector<std::pair<cv::Matx33d, cv::Vec3d>> poses = {
+      {cv::Matx33d::eye(), {0, 0, 300}},
+      {rotation(0.4, -0.3, 0.2), {25, -10, 280}},
+      {rotation(-1.1, 0.5, 2.0), {-40, 30, 330}},
+  };
+  for (const auto& sc : shape_cases()) {
+    const int id = r.add_mesh(sc.mesh);
+    for (const auto& [R, t] : poses) {
+      const ScenePart part{id, R, t, Material::matte()};
+      cv::Mat1f depth;
+      cv::Mat1b index;
+      r.render_depth(std::span(&part, 1), depth, index);
+      const cv::Mat1f truth = analytic_depth(r.camera(), sc.shape, R, t);
+      const Comparison c = compare(depth, truth);
+      EXPECT_GT(c.compared, 5000) << sc.name;
+      EXPECT_LT(c.max_depth_error_mm, 0.1) << sc.name << " t=" << t;
+      EXPECT_EQ(c.silhouette_mismatches_beyond_1px, 0) << sc.name << " t=" << t;
+      for (int v = 0; v < depth.rows; ++v)
+        for (int u = 0; u < depth.cols; ++u) ASSERT_EQ(index(v, u) == 1, depth(v, u) > 0);
+    }
+  }
+}
+
+// The full MFC render fills the same depth as the depth-only pass.
+TEST(MfcRenderer, FullRenderDepthEqualsDepthPass) {
+  MfcRenderer r(sim_config());
+  const ScenePart part{r.add_mesh(make_cylinder(20, 40, 64)), rotation(0.3, 0.2, 0), {5, 5, 300}, Material::shiny()};
+  MfcRender out;
+  r.render(std::span(&part, 1), out);
+  cv::Mat1f depth;
+  cv::Mat1b index;
+  r.render_depth(std::span(&part, 1), depth, index);
+  EXPECT_EQ(cv::norm(out.depth_mm, depth, cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(out.part_index, index, cv::NORM_INF), 0.0);
+  ASSERT_EQ(out.frames.flash.size(), 8u);
+}
+
+// A box standing on a plane: a plane point is in LED i's shadow exactly when the segment
+// from it to the LED passes through the box.
+TEST(MfcRenderer, CastShadowsMatchAnalyticLightRays) {
+  const CameraConfig cfg = sim_config();
+  RenderOptions opt;
+  opt.noise.enabled = false;
+  MfcRenderer r(cfg, opt);
+  const double floor_z = 330;
+  const cv::Vec3d box_t(-10, 5, 315);  // 30 mm tall box on the floor
+  const cv::Matx33d box_R = rotation(0, 0, 0.5);
+  const std::vector<ScenePart> parts = {
+      {r.add_mesh(make_plane(800)), cv::Matx33d::eye(), {0, 0, floor_z}, Material::matte(0.6f)},
+      {r.add_mesh(make_box(40, 30, 30)), box_R, box_t, Material::matte(0.8f)}};
+  MfcRender out;
+  r.render(parts, out);
+  const Shape box = box_shape({20, 15, 15});
+  const cv::Matx33d Kinv = r.camera().K.inv();
+  for (int i = 0; i < 8; ++i) {
+    const cv::Vec3d L = cfg.flashes.positions_mm[static_cast<size_t>(i)];
+    cv::Mat1b truth(out.depth_mm.size(), 0), seen(out.depth_mm.size(), 0), floor(out.depth_mm.size(), 0);
+    for (int v = 0; v < truth.rows; ++v)
+      for (int u = 0; u < truth.cols; ++u) {
+        if (out.part_index(v, u) != 1) continue;
+        floor(v, u) = 255;
+        const cv::Vec3d P = Kinv * cv::Vec3d(u, v, 1) * floor_z;
+        const auto s = box(box_R.t() * (P - box_t), box_R.t() * (L - P));
+        truth(v, u) = (s && *s < 1.0) ? 255 : 0;
+        // Shadowed: the flash adds (almost) nothing to the ambient light.
+        const float flash = out.flash_linear[static_cast<size_t>(i)](v, u) - out.ambient_linear(v, u);
+        seen(v, u) = flash < 5.0f ? 255 : 0;
+      }
+    cv::Mat1b diff = truth != seen, truth_edge, band;
+    cv::morphologyEx(truth, truth_edge, cv::MORPH_GRADIENT, cv::Mat());
+    cv::dilate(truth_edge, band, cv::Mat(), {-1, -1}, 1);
+    diff.setTo(0, band);
+    EXPECT_GT(cv::countNonZero(truth), 500) << "LED " << i;
+    EXPECT_EQ(cv::countNonZero(diff), 0) << "LED " << i << ": shadow pixels more than 1 px off the analytic shadow";
+  }
+}
+
+TEST(MfcRenderer, SeveralPartsOccludeAndAreIndexed) {
+  MfcRenderer r(sim_config());
+  const int cube = r.add_mesh(make_box(30, 30, 30));
+  const std::vector<ScenePart> parts = {{cube, cv::Matx33d::eye(), {0, 0, 320}, Material::matte()},
+                                        {cube, cv::Matx33d::eye(), {10, 0, 290}, Material::matte()},
+                                        {cube, cv::Matx33d::eye(), {-60, 0, 300}, Material::matte()}};
+  cv::Mat1f depth;
+  cv::Mat1b index;
+  r.render_depth(parts, depth, index);
+  const cv::Point2d front = r.camera().project({10, 0, 275}), back_only = r.camera().project({-10, 0, 305}),
+                    side = r.camera().project({-60, 0, 285});
+  EXPECT_EQ(index(cv::Point(front)), 2);
+  EXPECT_NEAR(depth(cv::Point(front)), 275.f, 0.01);
+  EXPECT_EQ(index(cv::Point(back_only)), 1);
+  EXPECT_NEAR(depth(cv::Point(back_only)), 305.f, 0.01);
+  EXPECT_EQ(index(cv::Point(side)), 3);
+  EXPECT_EQ(index(0, 0), 0);
+  EXPECT_EQ(depth(0, 0), 0.f);
+}
+
+TEST(MfcRenderer, CroppedCameraRendersTheSameWindow) {
+  MfcRenderer r(sim_config());
+  const ScenePart part{r.add_mesh(make_uv_sphere(25)), cv::Matx33d::eye(), {10, -5, 300}, Material::matte()};
+  MfcRender full, crop;
+  r.render(std::span(&part, 1), full);
+  const cv::Rect win(200, 120, 180, 150);
+  r.set_camera(r.config().camera.cropped(win));
+  r.render(std::span(&part, 1), crop);
+  EXPECT_LE(cv::norm(crop.depth_mm, full.depth_mm(win), cv::NORM_INF), 1e-3);
+  EXPECT_EQ(cv::norm(crop.part_index, full.part_index(win), cv::NORM_INF), 0.0);
+  for (int i = 0; i < 8; ++i)
+    EXPECT_LE(cv::norm(crop.flash_linear[static_cast<size_t>(i)], full.flash_linear[static_cast<size_t>(i)](win),
+                       cv::NORM_INF), 0.5);
+}
+
+TEST(MfcRenderer, NoiseIsSeededAndOfTheConfiguredSize) {
+  RenderOptions opt;
+  opt.noise.read_sigma_dn = 2.0;
+  opt.noise.shot_dn_per_electron = 0.1;
+  MfcRenderer r(sim_config(), opt);
+  const ScenePart floor{r.add_mesh(make_plane(1000)), cv::Matx33d::eye(), {0, 0, 300}, Material::matte(0.6f)};
+  MfcRender a, b, c;
+  r.render(std::span(&floor, 1), a, 42);
+  r.render(std::span(&floor, 1), b, 42);
+  r.render(std::span(&floor, 1), c, 43);
+  for (int i = 0; i < 8; ++i) {
+    EXPECT_EQ(cv::norm(a.frames.flash[static_cast<size_t>(i)], b.frames.flash[static_cast<size_t>(i)], cv::NORM_INF), 0.0);
+  }
+  EXPECT_GT(cv::norm(a.frames.flash[0], c.frames.flash[0], cv::NORM_L1), 0.0);
+  // Residual against the noise-free signal in the image centre: the flat floor is smooth
+  // there, so the residual is the sensor noise (plus quantisation, variance 1/12).
+  const cv::Rect centre(270, 190, 100, 100);
+  cv::Mat1f captured, residual;
+  a.frames.flash[0](centre).convertTo(captured, CV_32F);
+  cv::subtract(captured, a.flash_linear[0](centre), residual);
+  cv::Scalar mean, sd;
+  cv::meanStdDev(residual, mean, sd);
+  const double signal = cv::mean(a.flash_linear[0](centre))[0];
+  const double expected = std::sqrt(4.0 + 0.1 * signal + 1.0 / 12);
+  EXPECT_NEAR(mean[0], 0.0, 0.1);
+  EXPECT_NEAR(sd[0], expected, 0.1 * expected) << "signal " << signal;
+}
+
+// Shading: Lambert with inverse-square falloff. A white matte floor facing the camera at
+// the working distance, lit by an LED in the lens plane, has the configured brightness
+// times the cosine at the image centre.
+TEST(MfcRenderer, MatteFloorBrightnessFollowsLambert) {
+  RenderOptions opt;
+  opt.noise.enabled = false;
+  const CameraConfig cfg = sim_config();
+  MfcRenderer r(cfg, opt);
+  const double wd = cfg.working_distance_mm;
+  const ScenePart floor{r.add_mesh(make_plane(1000)), cv::Matx33d::eye(), {0, 0, wd}, Material::matte(1.0f)};
+  MfcRender out;
+  r.render(std::span(&floor, 1), out);
+  const cv::Point c(320, 240);
+  const cv::Vec3d P = r.camera().K.inv() * cv::Vec3d(c.x, c.y, 1) * wd;
+  for (int i = 0; i < 8; ++i) {
+    const cv::Vec3d to_led = cfg.flashes.positions_mm[static_cast<size_t>(i)] - P;
+    const double d = cv::norm(to_led);
+    const double cosine = -to_led[2] / d;  // floor normal (0, 0, -1) against the light direction
+    const double expected = opt.light.flash_dn * (wd * wd) / (d * d) * cosine;
+    const double got = out.flash_linear[static_cast<size_t>(i)](c) - out.ambient_linear(c);
+    EXPECT_NEAR(got, expected, 0.01 * expected) << "LED " << i;
+  }
+}

@@ -1,0 +1,61 @@
+#pragma once
+// Triangle meshes of parts, in millimetres: loaded from CAD exports (STL, OBJ, PLY) or
+// generated in code for tests (cube, sphere, cylinder, plane).
+
+#include <opencv2/core.hpp>
+
+#include <array>
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace mfcd::vision {
+
+struct Mesh {
+  std::vector<cv::Vec3f> vertices;               // mm, in the part's own frame
+  std::vector<std::array<uint32_t, 3>> triangles; // indices into vertices, counter-clockwise seen from outside
+  std::string name;
+
+  cv::Vec3f bbox_min() const;
+  cv::Vec3f bbox_max() const;
+};
+
+struct MeshLoadOptions {
+  // Millimetres per file unit: 1 for files in mm, 25.4 for inches, 1000 for metres.
+  double unit_mm = 1.0;
+  // Sizes outside [min_size_mm, max_size_mm] (largest bounding-box side) are rejected:
+  // they almost always mean a wrong unit.
+  double min_size_mm = 1.0;
+  double max_size_mm = 2000.0;
+};
+
+// Parses a unit name for --unit options: "mm", "cm", "m", "in"/"inch", or a number (mm per unit).
+double parse_unit_mm(const std::string& unit);
+
+// What validation found that is worth telling but does not stop loading.
+struct MeshReport {
+  size_t open_edges = 0;          // edges used by one triangle only (holes)
+  size_t non_manifold_edges = 0;  // edges used by more than two triangles
+  size_t degenerate_triangles = 0;
+  std::vector<std::string> warnings;
+};
+
+// Loads an STL (ASCII or binary), OBJ or PLY with assimp, merges all its meshes into one,
+// scales to mm and validates. Throws std::runtime_error naming the file on an unreadable,
+// empty or absurdly sized mesh; non-manifold geometry only adds warnings to *report
+// (and to syslog when report is null).
+Mesh load_mesh(const std::filesystem::path& file, const MeshLoadOptions& options = {}, MeshReport* report = nullptr);
+
+// Checks topology and size. Throws on an empty mesh, bad indices, non-finite vertices or
+// a size outside the options' range; returns the topology findings.
+MeshReport validate_mesh(const Mesh& mesh, const MeshLoadOptions& options = {}, const std::string& source = "mesh");
+
+// Closed, outward-oriented meshes centred on the origin.
+Mesh make_box(double sx, double sy, double sz);
+Mesh make_uv_sphere(double radius, int slices = 64, int stacks = 32);
+Mesh make_cylinder(double radius, double height, int slices = 64);  // axis z, from -h/2 to h/2
+// A square in the z = 0 plane, normal -z (facing a camera looking along +z), side `size`.
+Mesh make_plane(double size);
+
+}  // namespace mfcd::vision

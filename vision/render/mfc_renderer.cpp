@@ -1,0 +1,573 @@
+#include "vision/render/mfc_renderer.hpp"
+
+#define GL_GLEXT_PROTOTYPES 1
+#include <EGL/egl.h>
+#include <EGL/eglext.h>
+#include <GL/gl.h>
+#include <GL/glext.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <random>
+#include <stdexcept>
+#include <string>
+
+namespace mfcd::vision {
+
+namespace {
+
+constexpr int kFlashes = 8;
+
+[[noreturn]] void gl_fail(const std::string& what) { throw std::runtime_error("renderer: " + what); }
+
+const char* egl_error_name(EGLint e) {
+  switch (e) {
+    case EGL_SUCCESS: return "EGL_SUCCESS";
+    case EGL_NOT_INITIALIZED: return "EGL_NOT_INITIALIZED";
+    case EGL_BAD_ACCESS: return "EGL_BAD_ACCESS";
+    case EGL_BAD_ALLOC: return "EGL_BAD_ALLOC";
+    case EGL_BAD_ATTRIBUTE: return "EGL_BAD_ATTRIBUTE";
+    case EGL_BAD_CONFIG: return "EGL_BAD_CONFIG";
+    case EGL_BAD_CONTEXT: return "EGL_BAD_CONTEXT";
+    case EGL_BAD_DISPLAY: return "EGL_BAD_DISPLAY";
+    case EGL_BAD_MATCH: return "EGL_BAD_MATCH";
+    case EGL_BAD_PARAMETER: return "EGL_BAD_PARAMETER";
+    default: return "EGL error";
+  }
+}
+
+// Column-major 4x4 for glUniformMatrix4fv.
+using Mat4 = std::array<float, 16>;
+
+Mat4 to_gl(const cv::Matx44d& m) {
+  Mat4 out{};
+  for (int c = 0; c < 4; ++c)
+    for (int r = 0; r < 4; ++r) out[static_cast<size_t>(c * 4 + r)] = static_cast<float>(m(r, c));
+  return out;
+}
+
+// Camera frame -> clip space for a pinhole K, so that window pixel centres (x + 0.5, y + 0.5)
+// coincide with OpenCV pixel (x, y). Window row y = OpenCV row v (no flip): glReadPixels'
+// first row is image row 0. Depth is mapped to [near, far] in the usual OpenGL way.
+cv::Matx44d clip_from_camera(const cv::Matx33d& K, cv::Size size, double n, double f) {
+  const double W = size.width, H = size.height;
+  return {2 * K(0, 0) / W, 2 * K(0, 1) / W, 2 * (K(0, 2) + 0.5) / W - 1, 0,
+          0, 2 * K(1, 1) / H, 2 * (K(1, 2) + 0.5) / H - 1, 0,
+          0, 0, (f + n) / (f - n), -2 * f * n / (f - n),
+          0, 0, 1, 0};
+}
+
+cv::Matx44d model_matrix(const cv::Matx33d& R, const cv::Vec3d& t) {
+  return {R(0, 0), R(0, 1), R(0, 2), t[0], R(1, 0), R(1, 1), R(1, 2), t[1],
+          R(2, 0), R(2, 1), R(2, 2), t[2], 0, 0, 0, 1};
+}
+
+constexpr const char* kSceneVs = R"(#version 330 core
+layout(location = 0) in vec3 a_pos;
+layout(location = 1) in vec3 a_normal;
+uniform mat4 u_camera_from_model;
+uniform mat4 u_clip_from_camera;
+out vec3 v_pos;      // camera frame, mm
+out vec3 v_normal;   // camera frame
+out vec3 v_model;    // part frame, mm (for painted patterns)
+void main() {
+  vec4 p = u_camera_from_model * vec4(a_pos, 1.0);
+  v_pos = p.xyz;
+  v_normal = mat3(u_camera_from_model) * a_normal;
+  v_model = a_pos;
+  gl_Position = u_clip_from_camera * p;
+}
+)";
+
+constexpr const char* kSceneFs = R"(#version 330 core
+in vec3 v_pos;
+in vec3 v_normal;
+in vec3 v_model;
+layout(location = 0) out vec4 o_flash0123;
+layout(location = 1) out vec4 o_flash4567;
+layout(location = 2) out vec4 o_ambient_depth_id;
+uniform int u_shading;
+uniform float u_part_id;
+uniform vec3 u_led[8];
+uniform mat4 u_shadow_from_camera[8];   // camera frame -> shadow map [0,1]^3
+uniform sampler2DArrayShadow u_shadow;
+uniform float u_flash_dn;               // white matte facing an LED at the working distance
+uniform float u_working_distance;
+uniform float u_ambient_dn;
+uniform float u_room_dn;
+uniform vec3 u_room_dir;
+uniform float u_albedo, u_diffuse, u_specular, u_shininess;
+uniform int u_paint;                    // 0 none, 1 stripes, 2 checker
+uniform float u_paint_period, u_paint_albedo;
+uniform float u_normal_offset;
+
+float albedo() {
+  if (u_paint == 0) return u_albedo;
+  vec3 q = floor(v_model / u_paint_period);
+  float odd = (u_paint == 1) ? mod(q.x, 2.0) : mod(q.x + q.y + q.z, 2.0);
+  return odd > 0.5 ? u_paint_albedo : u_albedo;
+}
+
+void main() {
+  o_ambient_depth_id = vec4(0.0, v_pos.z, u_part_id, 0.0);
+  o_flash0123 = vec4(0.0);
+  o_flash4567 = vec4(0.0);
+  if (u_shading == 0) return;
+  vec3 n = normalize(v_normal);
+  vec3 view = normalize(-v_pos);
+  if (dot(n, view) < 0.0) n = -n;   // two-sided: open meshes and planes
+  float a = albedo();
+  float room = u_ambient_dn + u_room_dn * max(dot(n, normalize(u_room_dir)), 0.0);
+  o_ambient_depth_id.x = a * room;
+  float flash[8];
+  for (int i = 0; i < 8; ++i) {
+    vec3 to_led = u_led[i] - v_pos;
+    float d = length(to_led);
+    vec3 l = to_led / d;
+    float ndl = dot(n, l);
+    float value = 0.0;
+    if (ndl > 0.0) {
+      vec3 h = normalize(l + view);
+      float spec = u_specular * pow(max(dot(n, h), 0.0), u_shininess);
+      float falloff = (u_working_distance * u_working_distance) / (d * d);
+      // Offset along the normal (scaled with distance) against self-shadowing acne.
+      vec4 s = u_shadow_from_camera[i] * vec4(v_pos + n * u_normal_offset * d, 1.0);
+      vec3 sc = s.xyz / s.w;
+      float lit = 1.0;
+      if (all(greaterThanEqual(sc.xy, vec2(0.0))) && all(lessThanEqual(sc.xy, vec2(1.0))))
+        lit = texture(u_shadow, vec4(sc.xy, float(i), sc.z));
+      value = u_flash_dn * falloff * lit * (u_diffuse * a * ndl + spec * ndl);
+    }
+    flash[i] = value;
+  }
+  o_flash0123 = vec4(flash[0], flash[1], flash[2], flash[3]);
+  o_flash4567 = vec4(flash[4], flash[5], flash[6], flash[7]);
+}
+)";
+
+constexpr const char* kShadowVs = R"(#version 330 core
+layout(location = 0) in vec3 a_pos;
+uniform mat4 u_clip_from_model;
+void main() { gl_Position = u_clip_from_model * vec4(a_pos, 1.0); }
+)";
+
+constexpr const char* kShadowFs = R"(#version 330 core
+void main() {}
+)";
+
+GLuint compile(GLenum type, const char* src) {
+  GLuint s = glCreateShader(type);
+  glShaderSource(s, 1, &src, nullptr);
+  glCompileShader(s);
+  GLint ok = 0;
+  glGetShaderiv(s, GL_COMPILE_STATUS, &ok);
+  if (!ok) {
+    std::string log(4096, '\0');
+    glGetShaderInfoLog(s, static_cast<GLsizei>(log.size()), nullptr, log.data());
+    gl_fail("shader compile failed: " + log);
+  }
+  return s;
+}
+
+GLuint link(const char* vs, const char* fs) {
+  GLuint p = glCreateProgram();
+  GLuint v = compile(GL_VERTEX_SHADER, vs), f = compile(GL_FRAGMENT_SHADER, fs);
+  glAttachShader(p, v);
+  glAttachShader(p, f);
+  glLinkProgram(p);
+  glDeleteShader(v);
+  glDeleteShader(f);
+  GLint ok = 0;
+  glGetProgramiv(p, GL_LINK_STATUS, &ok);
+  if (!ok) {
+    std::string log(4096, '\0');
+    glGetProgramInfoLog(p, static_cast<GLsizei>(log.size()), nullptr, log.data());
+    gl_fail("shader link failed: " + log);
+  }
+  return p;
+}
+
+}  // namespace
+
+struct MfcRenderer::Gl {
+  EGLDisplay display = EGL_NO_DISPLAY;
+  EGLContext context = EGL_NO_CONTEXT;
+  GLuint scene_program = 0, shadow_program = 0;
+  GLuint shadow_tex = 0, shadow_fbo = 0;
+  GLuint fbo = 0, depth_rb = 0;
+  std::array<GLuint, 3> color_tex{};
+  cv::Size fbo_size{0, 0};
+  struct GpuMesh {
+    GLuint vao = 0, vbo = 0;
+    GLsizei vertex_count = 0;
+  };
+  std::vector<GpuMesh> meshes;
+
+  void make_current() const {
+    if (!eglMakeCurrent(display, EGL_NO_SURFACE, EGL_NO_SURFACE, context))
+      gl_fail(std::string("eglMakeCurrent failed: ") + egl_error_name(eglGetError()));
+  }
+};
+
+MfcRenderer::MfcRenderer(const CameraConfig& config, const RenderOptions& options)
+    : config_(config), camera_(config.camera), options_(options), gl_(std::make_unique<Gl>()) {
+  validate_camera_config(config_);
+  if (config_.flashes.positions_mm.size() != kFlashes) gl_fail("the MFC renderer simulates exactly 8 LEDs");
+  auto get_platform_display =
+      reinterpret_cast<PFNEGLGETPLATFORMDISPLAYEXTPROC>(eglGetProcAddress("eglGetPlatformDisplayEXT"));
+  if (!get_platform_display)
+    gl_fail("EGL lacks eglGetPlatformDisplayEXT; install Mesa's EGL (libegl-mesa0, libgl1-mesa-dri)");
+  gl_->display = get_platform_display(EGL_PLATFORM_SURFACELESS_MESA, EGL_DEFAULT_DISPLAY, nullptr);
+  EGLint major = 0, minor = 0;
+  if (gl_->display == EGL_NO_DISPLAY || !eglInitialize(gl_->display, &major, &minor))
+    gl_fail(std::string("cannot initialise an EGL surfaceless display (") + egl_error_name(eglGetError()) +
+            "); install Mesa's EGL and DRI drivers (libegl-mesa0, libgl1-mesa-dri)");
+  if (!eglBindAPI(EGL_OPENGL_API)) gl_fail("EGL cannot bind the desktop OpenGL API");
+  const EGLint config_attribs[] = {EGL_SURFACE_TYPE, EGL_PBUFFER_BIT, EGL_RENDERABLE_TYPE, EGL_OPENGL_BIT, EGL_NONE};
+  EGLConfig egl_config = nullptr;
+  EGLint n = 0;
+  if (!eglChooseConfig(gl_->display, config_attribs, &egl_config, 1, &n) || n < 1) egl_config = nullptr;
+  const EGLint ctx_attribs[] = {EGL_CONTEXT_MAJOR_VERSION, 3, EGL_CONTEXT_MINOR_VERSION, 3,
+                                EGL_CONTEXT_OPENGL_PROFILE_MASK, EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT, EGL_NONE};
+  gl_->context = eglCreateContext(gl_->display, egl_config, EGL_NO_CONTEXT, ctx_attribs);
+  if (gl_->context == EGL_NO_CONTEXT)
+    gl_fail(std::string("cannot create an OpenGL 3.3 core context (") + egl_error_name(eglGetError()) + ")");
+  gl_->make_current();
+
+  gl_->scene_program = link(kSceneVs, kSceneFs);
+  gl_->shadow_program = link(kShadowVs, kShadowFs);
+
+  const int S = options_.shadow_map_size;
+  glGenTextures(1, &gl_->shadow_tex);
+  glBindTexture(GL_TEXTURE_2D_ARRAY, gl_->shadow_tex);
+  glTexImage3D(GL_TEXTURE_2D_ARRAY, 0, GL_DEPTH_COMPONENT32F, S, S, kFlashes, 0, GL_DEPTH_COMPONENT, GL_FLOAT,
+               nullptr);
+  glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+  glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+  glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+  glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+  glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_COMPARE_MODE, GL_COMPARE_REF_TO_TEXTURE);
+  glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_COMPARE_FUNC, GL_LEQUAL);
+  glGenFramebuffers(1, &gl_->shadow_fbo);
+  if (glGetError() != GL_NO_ERROR) gl_fail("cannot allocate the shadow maps");
+}
+
+MfcRenderer::~MfcRenderer() {
+  if (!gl_ || gl_->display == EGL_NO_DISPLAY) return;
+  if (gl_->context != EGL_NO_CONTEXT) {
+    eglMakeCurrent(gl_->display, EGL_NO_SURFACE, EGL_NO_SURFACE, gl_->context);
+    for (auto& m : gl_->meshes) {
+      glDeleteBuffers(1, &m.vbo);
+      glDeleteVertexArrays(1, &m.vao);
+    }
+    glDeleteTextures(3, gl_->color_tex.data());
+    glDeleteRenderbuffers(1, &gl_->depth_rb);
+    glDeleteFramebuffers(1, &gl_->fbo);
+    glDeleteFramebuffers(1, &gl_->shadow_fbo);
+    glDeleteTextures(1, &gl_->shadow_tex);
+    glDeleteProgram(gl_->scene_program);
+    glDeleteProgram(gl_->shadow_program);
+    eglMakeCurrent(gl_->display, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
+    eglDestroyContext(gl_->display, gl_->context);
+  }
+  // eglTerminate is deliberately not called: the display is shared by every renderer in
+  // the process, and terminating it would invalidate the others' contexts.
+}
+
+std::string MfcRenderer::gl_renderer() const {
+  gl_->make_current();
+  const auto* s = reinterpret_cast<const char*>(glGetString(GL_RENDERER));
+  return s ? s : "";
+}
+
+int MfcRenderer::add_mesh(const Mesh& mesh, double crease_deg) {
+  validate_mesh(mesh, {.min_size_mm = 0, .max_size_mm = 1e9}, mesh.name.empty() ? "mesh" : mesh.name);
+  // Per-corner normals: the area-weighted mean of the normals of the faces around the
+  // vertex that are within the crease angle of this face. Sharp CAD edges stay sharp,
+  // tessellated curved surfaces shade smoothly.
+  const size_t nt = mesh.triangles.size();
+  std::vector<cv::Vec3f> face_normal(nt);  // length = 2 * area
+  std::vector<std::vector<uint32_t>> faces_of_vertex(mesh.vertices.size());
+  for (size_t f = 0; f < nt; ++f) {
+    const auto& t = mesh.triangles[f];
+    face_normal[f] = (mesh.vertices[t[1]] - mesh.vertices[t[0]]).cross(mesh.vertices[t[2]] - mesh.vertices[t[0]]);
+    for (uint32_t v : t) faces_of_vertex[v].push_back(static_cast<uint32_t>(f));
+  }
+  const double cos_crease = std::cos(crease_deg * CV_PI / 180.0);
+  std::vector<float> data;
+  data.reserve(nt * 3 * 6);
+  for (size_t f = 0; f < nt; ++f) {
+    const cv::Vec3f nf = face_normal[f];
+    const double lf = cv::norm(nf);
+    for (uint32_t v : mesh.triangles[f]) {
+      cv::Vec3f sum(0, 0, 0);
+      for (uint32_t g : faces_of_vertex[v]) {
+        const double lg = cv::norm(face_normal[g]);
+        if (lf > 0 && lg > 0 && nf.dot(face_normal[g]) >= cos_crease * lf * lg) sum += face_normal[g];
+      }
+      const double ls = cv::norm(sum);
+      const cv::Vec3f n = ls > 0 ? sum / ls : cv::Vec3f(0, 0, 1);
+      const cv::Vec3f& p = mesh.vertices[v];
+      data.insert(data.end(), {p[0], p[1], p[2], n[0], n[1], n[2]});
+    }
+  }
+  gl_->make_current();
+  Gl::GpuMesh g;
+  glGenVertexArrays(1, &g.vao);
+  glBindVertexArray(g.vao);
+  glGenBuffers(1, &g.vbo);
+  glBindBuffer(GL_ARRAY_BUFFER, g.vbo);
+  glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(data.size() * sizeof(float)), data.data(), GL_STATIC_DRAW);
+  glEnableVertexAttribArray(0);
+  glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 6 * sizeof(float), nullptr);
+  glEnableVertexAttribArray(1);
+  glVertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, 6 * sizeof(float), reinterpret_cast<void*>(3 * sizeof(float)));
+  glBindVertexArray(0);
+  g.vertex_count = static_cast<GLsizei>(nt * 3);
+  if (glGetError() != GL_NO_ERROR) gl_fail("cannot upload mesh '" + mesh.name + "'");
+  gl_->meshes.push_back(g);
+  return static_cast<int>(gl_->meshes.size() - 1);
+}
+
+void MfcRenderer::set_camera(const PinholeCamera& camera) {
+  if (camera.image_size.width <= 0 || camera.image_size.height <= 0) gl_fail("camera image size must be positive");
+  camera_ = camera;
+}
+
+void MfcRenderer::draw_scene(std::span<const ScenePart> parts, bool shading) {
+  Gl& g = *gl_;
+  const cv::Size size = camera_.image_size;
+  if (g.fbo_size != size) {
+    if (g.fbo) {
+      glDeleteTextures(3, g.color_tex.data());
+      glDeleteRenderbuffers(1, &g.depth_rb);
+      glDeleteFramebuffers(1, &g.fbo);
+    }
+    glGenFramebuffers(1, &g.fbo);
+    glBindFramebuffer(GL_FRAMEBUFFER, g.fbo);
+    glGenTextures(3, g.color_tex.data());
+    for (int i = 0; i < 3; ++i) {
+      glBindTexture(GL_TEXTURE_2D, g.color_tex[static_cast<size_t>(i)]);
+      glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA32F, size.width, size.height, 0, GL_RGBA, GL_FLOAT, nullptr);
+      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+      glFramebufferTexture2D(GL_FRAMEBUFFER, static_cast<GLenum>(GL_COLOR_ATTACHMENT0 + i), GL_TEXTURE_2D,
+                             g.color_tex[static_cast<size_t>(i)], 0);
+    }
+    glGenRenderbuffers(1, &g.depth_rb);
+    glBindRenderbuffer(GL_RENDERBUFFER, g.depth_rb);
+    glRenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT32F, size.width, size.height);
+    glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, g.depth_rb);
+    if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+      gl_fail("float render target incomplete (" + std::to_string(size.width) + "x" + std::to_string(size.height) + ")");
+    g.fbo_size = size;
+  }
+  for (const auto& p : parts)
+    if (p.mesh_id < 0 || p.mesh_id >= static_cast<int>(g.meshes.size()))
+      gl_fail("scene part refers to unknown mesh id " + std::to_string(p.mesh_id));
+  if (parts.size() > 255) gl_fail("at most 255 parts per scene");
+
+  const double wd = config_.working_distance_mm;
+  std::array<cv::Matx44d, kFlashes> shadow_clip_from_camera;
+  glDisable(GL_CULL_FACE);
+  glEnable(GL_DEPTH_TEST);
+  glDepthFunc(GL_LESS);
+  if (shading) {
+    // One perspective shadow map per LED, looking along +z from the LED. Its field of view
+    // covers the camera's frustum from the near plane on, whatever the LED's offset.
+    const double n = wd * options_.shadow_near_fraction, f = wd * options_.shadow_far_fraction;
+    // The frustum comes from the configured full-frame camera, not a cropped one, so that
+    // a window render sees exactly the same shadows as the full frame.
+    const PinholeCamera& full = config_.camera;
+    const double W = full.image_size.width, H = full.image_size.height;
+    const double tan_x = std::max(full.cx() + 0.5, W - 0.5 - full.cx()) / full.fx();
+    const double tan_y = std::max(full.cy() + 0.5, H - 0.5 - full.cy()) / full.fy();
+    const int S = options_.shadow_map_size;
+    glUseProgram(g.shadow_program);
+    glBindFramebuffer(GL_FRAMEBUFFER, g.shadow_fbo);
+    glDrawBuffer(GL_NONE);
+    glReadBuffer(GL_NONE);
+    glViewport(0, 0, S, S);
+    glEnable(GL_DEPTH_CLAMP);
+    glEnable(GL_POLYGON_OFFSET_FILL);
+    glPolygonOffset(1.5f, 4.0f);
+    const GLint u_clip = glGetUniformLocation(g.shadow_program, "u_clip_from_model");
+    for (int i = 0; i < kFlashes; ++i) {
+      const cv::Vec3d L = config_.flashes.positions_mm[static_cast<size_t>(i)];
+      const double reach = std::hypot(L[0], L[1]) / n;
+      const double fs = (S / 2.0) / (std::max(tan_x, tan_y) + reach);
+      const cv::Matx33d Ks(fs, 0, S / 2.0 - 0.5, 0, fs, S / 2.0 - 0.5, 0, 0, 1);
+      const cv::Matx44d led_from_camera(1, 0, 0, -L[0], 0, 1, 0, -L[1], 0, 0, 1, -L[2], 0, 0, 0, 1);
+      const cv::Matx44d clip = clip_from_camera(Ks, {S, S}, n, f) * led_from_camera;
+      const cv::Matx44d to_unit(0.5, 0, 0, 0.5, 0, 0.5, 0, 0.5, 0, 0, 0.5, 0.5, 0, 0, 0, 1);
+      shadow_clip_from_camera[static_cast<size_t>(i)] = to_unit * clip;
+      glFramebufferTextureLayer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, g.shadow_tex, 0, i);
+      glClear(GL_DEPTH_BUFFER_BIT);
+      for (const auto& p : parts) {
+        const Mat4 m = to_gl(clip * model_matrix(p.R, p.t_mm));
+        glUniformMatrix4fv(u_clip, 1, GL_FALSE, m.data());
+        const auto& gm = g.meshes[static_cast<size_t>(p.mesh_id)];
+        glBindVertexArray(gm.vao);
+        glDrawArrays(GL_TRIANGLES, 0, gm.vertex_count);
+      }
+    }
+    glDisable(GL_POLYGON_OFFSET_FILL);
+    glDisable(GL_DEPTH_CLAMP);
+  }
+
+  glBindFramebuffer(GL_FRAMEBUFFER, g.fbo);
+  const GLenum bufs[3] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1, GL_COLOR_ATTACHMENT2};
+  glDrawBuffers(3, bufs);
+  glViewport(0, 0, size.width, size.height);
+  glClearColor(0, 0, 0, 0);
+  glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+  const GLuint prog = g.scene_program;
+  glUseProgram(prog);
+  auto loc = [prog](const char* name) { return glGetUniformLocation(prog, name); };
+  // Near/far of the camera pass only bound what is drawn; depth itself is written as
+  // camera-frame z in float, so its precision does not depend on them.
+  const Mat4 clip = to_gl(clip_from_camera(camera_.K, size, 1.0, wd * 20));
+  glUniformMatrix4fv(loc("u_clip_from_camera"), 1, GL_FALSE, clip.data());
+  glUniform1i(loc("u_shading"), shading ? 1 : 0);
+  if (shading) {
+    for (int i = 0; i < kFlashes; ++i) {
+      const cv::Vec3d L = config_.flashes.positions_mm[static_cast<size_t>(i)];
+      char name[64];
+      std::snprintf(name, sizeof name, "u_led[%d]", i);
+      glUniform3f(loc(name), static_cast<float>(L[0]), static_cast<float>(L[1]), static_cast<float>(L[2]));
+      const Mat4 s = to_gl(shadow_clip_from_camera[static_cast<size_t>(i)]);
+      std::snprintf(name, sizeof name, "u_shadow_from_camera[%d]", i);
+      glUniformMatrix4fv(loc(name), 1, GL_FALSE, s.data());
+    }
+    glActiveTexture(GL_TEXTURE0);
+    glBindTexture(GL_TEXTURE_2D_ARRAY, g.shadow_tex);
+    glUniform1i(loc("u_shadow"), 0);
+    const Illumination& li = options_.light;
+    glUniform1f(loc("u_flash_dn"), li.flash_dn);
+    glUniform1f(loc("u_working_distance"), static_cast<float>(wd));
+    glUniform1f(loc("u_ambient_dn"), li.ambient_dn);
+    glUniform1f(loc("u_room_dn"), li.room_dn);
+    const cv::Vec3d rd = cv::normalize(li.room_direction);
+    glUniform3f(loc("u_room_dir"), static_cast<float>(rd[0]), static_cast<float>(rd[1]), static_cast<float>(rd[2]));
+    // The shadow map texel seen from the LED spans about d / fs mm at distance d; moving
+    // the lookup point that far along the normal removes acne without visible light leaks.
+    glUniform1f(loc("u_normal_offset"), 1.5f / static_cast<float>(options_.shadow_map_size));
+  }
+  for (size_t k = 0; k < parts.size(); ++k) {
+    const ScenePart& p = parts[k];
+    const Mat4 m = to_gl(model_matrix(p.R, p.t_mm));
+    glUniformMatrix4fv(loc("u_camera_from_model"), 1, GL_FALSE, m.data());
+    glUniform1f(loc("u_part_id"), static_cast<float>(k + 1));
+    const Material& mat = p.material;
+    glUniform1f(loc("u_albedo"), mat.albedo);
+    glUniform1f(loc("u_diffuse"), mat.diffuse);
+    glUniform1f(loc("u_specular"), mat.specular);
+    glUniform1f(loc("u_shininess"), mat.shininess);
+    glUniform1i(loc("u_paint"), static_cast<int>(mat.paint));
+    glUniform1f(loc("u_paint_period"), mat.paint_period_mm);
+    glUniform1f(loc("u_paint_albedo"), mat.paint_albedo);
+    const auto& gm = g.meshes[static_cast<size_t>(p.mesh_id)];
+    glBindVertexArray(gm.vao);
+    glDrawArrays(GL_TRIANGLES, 0, gm.vertex_count);
+  }
+  glBindVertexArray(0);
+  if (glGetError() != GL_NO_ERROR) gl_fail("OpenGL error while drawing the scene");
+}
+
+void MfcRenderer::render_depth(std::span<const ScenePart> parts, cv::Mat1f& depth_mm, cv::Mat1b& part_index) {
+  gl_->make_current();
+  draw_scene(parts, false);
+  const cv::Size size = camera_.image_size;
+  const size_t n = static_cast<size_t>(size.area());
+  readback_.resize(n * 4);
+  glReadBuffer(GL_COLOR_ATTACHMENT2);
+  glPixelStorei(GL_PACK_ALIGNMENT, 4);
+  glReadPixels(0, 0, size.width, size.height, GL_RGBA, GL_FLOAT, readback_.data());
+  depth_mm.create(size);
+  part_index.create(size);
+  for (int y = 0; y < size.height; ++y) {
+    const float* src = readback_.data() + static_cast<size_t>(y) * size.width * 4;
+    float* d = depth_mm.ptr<float>(y);
+    uint8_t* id = part_index.ptr<uint8_t>(y);
+    for (int x = 0; x < size.width; ++x) {
+      d[x] = src[4 * x + 1];
+      id[x] = static_cast<uint8_t>(src[4 * x + 2]);
+    }
+  }
+}
+
+void MfcRenderer::render(std::span<const ScenePart> parts, MfcRender& out, uint64_t noise_seed) {
+  gl_->make_current();
+  draw_scene(parts, true);
+  const cv::Size size = camera_.image_size;
+  const size_t n = static_cast<size_t>(size.area());
+  readback_.resize(n * 12);
+  glPixelStorei(GL_PACK_ALIGNMENT, 4);
+  for (int a = 0; a < 3; ++a) {
+    glReadBuffer(static_cast<GLenum>(GL_COLOR_ATTACHMENT0 + a));
+    glReadPixels(0, 0, size.width, size.height, GL_RGBA, GL_FLOAT, readback_.data() + n * 4 * static_cast<size_t>(a));
+  }
+  out.frames.flash.resize(kFlashes);
+  out.flash_linear.resize(kFlashes);
+  for (int i = 0; i < kFlashes; ++i) {
+    out.frames.flash[static_cast<size_t>(i)].create(size);
+    out.flash_linear[static_cast<size_t>(i)].create(size);
+  }
+  out.frames.ambient.create(size);
+  out.ambient_linear.create(size);
+  out.depth_mm.create(size);
+  out.part_index.create(size);
+
+  const float* p0 = readback_.data();
+  const float* p1 = p0 + n * 4;
+  const float* p2 = p1 + n * 4;
+  for (int y = 0; y < size.height; ++y) {
+    const size_t row = static_cast<size_t>(y) * static_cast<size_t>(size.width);
+    float* amb = out.ambient_linear.ptr<float>(y);
+    float* depth = out.depth_mm.ptr<float>(y);
+    uint8_t* id = out.part_index.ptr<uint8_t>(y);
+    std::array<float*, kFlashes> fl;
+    for (size_t i = 0; i < kFlashes; ++i) fl[i] = out.flash_linear[i].ptr<float>(y);
+    for (int x = 0; x < size.width; ++x) {
+      const size_t k = (row + static_cast<size_t>(x)) * 4;
+      const float ambient = p2[k];
+      amb[x] = ambient;
+      depth[x] = p2[k + 1];
+      id[x] = static_cast<uint8_t>(p2[k + 2]);
+      // Every flash image also sees the ambient light, as a real capture does.
+      for (size_t i = 0; i < 4; ++i) {
+        fl[i][x] = p0[k + i] + ambient;
+        fl[i + 4][x] = p1[k + i] + ambient;
+      }
+    }
+  }
+  // Sensor: shot noise (variance proportional to the signal) plus read noise, then 8-bit
+  // quantisation. cv::RNG with a fixed seed makes every render reproducible.
+  const SensorNoise& noise = options_.noise;
+  cv::RNG rng(noise_seed);
+  const auto read_var = static_cast<float>(noise.read_sigma_dn * noise.read_sigma_dn);
+  const auto shot = static_cast<float>(noise.shot_dn_per_electron);
+  auto capture = [&](const cv::Mat1f& signal, cv::Mat1b& image) {
+    if (!noise.enabled) {
+      signal.convertTo(image, CV_8U);  // rounds and saturates
+      return;
+    }
+    noise_.create(size);
+    rng.fill(noise_, cv::RNG::NORMAL, 0.0, 1.0);
+    for (int y = 0; y < size.height; ++y) {
+      const float* sg = signal.ptr<float>(y);
+      const float* nz = noise_.ptr<float>(y);
+      uint8_t* dst = image.ptr<uint8_t>(y);
+      for (int x = 0; x < size.width; ++x) {
+        const float v = sg[x] + std::sqrt(read_var + shot * std::max(sg[x], 0.f)) * nz[x];
+        dst[x] = static_cast<uint8_t>(std::clamp(std::nearbyint(v), 0.f, 255.f));
+      }
+    }
+  };
+  for (size_t i = 0; i < kFlashes; ++i) capture(out.flash_linear[i], out.frames.flash[i]);
+  capture(out.ambient_linear, out.frames.ambient);
+}
+
+}  // namespace mfcd::vision

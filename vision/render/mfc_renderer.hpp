@@ -1,0 +1,123 @@
+#pragma once
+// Offscreen OpenGL rendering (EGL surfaceless; Mesa llvmpipe when there is no GPU) of
+// scenes of part meshes as seen by the multi-flash camera: per pixel, the image lit by
+// each of the 8 LEDs with cast shadows, the ambient image, depth along the optical axis
+// in mm and which part is visible.
+
+#include "vision/camera/camera.hpp"
+#include "vision/camera/mfc_frames.hpp"
+#include "vision/model/mesh.hpp"
+
+#include <opencv2/core.hpp>
+
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <vector>
+
+namespace mfcd::vision {
+
+// Surface reflectance, from matte (specular = 0) to shiny metal (specular ~ 1, high
+// shininess). A painted pattern changes the albedo only: an intensity edge that is not a
+// depth edge, which depth-edge extraction must ignore.
+struct Material {
+  enum class Paint { none, stripes, checker };
+  float albedo = 0.7f;
+  float diffuse = 1.0f;
+  float specular = 0.0f;
+  float shininess = 30.0f;  // Blinn-Phong exponent
+  Paint paint = Paint::none;
+  float paint_period_mm = 6.0f;  // stripe/checker period in the part's own frame
+  float paint_albedo = 0.15f;    // albedo of the painted areas
+
+  static Material matte(float albedo = 0.7f) { return {.albedo = albedo}; }
+  static Material shiny() { return {.albedo = 0.5f, .diffuse = 0.6f, .specular = 0.8f, .shininess = 60.0f}; }
+};
+
+// One part in the scene: p_camera = R * p_mesh + t (mm).
+struct ScenePart {
+  int mesh_id = -1;  // from MfcRenderer::add_mesh
+  cv::Matx33d R = cv::Matx33d::eye();
+  cv::Vec3d t_mm{0, 0, 300};
+  Material material;
+};
+
+struct Illumination {
+  // Brightness (8-bit grey levels) of a white matte surface facing an LED at the working
+  // distance; falls off with the inverse square of the distance to the LED.
+  float flash_dn = 170.0f;
+  // Ambient light present in every image: uniform part plus a room light from
+  // `room_direction` (pointing from the scene to the light, camera frame), no shadows.
+  float ambient_dn = 12.0f;
+  float room_dn = 18.0f;
+  cv::Vec3d room_direction{-0.3, -0.5, -0.8};
+};
+
+// Camera sensor noise in grey levels: Gaussian read noise plus shot noise whose variance
+// grows linearly with the signal. Seeded so a render is reproducible.
+struct SensorNoise {
+  bool enabled = true;
+  double read_sigma_dn = 1.0;
+  double shot_dn_per_electron = 0.05;  // variance of shot noise = this * signal
+};
+
+struct RenderOptions {
+  // Shadow accuracy only moves the far end of each shadow, never the depth edge itself
+  // (the occluding contour), so a map about as fine as the camera's pixels is enough.
+  int shadow_map_size = 1024;
+  // Depth range of the shadow maps as fractions of the working distance. Parts nearer
+  // than the near plane still cast shadows (depth clamp); farther than far ones do not.
+  double shadow_near_fraction = 0.4;
+  double shadow_far_fraction = 4.0;
+  Illumination light;
+  SensorNoise noise;
+};
+
+struct MfcRender {
+  MfcFrames frames;          // 8 flash images (each includes the ambient light) + ambient
+  cv::Mat1f depth_mm;        // z of the visible surface in the camera frame; 0 where no part
+  cv::Mat1b part_index;      // 0 where no part, k where parts[k - 1] is visible
+  std::vector<cv::Mat1f> flash_linear;  // noise-free, unquantised flash images (DN), same order
+  cv::Mat1f ambient_linear;
+};
+
+class MfcRenderer {
+ public:
+  // Creates the EGL context and GL resources. Throws std::runtime_error with a clear
+  // message when EGL/OpenGL cannot be initialised.
+  explicit MfcRenderer(const CameraConfig& config, const RenderOptions& options = {});
+  ~MfcRenderer();
+  MfcRenderer(const MfcRenderer&) = delete;
+  MfcRenderer& operator=(const MfcRenderer&) = delete;
+
+  // Uploads a mesh (normals: smooth within `crease_deg`, sharp across it); returns its id.
+  int add_mesh(const Mesh& mesh, double crease_deg = 35.0);
+
+  // Renders with another pinhole (e.g. PinholeCamera::cropped to render only a window
+  // around the part); the flash positions stay those of the configuration.
+  void set_camera(const PinholeCamera& camera);
+  const PinholeCamera& camera() const { return camera_; }
+  const CameraConfig& config() const { return config_; }
+  const RenderOptions& options() const { return options_; }
+  RenderOptions& options() { return options_; }
+
+  // Renders all parts at once. Output images are reallocated only when the size changes.
+  void render(std::span<const ScenePart> parts, MfcRender& out, uint64_t noise_seed = 1);
+  // Depth and visibility only (no shading, no shadow maps): faster.
+  void render_depth(std::span<const ScenePart> parts, cv::Mat1f& depth_mm, cv::Mat1b& part_index);
+
+  // The GL renderer string, e.g. "llvmpipe (LLVM 15.0.6, 256 bits)".
+  std::string gl_renderer() const;
+
+ private:
+  struct Gl;
+  void draw_scene(std::span<const ScenePart> parts, bool shading);
+  CameraConfig config_;
+  PinholeCamera camera_;
+  RenderOptions options_;
+  std::unique_ptr<Gl> gl_;
+  std::vector<float> readback_;
+  cv::Mat1f noise_;
+};
+
+}  // namespace mfcd::vision
