@@ -35,12 +35,15 @@ static bool consistent(const RobotReport &r)
 TEST(Seqlock, ReadersNeverSeeATornReport)
 {
 	SeqlockSnapshot<RobotReport> board;
+	board.publish(make_report(0));
 	std::atomic<bool> done{false};
 	constexpr std::uint32_t kWrites = 200000;
 	std::atomic<std::uint64_t> reads{0};
 	std::atomic<bool> torn{false};
+	std::atomic<int> started{0};
 	const auto reader = [&] {
 		std::uint32_t last = 0;
+		++started;
 		while (!done.load(std::memory_order_acquire)) {
 			const RobotReport r = board.read();
 			if (!consistent(r))
@@ -53,6 +56,8 @@ TEST(Seqlock, ReadersNeverSeeATornReport)
 		}
 	};
 	std::thread r1(reader), r2(reader);
+	while (started.load() < 2)
+		std::this_thread::yield();
 	for (std::uint32_t n = 1; n <= kWrites; ++n)
 		board.publish(make_report(n));
 	done = true;
@@ -60,7 +65,7 @@ TEST(Seqlock, ReadersNeverSeeATornReport)
 	r2.join();
 	EXPECT_FALSE(torn.load());
 	EXPECT_GT(reads.load(), 0u);
-	EXPECT_EQ(board.version(), kWrites);
+	EXPECT_EQ(board.version(), kWrites + 1);
 	EXPECT_EQ(board.read().pick.x_mm, static_cast<float>(kWrites));
 }
 
