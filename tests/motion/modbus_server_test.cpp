@@ -475,3 +475,36 @@ TEST(ModbusServer, CommandFdWakesTheDaemon)
 	EXPECT_FALSE(server.next_command());
 	EXPECT_EQ(::poll(&p, 1, 0), 0) << "drained eventfd";
 }
+
+// docs/register-map.md, "Worked example": the same requests, the same register values.
+TEST(ModbusServer, WorkedExampleFromTheRegisterMapDoc)
+{
+	ModbusServer server(loopback_config());
+	server.start();
+	SimulatedDaemon daemon(server, 200ms);
+	LibmodbusClient plc(server.port());
+	ASSERT_EQ(plc.write(reg::kCommand, {1, 20, 3, 0}), 0);
+	auto regs = wait_for_echo(plc, 20);
+	EXPECT_EQ(regs[reg::kStatus], 0x0035);
+
+	// The trigger exactly as the doc shows it on the wire.
+	RawClient raw(server.port());
+	raw.send({0x00, 0x01, 0x00, 0x00, 0x00, 0x0F, 0xFF, 0x10, 0x00, 0x00, 0x00, 0x04, 0x08, 0x00, 0x01, 0x00,
+	          0x15, 0x00, 0x03, 0x00, 0x00});
+	const auto rsp = raw.receive(12);
+	ASSERT_TRUE(rsp);
+	EXPECT_EQ(*rsp, (std::vector<std::uint8_t>{0x00, 0x01, 0x00, 0x00, 0x00, 0x06, 0xFF, 0x10, 0x00, 0x00, 0x00, 0x04}));
+
+	regs = plc.read(0, reg::kBlockSize);
+	EXPECT_EQ((std::vector<std::uint16_t>(regs.begin(), regs.begin() + 4)), (std::vector<std::uint16_t>{0, 21, 3, 0}));
+	EXPECT_EQ(regs[reg::kStatus], 0x0032);
+	EXPECT_EQ(regs[reg::kJobIdEcho], 20);
+
+	regs = wait_for_echo(plc, 21);
+	EXPECT_EQ(regs[reg::kStatus], 0x0035);
+	EXPECT_EQ(regs[reg::kErrorCode], 0);
+	EXPECT_EQ(regs[reg::kRecipeEcho], 3);
+	const std::vector<std::uint16_t> pick(regs.begin() + reg::kPickX, regs.begin() + reg::kScore + 2);
+	EXPECT_EQ(pick, (std::vector<std::uint16_t>{0x42F2, 0x0000, 0xC37A, 0x8000, 0x4229, 0x0000, 0x4334, 0x0000,
+	                                            0xBF00, 0x0000, 0xC28A, 0x0000, 0x3F60, 0x0000}));
+}
