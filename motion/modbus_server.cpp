@@ -102,6 +102,8 @@ ModbusServer::ModbusServer(ModbusServerConfig config) : config_(std::move(config
 ModbusServer::~ModbusServer()
 {
 	stop();
+	if (command_event_fd_ >= 0)
+		::close(command_event_fd_);
 }
 
 void ModbusServer::start()

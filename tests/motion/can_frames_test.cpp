@@ -11,7 +11,7 @@
 #include <fstream>
 #include <map>
 #include <random>
-#include <regex>
+#include <cstdio>
 #include <sstream>
 
 using namespace mfcd::motion;
@@ -35,34 +35,45 @@ std::map<unsigned, DbcMessage> load_dbc()
 	std::ifstream in(MFC_SOURCE_DIR "/docs/mfcd.dbc");
 	if (!in)
 		throw std::runtime_error("cannot open docs/mfcd.dbc");
-	const std::regex bo(R"(^BO_ (\d+) (\w+): (\d+) (\w+)\s*$)");
-	const std::regex sg(
-	        R"(^ SG_ (\w+) : (\d+)\|(\d+)@([01])([+-]) \(([-0-9.eE]+),([-0-9.eE]+)\) \[([-0-9.eE]+)\|([-0-9.eE]+)\] \"([^\"]*)\" (\w+)\s*$)");
+	// Plain sscanf parsing (std::regex trips GCC 12's -Wmaybe-uninitialized under ASan).
 	std::map<unsigned, DbcMessage> out;
 	DbcMessage *current = nullptr;
 	std::string line;
 	int line_no = 0;
 	while (std::getline(in, line)) {
 		++line_no;
-		std::smatch m;
-		if (std::regex_match(line, m, bo)) {
-			current = &out[std::stoul(m[1])];
-			current->name = m[2];
-			current->dlc = std::stoul(m[3]);
-		} else if (line.rfind(" SG_", 0) == 0) {
-			if (!std::regex_match(line, m, sg) || !current)
-				throw std::runtime_error("docs/mfcd.dbc line " + std::to_string(line_no) + ": bad SG_ syntax");
+		const auto bad = [&] {
+			return std::runtime_error("docs/mfcd.dbc line " + std::to_string(line_no) + ": bad syntax: " + line);
+		};
+		if (line.rfind("BO_ ", 0) == 0) {
+			unsigned id = 0, dlc = 0;
+			char name[64], sender[64];
+			int used = 0;
+			if (std::sscanf(line.c_str(), "BO_ %u %63[A-Za-z0-9_]: %u %63s%n", &id, name, &dlc, sender, &used) != 4 ||
+			    static_cast<std::size_t>(used) != line.size())
+				throw bad();
+			current = &out[id];
+			current->name = name;
+			current->dlc = dlc;
+		} else if (line.rfind(" SG_ ", 0) == 0) {
 			DbcSignal s;
-			s.start = std::stoul(m[2]);
-			s.length = std::stoul(m[3]);
-			s.little_endian = m[4] == "1";
-			s.is_signed = m[5] == "-";
-			s.factor = std::stod(m[6]);
-			s.offset = std::stod(m[7]);
-			s.min = std::stod(m[8]);
-			s.max = std::stod(m[9]);
-			s.unit = m[10];
-			current->signals[m[1]] = s;
+			char name[64], order = 0, sign = 0;
+			int used = 0;
+			if (!current ||
+			    std::sscanf(line.c_str(), " SG_ %63s : %u|%u@%c%c (%lf,%lf) [%lf|%lf] %n", name, &s.start, &s.length,
+			                &order, &sign, &s.factor, &s.offset, &s.min, &s.max, &used) != 9 ||
+			    (order != '0' && order != '1') || (sign != '+' && sign != '-'))
+				throw bad();
+			// Then "unit" and the receiver list.
+			const std::string rest = line.substr(static_cast<std::size_t>(used));
+			const std::size_t close = rest.find('"', 1);
+			if (rest.empty() || rest[0] != '"' || close == std::string::npos || close + 2 > rest.size() ||
+			    rest[close + 1] != ' ')
+				throw bad();
+			s.unit = rest.substr(1, close - 1);
+			s.little_endian = order == '1';
+			s.is_signed = sign == '-';
+			current->signals[name] = s;
 		}
 	}
 	return out;
