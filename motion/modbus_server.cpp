@@ -211,13 +211,14 @@ void ModbusServer::run() noexcept
 	std::uint16_t *regs = m.map->tab_registers;
 
 	const auto close_client = [&](Client &c, bool dropped) {
+		// Count before closing, so whoever sees the close also sees the count.
+		clients_now_.fetch_sub(1);
+		if (dropped)
+			dropped_.fetch_add(1);
 		::close(c.fd);
 		c.fd = -1;
 		c.have = 0;
 		c.need = kMbapHeaderSize;
-		clients_now_.fetch_sub(1);
-		if (dropped)
-			dropped_.fetch_add(1);
 	};
 
 	// Copies the daemon's latest report into the status block, so every read sees one
@@ -397,15 +398,15 @@ void ModbusServer::run() noexcept
 				                        : static_cast<const void *>(&reinterpret_cast<sockaddr_in6 *>(&peer)->sin6_addr);
 				inet_ntop(peer.ss_family, a, text, sizeof(text));
 				syslog(LOG_WARNING, "modbus: refused client %s: not in allow_list", text);
-				::close(fd);
 				refused_.fetch_add(1);
+				::close(fd);
 				continue;
 			}
 			auto slot = std::find_if(m.clients.begin(), m.clients.end(), [](const Client &c) { return c.fd < 0; });
 			if (slot == m.clients.end()) {
 				syslog(LOG_WARNING, "modbus: refused client: max_clients %u reached", config_.max_clients);
-				::close(fd);
 				refused_.fetch_add(1);
+				::close(fd);
 				continue;
 			}
 			const int one = 1;

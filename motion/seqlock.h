@@ -2,9 +2,14 @@
 // allocates, so the vision thread can publish a result without taking a lock; readers retry
 // while a write is in progress.
 //
-// The payload is stored as relaxed atomic 32-bit words rather than as a plain T: a torn
-// read is then a detected retry instead of a C++ data race, and ThreadSanitizer sees only
-// atomics (it does not understand the classic seqlock's racy memcpy).
+// The payload is stored as atomic 32-bit words rather than as a plain T: a torn read is then
+// a detected retry instead of a C++ data race, and ThreadSanitizer sees only atomics (it
+// does not understand the classic seqlock's racy memcpy, nor standalone fences, which GCC
+// refuses under -fsanitize=thread). Ordering without fences (Boehm, "Can seqlocks get along
+// with programming language memory models?"): the writer's word stores are release, so a
+// reader that sees any new word also sees the odd sequence number stored before it; the
+// reader's word loads are acquire, so its second sequence load cannot move above them.
+// On x86 these are plain moves.
 #pragma once
 
 #include <array>
@@ -30,7 +35,6 @@ public:
 	{
 		const std::uint32_t seq = seq_.load(std::memory_order_relaxed);
 		seq_.store(seq + 1, std::memory_order_relaxed); // odd: write in progress
-		std::atomic_thread_fence(std::memory_order_release);
 		store_words(value);
 		seq_.store(seq + 2, std::memory_order_release);
 	}
@@ -44,8 +48,7 @@ public:
 				continue;
 			std::array<std::uint32_t, kWords> words;
 			for (std::size_t i = 0; i < kWords; ++i)
-				words[i] = words_[i].load(std::memory_order_relaxed);
-			std::atomic_thread_fence(std::memory_order_acquire);
+				words[i] = words_[i].load(std::memory_order_acquire);
 			if (seq_.load(std::memory_order_relaxed) == before) {
 				T out;
 				std::memcpy(static_cast<void *>(&out), words.data(), sizeof(T));
@@ -63,7 +66,7 @@ private:
 		std::array<std::uint32_t, kWords> words{};
 		std::memcpy(words.data(), &value, sizeof(T));
 		for (std::size_t i = 0; i < kWords; ++i)
-			words_[i].store(words[i], std::memory_order_relaxed);
+			words_[i].store(words[i], std::memory_order_release);
 	}
 
 	std::atomic<std::uint32_t> seq_{0};
