@@ -1,0 +1,83 @@
+// Publishes the robot link's status, heartbeat and picks on a SocketCAN interface.
+//
+// Runs its own thread. The daemon's result writer calls publish() (seqlock store plus an
+// eventfd write: no lock, no allocation, never blocks). Link-down (interface missing or
+// down, ENETDOWN/ENODEV) and bus-off (CAN_ERR_BUSOFF error frames, ENOBUFS while the
+// controller is off the bus) are reported through state()/last_error() and syslog, and the
+// link is retried every retry_interval.
+#pragma once
+
+#include "motion/can_frames.h"
+#include "motion/robot_report.h"
+#include "motion/seqlock.h"
+
+#include <atomic>
+#include <chrono>
+#include <cstdint>
+#include <mutex>
+#include <string>
+#include <thread>
+
+namespace mfcd::motion {
+
+struct CanConfig {
+	std::string interface = "can0";
+	canid_t id_base = kCanDefaultBase;  // 11-bit; frames use base .. base+0x12
+	std::chrono::milliseconds heartbeat_period{1000};
+	std::chrono::milliseconds retry_interval{1000};
+
+	std::string validate() const;
+};
+
+enum class CanLinkState { Down, Up, ErrorPassive, BusOff };
+const char *to_string(CanLinkState state) noexcept;
+
+struct CanPublisherStats {
+	std::uint64_t frames_sent = 0;
+	std::uint64_t frames_dropped = 0;  // not sent: link down, bus-off, tx queue full
+	std::uint64_t picks_sent = 0;
+	std::uint64_t link_attempts = 0;   // socket open/bind attempts
+	std::uint64_t bus_off_events = 0;
+};
+
+class CanPublisher
+{
+public:
+	explicit CanPublisher(CanConfig config); // throws std::invalid_argument
+	~CanPublisher();
+	CanPublisher(const CanPublisher &) = delete;
+	CanPublisher &operator=(const CanPublisher &) = delete;
+
+	void start();
+	void stop();
+
+	// Single writer. A report whose job_id differs from the last one sent and that has
+	// pick_valid set is sent as a pick; status goes out on every change and with each heartbeat.
+	void publish(const RobotReport &report) noexcept;
+
+	CanLinkState state() const noexcept { return state_.load(); }
+	std::string last_error() const;
+	CanPublisherStats stats() const noexcept;
+
+private:
+	void run();
+	bool open_link();
+	void close_link();
+	bool send(const can_frame &frame);
+	void drain_errors();
+	void set_error(std::string message);
+	void set_state(CanLinkState s);
+
+	CanConfig config_;
+	SeqlockSnapshot<RobotReport> report_;
+	int wake_fd_ = -1;   // publish() -> thread
+	int stop_fd_ = -1;
+	int socket_fd_ = -1;
+	std::thread thread_;
+	std::atomic<CanLinkState> state_{CanLinkState::Down};
+	mutable std::mutex error_mutex_; // diagnostics only; never taken by publish()
+	std::string last_error_;
+	std::atomic<std::uint64_t> sent_{0}, dropped_{0}, picks_{0}, attempts_{0}, bus_offs_{0};
+};
+
+} // namespace mfcd::motion

@@ -1,0 +1,126 @@
+#!/usr/bin/python3
+"""The robot-link Modbus server driven by clients that share no code with it.
+
+  independent_client_test.py SERVER_BINARY pymodbus   -- python3-pymodbus client
+  independent_client_test.py SERVER_BINARY mbpoll     -- mbpoll command-line client
+
+Starts the loopback test server (tests/motion/modbus_sim_server.cpp), which has a simulated
+daemon behind it. Exit 0 on success, 1 on failure, 77 when the client is not installed.
+"""
+import shutil
+import struct
+import subprocess
+import sys
+import time
+
+STATUS, JOB_ECHO, PICK_X, SCORE, TEST_VECTOR, WORD_ORDER = 8, 9, 20, 32, 34, 17
+DONE, PICK_VALID = 1 << 2, 1 << 4
+
+
+def pick_for_job(job):  # tests/motion/sim_daemon.h
+    return [100.0 + job, -250.5, 42.25, 180.0, -0.5, float(job % 360) - 90.0]
+
+
+def to_float(first, second, order):
+    high, low = (first, second) if order == "ABCD" else (second, first)
+    return struct.unpack(">f", struct.pack(">HH", high, low))[0]
+
+
+class Server:
+    def __init__(self, binary, order):
+        self.proc = subprocess.Popen([binary, order], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+        line = self.proc.stdout.readline().split()
+        if len(line) != 2 or line[0] != "PORT":
+            raise RuntimeError(f"server did not report its port: {line}")
+        self.port = int(line[1])
+
+    def close(self):
+        self.proc.stdin.close()
+        self.proc.wait(timeout=10)
+        if self.proc.returncode != 0:
+            raise RuntimeError(f"server exited with {self.proc.returncode}")
+
+
+failures = []
+
+
+def check(cond, what):
+    print(("ok   " if cond else "FAIL ") + what)
+    if not cond:
+        failures.append(what)
+
+
+def run_pymodbus(binary):
+    try:
+        from pymodbus.client import ModbusTcpClient
+    except ImportError:
+        print("python3-pymodbus is not installed (tools/deps/motion.txt lists it)")
+        sys.exit(77)
+    for order in ("ABCD", "CDAB"):
+        server = Server(binary, order)
+        client = ModbusTcpClient("127.0.0.1", port=server.port, timeout=3)
+        check(client.connect(), f"{order}: connect")
+        rr = client.read_holding_registers(0, 64, slave=1)
+        check(not rr.isError() and len(rr.registers) == 64, f"{order}: whole map in one read")
+        regs = rr.registers
+        expect = [0x47F1, 0x2000] if order == "ABCD" else [0x2000, 0x47F1]
+        check(regs[TEST_VECTOR:TEST_VECTOR + 2] == expect, f"{order}: test vector registers {expect}")
+        check(regs[WORD_ORDER] == (0 if order == "ABCD" else 1), f"{order}: word order register")
+        check(to_float(*regs[TEST_VECTOR:TEST_VECTOR + 2], order) == 123456.0, f"{order}: test vector decodes")
+
+        # Job-id handshake: TRIGGER job 21, recipe 3, mode 0 in one write; wait for the echo.
+        wr = client.write_registers(0, [1, 21, 3, 0], slave=1)
+        check(not wr.isError(), f"{order}: trigger accepted")
+        regs = None
+        for _ in range(300):
+            regs = client.read_holding_registers(0, 64, slave=1).registers
+            if regs[JOB_ECHO] == 21:
+                break
+            time.sleep(0.01)
+        check(regs[JOB_ECHO] == 21, f"{order}: job id echoed")
+        check(regs[STATUS] & DONE and regs[STATUS] & PICK_VALID, f"{order}: done and pick valid")
+        pose = [to_float(regs[PICK_X + 2 * i], regs[PICK_X + 2 * i + 1], order) for i in range(6)]
+        check(pose == pick_for_job(21), f"{order}: pick {pose}")
+        check(to_float(regs[SCORE], regs[SCORE + 1], order) == 0.875, f"{order}: score")
+
+        rr = client.read_holding_registers(60, 10, slave=1)
+        check(rr.isError() and rr.exception_code == 2, f"{order}: read past the map -> exception 2")
+        rr = client.write_register(STATUS, 1, slave=1)
+        check(rr.isError() and rr.exception_code == 2, f"{order}: write to status -> exception 2")
+        rr = client.write_registers(0, [1, 21, 3, 0], slave=1)
+        check(rr.isError() and rr.exception_code == 3, f"{order}: repeated job id -> exception 3")
+        rr = client.read_coils(0, 1, slave=1)
+        check(rr.isError() and rr.exception_code == 1, f"{order}: read coils -> exception 1")
+        rr = client.readwrite_registers(read_address=TEST_VECTOR, read_count=2, write_address=1,
+                                        write_registers=[22, 3], slave=1)
+        check(not rr.isError() and rr.registers == expect, f"{order}: FC 0x17 read/write")
+        client.close()
+        server.close()
+
+
+def run_mbpoll(binary):
+    mbpoll = shutil.which("mbpoll")
+    if not mbpoll:
+        print("mbpoll is not installed (tools/deps/motion.txt lists it)")
+        sys.exit(77)
+    for order in ("ABCD", "CDAB"):
+        server = Server(binary, order)
+        # mbpoll's -B means big-endian word order (ABCD); without it, CDAB.
+        args = [mbpoll, "-m", "tcp", "-p", str(server.port), "-a", "1", "-0", "-1", "-r", str(TEST_VECTOR),
+                "-c", "1", "-t", "4:float"] + (["-B"] if order == "ABCD" else []) + ["127.0.0.1"]
+        out = subprocess.run(args, capture_output=True, text=True, timeout=20)
+        lines = [l for l in out.stdout.splitlines() if l.startswith(f"[{TEST_VECTOR}]")]
+        check(out.returncode == 0 and lines and lines[0].split(":")[1].strip() == "123456",
+              f"{order}: mbpoll reads the test vector as 123456: {lines}")
+        out = subprocess.run([mbpoll, "-m", "tcp", "-p", str(server.port), "-a", "1", "-0", "-1", "-r", "60",
+                              "-c", "10", "127.0.0.1"], capture_output=True, text=True, timeout=20)
+        text = out.stdout + out.stderr
+        check("Illegal data address" in text, f"{order}: mbpoll read past the map -> illegal data address")
+        server.close()
+
+
+if __name__ == "__main__":
+    binary, client = sys.argv[1], sys.argv[2]
+    {"pymodbus": run_pymodbus, "mbpoll": run_mbpoll}[client](binary)
+    print(f"{len(failures)} failed" if failures else "all checks passed")
+    sys.exit(1 if failures else 0)
