@@ -49,21 +49,22 @@ struct Query {
   DirectionalDistanceTransform dt3;
   IntegralDistanceTransform idt;
   ChamferCosts costs;
-  Query() {
+  // clutter: number of random clutter segments (80: the dense default; 15: a typical depth-edge map)
+  explicit Query(int clutter = 80, int blobs = 6) {
     std::mt19937 rng(1);
     cv::Mat1b img(480, 640, uchar(70));
     std::uniform_int_distribution<int> ux(0, 639), uy(0, 479), ug(30, 150);
     std::uniform_real_distribution<double> ua(0, CV_PI), ul(20, 160);
     // Clutter: 80 random segments of 20..160 px (the paper corrupts its depth-edge maps with
     // uniformly sampled line segments).
-    for (int i = 0; i < 80; ++i) {
+    for (int i = 0; i < clutter; ++i) {
       const cv::Point a(ux(rng), uy(rng));
       const double ang = ua(rng), len = ul(rng);
       cv::line(img, a, a + cv::Point(cvRound(len * std::cos(ang)), cvRound(len * std::sin(ang))), ug(rng), 1, cv::LINE_AA);
     }
     for (int k = 0; k < 8; ++k)
       cv::fillPoly(img, std::vector<std::vector<cv::Point>>{place(kTNut, {90.0 + (k % 4) * 150, 120.0 + (k / 4) * 230}, k * 0.7)}, 200);
-    for (int k = 0; k < 6; ++k) {
+    for (int k = 0; k < blobs; ++k) {
       std::vector<cv::Point> b;
       for (auto p : blob(rng, 30)) b.emplace_back(cvRound(p.x + ux(rng)), cvRound(p.y + uy(rng)));
       cv::polylines(img, std::vector<std::vector<cv::Point>>{b}, true, ug(rng), 2);
@@ -82,6 +83,10 @@ struct Query {
 };
 const Query& query() {
   static const Query q;
+  return q;
+}
+const Query& typicalQuery() {
+  static const Query q(15, 2);
   return q;
 }
 
@@ -127,16 +132,16 @@ void report(benchmark::State& state, const SearchResult& r, uint64_t iterations)
 }  // namespace
 
 static void BM_LineFit640x480(benchmark::State& state) {
-  const Query& q = query();
+  const Query& q = state.range(0) ? query() : typicalQuery();
   for (auto _ : state) benchmark::DoNotOptimize(fitLines(q.edges));
   state.counters["edge_pixels"] = q.fit.inputEdgePixels;
   state.counters["lines"] = static_cast<double>(q.fit.set.lines.size());
 }
-BENCHMARK(BM_LineFit640x480)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_LineFit640x480)->ArgName("dense")->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
 // DT3 + IDT3 build at 640x480, q = 60, with 1 and 2 threads.
 static void BM_Dt3Idt3Build(benchmark::State& state) {
-  const Query& q = query();
+  const Query& q = state.range(1) ? query() : typicalQuery();
   omp_set_num_threads(static_cast<int>(state.range(0)));
   DirectionalDistanceTransform dt3;
   IntegralDistanceTransform idt;
@@ -148,9 +153,11 @@ static void BM_Dt3Idt3Build(benchmark::State& state) {
   state.counters["threads"] = static_cast<double>(state.range(0));
   state.counters["dt3_MB"] = dt3.bytes() / 1e6;
   state.counters["idt3_MB"] = idt.bytes() / 1e6;
+  state.counters["edge_pixels"] = q.fit.inputEdgePixels;
+  state.counters["explained_pixels"] = q.fit.explainedEdgePixels;
   omp_set_num_threads(2);
 }
-BENCHMARK(BM_Dt3Idt3Build)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_Dt3Idt3Build)->ArgsProduct({{1, 2}, {0, 1}})->ArgNames({"threads", "dense"})->Unit(benchmark::kMillisecond)->UseRealTime();
 
 // Same hypothesis set for every method: a template at 8 rotations (45 degree steps) over every
 // translation of the 640x480 query, one thread. range(0): 0 = bounds off (plain exhaustive

@@ -55,18 +55,24 @@ def main(bench_dir, docs_dir):
       "anti-aliased clutter segments of 20-160 px and Gaussian noise (sigma 5), through Canny (50/150) and the line fitter, "
       "as `mfc-match` would see it.\n")
 
-    fit = b.get("BM_LineFit640x480")
-    if fit:
-        w("## Line fitting (Sec. 3.3)\n")
-        w("| query edge pixels | fitted lines | time |\n|---:|---:|---:|")
-        w("| %d | %d | %.1f ms |\n" % (fit["edge_pixels"], fit["lines"], ms(fit)))
+    w("Two queries: *typical* (2 blobs, 15 clutter segments: an edge density like a depth-edge map of a bin) "
+      "and *dense* (the full clutter above).\n")
+    w("## Line fitting (Sec. 3.3)\n")
+    w("| query | edge pixels | fitted lines | time |\n|---|---:|---:|---:|")
+    for d in (0, 1):
+        fit = b.get("BM_LineFit640x480/dense:%d" % d)
+        if fit:
+            w("| %s | %d | %d | %.1f ms |" % ("dense" if d else "typical", fit["edge_pixels"], fit["lines"], ms(fit)))
+    w("")
 
     w("## DT3 + IDT3 build (Sec. 3.4-3.5), 640x480, q = 60, lambda = 0.5, truncation 30 px\n")
-    w("| threads | wall time | target | DT3 tensor | IDT3 tensor |\n|---:|---:|---:|---:|---:|")
-    for t in (1, 2):
-        r = b.get("BM_Dt3Idt3Build/%d/real_time" % t)
-        if r:
-            w("| %d | %.1f ms | <= 25 ms | %.1f MB (8-bit) | %.1f MB (16-bit) |" % (t, ms(r), r["dt3_MB"], r["idt3_MB"]))
+    w("| query | edge pixels (in lines) | threads | wall time | target | DT3 tensor | IDT3 tensor |\n|---|---:|---:|---:|---:|---:|---:|")
+    for d in (0, 1):
+        for t in (1, 2):
+            r = b.get("BM_Dt3Idt3Build/threads:%d/dense:%d/real_time" % (t, d))
+            if r:
+                w("| %s | %d | %d | %.1f ms | <= 25 ms | %.1f MB (8-bit) | %.1f MB (16-bit) |" % (
+                    "dense" if d else "typical", r["explained_pixels"], t, ms(r), r["dt3_MB"], r["idt3_MB"]))
     w("\nMemory is bounded by q x W x H: one byte per DT3 entry (1/8 px fixed point, truncated at 31.875 px) and "
       "two bytes per IDT3 entry (sums wrap modulo 2^16; segments are split at 256 pixels so every segment sum is "
       "exact). DT3 is kept for the CM/OCM/direct-DCM reference paths; FDCM itself only reads IDT3.\n")
