@@ -55,7 +55,8 @@ mkdir -p /mnt/rw/upper /mnt/rw/work
 mount -t overlay overlay -o lowerdir=/mnt/host,upperdir=/mnt/rw/upper,workdir=/mnt/rw/work $ROOT \
   || setup_failed "overlay over the host root"
 for d in proc sys dev; do mount --rbind /$d $ROOT/$d; done
-mount -t tmpfs tmpfs $ROOT/tmp
+# No fresh tmpfs over /tmp: the checkout under test may live there (CI clones anywhere), and the
+# overlay already makes every path writable (writes land in /mnt/rw, never on the host).
 mount -t tmpfs tmpfs $ROOT/run
 if [ -n "$SHARE" ]; then
   mkdir -p "$ROOT$SHARE"

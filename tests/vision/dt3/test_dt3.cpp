@@ -9,19 +9,6 @@
 using namespace mfcd::vision;
 using namespace mfcd::vision::testing;
 
-namespace {
-struct EdgePixel {
-  int x, y, c;
-};
-std::vector<EdgePixel> edgePixels(const cv::Mat1b& map) {
-  std::vector<EdgePixel> v;
-  for (int y = 0; y < map.rows; ++y)
-    for (int x = 0; x < map.cols; ++x)
-      if (map(y, x) != kNoChannel) v.push_back({x, y, map(y, x)});
-  return v;
-}
-}  // namespace
-
 // Twin: Eq. 8 evaluated directly, min over every edge pixel of distance + lambda * channel
 // distance, in the same fixed point (exact integer equality) and in floating point (within the
 // 1/16 px rounding of the storage).
@@ -37,7 +24,7 @@ TEST(Dt3, EqualsBruteForceMinimumOverEdgePixels) {
     const cv::Mat1b map = randomChannelMap(rng, size, p.q, static_cast<int>(rng() % 6), static_cast<int>(rng() % 10));
     DirectionalDistanceTransform dt3;
     dt3.compute(map, p);
-    const auto edges = edgePixels(map);
+    const auto edges = labelledPixels(map);
     const OrientationChannels ch(p.q);
     for (int c = 0; c < p.q; ++c)
       for (int y = 0; y < size.height; ++y)
@@ -45,10 +32,10 @@ TEST(Dt3, EqualsBruteForceMinimumOverEdgePixels) {
           int bestUnits = p.capUnits();
           double bestPx = p.maxCost;
           for (const auto& e : edges) {
-            const double d = std::hypot(e.x - x, e.y - y);
-            const int units = static_cast<int>(std::lround(kCostScale * d)) + p.lambdaUnits() * ch.distance(c, e.c);
+            const double d = std::hypot(e[0] - x, e[1] - y);
+            const int units = static_cast<int>(std::lround(kCostScale * d)) + p.lambdaUnits() * ch.distance(c, e[2]);
             bestUnits = std::min(bestUnits, units);
-            bestPx = std::min(bestPx, d + p.lambda * ch.distance(c, e.c));
+            bestPx = std::min(bestPx, d + p.lambda * ch.distance(c, e[2]));
           }
           ASSERT_EQ(dt3.at(c, x, y), bestUnits) << "trial " << trial << " c " << c << " at " << x << "," << y;
           ASSERT_NEAR(dt3.at(c, x, y) / double(kCostScale), bestPx, 0.5 / kCostScale + 1e-9);

@@ -11,14 +11,6 @@
 using namespace mfcd::vision;
 using namespace mfcd::vision::testing;
 
-namespace {
-double pointToSegment(cv::Point2d p, cv::Point2d a, cv::Point2d b) {
-  const cv::Point2d d = b - a;
-  const double t = std::clamp((p - a).dot(d) / d.dot(d), 0.0, 1.0);
-  return cv::norm(p - (a + d * t));
-}
-}  // namespace
-
 // Polygons with random edge directions (corners turning by 30..150 degrees, edges >= 40 px), drawn as 8-connected
 // lines. Every fitted segment lies on a polygon edge: endpoints within 1 px of the edge's line,
 // direction within one channel. Along the edge, an end may pass a vertex by up to 3 px: near a

@@ -65,10 +65,7 @@ TEST(DirectDcmMatcher, EqualsEquationSixOnTemplatePixels) {
   q.map = randomChannelMap(rng, {80, 70}, p.q, 6, 5);
   build(q, p);
   const OrientationChannels ch(p.q);
-  std::vector<std::array<int, 3>> edges;
-  for (int y = 0; y < 70; ++y)
-    for (int x = 0; x < 80; ++x)
-      if (q.map(y, x) != kNoChannel) edges.push_back({x, y, q.map(y, x)});
+  const auto edges = labelledPixels(q.map);
   const DirectDcmMatcher direct(q.dt3);
   const DigitalLineTable lines(ch, 82, 72);
   for (int trial = 0; trial < 20; ++trial) {
@@ -100,10 +97,7 @@ TEST(ChamferMatcher, CmAndOcmEqualTheirDefinitions) {
   q.map = randomChannelMap(rng, {90, 80}, p.q, 8, 6);
   build(q, p);
   const OrientationChannels ch(p.q);
-  std::vector<std::array<int, 3>> edges;
-  for (int y = 0; y < 80; ++y)
-    for (int x = 0; x < 90; ++x)
-      if (q.map(y, x) != kNoChannel) edges.push_back({x, y, q.map(y, x)});
+  const auto edges = labelledPixels(q.map);
   const ChamferMatcher cm(q.costs, ChamferMatcher::Kind::Chamfer);
   const ChamferMatcher ocm(q.costs, ChamferMatcher::Kind::OrientedChamfer);
   for (int trial = 0; trial < 20; ++trial) {

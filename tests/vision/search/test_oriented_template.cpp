@@ -9,14 +9,6 @@
 using namespace mfcd::vision;
 using namespace mfcd::vision::testing;
 
-namespace {
-double pointToSegment(cv::Point2d p, cv::Point2d a, cv::Point2d b) {
-  const cv::Point2d d = b - a;
-  const double t = std::clamp((p - a).dot(d) / d.dot(d), 0.0, 1.0);
-  return cv::norm(p - (a + d * t));
-}
-}  // namespace
-
 // Every digital pixel of a warped template lies on its warped source segment (within the
 // 0.5 px drift allowance, 0.5 px rounding and 1 px pattern anchoring), pixel counts match the
 // segments' extents, spans fit 16-bit IDT3 sums, and the bounding box holds every pixel.

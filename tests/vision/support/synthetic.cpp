@@ -61,6 +61,20 @@ void drawLineSet(cv::Mat1b& channelMap, const LineSet& set, cv::Point2d at) {
                 cv::Point2d(l.b) - cv::Point2d(set.origin) + at, l.channel);
 }
 
+double pointToSegment(cv::Point2d p, cv::Point2d a, cv::Point2d b) {
+  const cv::Point2d d = b - a;
+  const double t = std::clamp((p - a).dot(d) / d.dot(d), 0.0, 1.0);
+  return cv::norm(p - (a + d * t));
+}
+
+std::vector<std::array<int, 3>> labelledPixels(const cv::Mat1b& channelMap) {
+  std::vector<std::array<int, 3>> v;
+  for (int y = 0; y < channelMap.rows; ++y)
+    for (int x = 0; x < channelMap.cols; ++x)
+      if (channelMap(y, x) != kNoChannel) v.push_back({x, y, channelMap(y, x)});
+  return v;
+}
+
 std::vector<cv::Point2d> randomPolygon(std::mt19937& rng, cv::Point2d centre, double radius, int count) {
   std::uniform_real_distribution<double> ua(0, 2 * std::numbers::pi), ur(0.6, 1.0);
   // Rejection sampling: every corner must turn by 30..150 degrees and every edge be at least

@@ -1,5 +1,6 @@
 #pragma once
 // Synthetic inputs for the vision tests: random directional edge maps, polygons, templates.
+#include <array>
 #include <random>
 #include <vector>
 
@@ -20,6 +21,12 @@ LineSet randomLineSet(std::mt19937& rng, int q, int count, double minLen, double
 // Rasterises a line set into a channel map, origin placed at `at`, using the line fitter's
 // convention (pixels of each segment labelled with its channel).
 void drawLineSet(cv::Mat1b& channelMap, const LineSet& set, cv::Point2d at);
+
+// Euclidean distance from p to the segment [a, b].
+double pointToSegment(cv::Point2d p, cv::Point2d a, cv::Point2d b);
+
+// Every labelled pixel of a channel map as {x, y, channel}.
+std::vector<std::array<int, 3>> labelledPixels(const cv::Mat1b& channelMap);
 
 // A random convex polygon (count vertices) inside a circle of `radius` around `centre`.
 std::vector<cv::Point2d> randomPolygon(std::mt19937& rng, cv::Point2d centre, double radius, int count);
