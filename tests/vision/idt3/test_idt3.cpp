@@ -25,6 +25,8 @@ TEST(Idt3, SegmentSumsEqualDirectSums) {
       const int c = static_cast<int>(rng() % p.q);
       const int span = static_cast<int>(rng() % (kMaxSegmentSpan + 1));
       const int sx = static_cast<int>(rng() % size.width), sy = static_cast<int>(rng() % size.height);
+      // The major extent must fit before the pattern table is read; the minor one is checked per pixel.
+      if ((idt.lines().xMajor(c) ? sx : sy) + span >= (idt.lines().xMajor(c) ? size.width : size.height)) continue;
       bool inside = true;
       uint32_t direct = 0;
       forEachPixel(idt.lines(), c, sx, sy, span, 1, [&](int x, int y) {
