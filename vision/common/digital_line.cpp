@@ -12,9 +12,7 @@ DigitalLineTable::DigitalLineTable(const OrientationChannels& channels, int widt
   for (int c = 0; c < q; ++c) {
     const bool xm = channels.xMajor(c);
     xMajor_[c] = xm ? 1 : 0;
-    const double phi = channels.angleOf(c);
-    // Slope of the minor coordinate per major step; |slope| <= 1 by the choice of major axis.
-    const double slope = xm ? std::tan(phi) : std::cos(phi) / std::sin(phi);
+    const double slope = channels.minorSlope(c);
     const int extent = (xm ? width : height) + 1;
     auto& table = minor_[c];
     table.resize(extent);

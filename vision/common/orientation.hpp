@@ -52,6 +52,12 @@ public:
   // A channel is "x-major" when its direction is closer to the x axis than to the y axis
   // (the 45-degree channels count as x-major). Decided on integers so it never flickers.
   bool xMajor(int channel) const { return 4 * channel <= q_ || 4 * channel >= 3 * q_; }
+  // Minor-axis change per major-axis step of the channel's direction (|slope| <= 1 by the choice
+  // of major axis): tan(phi) for x-major channels, cot(phi) for y-major ones.
+  double minorSlope(int channel) const {
+    const double phi = angleOf(channel);
+    return xMajor(channel) ? std::tan(phi) : std::cos(phi) / std::sin(phi);
+  }
 
 private:
   int q_;

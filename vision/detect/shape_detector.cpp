@@ -195,7 +195,6 @@ DetectionReport ShapeDetector::run(const cv::Mat& image, SearchMode mode, int on
   report.msSearch = msSince(t);
   report.stats = result.stats;
   report.truncated = result.truncated;
-  report.hypothesesPerTemplate = static_cast<int>(oriented.empty() ? 0 : result.stats.hypotheses / (onlyTemplate >= 0 ? 1 : templates_.size()));
 
   const auto kept = nonMaximumSuppression(result.candidates, oriented, params_.nmsMaxIoU,
                                           mode == SearchMode::Detect ? params_.maxDetections : 1);

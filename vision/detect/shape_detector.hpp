@@ -67,7 +67,7 @@ struct DetectionReport {
   std::vector<Detection> detections;  // best first
   SearchStats stats;
   bool truncated = false;
-  int queryEdgePixels = 0, queryLines = 0, hypothesesPerTemplate = 0;
+  int queryEdgePixels = 0, queryLines = 0;
   double msEdges = 0, msLines = 0, msDistance = 0, msSearch = 0, msTotal = 0;
 };
 

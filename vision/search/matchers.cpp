@@ -73,7 +73,8 @@ void ChamferCosts::compute(const cv::Mat1b& channelMap, const Dt3Params& params)
     }
 }
 
-ChamferMatcher::ChamferMatcher(const ChamferCosts& costs, Kind kind) : costs_(costs), kind_(kind) {
+ChamferMatcher::ChamferMatcher(const ChamferCosts& costs, Kind kind)
+    : costs_(costs), kind_(kind), pattern_(OrientationChannels(costs.q), kMaxSegmentSpan + 1, kMaxSegmentSpan + 1) {
   const int q = costs.q;
   const OrientationChannels ch(q);
   orientationCost_.assign(static_cast<size_t>(q) * 256, 0);
@@ -87,16 +88,14 @@ void ChamferMatcher::prepare(const OrientedTemplate& t, int, int, State& s) cons
   // CM and OCM use the template as a fixed point set: each segment's pixels follow the line
   // pattern anchored at the segment's own start, so the set is translation invariant.
   const int w = costs_.distance.cols;
-  const OrientationChannels ch(costs_.q);
   s.offsets.clear();
   s.segments.clear();
   for (const auto& seg : t.segments) {
-    const double phi = ch.angleOf(seg.channel);
-    const bool xm = ch.xMajor(seg.channel);
-    const double slope = xm ? std::tan(phi) : std::cos(phi) / std::sin(phi);
+    const bool xm = pattern_.xMajor(seg.channel);
+    const int16_t* m = pattern_.minor(seg.channel);  // m[0] = 0: anchored at the segment start
     Segment rs{static_cast<int>(s.offsets.size()), 0, seg.channel};
     for (int k = 0; k <= seg.span; ++k) {
-      const int minor = static_cast<int>(std::floor(k * slope + 0.5));
+      const int minor = m[k];
       const int x = xm ? seg.x + k : seg.x + minor, y = xm ? seg.y + minor : seg.y + k;
       s.offsets.push_back(y * w + x);
     }

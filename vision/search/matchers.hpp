@@ -102,6 +102,7 @@ public:
 private:
   const ChamferCosts& costs_;
   Kind kind_;
+  DigitalLineTable pattern_;  // each segment's pixels follow its channel's pattern from k = 0
   std::vector<uint8_t> orientationCost_;  // [templateChannel * q + nearestChannel]
 };
 

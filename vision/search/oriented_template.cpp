@@ -39,8 +39,7 @@ OrientedTemplate orientTemplate(const LineSet& set, int templateIndex, const War
     // Digital pixels follow the channel's slope; the true line may differ by up to half a
     // channel. Pieces restart on the true line often enough that no pixel drifts more than
     // kMaxDrift from it, and are short enough for exact 16-bit IDT3 sums.
-    const double cphi = ch.angleOf(c);
-    const double slope = xm ? std::tan(cphi) : std::cos(cphi) / std::sin(cphi);
+    const double slope = ch.minorSlope(c);
     const cv::Vec2d forward = am <= bm ? dv : cv::Vec2d(-dv);  // from the start s to the other end
     const cv::Vec2d unitMajor = forward / std::max(1e-12, std::abs(xm ? dv[0] : dv[1]));  // 1 major step
     const double trueSlope = xm ? unitMajor[1] : unitMajor[0];
