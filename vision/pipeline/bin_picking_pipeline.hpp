@@ -1,0 +1,92 @@
+#pragma once
+// The whole vision path of one pick cycle, composed from the paper's stages:
+// flash images -> depth edges (4.2) -> lines (3.3) -> DT3/IDT3 (3.4-3.5) -> FDCM search over
+// every template of every loaded part (3.6, 4.3) -> coarse 3-D pose (4.4) -> multi-view
+// refinement (4.5) -> ranked pick candidates. The daemon's vision worker owns one instance and
+// calls process() once per FrameSet.
+//
+// Buffers are sized at construction (image size, candidate capacity); process() then reuses
+// them. Not thread-safe: one pipeline per worker thread (it owns an EGL context for rendering
+// model edges, which is bound to the thread that made it).
+
+#include "vision/camera/camera.hpp"
+#include "vision/camera/mfc_frames.hpp"
+#include "vision/edges/depth_edges.hpp"
+
+#include <opencv2/core.hpp>
+
+#include <chrono>
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace mfcd::vision {
+
+struct PipelineConfig {
+  std::vector<std::filesystem::path> template_files;  // *.tdb, one per part type (mfc-teach)
+  int max_candidates = 8;          // pick candidates kept per cycle, best first
+  double max_cost_px = 3.0;        // FDCM detection threshold (mean directional chamfer cost)
+  std::vector<double> distances_mm;  // hypothesised part distances; empty = the templates' own
+  int refine_iterations = 10;      // per candidate; fewer when the deadline is near
+  int threads = 0;                 // search threads; 0 = OpenMP default
+  DepthEdgeParams depth_edges;
+};
+
+struct PoseCandidate {
+  int obj_id = 0;               // BOP object id of the part type (from its .tdb)
+  std::string part;             // part name from the .tdb
+  int view = -1;                // template view (out-of-plane rotation) that matched
+  cv::Matx33d R_m2c = cv::Matx33d::eye();  // model -> camera rotation
+  cv::Vec3d t_m2c_mm{0, 0, 0};  // model origin in the camera frame, mm
+  double score = 0;             // 0..1, higher is better (from the final chamfer cost)
+  double cost_px = 0;           // mean directional chamfer cost at the final pose
+  bool refined = false;         // false: coarse pose only (refinement skipped or failed)
+  cv::Rect2d box;               // image bounding box of the matched template
+};
+
+struct StageTimes {
+  double edges_ms = 0, lines_ms = 0, distance_ms = 0, search_ms = 0, pose_ms = 0, refine_ms = 0,
+         total_ms = 0;
+};
+
+struct PipelineResult {
+  std::vector<PoseCandidate> candidates;  // best first; capacity reserved once
+  StageTimes times;
+  bool degraded = false;      // the deadline cut a stage short: best-so-far result
+  int edge_pixels = 0;
+  int query_lines = 0;
+};
+
+class BinPickingPipeline {
+ public:
+  // Loads and checks every template file against `camera` (refused with the file and the
+  // reason on mismatch or corruption). Throws std::runtime_error.
+  BinPickingPipeline(const CameraConfig& camera, PipelineConfig config);
+  ~BinPickingPipeline();
+  BinPickingPipeline(const BinPickingPipeline&) = delete;
+  BinPickingPipeline& operator=(const BinPickingPipeline&) = delete;
+
+  // obj_id = 0 searches every loaded part type, otherwise only that one (the PLC's recipe).
+  // Stages that would pass `deadline` are shortened (fewer refinement iterations, then no
+  // refinement) and the result is flagged degraded; it never blocks past the deadline by
+  // more than one stage.
+  void process(const MfcFrames& frames, int obj_id, std::chrono::steady_clock::time_point deadline,
+               PipelineResult& out);
+
+  // Part types loaded, as (obj_id, name).
+  std::vector<std::pair<int, std::string>> parts() const;
+  const CameraConfig& camera() const;
+  // The depth edges of the last process() (for snapshots and overlays).
+  const DepthEdges& last_edges() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// Draws the candidates (model outline at the pose, index, score) over a grey image.
+cv::Mat3b draw_candidates(const cv::Mat1b& image, const PipelineResult& result, const CameraConfig& camera);
+
+}  // namespace mfcd::vision
