@@ -88,6 +88,23 @@ ViewGeometry view_geometry(const CameraConfig& config, double distance, double r
   return g;
 }
 
+bool part_pixel_near(const MfcRender& render, int x, int y) {
+  for (int dy = -1; dy <= 1; ++dy)
+    for (int dx = -1; dx <= 1; ++dx) {
+      const int xx = x + dx, yy = y + dy;
+      if (xx >= 0 && yy >= 0 && xx < render.part_index.cols && yy < render.part_index.rows &&
+          render.part_index(yy, xx) == 1)
+        return true;
+    }
+  return false;
+}
+
+void drop_background_edges(DepthEdges& edges, const MfcRender& render) {
+  for (int y = 0; y < edges.edges.rows; ++y)
+    for (int x = 0; x < edges.edges.cols; ++x)
+      if (edges.edges(y, x) && !part_pixel_near(render, x, y)) edges.edges(y, x) = 0;
+}
+
 // Depth-edge pixels -> model points: the part pixel nearest to the camera within one pixel
 // (the occluding side of the discontinuity), back-projected with the cropped camera.
 void trace_points(const DepthEdges& edges, const MfcRender& render, const PinholeCamera& cam, const cv::Matx33d& R,
@@ -178,6 +195,10 @@ TemplateDatabase teach_templates(const Mesh& mesh, const CameraConfig& camera, c
             {plane_id, cv::Matx33d::eye(), cv::Vec3d(0, 0, geo.plane_z_mm), Material::matte(0.6f)}};
         renderer.render(parts, render, 1);
         extractor.extract(render.frames, edges);
+        // Edges with no part pixel next to them are features of the shadows on the template's
+        // background plane (where two flashes' shadows meet), not of the part: a bin floor at
+        // another distance would not show them, so they are removed before line fitting.
+        drop_background_edges(edges, render);
         if (cv::countNonZero(edges.edges) >= params.min_edge_pixels) {
           LineFitResult fit = fitLines(edges.edges, params.lines, &edges.direction);
           if (!fit.set.lines.empty()) {
