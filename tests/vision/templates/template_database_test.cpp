@@ -1,0 +1,207 @@
+// Template database: teaching from a mesh (views, lines, model points that reproject onto their
+// pixels), the .tdb round trip, and every refusal reason.
+#include "vision/templates/template_database.hpp"
+#include "vision/templates/template_teacher.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+
+using namespace mfcd::vision;
+namespace fs = std::filesystem;
+
+namespace {
+
+CameraConfig sim_camera() { return load_camera_config(fs::path(MFC_SOURCE_DIR) / "config/camera-sim.yaml"); }
+
+// One taught database shared by the tests (teaching renders; do it once).
+const TemplateDatabase& box_db() {
+  static const TemplateDatabase db = [] {
+    TeachParams p;
+    p.sphere_samples = 24;
+    p.threads = 2;
+    return teach_templates(make_box(40, 30, 20), sim_camera(), "box", 7, p);
+  }();
+  return db;
+}
+
+fs::path temp_file(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() / ("mfcd-tdb-test-" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  return dir / name;
+}
+
+std::vector<char> read_bytes(const fs::path& f) {
+  std::ifstream in(f, std::ios::binary);
+  return std::vector<char>((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+void write_bytes(const fs::path& f, const std::vector<char>& b) {
+  std::ofstream out(f, std::ios::binary | std::ios::trunc);
+  out.write(b.data(), static_cast<std::streamsize>(b.size()));
+}
+
+std::string load_error(const fs::path& f) {
+  try {
+    load_template_database(f);
+  } catch (const TemplateFileError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+}  // namespace
+
+TEST(TemplateTeacher, EveryViewHasLinesAndPointsThatReprojectOntoTheirPixels) {
+  const auto& db = box_db();
+  EXPECT_EQ(db.views.size(), 24u);
+  EXPECT_EQ(db.obj_id, 7);
+  EXPECT_NEAR(db.diameter_mm, std::sqrt(40.0 * 40 + 30 * 30 + 20 * 20), 1e-3);
+  const auto& cam = db.camera.camera;
+  for (const auto& v : db.views) {
+    ASSERT_FALSE(v.lines.lines.empty()) << v.index;
+    ASSERT_GT(v.points.size(), 100u) << v.index;
+    // The part centre is on the optical axis at the working distance.
+    const cv::Vec3d c = v.R_m2c * db.center_mm + v.t_m2c_mm;
+    EXPECT_NEAR(c[0], 0, 1e-9);
+    EXPECT_NEAR(c[2], db.distance_mm, 1e-9);
+    int near = 0;
+    for (const auto& p : v.points) {
+      const cv::Vec3d pc = v.R_m2c * cv::Vec3d(p.model_mm[0], p.model_mm[1], p.model_mm[2]) + v.t_m2c_mm;
+      const cv::Point2d uv = cam.project(pc);
+      const cv::Point2d pixel(p.pixel.x + cam.cx(), p.pixel.y + cam.cy());
+      near += cv::norm(uv - pixel) <= 1.5;
+      // Model points lie on the box surface.
+      const double ex = std::max({std::abs(std::abs(p.model_mm[0]) - 20.0), 0.0});
+      (void)ex;
+      EXPECT_LE(std::abs(p.model_mm[0]), 20.0 + 0.3);
+      EXPECT_LE(std::abs(p.model_mm[1]), 15.0 + 0.3);
+      EXPECT_LE(std::abs(p.model_mm[2]), 10.0 + 0.3);
+    }
+    EXPECT_GE(near, static_cast<int>(0.97 * v.points.size())) << "view " << v.index;
+    // Each line lies on edge points: its midpoint is within 1.5 px of some point.
+    for (const auto& l : v.lines.lines) {
+      const cv::Point2f mid = (l.a + l.b) * 0.5f - v.lines.origin;
+      double best = 1e9;
+      for (const auto& p : v.points) best = std::min(best, double(cv::norm(p.pixel - mid)));
+      EXPECT_LT(best, 1.5);
+    }
+  }
+}
+
+TEST(TemplateTeacher, SymmetricPartsGetFewerViews) {
+  TeachParams p;
+  p.sphere_samples = 300;
+  p.symmetry = PartSymmetry::parse("z:inf");
+  p.threads = 2;
+  const auto db = teach_templates(make_cylinder(20, 30), sim_camera(), "cyl", 1, p);
+  EXPECT_LE(db.views.size(), 19u);
+  EXPECT_GE(db.views.size(), 15u);
+  EXPECT_EQ(db.symmetry.kind, PartSymmetry::Kind::continuous_z);
+}
+
+TEST(TemplateTeacher, BadInputIsRefused) {
+  TeachParams p;
+  p.sphere_samples = 0;
+  EXPECT_THROW(teach_templates(make_box(10, 10, 10), sim_camera(), "b", 1, p), std::invalid_argument);
+  p.sphere_samples = 4;
+  p.distance_mm = 5;
+  EXPECT_THROW(teach_templates(make_box(10, 10, 10), sim_camera(), "b", 1, p), std::invalid_argument);
+  EXPECT_THROW(teach_templates(Mesh{}, sim_camera(), "b", 1, TeachParams{}), std::invalid_argument);
+}
+
+TEST(TemplateFile, RoundTripKeepsEverything) {
+  const auto& db = box_db();
+  const fs::path f = temp_file("box.tdb");
+  save_template_database(db, f);
+  const TemplateDatabase r = load_template_database(f);
+  EXPECT_EQ(r.part_name, db.part_name);
+  EXPECT_EQ(r.obj_id, db.obj_id);
+  EXPECT_EQ(r.symmetry.str(), db.symmetry.str());
+  EXPECT_EQ(r.camera.camera.image_size, db.camera.camera.image_size);
+  EXPECT_EQ(r.camera.camera.K, db.camera.camera.K);
+  EXPECT_EQ(r.camera.flashes.positions_mm, db.camera.flashes.positions_mm);
+  EXPECT_EQ(r.mesh.vertices.size(), db.mesh.vertices.size());
+  EXPECT_EQ(r.mesh.triangles, db.mesh.triangles);
+  ASSERT_EQ(r.views.size(), db.views.size());
+  for (size_t i = 0; i < db.views.size(); ++i) {
+    EXPECT_EQ(r.views[i].R_m2c, db.views[i].R_m2c);
+    EXPECT_EQ(r.views[i].t_m2c_mm, db.views[i].t_m2c_mm);
+    ASSERT_EQ(r.views[i].lines.lines.size(), db.views[i].lines.lines.size());
+    for (size_t k = 0; k < db.views[i].lines.lines.size(); ++k) {
+      EXPECT_EQ(r.views[i].lines.lines[k].a, db.views[i].lines.lines[k].a);
+      EXPECT_EQ(r.views[i].lines.lines[k].channel, db.views[i].lines.lines[k].channel);
+    }
+    ASSERT_EQ(r.views[i].points.size(), db.views[i].points.size());
+    EXPECT_EQ(r.views[i].points.back().model_mm, db.views[i].points.back().model_mm);
+    EXPECT_EQ(r.views[i].lines.origin, db.views[i].lines.origin);
+  }
+  EXPECT_NO_THROW(check_template_camera(r, sim_camera(), f.string()));
+}
+
+TEST(TemplateFile, CorruptFilesAreRefusedWithTheReason) {
+  const fs::path good = temp_file("good.tdb");
+  save_template_database(box_db(), good);
+  const std::vector<char> bytes = read_bytes(good);
+  const fs::path bad = temp_file("bad.tdb");
+
+  std::vector<char> b = bytes;
+  b[0] = 'X';
+  write_bytes(bad, b);
+  EXPECT_NE(load_error(bad).find("not a template database"), std::string::npos) << load_error(bad);
+
+  b = bytes;
+  b[8] = 99;  // version
+  write_bytes(bad, b);
+  EXPECT_NE(load_error(bad).find("version 99"), std::string::npos) << load_error(bad);
+
+  b.assign(bytes.begin(), bytes.begin() + static_cast<long>(bytes.size() / 2));
+  write_bytes(bad, b);
+  EXPECT_NE(load_error(bad).find("truncated"), std::string::npos) << load_error(bad);
+
+  b.assign(bytes.begin(), bytes.begin() + 20);
+  write_bytes(bad, b);
+  EXPECT_NE(load_error(bad).find("truncated"), std::string::npos) << load_error(bad);
+
+  b = bytes;
+  b[bytes.size() / 2] ^= 0x5a;
+  write_bytes(bad, b);
+  EXPECT_NE(load_error(bad).find("checksum mismatch"), std::string::npos) << load_error(bad);
+
+  b = bytes;
+  b.push_back(0);
+  write_bytes(bad, b);
+  EXPECT_NE(load_error(bad).find("unexpected bytes"), std::string::npos) << load_error(bad);
+
+  write_bytes(bad, {});
+  EXPECT_NE(load_error(bad).find("not a template database"), std::string::npos) << load_error(bad);
+  EXPECT_NE(load_error(temp_file("missing.tdb")).find("cannot open"), std::string::npos);
+  // Every message names the file.
+  EXPECT_NE(load_error(bad).find(bad.string()), std::string::npos);
+}
+
+TEST(TemplateFile, DatabaseForAnotherCameraIsRefused) {
+  const auto& db = box_db();
+  auto refused = [&](const CameraConfig& c) {
+    try {
+      check_template_camera(db, c, "box.tdb");
+    } catch (const TemplateFileError& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  CameraConfig c = sim_camera();
+  c.camera.K(0, 0) *= 1.01;
+  EXPECT_NE(refused(c).find("fx"), std::string::npos) << refused(c);
+  c = sim_camera();
+  c.camera.image_size = {800, 600};
+  EXPECT_NE(refused(c).find("image size"), std::string::npos);
+  c = sim_camera();
+  c.flashes.positions_mm[3][0] += 5;
+  EXPECT_NE(refused(c).find("flash 3"), std::string::npos);
+  c = sim_camera();
+  c.flashes.positions_mm.pop_back();
+  EXPECT_NE(refused(c).find("flashes"), std::string::npos);
+  EXPECT_NE(refused(c).find("box.tdb"), std::string::npos);
+}

@@ -1,0 +1,248 @@
+#include "vision/templates/template_teacher.hpp"
+
+#include "vision/templates/view_sampling.hpp"
+
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <exception>
+#include <mutex>
+#include <optional>
+#include <stdexcept>
+#include <thread>
+
+namespace mfcd::vision {
+
+cv::Vec3d part_center(const Mesh& mesh) {
+  const cv::Vec3f lo = mesh.bbox_min(), hi = mesh.bbox_max();
+  return cv::Vec3d((lo[0] + hi[0]) * 0.5, (lo[1] + hi[1]) * 0.5, (lo[2] + hi[2]) * 0.5);
+}
+
+double part_radius(const Mesh& mesh, const cv::Vec3d& center) {
+  double r2 = 0;
+  for (const auto& v : mesh.vertices) {
+    const cv::Vec3d d(v[0] - center[0], v[1] - center[1], v[2] - center[2]);
+    r2 = std::max(r2, d.dot(d));
+  }
+  return std::sqrt(r2);
+}
+
+double mesh_diameter(const Mesh& mesh) {
+  // The farthest pair of points lies on the convex hull; the hull of a part has far fewer
+  // vertices than the part, so the quadratic scan over it is cheap. Hull in 3-D is taken as
+  // the vertices extreme along many directions, which contains every hull vertex that is
+  // extreme along any of them; the exact pair is then found among all vertices against them.
+  if (mesh.vertices.empty()) return 0;
+  std::vector<int> extreme;
+  for (const auto& d : fibonacci_sphere(512)) {
+    int best = 0;
+    double bv = -1e300;
+    for (size_t i = 0; i < mesh.vertices.size(); ++i) {
+      const auto& v = mesh.vertices[i];
+      const double p = v[0] * d[0] + v[1] * d[1] + v[2] * d[2];
+      if (p > bv) bv = p, best = static_cast<int>(i);
+    }
+    extreme.push_back(best);
+  }
+  std::sort(extreme.begin(), extreme.end());
+  extreme.erase(std::unique(extreme.begin(), extreme.end()), extreme.end());
+  double best = 0;
+  for (int e : extreme)
+    for (const auto& v : mesh.vertices) {
+      const cv::Vec3f d = v - mesh.vertices[e];
+      best = std::max(best, static_cast<double>(d.dot(d)));
+    }
+  return std::sqrt(best);
+}
+
+namespace {
+
+struct ViewGeometry {
+  cv::Rect window;          // rendered part of the image
+  PinholeCamera cropped;    // camera of the window
+  double plane_z_mm = 0;
+  double plane_size_mm = 0;
+};
+
+ViewGeometry view_geometry(const CameraConfig& config, double distance, double radius, double gap) {
+  const PinholeCamera& cam = config.camera;
+  const double f = std::max(cam.fx(), cam.fy());
+  const double near = distance - radius;
+  // Image radius of the sphere holding the part, plus the widest shadow any flash can cast on
+  // the background: baseline * f * (Zb - Zo) / (Zo Zb) for the farthest LED.
+  double baseline = 0;
+  for (const auto& p : config.flashes.positions_mm) baseline = std::max(baseline, std::hypot(p[0], p[1]));
+  const double zb = distance + radius + gap;
+  const double shadow = baseline * f * (zb - near) / (near * zb);
+  const int half = static_cast<int>(std::ceil(f * radius / near + shadow + 8));
+  const cv::Point c(static_cast<int>(std::lround(cam.cx())), static_cast<int>(std::lround(cam.cy())));
+  cv::Rect window(c.x - half, c.y - half, 2 * half + 1, 2 * half + 1);
+  window &= cv::Rect(cv::Point(0, 0), cam.image_size);
+  ViewGeometry g;
+  g.window = window;
+  g.cropped = cam.cropped(window);
+  g.plane_z_mm = zb;
+  g.plane_size_mm = 4.0 * (half + 16) / f * zb;
+  return g;
+}
+
+bool part_pixel_near(const MfcRender& render, int x, int y) {
+  for (int dy = -1; dy <= 1; ++dy)
+    for (int dx = -1; dx <= 1; ++dx) {
+      const int xx = x + dx, yy = y + dy;
+      if (xx >= 0 && yy >= 0 && xx < render.part_index.cols && yy < render.part_index.rows &&
+          render.part_index(yy, xx) == 1)
+        return true;
+    }
+  return false;
+}
+
+void drop_background_edges(DepthEdges& edges, const MfcRender& render) {
+  for (int y = 0; y < edges.edges.rows; ++y)
+    for (int x = 0; x < edges.edges.cols; ++x)
+      if (edges.edges(y, x) && !part_pixel_near(render, x, y)) edges.edges(y, x) = 0;
+}
+
+// Depth-edge pixels -> model points: the part pixel nearest to the camera within one pixel
+// (the occluding side of the discontinuity), back-projected with the cropped camera.
+void trace_points(const DepthEdges& edges, const MfcRender& render, const PinholeCamera& cam, const cv::Matx33d& R,
+                  const cv::Vec3d& t, const cv::Point2f& origin, TemplateView& view) {
+  const cv::Matx33d Rt = R.t();
+  for (int y = 0; y < edges.edges.rows; ++y)
+    for (int x = 0; x < edges.edges.cols; ++x) {
+      if (!edges.edges(y, x)) continue;
+      float best = 0;
+      cv::Point at(-1, -1);
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          const int xx = x + dx, yy = y + dy;
+          if (xx < 0 || yy < 0 || xx >= edges.edges.cols || yy >= edges.edges.rows) continue;
+          if (render.part_index(yy, xx) != 1) continue;
+          const float z = render.depth_mm(yy, xx);
+          if (z > 0 && (at.x < 0 || z < best)) best = z, at = cv::Point(xx, yy);
+        }
+      if (at.x < 0) continue;  // an edge with no part pixel next to it (background only)
+      const cv::Vec3d pc((at.x - cam.cx()) / cam.fx() * best, (at.y - cam.cy()) / cam.fy() * best, best);
+      const cv::Vec3d pm = Rt * (pc - t);
+      TemplateEdgePoint p;
+      p.pixel = cv::Point2f(static_cast<float>(x), static_cast<float>(y)) - origin;
+      p.direction = edges.direction(y, x);
+      p.model_mm = cv::Vec3f(static_cast<float>(pm[0]), static_cast<float>(pm[1]), static_cast<float>(pm[2]));
+      view.points.push_back(p);
+    }
+}
+
+}  // namespace
+
+TemplateDatabase teach_templates(const Mesh& mesh, const CameraConfig& camera, const std::string& part_name,
+                                 int obj_id, const TeachParams& params, const TeachProgress& progress) {
+  validate_camera_config(camera, "teach camera");
+  params.lines.validate();
+  if (params.sphere_samples < 1 || params.sphere_samples > 100000)
+    throw std::invalid_argument("sphere samples K = " + std::to_string(params.sphere_samples) +
+                                " out of range [1, 100000]");
+  if (mesh.vertices.empty() || mesh.triangles.empty()) throw std::invalid_argument("teach: the mesh is empty");
+
+  TemplateDatabase db;
+  db.part_name = part_name;
+  db.obj_id = obj_id;
+  db.symmetry = params.symmetry;
+  db.camera = camera;
+  db.center_mm = part_center(mesh);
+  db.diameter_mm = mesh_diameter(mesh);
+  db.sphere_samples = params.sphere_samples;
+  db.q = params.lines.q;
+  db.mesh = mesh;
+  const double radius = part_radius(mesh, db.center_mm);
+  db.distance_mm = params.distance_mm > 0 ? params.distance_mm : camera.working_distance_mm;
+  if (db.distance_mm < 2 * radius)
+    throw std::invalid_argument("teach: distance " + std::to_string(db.distance_mm) + " mm is too close for a part of radius " +
+                                std::to_string(radius) + " mm");
+
+  const std::vector<cv::Vec3d> directions = template_view_directions(params.sphere_samples, params.symmetry);
+  const ViewGeometry geo = view_geometry(camera, db.distance_mm, radius, params.background_gap_mm);
+  const cv::Point2f origin(static_cast<float>(geo.cropped.cx()), static_cast<float>(geo.cropped.cy()));
+  const Mesh plane = make_plane(geo.plane_size_mm);
+
+  const int total = static_cast<int>(directions.size());
+  std::vector<std::optional<TemplateView>> views(total);
+  std::atomic<int> next{0};
+  int done = 0;
+  std::mutex progress_mutex;
+  std::exception_ptr error;
+  std::mutex error_mutex;
+
+  auto worker = [&]() {
+    try {
+      RenderOptions options;
+      options.noise.enabled = false;  // templates are the ideal appearance; the query carries the noise
+      MfcRenderer renderer(camera, options);
+      renderer.set_camera(geo.cropped);
+      const int part_id = renderer.add_mesh(mesh);
+      const int plane_id = renderer.add_mesh(plane);
+      DepthEdgeExtractor extractor(geo.cropped, camera.flashes, params.edges);
+      MfcRender render;
+      DepthEdges edges;
+      for (int i = next++; i < total; i = next++) {
+        TemplateView view;
+        view.view_direction = directions[i];
+        view.R_m2c = view_rotation(directions[i]);
+        view.t_m2c_mm = cv::Vec3d(0, 0, db.distance_mm) - view.R_m2c * db.center_mm;
+        const ScenePart parts[2] = {
+            {part_id, view.R_m2c, view.t_m2c_mm, Material::matte(0.7f)},
+            {plane_id, cv::Matx33d::eye(), cv::Vec3d(0, 0, geo.plane_z_mm), Material::matte(0.6f)}};
+        renderer.render(parts, render, 1);
+        extractor.extract(render.frames, edges);
+        // Edges with no part pixel next to them are features of the shadows on the template's
+        // background plane (where two flashes' shadows meet), not of the part: a bin floor at
+        // another distance would not show them, so they are removed before line fitting.
+        drop_background_edges(edges, render);
+        if (cv::countNonZero(edges.edges) >= params.min_edge_pixels) {
+          LineFitResult fit = fitLines(edges.edges, params.lines, &edges.direction);
+          if (!fit.set.lines.empty()) {
+            view.lines = std::move(fit.set);
+            view.lines.origin = origin;
+            trace_points(edges, render, geo.cropped, view.R_m2c, view.t_m2c_mm, origin, view);
+            cv::Rect2f box;
+            bool first = true;
+            for (const auto& p : view.points) {
+              const cv::Rect2f r(p.pixel.x, p.pixel.y, 1.f, 1.f);
+              box = first ? r : (box | r);
+              first = false;
+            }
+            view.box = box;
+            if (!view.points.empty()) views[i] = std::move(view);
+          }
+        }
+        std::lock_guard<std::mutex> lock(progress_mutex);
+        ++done;
+        if (progress) progress(done, total);
+      }
+    } catch (...) {
+      std::lock_guard<std::mutex> lock(error_mutex);
+      if (!error) error = std::current_exception();
+      next = total;
+    }
+  };
+
+  int threads = params.threads > 0 ? params.threads : static_cast<int>(std::thread::hardware_concurrency());
+  threads = std::clamp(threads, 1, std::max(1, total));
+  std::vector<std::thread> pool;
+  for (int k = 1; k < threads; ++k) pool.emplace_back(worker);
+  worker();
+  for (auto& th : pool) th.join();
+  if (error) std::rethrow_exception(error);
+
+  for (auto& v : views)
+    if (v) {
+      v->index = static_cast<int>(db.views.size());
+      db.views.push_back(std::move(*v));
+    }
+  if (db.views.empty())
+    throw std::runtime_error("teach '" + part_name + "': no view produced depth edges (is the part inside the image?)");
+  return db;
+}
+
+}  // namespace mfcd::vision

@@ -1,0 +1,44 @@
+#pragma once
+// Builds a part's template database (paper Sec. 4.3): for each out-of-plane rotation the part
+// is placed with its bounding-box centre on the optical axis at the working distance, in front
+// of a matte background plane that catches its shadows, rendered with the same simulated flashes
+// as the real cell, reduced to depth edges by the same DepthEdgeExtractor and line-fitted by the
+// same fitter the query goes through. Every edge pixel is traced back to the model point it
+// images (the near side of the depth discontinuity in the depth buffer).
+
+#include "vision/edges/depth_edges.hpp"
+#include "vision/lines/line_fitter.hpp"
+#include "vision/render/mfc_renderer.hpp"
+#include "vision/templates/template_database.hpp"
+
+#include <functional>
+
+namespace mfcd::vision {
+
+struct TeachParams {
+  int sphere_samples = 300;      // K, over the whole sphere (docs/template-database.md)
+  PartSymmetry symmetry;
+  double distance_mm = 0;        // part centre to lens; 0 = the camera's working distance
+  double background_gap_mm = 15; // background plane this far behind the part's far side
+  int min_edge_pixels = 30;      // views with fewer depth-edge pixels are dropped (degenerate)
+  int threads = 0;               // rendering threads, each with its own GL context; 0 = cores
+  LineFitParams lines;
+  DepthEdgeParams edges;
+};
+
+// Called after each view with (views done, views total); may be called from worker threads
+// but never concurrently.
+using TeachProgress = std::function<void(int done, int total)>;
+
+// Throws std::runtime_error (rendering unavailable) or std::invalid_argument (bad params).
+TemplateDatabase teach_templates(const Mesh& mesh, const CameraConfig& camera, const std::string& part_name,
+                                 int obj_id, const TeachParams& params, const TeachProgress& progress = {});
+
+// The part centre used for the views (bounding-box centre) and the radius of the sphere
+// around it that holds the part.
+cv::Vec3d part_center(const Mesh& mesh);
+double part_radius(const Mesh& mesh, const cv::Vec3d& center);
+// Largest distance between two vertices (BOP "diameter"), exact over the convex hull.
+double mesh_diameter(const Mesh& mesh);
+
+}  // namespace mfcd::vision
