@@ -284,7 +284,6 @@ DaemonConfig parseConfig(const std::string& yamlText, const std::string& source,
     c.simulation.parts_per_bin = static_cast<int>(s.integer("parts_per_bin", 6, 1, 16));
     c.simulation.seed = static_cast<std::uint64_t>(s.integer("seed", 1, 0, 1LL << 62));
     c.simulation.floor_distance_mm = s.number("floor_distance_mm", 330, 50, 5000);
-    c.simulation.spread_mm = s.number("spread_mm", 60, 1, 1000);
     c.simulation.noise = s.boolean("noise", true);
     s.finish();
   }

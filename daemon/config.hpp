@@ -73,7 +73,6 @@ struct SimulationSettings {
   int parts_per_bin = 6;
   std::uint64_t seed = 1;
   double floor_distance_mm = 330;  // camera to bin floor along the optical axis
-  double spread_mm = 60;           // parts lie on a grid of this pitch, jittered
   bool noise = true;
 };
 

@@ -743,7 +743,17 @@ int Daemon::run() {
       // Finish the cycle in flight (bounded by its deadline); abandon it if it outlives the grace.
       const bool graceOver = msSince(stopRequested_) > config_.cycle_budget_ms + 2000;
       if (!inFlight_ || graceOver) {
-        if (inFlight_) logf(LogLevel::Warning, "stopping: abandoning cycle %llu", static_cast<unsigned long long>(inFlight_->cycle_id));
+        if (inFlight_) {
+          logf(LogLevel::Warning, "stopping: abandoning cycle %llu", static_cast<unsigned long long>(inFlight_->cycle_id));
+          if (inFlight_->origin == CycleOrigin::Plc || inFlight_->origin == CycleOrigin::Continuous) {
+            // The PLC's job gets an answer: error 5 (abandoned).
+            report_.job_id = inFlight_->job_id;
+            report_.recipe_id = inFlight_->recipe_id;
+            report_.error_code = static_cast<std::uint16_t>(CycleError::Abandoned);
+            report_.pick_valid = 0;
+            publish();
+          }
+        }
         break;
       }
     }
