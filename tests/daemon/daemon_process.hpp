@@ -103,6 +103,8 @@ public:
     std::vector<std::string> envs;
     for (char** e = environ; *e; ++e) envs.emplace_back(*e);
     envs.insert(envs.end(), env.begin(), env.end());
+    // Under the tsan preset, Mesa's uninstrumented llvmpipe threads need suppressing (tsan.supp).
+    envs.emplace_back("TSAN_OPTIONS=suppressions=" MFC_SOURCE_DIR "/tests/daemon/tsan.supp halt_on_error=1");
     std::vector<char*> ev;
     for (auto& s : envs) ev.push_back(s.data());
     ev.push_back(nullptr);
