@@ -27,7 +27,8 @@ namespace mfcd::vision {
 struct PipelineConfig {
   std::vector<std::filesystem::path> template_files;  // *.tdb, one per part type (mfc-teach)
   int max_candidates = 8;          // pick candidates kept per cycle, best first
-  double max_cost_px = 3.0;        // FDCM detection threshold (mean directional chamfer cost)
+  double max_cost_px = 5.0;        // FDCM detection threshold, px (mean directional chamfer cost); large
+                                   // parts between template views reach 3-4 px
   std::vector<double> distances_mm;  // hypothesised part distances; empty = the templates' own
   int refine_iterations = 10;      // per candidate; fewer when the deadline is near
   int threads = 0;                 // search threads; 0 = OpenMP default
@@ -42,6 +43,7 @@ struct PoseCandidate {
   cv::Vec3d t_m2c_mm{0, 0, 0};  // model origin in the camera frame, mm
   double score = 0;             // 0..1, higher is better (from the final chamfer cost)
   double cost_px = 0;           // mean directional chamfer cost at the final pose
+  double coverage = 0;          // fraction of image edges inside the part's outline it explains
   bool refined = false;         // false: coarse pose only (refinement skipped or failed)
   cv::Rect2d box;               // image bounding box of the matched template
 };
@@ -57,6 +59,8 @@ struct PipelineResult {
   bool degraded = false;      // the deadline cut a stage short: best-so-far result
   int edge_pixels = 0;
   int query_lines = 0;
+  uint64_t hypotheses = 0;    // FDCM hypotheses evaluated by the search
+  int views_searched = 0;     // template views searched (fewer than loaded when degraded)
 };
 
 class BinPickingPipeline {

@@ -2,7 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
-#include <unordered_set>
+#include <limits>
 
 namespace mfcd::vision {
 
@@ -12,11 +12,15 @@ SearchResult lineSearch(const FdcmMatcher& matcher, const std::vector<OrientedTe
   const bool detect = params.mode == SearchMode::Detect;
   SearchResult result;
   const size_t nq = std::min<size_t>(queryLines.size(), std::max(0, params.queryLines));
-  FdcmMatcher::State state;
   Candidate best;
   bool haveBest = false;
   std::vector<Candidate> found;
-  std::unordered_set<uint64_t> seen;  // (tx, ty) already evaluated for this oriented template
+  struct Slide {
+    cv::Point2d start, d;  // translation at k = 0 and its step
+    int steps;
+  };
+  std::vector<Slide> slides;
+  std::vector<const LineSegment*> guides;
   for (int o = 0; o < static_cast<int>(templates.size()); ++o) {
     const OrientedTemplate& t = templates[o];
     if (t.pixels <= 0 || t.lines.empty()) continue;
@@ -24,14 +28,14 @@ SearchResult lineSearch(const FdcmMatcher& matcher, const std::vector<OrientedTe
     if (txMin > txMax || tyMin > tyMax) continue;
     const int n = t.pixels;
     const uint32_t tauSum = detail::thresholdSum(params.threshold, n);
-    matcher.prepare(t, txMin, txMax, state);
-    seen.clear();
     // The template's guide segments: its longest transformed source lines.
-    std::vector<const LineSegment*> guides;
+    guides.clear();
     for (const auto& l : t.lines) guides.push_back(&l);
     std::stable_sort(guides.begin(), guides.end(),
                      [](const LineSegment* a, const LineSegment* b) { return a->length() > b->length(); });
     if (guides.size() > static_cast<size_t>(params.templateLines)) guides.resize(params.templateLines);
+    // The slides: the guide laid on a query segment of the same channel.
+    slides.clear();
     for (const LineSegment* g : guides) {
       for (size_t qi = 0; qi < nq; ++qi) {
         const LineSegment& ql = queryLines[qi];
@@ -44,29 +48,34 @@ SearchResult lineSearch(const FdcmMatcher& matcher, const std::vector<OrientedTe
         cv::Point2d ta(g->a), tb(g->b);
         if ((tb - ta).dot(d) < 0) std::swap(ta, tb);
         const double tlen = (tb - ta).dot(d);
-        const cv::Point2d qa(ql.a);
-        // Translation placing template point ta at qa + (k - tlen) * d.
-        const int steps = static_cast<int>(std::ceil(tlen + qlen));
-        for (int k = 0; k <= steps; ++k) {
-          const cv::Point2d tr = qa - ta + d * (k - tlen);
-          const int tx = static_cast<int>(std::lround(tr.x)), ty = static_cast<int>(std::lround(tr.y));
-          if (tx < txMin || tx > txMax || ty < tyMin || ty > tyMax) continue;
-          const uint64_t key = (uint64_t(uint32_t(tx)) << 32) | uint32_t(ty);
-          if (!seen.insert(key).second) continue;
-          ++result.stats.hypotheses;
-          uint32_t thr = tauSum;
-          if (!detect && haveBest) thr = std::min<uint64_t>(thr, uint64_t(best.sum) * n / best.pixels);
-          matcher.beginRow(state, ty);
-          const uint32_t stop = params.hypothesisBound ? thr : std::numeric_limits<uint32_t>::max();
-          const uint32_t sum = matcher.evaluate(state, tx, stop, result.stats.segments);
-          ++result.stats.evaluated;
-          if (sum > thr) continue;
-          const Candidate c{o, tx, ty, sum, n};
-          if (detect) found.push_back(c);
-          else if (!haveBest || better(c, best)) {
-            best = c;
-            haveBest = true;
-          }
+        // Translation placing template point ta at qa + (k - tlen) * d, k = 0..steps.
+        Slide sl{cv::Point2d(ql.a) - ta - d * tlen, d, static_cast<int>(std::ceil(tlen + qlen))};
+        slides.push_back(sl);
+      }
+    }
+    for (const Slide& sl : slides) {
+      int lastTx = std::numeric_limits<int>::min(), lastTy = 0;
+      for (int k = 0; k <= sl.steps; ++k) {
+        const cv::Point2d tr = sl.start + sl.d * k;
+        const int tx = static_cast<int>(std::lround(tr.x)), ty = static_cast<int>(std::lround(tr.y));
+        if (tx < txMin || tx > txMax || ty < tyMin || ty > tyMax) continue;
+        // Unit steps rarely round to the pixel just visited; slides of different guide pairs
+        // may cross, and a translation they share is simply evaluated twice (cheaper than
+        // remembering every translation; NMS merges the duplicates).
+        if (tx == lastTx && ty == lastTy) continue;
+        lastTx = tx, lastTy = ty;
+        ++result.stats.hypotheses;
+        uint32_t thr = tauSum;
+        if (!detect && haveBest) thr = std::min<uint64_t>(thr, uint64_t(best.sum) * n / best.pixels);
+        const uint32_t stop = params.hypothesisBound ? thr : std::numeric_limits<uint32_t>::max();
+        const uint32_t sum = matcher.evaluateAt(t, tx, ty, stop, result.stats.segments);
+        ++result.stats.evaluated;
+        if (sum > thr) continue;
+        const Candidate c{o, tx, ty, sum, n};
+        if (detect) found.push_back(c);
+        else if (!haveBest || better(c, best)) {
+          best = c;
+          haveBest = true;
         }
       }
     }
