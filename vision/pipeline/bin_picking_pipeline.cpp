@@ -121,6 +121,8 @@ BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfi
   if (m.config.template_files.empty()) throw std::runtime_error("pipeline: no template files configured");
   if (m.config.max_candidates < 1) throw std::runtime_error("pipeline: max_candidates must be >= 1");
   if (!(m.config.max_cost_px > 0)) throw std::runtime_error("pipeline: max_cost_px must be positive");
+  if (m.config.template_guides < 1 || m.config.query_guides < 1)
+    throw std::runtime_error("pipeline: template_guides and query_guides must be >= 1");
   for (const auto& file : m.config.template_files) {
     PartModel part;
     part.file = file.string();
@@ -213,10 +215,13 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
       for (int v = 0; v < static_cast<int>(m.parts[p].db.views.size()); ++v) m.jobs.emplace_back(p, v);
   const FdcmMatcher matcher(m.idt);
   LineSearchParams lp;
-  lp.mode = SearchMode::Detect;
+  // Per view only its best placement is kept (Best mode): its bound tightens as the search
+  // improves, far cheaper than collecting every placement under the threshold. Several instances
+  // of a part still come out, through different (neighbouring) views, after NMS.
+  lp.mode = SearchMode::Best;
   lp.threshold = m.config.max_cost_px;
-  lp.templateLines = 5;
-  lp.queryLines = 40;
+  lp.templateLines = m.config.template_guides;
+  lp.queryLines = m.config.query_guides;
   lp.maxCandidates = 16;
   std::atomic<bool> late{false};
   for (auto& h : m.thread_hits) h.clear();

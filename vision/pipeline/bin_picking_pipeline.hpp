@@ -30,6 +30,10 @@ struct PipelineConfig {
   double max_cost_px = 5.0;        // FDCM detection threshold, px (mean directional chamfer cost); large
                                    // parts between template views reach 3-4 px
   std::vector<double> distances_mm;  // hypothesised part distances; empty = the templates' own
+  // 1-D line search (paper Sec. 4.4): each template's longest `template_guides` lines are slid
+  // along the query's longest `query_guides` lines of the same orientation.
+  int template_guides = 4;
+  int query_guides = 30;
   int refine_iterations = 10;      // per candidate; fewer when the deadline is near
   int threads = 0;                 // search threads; 0 = OpenMP default
   DepthEdgeParams depth_edges;
