@@ -64,6 +64,7 @@ struct BinPickingPipeline::Impl {
   DepthEdges edges;
   DirectionalDistanceTransform dt3;
   IntegralDistanceTransform idt;
+  ChamferCosts chamfer;  // baselines only
   std::vector<std::pair<int, int>> jobs;           // (part, view) searched this cycle
   std::vector<std::vector<Hit>> thread_hits;
   std::vector<uint64_t> thread_hypotheses;
@@ -202,8 +203,13 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
   auto t1 = Clock::now();
   out.times.lines_ms = ms_between(t, t1);
 
-  m.dt3.compute(fit.channelMap, m.dt3_params);
-  m.idt.compute(m.dt3);
+  const bool fdcm = m.config.cost == PipelineConfig::Cost::fdcm;
+  if (fdcm) {
+    m.dt3.compute(fit.channelMap, m.dt3_params);
+    m.idt.compute(m.dt3);
+  } else {
+    m.chamfer.compute(fit.channelMap, m.dt3_params);
+  }
   t = Clock::now();
   out.times.distance_ms = ms_between(t1, t);
 
@@ -214,6 +220,9 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
     if (obj_id == 0 || m.parts[p].db.obj_id == obj_id)
       for (int v = 0; v < static_cast<int>(m.parts[p].db.views.size()); ++v) m.jobs.emplace_back(p, v);
   const FdcmMatcher matcher(m.idt);
+  const ChamferMatcher baseline(m.chamfer, m.config.cost == PipelineConfig::Cost::cm
+                                               ? ChamferMatcher::Kind::Chamfer
+                                               : ChamferMatcher::Kind::OrientedChamfer);
   LineSearchParams lp;
   // Per view only its best placement is kept (Best mode): its bound tightens as the search
   // improves, far cheaper than collecting every placement under the threshold. Several instances
@@ -237,7 +246,8 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
     }
     const auto [p, v] = m.jobs[j];
     const auto& list = m.parts[p].oriented[v];
-    const SearchResult r = lineSearch(matcher, list, fit.set.lines, lp);
+    const SearchResult r =
+        fdcm ? lineSearch(matcher, list, fit.set.lines, lp) : lineSearch(baseline, list, fit.set.lines, lp);
     const int me = omp_get_thread_num();
     auto& mine = m.thread_hits[me];
     m.thread_hypotheses[me] += r.stats.evaluated;

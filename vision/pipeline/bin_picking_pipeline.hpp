@@ -25,6 +25,10 @@
 namespace mfcd::vision {
 
 struct PipelineConfig {
+  // Matching cost: FDCM (the product), or the paper's baselines OCM and CM scored on the same
+  // hypotheses (for the evaluation's Table 1).
+  enum class Cost { fdcm, ocm, cm };
+  Cost cost = Cost::fdcm;
   std::vector<std::filesystem::path> template_files;  // *.tdb, one per part type (mfc-teach)
   int max_candidates = 8;          // pick candidates kept per cycle, best first
   double max_cost_px = 5.0;        // FDCM detection threshold, px (mean directional chamfer cost); large

@@ -6,8 +6,30 @@
 
 namespace mfcd::vision {
 
-SearchResult lineSearch(const FdcmMatcher& matcher, const std::vector<OrientedTemplate>& templates,
-                        const std::vector<LineSegment>& queryLines, const LineSearchParams& params) {
+namespace {
+
+// FDCM locates each segment's two IDT3 entries directly for a scattered translation; the
+// point-wise baselines use their translation-invariant pixel offsets, prepared once per template.
+struct FdcmAt {
+  const FdcmMatcher& m;
+  void prepare(const OrientedTemplate&) {}
+  uint32_t operator()(const OrientedTemplate& t, int tx, int ty, uint32_t stop, uint64_t& segs) const {
+    return m.evaluateAt(t, tx, ty, stop, segs);
+  }
+};
+struct ChamferAt {
+  const ChamferMatcher& m;
+  ChamferMatcher::State state;
+  void prepare(const OrientedTemplate& t) { m.prepare(t, 0, 0, state); }
+  uint32_t operator()(const OrientedTemplate&, int tx, int ty, uint32_t stop, uint64_t& segs) {
+    m.beginRow(state, ty);
+    return m.evaluate(state, tx, stop, segs);
+  }
+};
+
+template <class Matcher, class At>
+SearchResult lineSearchWith(const Matcher& matcher, At at, const std::vector<OrientedTemplate>& templates,
+                            const std::vector<LineSegment>& queryLines, const LineSearchParams& params) {
   const int W = matcher.width(), H = matcher.height();
   const bool detect = params.mode == SearchMode::Detect;
   SearchResult result;
@@ -34,6 +56,7 @@ SearchResult lineSearch(const FdcmMatcher& matcher, const std::vector<OrientedTe
     std::stable_sort(guides.begin(), guides.end(),
                      [](const LineSegment* a, const LineSegment* b) { return a->length() > b->length(); });
     if (guides.size() > static_cast<size_t>(params.templateLines)) guides.resize(params.templateLines);
+    at.prepare(t);
     // The slides: the guide laid on a query segment of the same channel.
     slides.clear();
     for (const LineSegment* g : guides) {
@@ -68,7 +91,7 @@ SearchResult lineSearch(const FdcmMatcher& matcher, const std::vector<OrientedTe
         uint32_t thr = tauSum;
         if (!detect && haveBest) thr = std::min<uint64_t>(thr, uint64_t(best.sum) * n / best.pixels);
         const uint32_t stop = params.hypothesisBound ? thr : std::numeric_limits<uint32_t>::max();
-        const uint32_t sum = matcher.evaluateAt(t, tx, ty, stop, result.stats.segments);
+        const uint32_t sum = at(t, tx, ty, stop, result.stats.segments);
         ++result.stats.evaluated;
         if (sum > thr) continue;
         const Candidate c{o, tx, ty, sum, n};
@@ -91,6 +114,18 @@ SearchResult lineSearch(const FdcmMatcher& matcher, const std::vector<OrientedTe
     result.candidates.push_back(best);
   }
   return result;
+}
+
+}  // namespace
+
+SearchResult lineSearch(const FdcmMatcher& matcher, const std::vector<OrientedTemplate>& templates,
+                        const std::vector<LineSegment>& queryLines, const LineSearchParams& params) {
+  return lineSearchWith(matcher, FdcmAt{matcher}, templates, queryLines, params);
+}
+
+SearchResult lineSearch(const ChamferMatcher& matcher, const std::vector<OrientedTemplate>& templates,
+                        const std::vector<LineSegment>& queryLines, const LineSearchParams& params) {
+  return lineSearchWith(matcher, ChamferAt{matcher, {}}, templates, queryLines, params);
 }
 
 }  // namespace mfcd::vision

@@ -23,5 +23,8 @@ struct LineSearchParams {
 // `queryLines`: the query's fitted segments, longest first (LineFitResult::set.lines).
 SearchResult lineSearch(const FdcmMatcher& matcher, const std::vector<OrientedTemplate>& templates,
                         const std::vector<LineSegment>& queryLines, const LineSearchParams& params);
+// The same hypotheses scored with CM or OCM (the baselines of the paper's Table 1).
+SearchResult lineSearch(const ChamferMatcher& matcher, const std::vector<OrientedTemplate>& templates,
+                        const std::vector<LineSegment>& queryLines, const LineSearchParams& params);
 
 }  // namespace mfcd::vision
