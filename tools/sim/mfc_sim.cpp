@@ -30,7 +30,7 @@ const char* kUsage = R"(usage: mfc-sim --camera FILE --parts DIR|FILE[,FILE...] 
   --seed N                 base seed (default 1); everything is deterministic in it
   --obj-ids A,B,...        BOP object ids of the parts, in part order (default 1, 2, ...)
   --split NAME             split folder (default test)
-  --bin X,Y,H              inner bin size and wall height in mm (default 150,110,40)
+  --bin X,Y,H              inner bin size and wall height in mm (default 150,110,60)
   --max-occlusion F        reject drops leaving any part more occluded than F (default 1 = off)
   --no-corrupt             neither missing edges nor clutter
   --no-missing-edges       keep every depth edge

@@ -41,7 +41,7 @@ struct PartModel {
 struct BinGeometry {
   double inner_x_mm = 150;
   double inner_y_mm = 110;
-  double wall_height_mm = 40;
+  double wall_height_mm = 60;
   double wall_thickness_mm = 5;
   double floor_thickness_mm = 5;
 };
