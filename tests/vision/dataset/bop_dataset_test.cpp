@@ -14,7 +14,6 @@
 #include <functional>
 #include <fstream>
 #include <random>
-#include <regex>
 
 using namespace mfcd::vision;
 namespace fs = std::filesystem;
@@ -116,7 +115,15 @@ class BopTiny : public testing::Test {
     } catch (const std::runtime_error& e) {
       const std::string msg = e.what();
       EXPECT_NE(msg.find(file.string()), std::string::npos) << msg;
-      EXPECT_TRUE(std::regex_search(msg, std::regex(reason))) << msg << "\n  wanted: " << reason;
+      // `reason` lists the pieces the message must contain, in order, separated by "...".
+      size_t at = 0;
+      for (size_t from = 0; from <= reason.size();) {
+        const size_t gap = std::min(reason.find("...", from), reason.size());
+        const std::string piece = reason.substr(from, gap - from);
+        at = msg.find(piece, at);
+        ASSERT_NE(at, std::string::npos) << msg << "\n  wanted: " << reason;
+        from = gap + 3;
+      }
     }
   }
   void edit_json(const fs::path& file, const std::function<void(nlohmann::json&)>& edit) {
@@ -214,8 +221,8 @@ TEST_F(BopTiny, RefusesMissingOrIllTypedKeys) {
   edit_json(root / "models" / "models_info.json", [](auto& j) { j["7"]["diameter"] = 30; });
   const BopDataset ds(root);
   expect_refused([&] { ds.camera(1, 0); }, scene() / "scene_camera.json", "missing key '0.cam_K'");
-  expect_refused([&] { ds.ground_truth(1, 1); }, scene() / "scene_gt.json", "missing key '1\\[0\\].cam_t_m2c'");
-  expect_refused([&] { ds.ground_truth_info(1, 0); }, scene() / "scene_gt_info.json", "0\\[1\\].px_count_all' is not");
+  expect_refused([&] { ds.ground_truth(1, 1); }, scene() / "scene_gt.json", "missing key '1[0].cam_t_m2c'");
+  expect_refused([&] { ds.ground_truth_info(1, 0); }, scene() / "scene_gt_info.json", "0[1].px_count_all' is not");
   expect_refused([&] { ds.ground_truth(1, 5); }, scene() / "scene_gt.json", "missing key 'scene.5'");
   edit_json(scene() / "scene_camera.json", [](auto& j) { j["1"]["flash_positions_mm"][2] = {1, 2}; });
   expect_refused([&] { ds.camera(1, 1); }, scene() / "scene_camera.json", "flash_positions_mm' must be an array of 3");
@@ -238,7 +245,7 @@ TEST_F(BopTiny, RefusesImagesOfTheWrongSize) {
 TEST_F(BopTiny, RefusesWrongNumberOfFlashImages) {
   fs::remove(scene() / "flash" / "000000_7.png");
   const BopDataset ds(root);
-  expect_refused([&] { ds.frames(1, 0); }, scene() / "flash" / "000000_7.png", "missing flash image.*8 flash positions");
+  expect_refused([&] { ds.frames(1, 0); }, scene() / "flash" / "000000_7.png", "missing flash image...8 flash positions");
   // One position fewer than images: the 8th image is one too many.
   edit_json(scene() / "scene_camera.json", [](auto& j) { j["1"]["flash_positions_mm"].erase(7); });
   expect_refused([&] { ds.frames(1, 1); }, scene() / "flash" / "000001_7.png", "more flash images than the 7");
