@@ -15,6 +15,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <optional>
 #include <cmath>
 #include <stdexcept>
 
@@ -220,9 +221,10 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
     if (obj_id == 0 || m.parts[p].db.obj_id == obj_id)
       for (int v = 0; v < static_cast<int>(m.parts[p].db.views.size()); ++v) m.jobs.emplace_back(p, v);
   const FdcmMatcher matcher(m.idt);
-  const ChamferMatcher baseline(m.chamfer, m.config.cost == PipelineConfig::Cost::cm
-                                               ? ChamferMatcher::Kind::Chamfer
-                                               : ChamferMatcher::Kind::OrientedChamfer);
+  std::optional<ChamferMatcher> baseline;  // built from the baseline costs only when they exist
+  if (!fdcm)
+    baseline.emplace(m.chamfer, m.config.cost == PipelineConfig::Cost::cm ? ChamferMatcher::Kind::Chamfer
+                                                                          : ChamferMatcher::Kind::OrientedChamfer);
   LineSearchParams lp;
   // Per view only its best placement is kept (Best mode): its bound tightens as the search
   // improves, far cheaper than collecting every placement under the threshold. Several instances
@@ -247,7 +249,7 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
     const auto [p, v] = m.jobs[j];
     const auto& list = m.parts[p].oriented[v];
     const SearchResult r =
-        fdcm ? lineSearch(matcher, list, fit.set.lines, lp) : lineSearch(baseline, list, fit.set.lines, lp);
+        fdcm ? lineSearch(matcher, list, fit.set.lines, lp) : lineSearch(*baseline, list, fit.set.lines, lp);
     const int me = omp_get_thread_num();
     auto& mine = m.thread_hits[me];
     m.thread_hypotheses[me] += r.stats.evaluated;
