@@ -2,7 +2,7 @@
 include_guard(GLOBAL)
 include(GoogleTest)
 
-# mfc_test(NAME SOURCES a.cpp b.cpp LIBS lib1 lib2 [LABELS l1 l2])
+# mfc_test(NAME SOURCES a.cpp b.cpp LIBS lib1 lib2 [LABELS label])
 # One GoogleTest executable; each TEST() becomes its own ctest entry.
 function(mfc_test name)
   cmake_parse_arguments(T "" "" "SOURCES;LIBS;LABELS" ${ARGN})
@@ -12,6 +12,12 @@ function(mfc_test name)
                              MFC_BINARY_DIR="${PROJECT_BINARY_DIR}")
   set(props ENVIRONMENT "OMP_NUM_THREADS=2")
   if(T_LABELS)
+    # gtest_discover_tests writes PROPERTIES into its generated script unquoted, so a second
+    # label would be read as a property name: one label per test executable.
+    list(LENGTH T_LABELS n)
+    if(n GREATER 1)
+      message(FATAL_ERROR "mfc_test(${name}): one label only (got ${T_LABELS})")
+    endif()
     list(APPEND props LABELS "${T_LABELS}")
   endif()
   gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60 PROPERTIES ${props})

@@ -25,10 +25,21 @@
 namespace mfcd::vision {
 
 struct PipelineConfig {
+  // Matching cost: FDCM (the product), or the paper's baselines OCM and CM scored on the same
+  // hypotheses (for the evaluation's Table 1).
+  enum class Cost { fdcm, ocm, cm };
+  Cost cost = Cost::fdcm;
   std::vector<std::filesystem::path> template_files;  // *.tdb, one per part type (mfc-teach)
   int max_candidates = 8;          // pick candidates kept per cycle, best first
-  double max_cost_px = 3.0;        // FDCM detection threshold (mean directional chamfer cost)
+  double max_cost_px = 5.0;        // FDCM detection threshold, px (mean directional chamfer cost); large
+                                   // parts between template views reach 3-4 px
   std::vector<double> distances_mm;  // hypothesised part distances; empty = the templates' own
+  // 1-D line search (paper Sec. 4.4): each template's longest `template_guides` lines are slid
+  // along the query's longest `query_guides` lines of the same orientation.
+  int template_guides = 4;
+  int query_guides = 30;
+  double min_guide_overlap = 0.75;  // of the shorter line (LineSearchParams::minOverlap)
+  int slide_step = 2;               // px between slide positions, then the best refined (LineSearchParams)
   int refine_iterations = 10;      // per candidate; fewer when the deadline is near
   int threads = 0;                 // search threads; 0 = OpenMP default
   DepthEdgeParams depth_edges;
@@ -42,6 +53,7 @@ struct PoseCandidate {
   cv::Vec3d t_m2c_mm{0, 0, 0};  // model origin in the camera frame, mm
   double score = 0;             // 0..1, higher is better (from the final chamfer cost)
   double cost_px = 0;           // mean directional chamfer cost at the final pose
+  double coverage = 0;          // fraction of image edges inside the part's outline it explains
   bool refined = false;         // false: coarse pose only (refinement skipped or failed)
   cv::Rect2d box;               // image bounding box of the matched template
 };
@@ -57,6 +69,8 @@ struct PipelineResult {
   bool degraded = false;      // the deadline cut a stage short: best-so-far result
   int edge_pixels = 0;
   int query_lines = 0;
+  uint64_t hypotheses = 0;    // FDCM hypotheses evaluated by the search
+  int views_searched = 0;     // template views searched (fewer than loaded when degraded)
 };
 
 class BinPickingPipeline {

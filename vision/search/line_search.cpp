@@ -2,21 +2,47 @@
 
 #include <algorithm>
 #include <cmath>
-#include <unordered_set>
+#include <limits>
 
 namespace mfcd::vision {
 
-SearchResult lineSearch(const FdcmMatcher& matcher, const std::vector<OrientedTemplate>& templates,
-                        const std::vector<LineSegment>& queryLines, const LineSearchParams& params) {
+namespace {
+
+// FDCM locates each segment's two IDT3 entries directly for a scattered translation; the
+// point-wise baselines use their translation-invariant pixel offsets, prepared once per template.
+struct FdcmAt {
+  const FdcmMatcher& m;
+  void prepare(const OrientedTemplate&) {}
+  uint32_t operator()(const OrientedTemplate& t, int tx, int ty, uint32_t stop, uint64_t& segs) const {
+    return m.evaluateAt(t, tx, ty, stop, segs);
+  }
+};
+struct ChamferAt {
+  const ChamferMatcher& m;
+  ChamferMatcher::State state;
+  void prepare(const OrientedTemplate& t) { m.prepare(t, 0, 0, state); }
+  uint32_t operator()(const OrientedTemplate&, int tx, int ty, uint32_t stop, uint64_t& segs) {
+    m.beginRow(state, ty);
+    return m.evaluate(state, tx, stop, segs);
+  }
+};
+
+template <class Matcher, class At>
+SearchResult lineSearchWith(const Matcher& matcher, At at, const std::vector<OrientedTemplate>& templates,
+                            const std::vector<LineSegment>& queryLines, const LineSearchParams& params) {
   const int W = matcher.width(), H = matcher.height();
   const bool detect = params.mode == SearchMode::Detect;
   SearchResult result;
   const size_t nq = std::min<size_t>(queryLines.size(), std::max(0, params.queryLines));
-  FdcmMatcher::State state;
   Candidate best;
   bool haveBest = false;
   std::vector<Candidate> found;
-  std::unordered_set<uint64_t> seen;  // (tx, ty) already evaluated for this oriented template
+  struct Slide {
+    cv::Point2d start, d;  // translation at k = 0 and its step
+    int steps;
+  };
+  std::vector<Slide> slides;
+  std::vector<const LineSegment*> guides;
   for (int o = 0; o < static_cast<int>(templates.size()); ++o) {
     const OrientedTemplate& t = templates[o];
     if (t.pixels <= 0 || t.lines.empty()) continue;
@@ -24,14 +50,15 @@ SearchResult lineSearch(const FdcmMatcher& matcher, const std::vector<OrientedTe
     if (txMin > txMax || tyMin > tyMax) continue;
     const int n = t.pixels;
     const uint32_t tauSum = detail::thresholdSum(params.threshold, n);
-    matcher.prepare(t, txMin, txMax, state);
-    seen.clear();
     // The template's guide segments: its longest transformed source lines.
-    std::vector<const LineSegment*> guides;
+    guides.clear();
     for (const auto& l : t.lines) guides.push_back(&l);
     std::stable_sort(guides.begin(), guides.end(),
                      [](const LineSegment* a, const LineSegment* b) { return a->length() > b->length(); });
     if (guides.size() > static_cast<size_t>(params.templateLines)) guides.resize(params.templateLines);
+    at.prepare(t);
+    // The slides: the guide laid on a query segment of the same channel.
+    slides.clear();
     for (const LineSegment* g : guides) {
       for (size_t qi = 0; qi < nq; ++qi) {
         const LineSegment& ql = queryLines[qi];
@@ -44,31 +71,48 @@ SearchResult lineSearch(const FdcmMatcher& matcher, const std::vector<OrientedTe
         cv::Point2d ta(g->a), tb(g->b);
         if ((tb - ta).dot(d) < 0) std::swap(ta, tb);
         const double tlen = (tb - ta).dot(d);
-        const cv::Point2d qa(ql.a);
-        // Translation placing template point ta at qa + (k - tlen) * d.
-        const int steps = static_cast<int>(std::ceil(tlen + qlen));
-        for (int k = 0; k <= steps; ++k) {
-          const cv::Point2d tr = qa - ta + d * (k - tlen);
-          const int tx = static_cast<int>(std::lround(tr.x)), ty = static_cast<int>(std::lround(tr.y));
-          if (tx < txMin || tx > txMax || ty < tyMin || ty > tyMax) continue;
-          const uint64_t key = (uint64_t(uint32_t(tx)) << 32) | uint32_t(ty);
-          if (!seen.insert(key).second) continue;
-          ++result.stats.hypotheses;
-          uint32_t thr = tauSum;
-          if (!detect && haveBest) thr = std::min<uint64_t>(thr, uint64_t(best.sum) * n / best.pixels);
-          matcher.beginRow(state, ty);
-          const uint32_t stop = params.hypothesisBound ? thr : std::numeric_limits<uint32_t>::max();
-          const uint32_t sum = matcher.evaluate(state, tx, stop, result.stats.segments);
-          ++result.stats.evaluated;
-          if (sum > thr) continue;
-          const Candidate c{o, tx, ty, sum, n};
-          if (detect) found.push_back(c);
-          else if (!haveBest || better(c, best)) {
-            best = c;
-            haveBest = true;
-          }
-        }
+        // Translation placing template point ta at qa + (k - tlen) * d: the guide covers
+        // [k - tlen, k] of the query's [0, qlen], so the overlap is at least m for
+        // k in [m, tlen + qlen - m].
+        const double m = params.minOverlap * std::min(tlen, qlen);
+        const int k0 = static_cast<int>(std::ceil(m)), k1 = static_cast<int>(std::floor(tlen + qlen - m));
+        if (k1 < k0) continue;
+        slides.push_back(Slide{cv::Point2d(ql.a) - ta + d * (k0 - tlen), d, k1 - k0});
       }
+    }
+    auto visit = [&](const cv::Point2d& tr) {
+      const int tx = static_cast<int>(std::lround(tr.x)), ty = static_cast<int>(std::lround(tr.y));
+      if (tx < txMin || tx > txMax || ty < tyMin || ty > tyMax) return false;
+      ++result.stats.hypotheses;
+      uint32_t thr = tauSum;
+      if (!detect && haveBest) thr = std::min<uint64_t>(thr, uint64_t(best.sum) * n / best.pixels);
+      const uint32_t stop = params.hypothesisBound ? thr : std::numeric_limits<uint32_t>::max();
+      const uint32_t sum = at(t, tx, ty, stop, result.stats.segments);
+      ++result.stats.evaluated;
+      if (sum > thr) return false;
+      const Candidate c{o, tx, ty, sum, n};
+      if (detect) found.push_back(c);
+      else if (!haveBest || better(c, best)) {
+        best = c;
+        haveBest = true;
+        return true;
+      }
+      return false;
+    };
+    const int step = std::max(1, params.slideStep);
+    for (const Slide& sl : slides) {
+      // Unit steps along a slide rarely round to the same pixel twice, and a translation shared
+      // by two slides is simply evaluated twice (cheaper than remembering every translation;
+      // NMS merges duplicates). With a coarser step, the best position of the slide is then
+      // refined by visiting its skipped neighbours.
+      int improvedAt = -1;
+      for (int k = 0; k <= sl.steps; k += step)
+        if (visit(sl.start + sl.d * k)) improvedAt = k;
+      if (improvedAt >= 0 && step > 1)
+        for (int dk = 1; dk < step; ++dk) {
+          if (improvedAt - dk >= 0) visit(sl.start + sl.d * (improvedAt - dk));
+          if (improvedAt + dk <= sl.steps) visit(sl.start + sl.d * (improvedAt + dk));
+        }
     }
   }
   if (detect) {
@@ -82,6 +126,18 @@ SearchResult lineSearch(const FdcmMatcher& matcher, const std::vector<OrientedTe
     result.candidates.push_back(best);
   }
   return result;
+}
+
+}  // namespace
+
+SearchResult lineSearch(const FdcmMatcher& matcher, const std::vector<OrientedTemplate>& templates,
+                        const std::vector<LineSegment>& queryLines, const LineSearchParams& params) {
+  return lineSearchWith(matcher, FdcmAt{matcher}, templates, queryLines, params);
+}
+
+SearchResult lineSearch(const ChamferMatcher& matcher, const std::vector<OrientedTemplate>& templates,
+                        const std::vector<LineSegment>& queryLines, const LineSearchParams& params) {
+  return lineSearchWith(matcher, ChamferAt{matcher, {}}, templates, queryLines, params);
 }
 
 }  // namespace mfcd::vision

@@ -63,6 +63,21 @@ public:
     return sum;
   }
 
+  // The same sum for one translation without prepare()/beginRow(): each segment's two entries
+  // are located directly. For searches that visit scattered translations (the 1-D line search),
+  // where preparing whole rows would cost more than the evaluations.
+  uint32_t evaluateAt(const OrientedTemplate& t, int tx, int ty, uint32_t stop, uint64_t& segments) const {
+    uint32_t sum = 0;
+    for (const auto& seg : t.segments) {
+      const auto e = idt_.ends(seg.channel, seg.x + tx, seg.y + ty, seg.span);
+      const uint16_t* plane = idt_.plane(seg.channel);
+      sum += static_cast<uint16_t>(plane[e.end] - plane[e.before]);
+      ++segments;
+      if (sum > stop) break;
+    }
+    return sum;
+  }
+
 private:
   const IntegralDistanceTransform& idt_;
 };

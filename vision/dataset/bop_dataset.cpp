@@ -1,0 +1,427 @@
+#include "vision/dataset/bop_dataset.hpp"
+
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <set>
+#include <stdexcept>
+
+namespace mfcd::vision {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+std::string id6(int id) {
+  char buf[16];
+  std::snprintf(buf, sizeof buf, "%06d", id);
+  return buf;
+}
+
+[[noreturn]] void fail(const fs::path& file, const std::string& reason) {
+  throw std::runtime_error(file.string() + ": " + reason);
+}
+
+void write_json(const json& j, const fs::path& file) {
+  std::ofstream out(file);
+  out << j.dump(2) << '\n';
+  if (!out) fail(file, "cannot write");
+}
+
+void write_png(const cv::Mat& image, const fs::path& file) {
+  if (!cv::imwrite(file.string(), image)) fail(file, "cannot write PNG");
+}
+
+json matx(const cv::Matx33d& m) { return json(std::vector<double>(m.val, m.val + 9)); }
+json vec(const cv::Vec3d& v) { return json{v[0], v[1], v[2]}; }
+json rect(const cv::Rect& r) { return json{r.x, r.y, r.width, r.height}; }
+
+json read_json(const fs::path& file) {
+  std::ifstream in(file);
+  if (!in) fail(file, fs::exists(file) ? "cannot read" : "missing file");
+  try {
+    return json::parse(in);
+  } catch (const json::parse_error& e) {
+    fail(file, std::string("bad JSON: ") + e.what());
+  }
+}
+
+// Lookups that name the file and the key path on failure.
+struct Reader {
+  fs::path file;
+  const json& key(const json& obj, const std::string& k, const std::string& where) const {
+    if (!obj.is_object()) fail(file, where + " is not a JSON object");
+    const auto it = obj.find(k);
+    if (it == obj.end()) fail(file, "missing key '" + where + "." + k + "'");
+    return *it;
+  }
+  double number(const json& j, const std::string& what) const {
+    if (!j.is_number()) fail(file, "'" + what + "' is not a number");
+    return j.get<double>();
+  }
+  int integer(const json& j, const std::string& what) const {
+    if (!j.is_number_integer()) fail(file, "'" + what + "' is not an integer");
+    return j.get<int>();
+  }
+  std::vector<double> numbers(const json& j, size_t n, const std::string& what) const {
+    if (!j.is_array() || j.size() != n)
+      fail(file, "'" + what + "' must be an array of " + std::to_string(n) + " numbers");
+    std::vector<double> v;
+    for (const auto& x : j) v.push_back(number(x, what));
+    return v;
+  }
+  const json& image_entry(const json& scene, int image_id) const {
+    return key(scene, std::to_string(image_id), "scene");
+  }
+};
+
+cv::Matx33d to_matx(const std::vector<double>& v) { return cv::Matx33d(v.data()); }
+cv::Vec3d to_vec(const std::vector<double>& v) { return {v[0], v[1], v[2]}; }
+
+cv::Mat read_png(const fs::path& file, int type, const cv::Size& size, const std::string& sizes_from) {
+  if (!fs::exists(file)) fail(file, "missing image");
+  cv::Mat m = cv::imread(file.string(), cv::IMREAD_UNCHANGED);
+  if (m.empty()) fail(file, "unreadable image");
+  if (m.type() != type)
+    fail(file, std::string("expected a single-channel ") + (type == CV_16UC1 ? "16-bit" : "8-bit") + " image");
+  if (m.size() != size)
+    fail(file, "image size " + std::to_string(m.cols) + "x" + std::to_string(m.rows) + " differs from " +
+                   std::to_string(size.width) + "x" + std::to_string(size.height) + " in " + sizes_from);
+  return m;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------
+// Models
+
+BopModelInfo compute_model_info(const PartModel& model) {
+  BopModelInfo info;
+  const cv::Vec3f lo = model.mesh.bbox_min(), hi = model.mesh.bbox_max();
+  info.min = lo;
+  info.size = hi - lo;
+  // STL meshes repeat every vertex per triangle: measure the diameter on distinct points.
+  std::vector<cv::Vec3f> pts = model.mesh.vertices;
+  auto less = [](const cv::Vec3f& a, const cv::Vec3f& b) {
+    return std::lexicographical_compare(a.val, a.val + 3, b.val, b.val + 3);
+  };
+  std::sort(pts.begin(), pts.end(), less);
+  pts.erase(std::unique(pts.begin(), pts.end()), pts.end());
+  double d2 = 0;
+  for (size_t i = 0; i < pts.size(); ++i)
+    for (size_t j = i + 1; j < pts.size(); ++j) {
+      const cv::Vec3d d = cv::Vec3d(pts[i]) - cv::Vec3d(pts[j]);
+      d2 = std::max(d2, d.dot(d));
+    }
+  info.diameter = std::sqrt(d2);
+  info.symmetries_discrete = model.symmetries_discrete;
+  info.symmetries_continuous = model.symmetries_continuous;
+  return info;
+}
+
+void write_ply(const Mesh& mesh, const fs::path& file) {
+  std::ofstream out(file);
+  out << "ply\nformat ascii 1.0\ncomment mfcd part model, millimetres, frame of the source mesh\n"
+      << "element vertex " << mesh.vertices.size() << "\nproperty float x\nproperty float y\nproperty float z\n"
+      << "element face " << mesh.triangles.size() << "\nproperty list uchar int vertex_indices\nend_header\n";
+  out.precision(9);
+  for (const auto& v : mesh.vertices) out << v[0] << ' ' << v[1] << ' ' << v[2] << '\n';
+  for (const auto& t : mesh.triangles) out << "3 " << t[0] << ' ' << t[1] << ' ' << t[2] << '\n';
+  if (!out) fail(file, "cannot write");
+}
+
+// ---------------------------------------------------------------------------------------
+// Writer
+
+BopWriter::BopWriter(fs::path root, std::string split) : root_(std::move(root)), split_(std::move(split)) {
+  fs::create_directories(root_ / split_);
+}
+
+fs::path BopWriter::scene_dir(int scene_id) const { return root_ / split_ / id6(scene_id); }
+
+void BopWriter::write_models(const std::vector<PartModel>& models) {
+  fs::create_directories(root_ / "models");
+  json info = json::object();
+  for (const auto& m : models) {
+    write_ply(m.mesh, root_ / "models" / ("obj_" + id6(m.obj_id) + ".ply"));
+    const BopModelInfo mi = compute_model_info(m);
+    json j = {{"diameter", mi.diameter}, {"min_x", mi.min[0]}, {"min_y", mi.min[1]}, {"min_z", mi.min[2]},
+              {"size_x", mi.size[0]},    {"size_y", mi.size[1]}, {"size_z", mi.size[2]}};
+    if (!mi.symmetries_discrete.empty()) {
+      json list = json::array();
+      for (const auto& T : mi.symmetries_discrete) list.push_back(std::vector<double>(T.val, T.val + 16));
+      j["symmetries_discrete"] = list;
+    }
+    if (!mi.symmetries_continuous.empty()) {
+      json list = json::array();
+      for (const auto& s : mi.symmetries_continuous) list.push_back({{"axis", vec(s.axis)}, {"offset", vec(s.offset)}});
+      j["symmetries_continuous"] = list;
+    }
+    info[std::to_string(m.obj_id)] = j;
+  }
+  write_json(info, root_ / "models" / "models_info.json");
+}
+
+void BopWriter::write_camera(const CameraConfig& c) {
+  const PinholeCamera& cam = c.camera;
+  write_json({{"cx", cam.cx()}, {"cy", cam.cy()}, {"fx", cam.fx()}, {"fy", cam.fy()},
+              {"width", cam.image_size.width}, {"height", cam.image_size.height}, {"depth_scale", kBopDepthScale}},
+             root_ / "camera.json");
+}
+
+void BopWriter::write_scene(int scene_id, const CameraConfig& camera, const std::vector<SimulatedImage>& images) {
+  const fs::path dir = scene_dir(scene_id);
+  for (const char* sub : {"flash", "ambient", "depth", "mask", "mask_visib"}) fs::create_directories(dir / sub);
+  json cams = json::object(), gts = json::object(), infos = json::object(), corr = json::object();
+  json flashes = json::array();
+  for (const auto& p : camera.flashes.positions_mm) flashes.push_back(vec(p));
+  for (size_t i = 0; i < images.size(); ++i) {
+    const SimulatedImage& im = images[i];
+    const std::string key = std::to_string(i), iid = id6(static_cast<int>(i));
+    cams[key] = {{"cam_K", matx(camera.camera.K)},
+                 {"depth_scale", kBopDepthScale},
+                 {"width", camera.camera.image_size.width},
+                 {"height", camera.camera.image_size.height},
+                 {"flash_positions_mm", flashes},
+                 {"working_distance_mm", camera.working_distance_mm}};
+    json gt = json::array(), info = json::array();
+    for (size_t g = 0; g < im.instances.size(); ++g) {
+      const PartInstance& p = im.instances[g];
+      gt.push_back({{"obj_id", p.obj_id}, {"cam_R_m2c", matx(p.R)}, {"cam_t_m2c", vec(p.t_mm)}});
+      info.push_back({{"bbox_obj", rect(p.bbox_obj)},
+                      {"bbox_visib", rect(p.bbox_visib)},
+                      {"px_count_all", p.px_count_all},
+                      {"px_count_valid", p.px_count_valid},
+                      {"px_count_visib", p.px_count_visib},
+                      {"visib_fract", p.visib_fract}});
+      const std::string gid = iid + "_" + id6(static_cast<int>(g)) + ".png";
+      write_png(p.mask_all, dir / "mask" / gid);
+      write_png(p.mask_visib, dir / "mask_visib" / gid);
+    }
+    gts[key] = gt;
+    infos[key] = info;
+    const CorruptionReport& c = im.corruption;
+    corr[key] = {{"true_edge_px", c.true_edge_px},         {"recall_clean", c.recall_clean},
+                 {"recall_corrupted", c.recall_corrupted}, {"removed_fraction", c.removed_fraction},
+                 {"stretches", c.stretches},               {"clutter_rods", c.clutter_rods}};
+    if (im.frames.flash.size() != camera.flashes.positions_mm.size())
+      fail(dir, "image " + key + " has " + std::to_string(im.frames.flash.size()) + " flash images for " +
+                    std::to_string(camera.flashes.positions_mm.size()) + " LEDs");
+    for (size_t k = 0; k < im.frames.flash.size(); ++k)
+      write_png(im.frames.flash[k], dir / "flash" / (iid + "_" + std::to_string(k) + ".png"));
+    write_png(im.frames.ambient, dir / "ambient" / (iid + ".png"));
+    cv::Mat1w depth(im.depth_mm.size());
+    for (int y = 0; y < depth.rows; ++y)
+      for (int x = 0; x < depth.cols; ++x)
+        depth(y, x) = cv::saturate_cast<uint16_t>(std::lround(im.depth_mm(y, x) / kBopDepthScale));
+    write_png(depth, dir / "depth" / (iid + ".png"));
+  }
+  write_json(cams, dir / "scene_camera.json");
+  write_json(gts, dir / "scene_gt.json");
+  write_json(infos, dir / "scene_gt_info.json");
+  write_json(corr, dir / "scene_mfc_corruption.json");
+}
+
+// ---------------------------------------------------------------------------------------
+// Reader
+
+CameraConfig BopSceneCamera::config() const {
+  CameraConfig c;
+  c.camera.image_size = image_size;
+  c.camera.K = K;
+  c.camera.distortion = {0, 0, 0, 0, 0};
+  c.flashes.ring.reset();
+  c.flashes.positions_mm = flash_positions_mm;
+  if (working_distance_mm > 0) c.working_distance_mm = working_distance_mm;
+  return c;
+}
+
+BopDataset::BopDataset(fs::path root, std::string split) : root_(std::move(root)), split_dir_(root_ / split) {
+  if (!fs::is_directory(root_)) fail(root_, "not a directory");
+  if (!fs::is_directory(split_dir_)) fail(split_dir_, "missing split directory");
+  const fs::path file = root_ / "models" / "models_info.json";
+  const json j = read_json(file);
+  const Reader r{file};
+  if (!j.is_object()) fail(file, "top level is not a JSON object");
+  for (const auto& [key, m] : j.items()) {
+    int id = 0;
+    try {
+      size_t used = 0;
+      id = std::stoi(key, &used);
+      if (used != key.size()) throw std::invalid_argument(key);
+    } catch (const std::exception&) {
+      fail(file, "key '" + key + "' is not an object id");
+    }
+    BopModelInfo info;
+    info.diameter = r.number(r.key(m, "diameter", key), key + ".diameter");
+    const char* axes = "xyz";
+    for (int k = 0; k < 3; ++k) {
+      const std::string mn = std::string("min_") + axes[k], sz = std::string("size_") + axes[k];
+      info.min[k] = r.number(r.key(m, mn, key), key + "." + mn);
+      info.size[k] = r.number(r.key(m, sz, key), key + "." + sz);
+    }
+    if (m.contains("symmetries_discrete")) {
+      const json& list = m["symmetries_discrete"];
+      if (!list.is_array()) fail(file, "'" + key + ".symmetries_discrete' is not an array");
+      for (const auto& T : list)
+        info.symmetries_discrete.push_back(cv::Matx44d(r.numbers(T, 16, key + ".symmetries_discrete").data()));
+    }
+    if (m.contains("symmetries_continuous")) {
+      const json& list = m["symmetries_continuous"];
+      if (!list.is_array()) fail(file, "'" + key + ".symmetries_continuous' is not an array");
+      for (const auto& s : list) {
+        const std::string w = key + ".symmetries_continuous";
+        info.symmetries_continuous.push_back({to_vec(r.numbers(r.key(s, "axis", w), 3, w + ".axis")),
+                                              to_vec(r.numbers(r.key(s, "offset", w), 3, w + ".offset"))});
+      }
+    }
+    models_info_[id] = info;
+  }
+}
+
+fs::path BopDataset::scene_dir(int scene_id) const { return split_dir_ / id6(scene_id); }
+
+fs::path BopDataset::model_path(int obj_id) const {
+  const fs::path p = root_ / "models" / ("obj_" + id6(obj_id) + ".ply");
+  if (!models_info_.count(obj_id)) fail(root_ / "models" / "models_info.json", "no object " + std::to_string(obj_id));
+  if (!fs::exists(p)) fail(p, "missing model file");
+  return p;
+}
+
+std::vector<int> BopDataset::scenes() const {
+  std::vector<int> ids;
+  for (const auto& e : fs::directory_iterator(split_dir_)) {
+    const std::string n = e.path().filename().string();
+    if (e.is_directory() && n.size() == 6 && std::all_of(n.begin(), n.end(), [](char c) { return c >= '0' && c <= '9'; }))
+      ids.push_back(std::stoi(n));
+  }
+  std::sort(ids.begin(), ids.end());
+  return ids;
+}
+
+std::vector<int> BopDataset::images(int scene_id) const {
+  const fs::path file = scene_dir(scene_id) / "scene_camera.json";
+  const json j = read_json(file);
+  if (!j.is_object()) fail(file, "top level is not a JSON object");
+  std::vector<int> ids;
+  for (const auto& [key, v] : j.items()) {
+    if (key.empty() || !std::all_of(key.begin(), key.end(), [](char c) { return c >= '0' && c <= '9'; }))
+      fail(file, "key '" + key + "' is not an image id");
+    ids.push_back(std::stoi(key));
+  }
+  std::sort(ids.begin(), ids.end());
+  return ids;
+}
+
+BopSceneCamera BopDataset::camera(int scene_id, int image_id) const {
+  const fs::path file = scene_dir(scene_id) / "scene_camera.json";
+  const json j = read_json(file);
+  const Reader r{file};
+  const std::string w = std::to_string(image_id);
+  const json& e = r.image_entry(j, image_id);
+  BopSceneCamera c;
+  c.K = to_matx(r.numbers(r.key(e, "cam_K", w), 9, w + ".cam_K"));
+  c.depth_scale = r.number(r.key(e, "depth_scale", w), w + ".depth_scale");
+  c.image_size = {r.integer(r.key(e, "width", w), w + ".width"), r.integer(r.key(e, "height", w), w + ".height")};
+  if (c.image_size.width <= 0 || c.image_size.height <= 0) fail(file, "'" + w + "' image size must be positive");
+  if (c.depth_scale <= 0) fail(file, "'" + w + ".depth_scale' must be positive");
+  if (c.K(0, 0) <= 0 || c.K(1, 1) <= 0 || c.K(2, 2) != 1 || c.K(2, 0) != 0 || c.K(2, 1) != 0)
+    fail(file, "'" + w + ".cam_K' is not a pinhole matrix (fx, fy > 0, last row 0 0 1)");
+  if (c.K(0, 2) < -0.5 || c.K(0, 2) > c.image_size.width - 0.5 || c.K(1, 2) < -0.5 || c.K(1, 2) > c.image_size.height - 0.5)
+    fail(file, "'" + w + ".cam_K' principal point lies outside the " + std::to_string(c.image_size.width) + "x" +
+                   std::to_string(c.image_size.height) + " image");
+  const json& flashes = r.key(e, "flash_positions_mm", w);
+  if (!flashes.is_array() || flashes.empty()) fail(file, "'" + w + ".flash_positions_mm' must be a non-empty array");
+  for (const auto& p : flashes) c.flash_positions_mm.push_back(to_vec(r.numbers(p, 3, w + ".flash_positions_mm")));
+  if (e.contains("working_distance_mm")) c.working_distance_mm = r.number(e["working_distance_mm"], w + ".working_distance_mm");
+  return c;
+}
+
+std::vector<BopGtPose> BopDataset::ground_truth(int scene_id, int image_id) const {
+  const fs::path file = scene_dir(scene_id) / "scene_gt.json";
+  const json j = read_json(file);
+  const Reader r{file};
+  const std::string w = std::to_string(image_id);
+  const json& list = r.image_entry(j, image_id);
+  if (!list.is_array()) fail(file, "'" + w + "' is not an array");
+  std::vector<BopGtPose> out;
+  for (size_t g = 0; g < list.size(); ++g) {
+    const std::string wg = w + "[" + std::to_string(g) + "]";
+    BopGtPose p;
+    p.obj_id = r.integer(r.key(list[g], "obj_id", wg), wg + ".obj_id");
+    p.R = to_matx(r.numbers(r.key(list[g], "cam_R_m2c", wg), 9, wg + ".cam_R_m2c"));
+    p.t_mm = to_vec(r.numbers(r.key(list[g], "cam_t_m2c", wg), 3, wg + ".cam_t_m2c"));
+    out.push_back(p);
+  }
+  return out;
+}
+
+std::vector<BopGtInfo> BopDataset::ground_truth_info(int scene_id, int image_id) const {
+  const fs::path file = scene_dir(scene_id) / "scene_gt_info.json";
+  const json j = read_json(file);
+  const Reader r{file};
+  const std::string w = std::to_string(image_id);
+  const json& list = r.image_entry(j, image_id);
+  if (!list.is_array()) fail(file, "'" + w + "' is not an array");
+  std::vector<BopGtInfo> out;
+  for (size_t g = 0; g < list.size(); ++g) {
+    const std::string wg = w + "[" + std::to_string(g) + "]";
+    auto box = [&](const char* k) {
+      const auto v = r.numbers(r.key(list[g], k, wg), 4, wg + "." + k);
+      return cv::Rect(static_cast<int>(v[0]), static_cast<int>(v[1]), static_cast<int>(v[2]), static_cast<int>(v[3]));
+    };
+    BopGtInfo i;
+    i.bbox_obj = box("bbox_obj");
+    i.bbox_visib = box("bbox_visib");
+    i.px_count_all = r.integer(r.key(list[g], "px_count_all", wg), wg + ".px_count_all");
+    i.px_count_valid = r.integer(r.key(list[g], "px_count_valid", wg), wg + ".px_count_valid");
+    i.px_count_visib = r.integer(r.key(list[g], "px_count_visib", wg), wg + ".px_count_visib");
+    i.visib_fract = r.number(r.key(list[g], "visib_fract", wg), wg + ".visib_fract");
+    out.push_back(i);
+  }
+  return out;
+}
+
+MfcFrames BopDataset::frames(int scene_id, int image_id) const {
+  const BopSceneCamera cam = camera(scene_id, image_id);
+  const fs::path dir = scene_dir(scene_id);
+  const std::string iid = id6(image_id);
+  const std::string from = (dir / "scene_camera.json").string();
+  MfcFrames f;
+  const size_t n = cam.flash_positions_mm.size();
+  for (size_t k = 0; k < n; ++k) {
+    const fs::path p = dir / "flash" / (iid + "_" + std::to_string(k) + ".png");
+    if (!fs::exists(p))
+      fail(p, "missing flash image: scene_camera.json lists " + std::to_string(n) + " flash positions");
+    f.flash.push_back(read_png(p, CV_8UC1, cam.image_size, from));
+  }
+  const fs::path extra = dir / "flash" / (iid + "_" + std::to_string(n) + ".png");
+  if (fs::exists(extra))
+    fail(extra, "more flash images than the " + std::to_string(n) + " flash positions in scene_camera.json");
+  f.ambient = read_png(dir / "ambient" / (iid + ".png"), CV_8UC1, cam.image_size, from);
+  return f;
+}
+
+cv::Mat1f BopDataset::depth_mm(int scene_id, int image_id) const {
+  const BopSceneCamera cam = camera(scene_id, image_id);
+  const fs::path dir = scene_dir(scene_id);
+  const cv::Mat raw = read_png(dir / "depth" / (id6(image_id) + ".png"), CV_16UC1, cam.image_size,
+                               (dir / "scene_camera.json").string());
+  cv::Mat1f d;
+  raw.convertTo(d, CV_32F, cam.depth_scale);
+  return d;
+}
+
+cv::Mat1b BopDataset::mask_visib(int scene_id, int image_id, int instance) const {
+  const BopSceneCamera cam = camera(scene_id, image_id);
+  const fs::path dir = scene_dir(scene_id);
+  return read_png(dir / "mask_visib" / (id6(image_id) + "_" + id6(instance) + ".png"), CV_8UC1, cam.image_size,
+                  (dir / "scene_camera.json").string());
+}
+
+}  // namespace mfcd::vision

@@ -1,0 +1,111 @@
+#pragma once
+// BOP-format scene datasets (https://bop.felk.cvut.cz) extended with multi-flash images:
+// the writer stores simulated bins, the reader opens any dataset in this layout (mfc-detect
+// evaluates on it). docs/datasets.md documents the layout, axes, units and keys.
+//
+//   <root>/camera.json                       BOP camera of the dataset (fx, fy, cx, cy, size, depth_scale)
+//   <root>/models/obj_NNNNNN.ply             ASCII PLY, mm, the model (STL) frame
+//   <root>/models/models_info.json
+//   <root>/<split>/SSSSSS/scene_camera.json  cam_K, depth_scale, width, height, flash_positions_mm
+//   <root>/<split>/SSSSSS/scene_gt.json      obj_id, cam_R_m2c, cam_t_m2c per instance
+//   <root>/<split>/SSSSSS/scene_gt_info.json bbox_obj, bbox_visib, px_count_*, visib_fract
+//   <root>/<split>/SSSSSS/scene_mfc_corruption.json  (written by the simulator; optional)
+//   <root>/<split>/SSSSSS/flash/IIIIII_K.png, ambient/IIIIII.png, depth/IIIIII.png,
+//                        mask/IIIIII_GGGGGG.png, mask_visib/IIIIII_GGGGGG.png
+
+#include "vision/camera/camera.hpp"
+#include "vision/camera/mfc_frames.hpp"
+#include "vision/dataset/bin_scene.hpp"
+
+#include <opencv2/core.hpp>
+
+#include <filesystem>
+#include <map>
+#include <string>
+#include <vector>
+
+namespace mfcd::vision {
+
+// Depth PNGs store depth_mm / kBopDepthScale as uint16 (0.1 mm steps, up to 6.5 m).
+inline constexpr double kBopDepthScale = 0.1;
+
+struct BopModelInfo {
+  double diameter = 0;  // largest distance between two vertices, mm
+  cv::Vec3d min{0, 0, 0}, size{0, 0, 0};
+  std::vector<cv::Matx44d> symmetries_discrete;
+  std::vector<PartModel::ContinuousSymmetry> symmetries_continuous;
+};
+BopModelInfo compute_model_info(const PartModel& model);
+
+struct BopSceneCamera {
+  cv::Matx33d K = cv::Matx33d::eye();
+  cv::Size image_size;
+  double depth_scale = kBopDepthScale;
+  std::vector<cv::Vec3d> flash_positions_mm;  // camera frame, firing order
+  double working_distance_mm = 0;             // 0 when the dataset does not give it
+  // A camera configuration for the depth-edge extractor and detector (no distortion).
+  CameraConfig config() const;
+};
+
+struct BopGtPose {
+  int obj_id = 0;
+  cv::Matx33d R = cv::Matx33d::eye();  // cam_R_m2c
+  cv::Vec3d t_mm{0, 0, 0};             // cam_t_m2c
+};
+
+struct BopGtInfo {
+  cv::Rect bbox_obj, bbox_visib;  // x, y, w, h; (-1, -1, -1, -1) when empty
+  int px_count_all = 0, px_count_valid = 0, px_count_visib = 0;
+  double visib_fract = 0;
+};
+
+// Writes a dataset. Models first (their ids are what scene_gt refers to), then scenes.
+class BopWriter {
+ public:
+  explicit BopWriter(std::filesystem::path root, std::string split = "test");
+  // models/obj_NNNNNN.ply and models/models_info.json; camera.json.
+  void write_models(const std::vector<PartModel>& models);
+  void write_camera(const CameraConfig& camera);
+  // <split>/SSSSSS/ with every image of the scene (image ids 0, 1, ...).
+  void write_scene(int scene_id, const CameraConfig& camera, const std::vector<SimulatedImage>& images);
+  const std::filesystem::path& root() const { return root_; }
+  std::filesystem::path scene_dir(int scene_id) const;
+
+ private:
+  std::filesystem::path root_;
+  std::string split_;
+};
+
+void write_ply(const Mesh& mesh, const std::filesystem::path& file);
+
+// Reads a dataset. Every accessor checks what it reads and throws std::runtime_error
+// naming the file (and key) and the reason on missing files, bad JSON, missing or
+// ill-typed keys, image sizes that disagree with scene_camera.json, or a flash image count
+// that disagrees with flash_positions_mm.
+class BopDataset {
+ public:
+  // Opens <root>: needs models/models_info.json and <root>/<split>/.
+  explicit BopDataset(std::filesystem::path root, std::string split = "test");
+
+  const std::filesystem::path& root() const { return root_; }
+  std::filesystem::path scene_dir(int scene_id) const;
+  std::vector<int> scenes() const;             // sorted scene ids (folders named by 6 digits)
+  std::vector<int> images(int scene_id) const;  // sorted image ids of scene_camera.json
+
+  const std::map<int, BopModelInfo>& models_info() const { return models_info_; }
+  std::filesystem::path model_path(int obj_id) const;
+
+  BopSceneCamera camera(int scene_id, int image_id) const;
+  std::vector<BopGtPose> ground_truth(int scene_id, int image_id) const;
+  std::vector<BopGtInfo> ground_truth_info(int scene_id, int image_id) const;
+  // The 8 (or however many LEDs scene_camera.json lists) flash images and the ambient.
+  MfcFrames frames(int scene_id, int image_id) const;
+  cv::Mat1f depth_mm(int scene_id, int image_id) const;
+  cv::Mat1b mask_visib(int scene_id, int image_id, int instance) const;
+
+ private:
+  std::filesystem::path root_, split_dir_;
+  std::map<int, BopModelInfo> models_info_;
+};
+
+}  // namespace mfcd::vision

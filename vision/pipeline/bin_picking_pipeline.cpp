@@ -1,0 +1,347 @@
+#include "vision/pipeline/bin_picking_pipeline.hpp"
+
+#include "vision/dt3/directional_distance_transform.hpp"
+#include "vision/idt3/integral_distance_transform.hpp"
+#include "vision/lines/line_fitter.hpp"
+#include "vision/pose/coarse_pose.hpp"
+#include "vision/search/line_search.hpp"
+#include "vision/search/nms.hpp"
+#include "vision/search/oriented_template.hpp"
+#include "vision/templates/template_database.hpp"
+
+#include <opencv2/imgproc.hpp>
+
+#include <omp.h>
+
+#include <algorithm>
+#include <atomic>
+#include <optional>
+#include <cmath>
+#include <stdexcept>
+
+namespace mfcd::vision {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double ms_between(Clock::time_point a, Clock::time_point b) {
+  return std::chrono::duration<double, std::milli>(b - a).count();
+}
+
+// A part type: its database and, per view, the view's lines under every in-plane rotation and
+// scale of the search, digitised once at load (the search itself then only slides them).
+struct PartModel {
+  TemplateDatabase db;
+  std::string file;
+  std::vector<Warp> warps;
+  std::vector<std::vector<OrientedTemplate>> oriented;  // [view][warp]
+};
+
+struct Hit {
+  int part = 0, view = 0, warp = 0;
+  Candidate c;
+  cv::Rect2d box;
+};
+
+double iou(const cv::Rect2d& a, const cv::Rect2d& b) {
+  const double inter = (a & b).area();
+  const double uni = a.area() + b.area() - inter;
+  return uni > 0 ? inter / uni : 0;
+}
+
+// Weight of the image edges a template leaves unexplained: all of them unexplained costs as
+// much as 3 px of mean chamfer distance.
+constexpr double kUnexplainedPenaltyPx = 3.0;
+
+}  // namespace
+
+struct BinPickingPipeline::Impl {
+  CameraConfig camera;
+  PipelineConfig config;
+  LineFitParams line_params;
+  Dt3Params dt3_params;
+  std::vector<PartModel> parts;
+  DepthEdgeExtractor extractor;
+  DepthEdges edges;
+  DirectionalDistanceTransform dt3;
+  IntegralDistanceTransform idt;
+  ChamferCosts chamfer;  // baselines only
+  std::vector<std::pair<int, int>> jobs;           // (part, view) searched this cycle
+  std::vector<std::vector<Hit>> thread_hits;
+  std::vector<uint64_t> thread_hypotheses;
+  std::vector<int> thread_views;
+  std::vector<Hit> hits;
+  struct Verified {
+    Hit hit;
+    double coverage = 0, combined = 0;
+  };
+  std::vector<Verified> verified;
+  cv::Mat1b explained, inside;  // verification scratch, image size, kept zero outside use
+  std::vector<cv::Point> placed, hull;
+
+  Impl(const CameraConfig& cam, PipelineConfig cfg)
+      : camera(cam), config(std::move(cfg)), extractor(cam.camera, cam.flashes, config.depth_edges) {}
+};
+
+namespace {
+
+// The fraction of image edge pixels inside the placed template's outline (convex hull of its
+// edge points) that lie within 2 px of a template edge point.
+template <class Impl>
+double explained_fraction(const TemplateView& view, const Warp& warp, int tx, int ty, Impl& m) {
+  const cv::Matx22d A = warp.matrix();
+  const cv::Rect image(cv::Point(0, 0), m.edges.edges.size());
+  m.placed.clear();
+  for (const auto& p : view.points) {
+    const cv::Vec2d q = A * cv::Vec2d(p.pixel.x, p.pixel.y);
+    const cv::Point r(cvRound(q[0] + tx), cvRound(q[1] + ty));
+    if (image.contains(r)) m.placed.push_back(r);
+  }
+  if (m.placed.size() < 3) return 0;
+  cv::convexHull(m.placed, m.hull);
+  const cv::Rect box = (cv::boundingRect(m.hull) + cv::Size(5, 5) - cv::Point(2, 2)) & image;
+  for (const auto& r : m.placed) cv::circle(m.explained, r, 2, cv::Scalar(255), cv::FILLED);
+  cv::fillConvexPoly(m.inside, m.hull, cv::Scalar(255));
+  int total = 0, covered = 0;
+  for (int y = box.y; y < box.y + box.height; ++y) {
+    const uint8_t* e = m.edges.edges.template ptr<uint8_t>(y);
+    const uint8_t* in = m.inside.template ptr<uint8_t>(y);
+    const uint8_t* ex = m.explained.template ptr<uint8_t>(y);
+    for (int x = box.x; x < box.x + box.width; ++x)
+      if (e[x] && in[x]) ++total, covered += ex[x] != 0;
+  }
+  m.explained(box).setTo(0);
+  m.inside(box).setTo(0);
+  return total > 0 ? double(covered) / total : 0;
+}
+
+}  // namespace
+
+BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfig config)
+    : impl_(std::make_unique<Impl>(camera, std::move(config))) {
+  Impl& m = *impl_;
+  if (m.config.template_files.empty()) throw std::runtime_error("pipeline: no template files configured");
+  if (m.config.max_candidates < 1) throw std::runtime_error("pipeline: max_candidates must be >= 1");
+  if (!(m.config.max_cost_px > 0)) throw std::runtime_error("pipeline: max_cost_px must be positive");
+  if (m.config.template_guides < 1 || m.config.query_guides < 1)
+    throw std::runtime_error("pipeline: template_guides and query_guides must be >= 1");
+  for (const auto& file : m.config.template_files) {
+    PartModel part;
+    part.file = file.string();
+    part.db = load_template_database(file);
+    check_template_camera(part.db, camera, part.file);
+    for (const auto& other : m.parts)
+      if (other.db.obj_id == part.db.obj_id)
+        throw std::runtime_error(part.file + ": obj_id " + std::to_string(part.db.obj_id) + " is also used by " +
+                                 other.file);
+    if (part.db.q != m.dt3_params.q)
+      throw std::runtime_error(part.file + ": templates have q = " + std::to_string(part.db.q) + ", the pipeline " +
+                               std::to_string(m.dt3_params.q));
+    WarpGrid grid;
+    grid.scales.clear();
+    if (m.config.distances_mm.empty()) grid.scales.push_back(1.0);
+    for (double d : m.config.distances_mm) {
+      if (!(d > 0)) throw std::runtime_error("pipeline: distances_mm must be positive");
+      grid.scales.push_back(part.db.distance_mm / d);
+    }
+    part.warps = grid.warps(m.dt3_params.q);
+    part.oriented.resize(part.db.views.size());
+    for (size_t v = 0; v < part.db.views.size(); ++v) {
+      auto& list = part.oriented[v];
+      list.reserve(part.warps.size());
+      for (const Warp& w : part.warps) {
+        OrientedTemplate t = orientTemplate(part.db.views[v].lines, static_cast<int>(v), w);
+        // The line search only needs the longest lines as guides.
+        if (t.lines.size() > 8) {
+          sortLongestFirst(t.lines);
+          t.lines.resize(8);
+        }
+        list.push_back(std::move(t));
+      }
+    }
+    m.parts.push_back(std::move(part));
+  }
+  const int threads = m.config.threads > 0 ? m.config.threads : omp_get_max_threads();
+  m.thread_hits.resize(static_cast<size_t>(threads));
+  m.thread_hypotheses.resize(static_cast<size_t>(threads));
+  m.thread_views.resize(static_cast<size_t>(threads));
+  for (auto& h : m.thread_hits) h.reserve(4096);
+  m.hits.reserve(4096);
+  m.verified.reserve(static_cast<size_t>(6 * m.config.max_candidates));
+  m.explained = cv::Mat1b::zeros(camera.camera.image_size);
+  m.inside = cv::Mat1b::zeros(camera.camera.image_size);
+}
+
+BinPickingPipeline::~BinPickingPipeline() = default;
+
+std::vector<std::pair<int, std::string>> BinPickingPipeline::parts() const {
+  std::vector<std::pair<int, std::string>> out;
+  for (const auto& p : impl_->parts) out.emplace_back(p.db.obj_id, p.db.part_name);
+  return out;
+}
+const CameraConfig& BinPickingPipeline::camera() const { return impl_->camera; }
+const DepthEdges& BinPickingPipeline::last_edges() const { return impl_->edges; }
+
+void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::time_point deadline,
+                                 PipelineResult& out) {
+  Impl& m = *impl_;
+  const auto t0 = Clock::now();
+  out.candidates.clear();
+  out.degraded = false;
+  out.times = {};
+
+  bool known = obj_id == 0;
+  for (const auto& p : m.parts) known = known || p.db.obj_id == obj_id;
+  if (!known) throw std::invalid_argument("pipeline: no templates loaded for obj_id " + std::to_string(obj_id));
+
+  m.extractor.extract(frames, m.edges);
+  auto t = Clock::now();
+  out.times.edges_ms = ms_between(t0, t);
+
+  const LineFitResult fit = fitLines(m.edges.edges, m.line_params, &m.edges.direction);
+  out.edge_pixels = fit.inputEdgePixels;
+  out.query_lines = static_cast<int>(fit.set.lines.size());
+  auto t1 = Clock::now();
+  out.times.lines_ms = ms_between(t, t1);
+
+  const bool fdcm = m.config.cost == PipelineConfig::Cost::fdcm;
+  if (fdcm) {
+    m.dt3.compute(fit.channelMap, m.dt3_params);
+    m.idt.compute(m.dt3);
+  } else {
+    m.chamfer.compute(fit.channelMap, m.dt3_params);
+  }
+  t = Clock::now();
+  out.times.distance_ms = ms_between(t1, t);
+
+  // Search: the 1-D line search (paper Sec. 4.4) over every view of every selected part, views
+  // shared out among the threads. Past the deadline the remaining views are skipped.
+  m.jobs.clear();
+  for (int p = 0; p < static_cast<int>(m.parts.size()); ++p)
+    if (obj_id == 0 || m.parts[p].db.obj_id == obj_id)
+      for (int v = 0; v < static_cast<int>(m.parts[p].db.views.size()); ++v) m.jobs.emplace_back(p, v);
+  const FdcmMatcher matcher(m.idt);
+  std::optional<ChamferMatcher> baseline;  // built from the baseline costs only when they exist
+  if (!fdcm)
+    baseline.emplace(m.chamfer, m.config.cost == PipelineConfig::Cost::cm ? ChamferMatcher::Kind::Chamfer
+                                                                          : ChamferMatcher::Kind::OrientedChamfer);
+  LineSearchParams lp;
+  // Per view only its best placement is kept (Best mode): its bound tightens as the search
+  // improves, far cheaper than collecting every placement under the threshold. Several instances
+  // of a part still come out, through different (neighbouring) views, after NMS.
+  lp.mode = SearchMode::Best;
+  lp.threshold = m.config.max_cost_px;
+  lp.templateLines = m.config.template_guides;
+  lp.queryLines = m.config.query_guides;
+  lp.minOverlap = m.config.min_guide_overlap;
+  lp.slideStep = m.config.slide_step;
+  lp.maxCandidates = 16;
+  std::atomic<bool> late{false};
+  for (auto& h : m.thread_hits) h.clear();
+  std::fill(m.thread_hypotheses.begin(), m.thread_hypotheses.end(), 0);
+  std::fill(m.thread_views.begin(), m.thread_views.end(), 0);
+  const int threads = static_cast<int>(m.thread_hits.size());
+#pragma omp parallel for schedule(dynamic, 4) num_threads(threads)
+  for (int j = 0; j < static_cast<int>(m.jobs.size()); ++j) {
+    if (late.load(std::memory_order_relaxed)) continue;
+    if (Clock::now() > deadline) {
+      late = true;
+      continue;
+    }
+    const auto [p, v] = m.jobs[j];
+    const auto& list = m.parts[p].oriented[v];
+    const SearchResult r =
+        fdcm ? lineSearch(matcher, list, fit.set.lines, lp) : lineSearch(*baseline, list, fit.set.lines, lp);
+    const int me = omp_get_thread_num();
+    auto& mine = m.thread_hits[me];
+    m.thread_hypotheses[me] += r.stats.evaluated;
+    ++m.thread_views[me];
+    for (const Candidate& c : r.candidates) mine.push_back({p, v, c.oriented, c, placedBox(list[c.oriented], c)});
+  }
+  out.degraded = late.load();
+  out.hypotheses = 0;
+  out.views_searched = 0;
+  for (int k = 0; k < threads; ++k) out.hypotheses += m.thread_hypotheses[k], out.views_searched += m.thread_views[k];
+  m.hits.clear();
+  for (const auto& h : m.thread_hits) m.hits.insert(m.hits.end(), h.begin(), h.end());
+  std::sort(m.hits.begin(), m.hits.end(), [](const Hit& a, const Hit& b) {
+    const uint64_t l = uint64_t(a.c.sum) * b.c.pixels, r = uint64_t(b.c.sum) * a.c.pixels;
+    if (l != r) return l < r;
+    if (a.part != b.part) return a.part < b.part;
+    if (a.view != b.view) return a.view < b.view;
+    if (a.warp != b.warp) return a.warp < b.warp;
+    if (a.c.tx != b.c.tx) return a.c.tx < b.c.tx;
+    return a.c.ty < b.c.ty;
+  });
+  t1 = Clock::now();
+  out.times.search_ms = ms_between(t, t1);
+
+  // Verification. Chamfer matching only asks whether the template's edges are in the image, so a
+  // view with fewer edges (the plain back of a part) matches wherever the detailed front does.
+  // The distinct best hits are re-ranked by also asking the converse: which fraction of the
+  // image's edges inside the placed outline the template explains (within 2 px).
+  m.verified.clear();
+  for (const Hit& h : m.hits) {
+    if (static_cast<int>(m.verified.size()) >= 6 * m.config.max_candidates) break;
+    bool duplicate = false;
+    for (const auto& k : m.verified) duplicate = duplicate || (k.hit.part == h.part && iou(k.hit.box, h.box) > 0.8 &&
+                                                               k.hit.view == h.view);
+    if (duplicate) continue;
+    const PartModel& part = m.parts[h.part];
+    const double coverage = explained_fraction(part.db.views[h.view], part.warps[h.warp], h.c.tx, h.c.ty, m);
+    m.verified.push_back({h, coverage, h.c.cost() + kUnexplainedPenaltyPx * (1.0 - coverage)});
+  }
+  std::stable_sort(m.verified.begin(), m.verified.end(),
+                   [](const Impl::Verified& a, const Impl::Verified& b) { return a.combined < b.combined; });
+
+  // Non-maximum suppression across views and part types: one part per place in the bin.
+  for (const Impl::Verified& v : m.verified) {
+    const Hit& h = v.hit;
+    if (static_cast<int>(out.candidates.size()) >= m.config.max_candidates) break;
+    bool overlaps = false;
+    for (const auto& k : out.candidates) overlaps = overlaps || iou(k.box, h.box) > 0.3;
+    if (overlaps) continue;
+    const PartModel& part = m.parts[h.part];
+    const Warp& w = part.warps[h.warp];
+    TemplatePlacement pl;
+    pl.view = h.view;
+    pl.angle_rad = w.angle;
+    pl.scale = w.scale;
+    pl.origin_px = cv::Point2d(h.c.tx, h.c.ty);
+    const RigidPose pose = coarse_pose(part.db, pl, m.camera.camera);
+    PoseCandidate c;
+    c.obj_id = part.db.obj_id;
+    c.part = part.db.part_name;
+    c.view = h.view;
+    c.R_m2c = pose.R;
+    c.t_m2c_mm = pose.t_mm;
+    c.cost_px = h.c.cost();
+    c.coverage = v.coverage;
+    c.score = std::clamp(1.0 - v.combined / m.config.max_cost_px, 0.0, 1.0);
+    c.box = h.box;
+    out.candidates.push_back(std::move(c));
+  }
+  t = Clock::now();
+  out.times.pose_ms = ms_between(t1, t);
+  out.times.total_ms = ms_between(t0, t);
+}
+
+cv::Mat3b draw_candidates(const cv::Mat1b& image, const PipelineResult& result, const CameraConfig& camera) {
+  cv::Mat3b out;
+  cv::cvtColor(image, out, cv::COLOR_GRAY2BGR);
+  static const cv::Scalar colours[] = {{0, 255, 0}, {0, 200, 255}, {255, 120, 0}, {255, 0, 255}, {0, 0, 255}};
+  for (size_t i = 0; i < result.candidates.size(); ++i) {
+    const auto& c = result.candidates[i];
+    const cv::Scalar col = colours[i % 5];
+    cv::rectangle(out, c.box, col, 1);
+    const cv::Point2d centre = camera.camera.project(c.t_m2c_mm);
+    cv::circle(out, centre, 3, col, -1);
+    char label[96];
+    std::snprintf(label, sizeof label, "#%zu %s %.2f", i + 1, c.part.c_str(), c.score);
+    cv::putText(out, label, cv::Point(static_cast<int>(c.box.x), std::max(12, static_cast<int>(c.box.y) - 4)),
+                cv::FONT_HERSHEY_SIMPLEX, 0.45, col, 1, cv::LINE_AA);
+  }
+  return out;
+}
+
+}  // namespace mfcd::vision
