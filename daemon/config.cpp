@@ -290,7 +290,7 @@ DaemonConfig parseConfig(const std::string& yamlText, const std::string& source,
   {
     Section s = top.section("vision");
     c.vision.max_candidates = static_cast<int>(s.integer("max_candidates", 8, 1, 16));
-    c.vision.max_cost_px = s.number("max_cost_px", 3.0, 0.1, 100);
+    if (s.has("max_cost_px")) c.vision.max_cost_px = s.number("max_cost_px", 0, 0.1, 100);
     c.vision.refine_iterations = static_cast<int>(s.integer("refine_iterations", 10, 0, 1000));
     c.vision.threads = static_cast<int>(s.integer("threads", 0, 0, 256));
     s.finish();

@@ -78,7 +78,7 @@ struct SimulationSettings {
 
 struct VisionSettings {
   int max_candidates = 8;
-  double max_cost_px = 3.0;
+  std::optional<double> max_cost_px;  // unset: the pipeline's own default
   int refine_iterations = 10;
   int threads = 0;
 };

@@ -56,7 +56,7 @@ std::unique_ptr<VisionStage> makePipelineStage(const DaemonConfig& config) {
   if (pc.template_files.empty())
     throw std::runtime_error(config.source + ": recipes: no recipe names a template file; the vision pipeline has nothing to look for");
   pc.max_candidates = config.vision.max_candidates;
-  pc.max_cost_px = config.vision.max_cost_px;
+  if (config.vision.max_cost_px) pc.max_cost_px = *config.vision.max_cost_px;
   pc.refine_iterations = config.vision.refine_iterations;
   pc.threads = config.vision.threads;
   auto stage = std::make_unique<PipelineVisionStage>(camera, std::move(pc), files);

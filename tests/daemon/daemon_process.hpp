@@ -37,12 +37,15 @@ inline std::string simCellConfig(const fs::path& dir, int budgetMs = 1000, const
     << "\n  lock_memory: false\n  realtime_priority: 0\n" << extraDaemon
     << "camera:\n  model: camera-sim.yaml\nsimulation:\n  parts_per_bin: 4\n  seed: 5\nrecipes:\n"
     << "  - {id: 0, part: any, obj_id: 0}\n";
-  const char* parts[] = {"breaker", "diamond", "ellipse", "knob", "tnut", "wheel"};
+  // In the order of config/parts/parts.csv: obj_id = position + 1.
+  const char* parts[] = {"breaker", "diamond", "ellipse", "tnut", "knob", "wheel"};
   for (int i = 0; i < 6; ++i) {
     s << "  - {id: " << i + 1 << ", part: " << parts[i] << ", obj_id: " << i + 1 << ", mesh: parts/" << parts[i] << ".stl";
     if (templates) s << ", templates: templates/" << parts[i] << ".tdb";
     s << "}\n";
   }
+  // The pipeline's score is 1 - cost / max_cost_px: a correct match of a large part often scores 0.2-0.4.
+  s << "pick:\n  min_score: 0.1\n";
   s << "hand_eye:\n  base_T_camera: {x_mm: 500, y_mm: 0, z_mm: 800, rx_deg: 180, ry_deg: 0, rz_deg: 0}\n"
     << "modbus:\n  bind_address: 127.0.0.1\n  port: 0\n"
     << "snapshots:\n  directory: " << (dir / "snapshots").string() << "\n  quota_mb: 50\n  on_failure: false\n";

@@ -55,19 +55,24 @@ TEST(PipelineE2E, RealMfcdPicksSimulatedPartsWithinToleranceAndBudget) {
     EXPECT_LE(at(reg::kCycleTimeMs), kBudgetMs) << "job " << job;
     const json last = proc.ctl({{"cmd", "last"}})["result"];
     if (!(at(reg::kStatus) & reg::kPickValid)) {
-      ADD_FAILURE() << "job " << job << ": no pick; " << last.dump();
+      std::string found;
+      for (const auto& c : last["candidates"])
+        found += " obj " + std::to_string(c["obj_id"].get<int>()) + " score " + std::to_string(c["score"].get<double>());
+      ADD_FAILURE() << "job " << job << ": no pick; candidates:" << found;
       continue;
     }
     ++picks;
     const double x = f(reg::kPickX), y = f(reg::kPickY), z = f(reg::kPickZ);
-    double best = 1e9;
+    double best = 1e9, dxy = 0, dz = 0;
     int truthObj = 0;
     for (const auto& t : last["sim_truth"]) {
-      const double d = std::hypot(t["base"]["x"].get<double>() - x, t["base"]["y"].get<double>() - y, t["base"]["z"].get<double>() - z);
-      if (d < best) best = d, truthObj = t["obj_id"].get<int>();
+      const double ex = t["base"]["x"].get<double>() - x, ey = t["base"]["y"].get<double>() - y, ez = t["base"]["z"].get<double>() - z;
+      const double d = std::sqrt(ex * ex + ey * ey + ez * ez);
+      if (d < best) best = d, truthObj = t["obj_id"].get<int>(), dxy = std::hypot(ex, ey), dz = ez;
     }
-    std::printf("job %u: pick %.1f %.1f %.1f obj %d, nearest part obj %d at %.2f mm, cycle %u ms\n", job, x, y, z,
-                last["pick"]["obj_id"].get<int>(), truthObj, best, at(reg::kCycleTimeMs));
+    std::printf("job %u: pick %.1f %.1f %.1f obj %d score %.2f; nearest part obj %d: %.2f mm (xy %.2f, z %+.2f); cycle %u ms%s\n",
+                job, x, y, z, last["pick"]["obj_id"].get<int>(), f(reg::kScore), truthObj, best, dxy, dz,
+                at(reg::kCycleTimeMs), last["degraded"].get<bool>() ? " degraded" : "");
     if (best <= kPositionToleranceMm && truthObj == last["pick"]["obj_id"].get<int>()) ++matched;
   }
   modbus_close(ctx);

@@ -21,7 +21,7 @@ import time
 
 STATUS, JOB_ECHO, ERROR_CODE, PICK_X, WORD_ORDER = 8, 9, 11, 20, 17
 READY, DONE, PICK_VALID = 1, 1 << 2, 1 << 4
-PARTS = ["breaker", "diamond", "ellipse", "knob", "tnut", "wheel"]
+PARTS = ["breaker", "diamond", "ellipse", "tnut", "knob", "wheel"]  # config/parts/parts.csv order = obj_id
 
 failures = []
 
