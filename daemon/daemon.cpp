@@ -414,7 +414,6 @@ void Daemon::onResult(const CycleResult& r) {
     report_.pick_valid = r.chosen >= 0;
     report_.pick = r.chosen >= 0 ? r.candidates[static_cast<std::size_t>(r.chosen)].base : motion::PickPose{};
     report_.score = r.chosen >= 0 ? r.candidates[static_cast<std::size_t>(r.chosen)].score : 0.0f;
-    if (r.error == CycleError::Capture) cellOk_ = true;  // the sequencer recovers on the next read()
   }
   report_.ready = 0;  // recomputed below, in the same publish
   updateReady();
@@ -488,11 +487,13 @@ bool Daemon::reload(std::string& message) {
   cell_.reset();  // stops the threads, LEDs off, releases the devices for the new cell
   try {
     startCell(next);
+    cellOk_ = true;
   } catch (const std::exception& e) {
     message = std::string("reload failed, restored the running configuration: ") + e.what();
     logf(LogLevel::Error, "%s", message.c_str());
     try {
       startCell(config_);
+      cellOk_ = true;
     } catch (const std::exception& e2) {
       cellOk_ = false;
       logf(LogLevel::Error, "restoring the previous cell failed too: %s", e2.what());

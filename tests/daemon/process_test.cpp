@@ -450,3 +450,26 @@ TEST(DaemonProcessSecurity, ControlSocketRefusesOtherUsers) {
   EXPECT_EQ(WEXITSTATUS(st), 0) << "uid 65534 must be refused";
   EXPECT_NE(proc.log().find("refused a client with uid 65534"), std::string::npos);
 }
+
+TEST_F(DaemonE2E, CanLinkDownDoesNotStopThePlcLink) {
+  // CAN enabled on an interface that does not exist: the publisher reports the link down and keeps
+  // retrying; the Modbus side works as before.
+  startDaemon("can", 1000, {}, "");
+  proc->signal(SIGTERM);
+  ASSERT_EQ(proc->wait(10000), 0);
+  std::string text = simCellConfig(proc->dir());
+  text += "can:\n  enabled: true\n  interface: mfcdnone0\n  retry_ms: 100\n";
+  proc->writeConfig(text);
+  proc->start(MFCD_TEST_DAEMON);
+  ASSERT_TRUE(proc->waitReady()) << proc->log();
+  const json s = proc->ctl({{"cmd", "status"}});
+  ASSERT_TRUE(s.contains("can")) << s.dump();
+  EXPECT_EQ(s["can"]["interface"], "mfcdnone0");
+  EXPECT_EQ(s["can"]["state"], "down");
+  Client plc(proc->modbusPort());
+  Regs r;
+  ASSERT_TRUE(plc.waitReady());
+  ASSERT_EQ(plc.trigger(1, 0), 0);
+  ASSERT_TRUE(plc.waitFor(1, r));
+  EXPECT_TRUE(r.at(reg::kStatus) & reg::kPickValid);
+}
