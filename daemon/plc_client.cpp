@@ -20,6 +20,7 @@ namespace {
 
 constexpr const char* kUsage =
     "usage: mfc-plc-client [--host H] [--port P] [--cycles N] [--recipe R] [--count-only] [--first-job J] [--timeout-ms T]\n"
+    "                      [--connect-timeout-ms T]   (retries the connection while mfcd starts; default 30000)\n"
     "  Triggers N cycles (default 5) on mfcd (default 127.0.0.1:1502, recipe 0) and prints each pick:\n"
     "  job, recipe, x y z [mm] rx ry rz [deg] in the robot base frame, score, cycle time [ms].\n"
     "  Exit status: 0 all cycles answered, 1 a cycle failed or timed out, 2 usage/connection.\n";
@@ -38,7 +39,7 @@ bool readStatus(modbus_t* ctx, Snapshot& s) {
 
 int main(int argc, char** argv) {
   std::string host = "127.0.0.1";
-  int port = 1502, cycles = 5, recipe = 0, mode = 0, firstJob = 0, timeoutMs = 10000;
+  int port = 1502, cycles = 5, recipe = 0, mode = 0, firstJob = 0, timeoutMs = 10000, connectMs = 30000;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto next = [&]() -> const char* { return i + 1 < argc ? argv[++i] : nullptr; };
@@ -49,12 +50,20 @@ int main(int argc, char** argv) {
     else if (a == "--recipe" && (v = next())) recipe = std::atoi(v);
     else if (a == "--first-job" && (v = next())) firstJob = std::atoi(v);
     else if (a == "--timeout-ms" && (v = next())) timeoutMs = std::atoi(v);
+    else if (a == "--connect-timeout-ms" && (v = next())) connectMs = std::atoi(v);
     else if (a == "--count-only") mode = 1;
     else if (a == "-h" || a == "--help") { std::fputs(kUsage, stdout); return 0; }
     else { std::fputs(kUsage, stderr); return 2; }
   }
+  // mfcd may still be starting (loading templates): retry the connection for a while.
   modbus_t* ctx = modbus_new_tcp(host.c_str(), port);
-  if (!ctx || modbus_connect(ctx) != 0) {
+  bool connected = false;
+  for (const auto until = std::chrono::steady_clock::now() + std::chrono::milliseconds(connectMs);;) {
+    connected = ctx && modbus_connect(ctx) == 0;
+    if (connected || std::chrono::steady_clock::now() > until) break;
+    std::this_thread::sleep_for(200ms);
+  }
+  if (!connected) {
     std::fprintf(stderr, "mfc-plc-client: cannot connect to %s:%d: %s\n", host.c_str(), port, modbus_strerror(errno));
     return 2;
   }

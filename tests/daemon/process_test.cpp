@@ -473,3 +473,26 @@ TEST_F(DaemonE2E, CanLinkDownDoesNotStopThePlcLink) {
   ASSERT_TRUE(plc.waitFor(1, r));
   EXPECT_TRUE(r.at(reg::kStatus) & reg::kPickValid);
 }
+
+TEST_F(DaemonE2E, PlcClientDemoProgramPrintsEachPick) {
+  startDaemon("plcclient");
+  const fs::path out = proc->dir() / "plc.txt";
+  const std::string cmd = std::string(MFC_PLC_CLIENT) + " --port " + std::to_string(port) + " --cycles 3 --first-job 40 > " + out.string();
+  ASSERT_EQ(std::system(cmd.c_str()), 0);
+  std::ifstream in(out);
+  std::string line;
+  int rows = 0;
+  while (std::getline(in, line)) {
+    unsigned job = 0, recipe = 0;
+    float x, y, z, rx, ry, rz, score;
+    unsigned ms = 0;
+    if (std::sscanf(line.c_str(), "%u %u %f %f %f %f %f %f %f %u", &job, &recipe, &x, &y, &z, &rx, &ry, &rz, &score, &ms) == 10) {
+      EXPECT_EQ(job, 40u + static_cast<unsigned>(rows));
+      EXPECT_NEAR(z, 470.0f, 30.0f);
+      EXPECT_GT(score, 0.5f);
+      ++rows;
+    }
+  }
+  EXPECT_EQ(rows, 3);
+  EXPECT_EQ(proc->ctl({{"cmd", "stats"}})["picks"], 3);
+}
