@@ -6,7 +6,6 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
-#include <regex>
 
 namespace mfcd::vision::calib {
 
@@ -49,11 +48,14 @@ std::string CheckerBoard::describe() const {
 }
 
 cv::Size parse_pattern_size(const std::string& text) {
-  static const std::regex re(R"(^\s*(\d{1,3})\s*[xX]\s*(\d{1,3})\s*$)");
-  std::smatch m;
-  if (!std::regex_match(text, m, re))
+  // Digits 'x' digits, nothing else (std::regex trips GCC 12's -Wmaybe-uninitialized under ASan).
+  const size_t x = text.find_first_of("xX");
+  auto digits = [](const std::string& s) {
+    return !s.empty() && s.size() <= 3 && s.find_first_not_of("0123456789") == std::string::npos;
+  };
+  if (x == std::string::npos || !digits(text.substr(0, x)) || !digits(text.substr(x + 1)))
     throw CalibrationError("board size '" + text + "': expected COLUMNSxROWS inner corners, e.g. 9x6");
-  return {std::stoi(m[1]), std::stoi(m[2])};
+  return {std::stoi(text.substr(0, x)), std::stoi(text.substr(x + 1))};
 }
 
 BoardDetection detect_board(const cv::Mat& image, const CheckerBoard& board) {

@@ -72,6 +72,8 @@ TEST(CalibBoard, EulerConventionIsRzRyRx) {
 TEST(CalibBoard, BoardSizesAreParsedAndValidated) {
   EXPECT_EQ(parse_pattern_size("9x6"), cv::Size(9, 6));
   EXPECT_THROW(parse_pattern_size("9by6"), CalibrationError);
+  EXPECT_THROW(parse_pattern_size("9x"), CalibrationError);
+  EXPECT_THROW(parse_pattern_size("9x6x2"), CalibrationError);
   EXPECT_THROW((CheckerBoard{7, 7, 10}.validate()), CalibrationError);
   EXPECT_THROW((CheckerBoard{9, 6, -1}.validate()), CalibrationError);
 }
