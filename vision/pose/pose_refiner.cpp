@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -24,9 +25,9 @@ void RefinerParams::validate() const {
   if (!(loss_scale_px > 0)) fail("loss_scale_px", "must be > 0");
   if (!(first_view_max_step_mm >= 0) || !(first_view_max_step_deg >= 0))
     fail("first_view_max_step_mm/first_view_max_step_deg", "must be >= 0");
-  if (!(rerender_mm >= 0) || !(rerender_deg >= 0)) fail("rerender_mm/rerender_deg", "must be >= 0");
-  if (!(converged_mm >= 0) || !(converged_deg >= 0)) fail("converged_mm/converged_deg", "must be >= 0");
-  if (!(fresh_mm >= 0) || !(fresh_deg >= 0)) fail("fresh_mm/fresh_deg", "must be >= 0");
+  if (!(rerender_px >= 0)) fail("rerender_px", "must be >= 0");
+  if (!(converged_px >= 0)) fail("converged_px", "must be >= 0");
+  if (!(fresh_px >= 0)) fail("fresh_px", "must be >= 0");
   if (min_correspondences < 6) fail("min_correspondences", "must be >= 6 (six pose parameters)");
   if (!(inlier_cost_px > 0)) fail("inlier_cost_px", "must be > 0");
 }
@@ -95,6 +96,22 @@ struct PoseRefiner::Impl {
     solver.logging_type = ceres::SILENT;
     solver.minimizer_progress_to_stdout = false;
     solver.num_threads = 1;
+  }
+
+  // Mean image displacement (px) of the view's model points between poses a and b (every 4th
+  // point: an estimate is enough). Infinite when the view has no points yet.
+  static double mean_displacement_px(const View& v, const RigidTransform& a, const RigidTransform& b) {
+    if (v.points.empty()) return std::numeric_limits<double>::infinity();
+    const RigidTransform ca = v.input.reference_to_camera * a, cb = v.input.reference_to_camera * b;
+    double sum = 0;
+    int n = 0;
+    for (size_t i = 0; i < v.points.size(); i += 4) {
+      const cv::Vec3d pa = ca.apply(v.points[i].point_model), pb = cb.apply(v.points[i].point_model);
+      if (pa[2] <= 1e-6 || pb[2] <= 1e-6) return std::numeric_limits<double>::infinity();
+      sum += cv::norm(v.input.camera.project(pa) - v.input.camera.project(pb));
+      ++n;
+    }
+    return sum / n;
   }
 
   void ensure_slots(size_t n) {
@@ -167,8 +184,6 @@ RefinementResult PoseRefiner::refine(const PoseModel& model, const RigidTransfor
   RigidTransform pose = initial;
   const cv::Vec3d centre = 0.5 * (model.bbox_min + model.bbox_max);
   for (auto& v : im.views) v.has_render = false;
-  const double rerender_rad = radians(params_.rerender_deg), converged_rad = radians(params_.converged_deg);
-  const double fresh_rad = radians(params_.fresh_deg);
   bool refresh = false;  // render again at the current pose before the next iteration
 
   for (int it = 0; it < params_.max_iterations; ++it) {
@@ -183,8 +198,7 @@ RefinementResult PoseRefiner::refine(const PoseModel& model, const RigidTransfor
     for (size_t k = 0; k < active; ++k) {
       Impl::View& v = im.views[k];
       const RigidTransform m2c = v.input.reference_to_camera * pose;
-      if (!v.has_render || refresh || translation_difference(v.rendered_at, pose) > params_.rerender_mm ||
-          rotation_difference(v.rendered_at, pose) > rerender_rad) {
+      if (!v.has_render || refresh || Impl::mean_displacement_px(v, v.rendered_at, pose) > params_.rerender_px) {
         sampler_.sample(model, m2c, v.input.camera, v.points);
         v.rendered_at = pose;
         v.has_render = true;
@@ -230,16 +244,17 @@ RefinementResult PoseRefiner::refine(const PoseModel& model, const RigidTransfor
     RigidTransform next;
     next.R = rotation_from_angle_axis({w[0], w[1], w[2]}) * pose.R;
     next.t = cv::Vec3d(t[0], t[1], t[2]) - next.R * centre;
-    const double moved_mm = translation_difference(pose, next), moved_rad = rotation_difference(pose, next);
+    double moved_px = 0;
+    for (size_t k = 0; k < active; ++k)
+      if (!im.views[k].points.empty()) moved_px = std::max(moved_px, Impl::mean_displacement_px(im.views[k], pose, next));
     pose = next;
     result.iterations = it + 1;
     refresh = false;
-    if (joint && it + 1 >= params_.first_view_iterations && moved_mm < params_.converged_mm &&
-        moved_rad < converged_rad) {
+    if (joint && it + 1 >= params_.first_view_iterations && moved_px < params_.converged_px) {
       bool fresh = true;
       for (const auto& v : im.views)
-        fresh = fresh && translation_difference(v.rendered_at, pose) <= params_.fresh_mm &&
-                rotation_difference(v.rendered_at, pose) <= fresh_rad;
+        fresh = fresh && v.has_render &&
+                (v.points.empty() || Impl::mean_displacement_px(v, v.rendered_at, pose) <= params_.fresh_px);
       if (fresh) {
         result.converged = true;
         break;
@@ -265,12 +280,10 @@ void PoseRefiner::evaluate_into(const PoseModel& model, RefinementResult& result
   const double gate = params_.final_gate_px;
   double sum = 0;
   int count = 0, inliers = 0;
-  const double fresh_rad = radians(params_.fresh_deg);
   for (Impl::View& v : impl_->views) {
     const RigidTransform m2c = v.input.reference_to_camera * result.pose;
     // Points rendered near the final pose are reused (reprojected); others are rendered.
-    if (!v.has_render || translation_difference(v.rendered_at, result.pose) > params_.fresh_mm ||
-        rotation_difference(v.rendered_at, result.pose) > fresh_rad) {
+    if (!v.has_render || Impl::mean_displacement_px(v, v.rendered_at, result.pose) > params_.fresh_px) {
       sampler_.sample(model, m2c, v.input.camera, v.points);
       v.rendered_at = result.pose;
       v.has_render = true;

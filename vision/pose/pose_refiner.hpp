@@ -58,18 +58,18 @@ struct RefinerParams {
   // views are consulted. 0 = no limit. The joint phase is not limited.
   double first_view_max_step_mm = 1.0;
   double first_view_max_step_deg = 1.0;
-  // Model edge points are re-rendered when the pose has moved this much since their render;
-  // in between they are reprojected (the contour generator moves slowly with the pose, and a
-  // render is the costliest step: ~2-4 ms of llvmpipe per view for a 200 px window).
-  double rerender_mm = 1.0;
-  double rerender_deg = 1.0;
-  // Converged when one iteration moves the pose less than this (after the joint phase began)
-  // and the points were rendered within fresh_mm/fresh_deg of the pose; when they were not, they
-  // are rendered again and the iterations go on. Stale points leave a bias of a few 0.01 mm.
-  double converged_mm = 0.005;
-  double converged_deg = 0.005;
-  double fresh_mm = 0.05;
-  double fresh_deg = 0.05;
+  // Pose changes are measured where they matter: the mean image displacement (px) of the
+  // view's model edge points between two poses. Motions the edges cannot see (a cylinder
+  // turning about its axis) count as none.
+  // Model edge points are re-rendered when the pose has moved them by rerender_px since their
+  // render; in between they are reprojected (the contour generator moves slowly with the pose,
+  // and a render is the costliest step: ~3-6 ms of llvmpipe per view for a 256 px window).
+  double rerender_px = 4.0;
+  // Converged when an iteration (after the joint phase began) moves the points less than
+  // converged_px and they were rendered within fresh_px of the pose; when they were not, they
+  // are rendered again and the iterations go on (stale points bias the pose by a few 0.01 mm).
+  double converged_px = 0.02;
+  double fresh_px = 0.1;
   int min_correspondences = 12;     // fewer in an iteration: refinement fails
   // Final evaluation: a model point is an inlier when its Eq. 21 cost is <= inlier_cost_px;
   // costs are truncated at final_gate_px for the mean.
