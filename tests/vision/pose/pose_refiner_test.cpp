@@ -96,7 +96,7 @@ TEST_F(PoseRefinerTest, ModelEdgePointsLieOnTheRenderedDepthEdges) {
   ASSERT_GT(pts.size(), 200u);
   EXPECT_LE(pts.size(), 400u);
   for (const auto& p : pts) {
-    // Same pixel convention as depth_discontinuities() of the full frame ...
+    // Same pixels as the occluding edges of the full frame (part on its floor) ...
     EXPECT_TRUE(s.edges[0].edges(cv::Point(static_cast<int>(p.pixel.x), static_cast<int>(p.pixel.y))));
     // ... and the back-projected model point projects back onto its pixel.
     const cv::Point2d q = config_.camera.project(truth.apply(p.point_model));
@@ -291,3 +291,54 @@ TEST_F(PoseRefinerTest, PartOutOfViewFailsWithoutThrowing) {
   EXPECT_EQ(r.score, 0.0);
 }
 
+
+TEST(OccludingEdges, GrazingFaceIsNoEdgeButItsBorderIs) {
+  // A face rising 5 mm per pixel (seen at a grazing angle) on background: depth_discontinuities
+  // marks every pixel of it, occluding_edges only its outline.
+  cv::Mat1f depth(20, 60, 0.f);
+  for (int y = 5; y < 15; ++y)
+    for (int x = 10; x < 50; ++x) depth(y, x) = 300.f + 5.f * static_cast<float>(x - 10);
+  cv::Mat1b occl;
+  occluding_edges(depth, 2.0f, 1.0f, occl);
+  const cv::Mat1b disc = depth_discontinuities(depth, 2.0f);
+  EXPECT_EQ(cv::countNonZero(disc), 10 * 40);
+  for (int y = 0; y < depth.rows; ++y)
+    for (int x = 0; x < depth.cols; ++x) {
+      const bool border = depth(y, x) > 0 && (y == 5 || y == 14 || x == 10 || x == 49);
+      EXPECT_EQ(occl(y, x) != 0, border) << x << "," << y;
+    }
+}
+
+TEST(OccludingEdges, RatioZeroIsDepthDiscontinuities) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(0, 1);
+  for (int trial = 0; trial < 10; ++trial) {
+    cv::Mat1f depth(40, 50);
+    for (auto& d : depth) d = u(rng) < 0.1f ? 0.f : 280.f + 40.f * u(rng) * u(rng);
+    cv::Mat1b occl;
+    occluding_edges(depth, 2.0f, 0.0f, occl);
+    EXPECT_EQ(cv::countNonZero(occl != depth_discontinuities(depth, 2.0f)), 0) << "trial " << trial;
+  }
+}
+
+TEST(OccludingEdges, AnotherObjectBehindIsAlwaysAnEdge) {
+  // The grazing face (300..495 mm) in front of a floor at 500 mm. At its far end the floor is
+  // only 5 mm behind, no more than the face's own step: an edge only when the part index says
+  // that the floor is another object (the flashes cast a shadow there).
+  cv::Mat1f depth(20, 60, 500.f);
+  cv::Mat1b index(20, 60, uchar(1));
+  for (int y = 5; y < 15; ++y)
+    for (int x = 10; x < 50; ++x) {
+      depth(y, x) = 300.f + 5.f * static_cast<float>(x - 10);
+      index(y, x) = 2;
+    }
+  cv::Mat1b with, without;
+  occluding_edges(depth, 2.0f, 1.0f, with, &index);
+  occluding_edges(depth, 2.0f, 1.0f, without);
+  EXPECT_TRUE(with(10, 49));
+  EXPECT_FALSE(without(10, 49));
+  EXPECT_TRUE(with(10, 10) && without(10, 10));    // near end: 200 mm in front of the floor
+  EXPECT_FALSE(with(10, 30) || without(10, 30));   // inside the face
+  cv::Mat1b small(10, 10, uchar(0));
+  EXPECT_THROW(occluding_edges(depth, 2.0f, 1.0f, with, &small), std::invalid_argument);
+}

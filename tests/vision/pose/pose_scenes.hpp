@@ -9,6 +9,7 @@
 #include "vision/pose/pose_refiner.hpp"
 #include "vision/render/mfc_renderer.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <random>
