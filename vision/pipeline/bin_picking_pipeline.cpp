@@ -4,6 +4,8 @@
 #include "vision/idt3/integral_distance_transform.hpp"
 #include "vision/lines/line_fitter.hpp"
 #include "vision/pose/coarse_pose.hpp"
+#include "vision/pose/pose_refiner.hpp"
+#include "vision/render/mfc_renderer.hpp"
 #include "vision/search/line_search.hpp"
 #include "vision/search/nms.hpp"
 #include "vision/search/oriented_template.hpp"
@@ -16,6 +18,7 @@
 #include <algorithm>
 #include <atomic>
 #include <optional>
+#include <span>
 #include <cmath>
 #include <stdexcept>
 
@@ -66,6 +69,11 @@ struct BinPickingPipeline::Impl {
   DirectionalDistanceTransform dt3;
   IntegralDistanceTransform idt;
   ChamferCosts chamfer;  // baselines only
+  // Refinement renders the model, so it needs a GL context bound to the thread that calls
+  // process(): made there on the first call.
+  std::unique_ptr<MfcRenderer> renderer;
+  std::unique_ptr<PoseRefiner> refiner;
+  std::vector<int> mesh_ids;  // per part
   std::vector<std::pair<int, int>> jobs;           // (part, view) searched this cycle
   std::vector<std::vector<Hit>> thread_hits;
   std::vector<uint64_t> thread_hypotheses;
@@ -123,6 +131,8 @@ BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfi
   if (m.config.template_files.empty()) throw std::runtime_error("pipeline: no template files configured");
   if (m.config.max_candidates < 1) throw std::runtime_error("pipeline: max_candidates must be >= 1");
   if (!(m.config.max_cost_px > 0)) throw std::runtime_error("pipeline: max_cost_px must be positive");
+  if (m.config.refine_candidates < 0 || m.config.refine_iterations < 1)
+    throw std::runtime_error("pipeline: refine_candidates must be >= 0 and refine_iterations >= 1");
   if (m.config.template_guides < 1 || m.config.query_guides < 1)
     throw std::runtime_error("pipeline: template_guides and query_guides must be >= 1");
   for (const auto& file : m.config.template_files) {
@@ -323,6 +333,48 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
   }
   t = Clock::now();
   out.times.pose_ms = ms_between(t1, t);
+
+  // Multi-view refinement (paper Sec. 4.5; one view here: the cell's single MFC capture) of the
+  // best candidates, until the deadline. A candidate whose refinement fails keeps its coarse pose.
+  const int refine = std::min<int>(m.config.refine_candidates, static_cast<int>(out.candidates.size()));
+  if (refine > 0 && Clock::now() < deadline) {
+    if (!m.renderer) {
+      m.renderer = std::make_unique<MfcRenderer>(m.camera);
+      for (const auto& part : m.parts) m.mesh_ids.push_back(m.renderer->add_mesh(part.db.mesh));
+      RefinerParams rp;
+      rp.max_iterations = m.config.refine_iterations;
+      m.refiner = std::make_unique<PoseRefiner>(*m.renderer, rp);
+    }
+    const RefinementView view{&m.edges, m.camera.camera, RigidTransform{}};
+    m.refiner->prepare(std::span<const RefinementView>(&view, 1));
+    for (int i = 0; i < refine; ++i) {
+      if (Clock::now() >= deadline) {
+        out.degraded = true;
+        break;
+      }
+      PoseCandidate& c = out.candidates[i];
+      int part = 0;
+      while (m.parts[part].db.obj_id != c.obj_id) ++part;
+      const RefinementResult r = m.refiner->refine(pose_model(m.mesh_ids[part], m.parts[part].db.mesh),
+                                                  RigidTransform{c.R_m2c, c.t_m2c_mm}, deadline);
+      out.degraded = out.degraded || r.deadline_hit;
+      if (r.failed) continue;
+      c.R_m2c = r.pose.R;
+      c.t_m2c_mm = r.pose.t;
+      c.cost_px = r.mean_cost_px;
+      c.score = r.score;
+      c.refined = true;
+    }
+    // Refined candidates first, by their refined score; the rest keep the search order.
+    std::stable_sort(out.candidates.begin(), out.candidates.begin() + refine,
+                     [](const PoseCandidate& a, const PoseCandidate& b) {
+                       if (a.refined != b.refined) return a.refined;
+                       return a.refined && a.score > b.score;
+                     });
+  }
+  const auto t2 = Clock::now();
+  out.times.refine_ms = ms_between(t, t2);
+  t = t2;
   out.times.total_ms = ms_between(t0, t);
 }
 

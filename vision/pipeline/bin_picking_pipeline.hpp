@@ -40,7 +40,9 @@ struct PipelineConfig {
   int query_guides = 30;
   double min_guide_overlap = 0.75;  // of the shorter line (LineSearchParams::minOverlap)
   int slide_step = 2;               // px between slide positions, then the best refined (LineSearchParams)
-  int refine_iterations = 10;      // per candidate; fewer when the deadline is near
+  int refine_iterations = 20;      // per candidate (outer ICP iterations); cut short at the deadline
+  int refine_candidates = 2;       // the best this many candidates are refined (the others keep
+                                   // their coarse pose); 0 = no refinement
   int threads = 0;                 // search threads; 0 = OpenMP default
   DepthEdgeParams depth_edges;
 };
