@@ -1,6 +1,7 @@
 // The real mfcd (vision backend = BinPickingPipeline over the generated .tdb templates) on the
 // simulated cell: a libmodbus PLC client triggers cycles and the published picks must lie on the
-// simulated parts (ground truth from the control socket) within tolerance, within the budget.
+// simulated parts (ground truth from the control socket) within tolerance (2 mm lateral, 8 mm in
+// depth), of the reported part type, within the budget.
 #include <gtest/gtest.h>
 
 #include <modbus/modbus.h>
@@ -14,7 +15,10 @@ using namespace mfcd::motion;
 using namespace std::chrono_literals;
 
 namespace {
-constexpr double kPositionToleranceMm = 5.0;
+// Lateral position comes straight from the image (0.27 mm/px at the floor); depth along the optical
+// axis from the refined scale, which is less certain for a single view.
+constexpr double kLateralToleranceMm = 2.0;
+constexpr double kDepthToleranceMm = 8.0;
 constexpr int kBudgetMs = 1000;
 }  // namespace
 
@@ -58,7 +62,10 @@ TEST(PipelineE2E, RealMfcdPicksSimulatedPartsWithinToleranceAndBudget) {
       std::string found;
       for (const auto& c : last["candidates"])
         found += " obj " + std::to_string(c["obj_id"].get<int>()) + " score " + std::to_string(c["score"].get<double>());
-      ADD_FAILURE() << "job " << job << ": no pick; candidates:" << found;
+      std::string truth;
+      for (const auto& t : last["sim_truth"]) truth += " " + std::to_string(t["obj_id"].get<int>());
+      ADD_FAILURE() << "job " << job << ": no pick; candidates:" << found << "; parts in the bin (obj ids):" << truth
+                    << "; degraded " << last["degraded"] << ", " << last["times_ms"]["total"] << " ms";
       continue;
     }
     ++picks;
@@ -73,7 +80,7 @@ TEST(PipelineE2E, RealMfcdPicksSimulatedPartsWithinToleranceAndBudget) {
     std::printf("job %u: pick %.1f %.1f %.1f obj %d score %.2f; nearest part obj %d: %.2f mm (xy %.2f, z %+.2f); cycle %u ms%s\n",
                 job, x, y, z, last["pick"]["obj_id"].get<int>(), f(reg::kScore), truthObj, best, dxy, dz,
                 at(reg::kCycleTimeMs), last["degraded"].get<bool>() ? " degraded" : "");
-    if (best <= kPositionToleranceMm && truthObj == last["pick"]["obj_id"].get<int>()) ++matched;
+    if (dxy <= kLateralToleranceMm && std::abs(dz) <= kDepthToleranceMm && truthObj == last["pick"]["obj_id"].get<int>()) ++matched;
   }
   modbus_close(ctx);
   modbus_free(ctx);
