@@ -17,6 +17,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <limits>
 #include <optional>
 #include <span>
 #include <cmath>
@@ -121,6 +122,42 @@ double explained_fraction(const TemplateView& view, const Warp& warp, int tx, in
   m.explained(box).setTo(0);
   m.inside(box).setTo(0);
   return total > 0 ? double(covered) / total : 0;
+}
+
+// The search ran at the templates' own distance, but parts in a bin lie nearer (stacked, or
+// their centre above the floor): their images are larger by distance / actual distance. Around
+// a match, scale (the distance), in-plane angle (one channel step either way) and translation
+// (3 px) are searched locally with FDCM, so the coarse pose gets its depth from the image.
+void fit_distance(const LineSet& lines, const IntegralDistanceTransform& idt, TemplatePlacement& pl) {
+  const FdcmMatcher matcher(idt);
+  const double step = CV_PI / lines.q;
+  double best_cost = std::numeric_limits<double>::infinity();
+  TemplatePlacement best = pl;
+  uint64_t segments = 0;
+  for (int si = -8; si <= 14; ++si) {
+    const double scale = pl.scale * std::pow(1.01, si);
+    for (int ai = -1; ai <= 1; ++ai) {
+      const OrientedTemplate t = orientTemplate(lines, 0, Warp{pl.angle_rad + ai * step, scale, 1.0});
+      if (t.pixels <= 0) continue;
+      for (int dy = -3; dy <= 3; ++dy)
+        for (int dx = -3; dx <= 3; ++dx) {
+          const int tx = static_cast<int>(pl.origin_px.x) + dx, ty = static_cast<int>(pl.origin_px.y) + dy;
+          if (tx < t.txMin() || tx > t.txMax(idt.width()) || ty < t.tyMin() || ty > t.tyMax(idt.height())) continue;
+          const uint32_t stop = std::isfinite(best_cost)
+                                    ? static_cast<uint32_t>(best_cost * kCostScale * t.pixels) + 1
+                                    : std::numeric_limits<uint32_t>::max();
+          const uint32_t sum = matcher.evaluateAt(t, tx, ty, stop, segments);
+          const double cost = double(sum) / (double(kCostScale) * t.pixels);
+          if (cost < best_cost) {
+            best_cost = cost;
+            best.angle_rad = pl.angle_rad + ai * step;
+            best.scale = scale;
+            best.origin_px = cv::Point2d(tx, ty);
+          }
+        }
+    }
+  }
+  pl = best;
 }
 
 }  // namespace
@@ -318,6 +355,7 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
     pl.angle_rad = w.angle;
     pl.scale = w.scale;
     pl.origin_px = cv::Point2d(h.c.tx, h.c.ty);
+    if (fdcm) fit_distance(part.db.views[h.view].lines, m.idt, pl);
     const RigidPose pose = coarse_pose(part.db, pl, m.camera.camera);
     PoseCandidate c;
     c.obj_id = part.db.obj_id;
@@ -327,7 +365,9 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
     c.t_m2c_mm = pose.t_mm;
     c.cost_px = h.c.cost();
     c.coverage = v.coverage;
-    c.score = std::clamp(1.0 - v.combined / m.config.max_cost_px, 0.0, 1.0);
+    // 1 at a perfect match, 0.5 at 2 px of combined cost, falling slowly so that a correct but
+    // unrefined match of a large part (3-4 px) still ranks above nothing.
+    c.score = 1.0 / (1.0 + v.combined / 2.0);
     c.box = h.box;
     out.candidates.push_back(std::move(c));
   }
@@ -359,18 +399,24 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
                                                   RigidTransform{c.R_m2c, c.t_m2c_mm}, deadline);
       out.degraded = out.degraded || r.deadline_hit;
       if (r.failed) continue;
+      // One view constrains depth and tilt weakly; a refinement that ends worse than it started
+      // (by the same Eq. 21 measure) walked into a false minimum: keep the coarse pose then.
+      const RefinementResult start =
+          m.refiner->evaluate(pose_model(m.mesh_ids[part], m.parts[part].db.mesh), RigidTransform{c.R_m2c, c.t_m2c_mm});
+      if (r.score < start.score) {
+        c.cost_px = start.mean_cost_px;
+        c.score = start.score;
+        continue;
+      }
       c.R_m2c = r.pose.R;
       c.t_m2c_mm = r.pose.t;
       c.cost_px = r.mean_cost_px;
       c.score = r.score;
       c.refined = true;
     }
-    // Refined candidates first, by their refined score; the rest keep the search order.
+    // The refined (or re-scored) candidates by their final score; the rest keep the search order.
     std::stable_sort(out.candidates.begin(), out.candidates.begin() + refine,
-                     [](const PoseCandidate& a, const PoseCandidate& b) {
-                       if (a.refined != b.refined) return a.refined;
-                       return a.refined && a.score > b.score;
-                     });
+                     [](const PoseCandidate& a, const PoseCandidate& b) { return a.score > b.score; });
   }
   const auto t2 = Clock::now();
   out.times.refine_ms = ms_between(t, t2);
