@@ -403,7 +403,14 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
       // (by the same Eq. 21 measure) walked into a false minimum: keep the coarse pose then.
       const RefinementResult start =
           m.refiner->evaluate(pose_model(m.mesh_ids[part], m.parts[part].db.mesh), RigidTransform{c.R_m2c, c.t_m2c_mm});
-      if (r.score < start.score) {
+      // Depth is where one view is weakest: a flat part can trade distance for tilt. The coarse
+      // distance was measured from the image scale (fit_distance, 1 % steps), so a refinement that
+      // moves the part centre along the line of sight by more than 4 % of its distance is not
+      // trusted either.
+      const cv::Vec3d c0 = c.R_m2c * m.parts[part].db.center_mm + c.t_m2c_mm;
+      const cv::Vec3d c1 = r.pose.R * m.parts[part].db.center_mm + r.pose.t;
+      const bool depth_jump = std::abs(cv::norm(c1) - cv::norm(c0)) > 0.04 * cv::norm(c0);
+      if (r.score < start.score || depth_jump) {
         c.cost_px = start.mean_cost_px;
         c.score = start.score;
         continue;
