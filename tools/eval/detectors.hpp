@@ -38,15 +38,16 @@ class Detector {
   virtual double setup_seconds() const = 0;
 };
 
-// FDCM / OCM / CM through BinPickingPipeline.
+// FDCM / OCM / CM through BinPickingPipeline; `distances_mm` as PipelineConfig::distances_mm.
 std::unique_ptr<Detector> make_pipeline_detector(vision::PipelineConfig::Cost cost, const vision::CameraConfig& camera,
                                                  const std::vector<std::filesystem::path>& templates, int threads,
-                                                 int max_candidates);
+                                                 int max_candidates, const std::vector<double>& distances_mm);
 
 struct Line2dOptions {
   double inplane_step_deg = 15;  // in-plane rotations trained per view (LINE-2D is not rotation invariant)
   int view_stride = 1;           // use every n-th template view
   float min_similarity = 60;     // cv::linemod match threshold, percent
+  std::vector<double> distances_mm;  // trained at the scale of each (as the pipeline searches); empty = 1
 };
 // LINE-2D on the max image (the per-pixel maximum of the flash images): for every template
 // view of every part, the part rendered alone at the view's pose by MfcRenderer, turned in the

@@ -8,6 +8,7 @@
 #include <opencv2/imgproc.hpp>
 #include <opencv2/rgbd/linemod.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <map>
@@ -48,7 +49,11 @@ class Line2dDetector final : public Detector {
       // large enough for the part at any in-plane rotation.
       const auto& K = camera.camera;
       const double r_px = 0.5 * part.db.diameter_mm * K.fx() / (part.db.distance_mm - 0.5 * part.db.diameter_mm);
-      const int half = static_cast<int>(std::ceil(r_px * 1.1)) + 6;
+      std::vector<double> scales;
+      for (double d : options.distances_mm) scales.push_back(part.db.distance_mm / d);
+      if (scales.empty()) scales.push_back(1.0);
+      const double max_scale = *std::max_element(scales.begin(), scales.end());
+      const int half = static_cast<int>(std::ceil(r_px * 1.1 * std::max(1.0, max_scale))) + 6;
       const cv::Rect window(cvRound(K.cx()) - half, cvRound(K.cy()) - half, 2 * half + 1, 2 * half + 1);
       renderer.set_camera(K.cropped(window));
       const cv::Point2f origin(static_cast<float>(K.cx() - window.x), static_cast<float>(K.cy() - window.y));
@@ -63,10 +68,12 @@ class Line2dDetector final : public Detector {
         cv::Mat3b img;
         max_image(render.frames, img);
         const cv::Mat1b mask = render.part_index > 0;
+        for (double scale : scales)
         for (double a = 0; a < 360 - 1e-9; a += options.inplane_step_deg) {
           // cv::getRotationMatrix2D turns x towards -y for positive angles; the placement's
-          // angle turns x towards +y (image axes), hence the minus.
-          const cv::Mat M = cv::getRotationMatrix2D(origin, -a, 1.0);
+          // angle turns x towards +y (image axes), hence the minus. Scaling about the part
+          // centre's image is the view at another distance (to first order, as in the FDCM search).
+          const cv::Mat M = cv::getRotationMatrix2D(origin, -a, scale);
           cv::Mat3b ri;
           cv::Mat1b rm;
           cv::warpAffine(img, ri, M, img.size(), cv::INTER_LINEAR, cv::BORDER_CONSTANT);
@@ -74,16 +81,17 @@ class Line2dDetector final : public Detector {
           cv::Rect bb;
           const int id = detector_->addTemplate({ri}, cls, rm, &bb);
           if (id < 0) continue;  // too few gradient features (a nearly edge-on view)
-          meta_[{cls, id}] = {static_cast<int>(v), a * CV_PI / 180, cv::Point2f(origin.x - bb.x, origin.y - bb.y),
-                              parts_.size()};
+          meta_[{cls, id}] = {static_cast<int>(v), a * CV_PI / 180, scale,
+                              cv::Point2f(origin.x - bb.x, origin.y - bb.y), parts_.size()};
           ++templates_;
         }
       }
       parts_.push_back(std::move(part));
     }
     setup_s_ = std::chrono::duration<double>(Clock::now() - t0).count();
-    std::fprintf(stderr, "mfc-eval: LINE-2D trained %d templates (step %.0f deg, view stride %d) in %.1f s\n", templates_,
-                 options.inplane_step_deg, options.view_stride, setup_s_);
+    std::fprintf(stderr, "mfc-eval: LINE-2D trained %d templates (step %.0f deg, view stride %d, %zu distances) in %.1f s\n",
+                 templates_, options.inplane_step_deg, options.view_stride, std::max<size_t>(1, options.distances_mm.size()),
+                 setup_s_);
   }
 
   std::string name() const override { return "line2d"; }
@@ -117,7 +125,7 @@ class Line2dDetector final : public Detector {
       vision::TemplatePlacement pl;
       pl.view = meta.view;
       pl.angle_rad = meta.angle_rad;
-      pl.scale = 1;
+      pl.scale = meta.scale;
       pl.origin_px = origin;
       const vision::RigidPose pose = vision::coarse_pose(part.db, pl, camera_.camera);
       out.estimates.push_back({part.db.obj_id, pose.R, pose.t_mm, m.similarity / 100.0});
@@ -133,6 +141,7 @@ class Line2dDetector final : public Detector {
   struct Meta {
     int view = 0;
     double angle_rad = 0;
+    double scale = 1;
     cv::Point2f offset;  // part centre's image minus the template's top-left corner
     size_t part = 0;
   };

@@ -44,6 +44,8 @@ detect: for every image and every part type present in it, runs each method for 
   --methods LIST         comma-separated: fdcm, ocm, cm, line2d (default fdcm,ocm,cm)
   --max-images N         only the first N images (default all)
   --threads N            search threads (default: all cores)
+  --distances LIST       part distances (mm) the pipeline searches, e.g. 292,282,272,262: the
+                         templates' scale is searched for each (default: the templates' own)
   --all-types            also run FDCM once per image over all part types (best pick; timing)
   --line2d-step DEG      LINE-2D in-plane rotation step (default 15)
   --line2d-view-stride S LINE-2D: train every S-th template view (default 1)
@@ -98,6 +100,7 @@ struct Options {
   std::string split = "test";
   std::vector<std::string> methods = {"fdcm", "ocm", "cm"};
   int max_images = 0, threads = 0;
+  std::vector<double> distances_mm;
   bool all_types = false, quiet = false;
   Line2dOptions line2d;
   Criterion criterion;
@@ -128,6 +131,13 @@ Options parse(int argc, char** argv) {
     } else if (a == "--max-images") o.max_images = to_int(a, value());
     else if (a == "--threads") o.threads = to_int(a, value());
     else if (a == "--all-types") o.all_types = true;
+    else if (a == "--distances") {
+      std::stringstream ss(value());
+      for (std::string d; std::getline(ss, d, ',');) {
+        o.distances_mm.push_back(to_double(a, d));
+        if (!(o.distances_mm.back() > 0)) throw Usage("--distances: '" + d + "' is not a positive distance");
+      }
+    }
     else if (a == "--line2d-step") o.line2d.inplane_step_deg = to_double(a, value());
     else if (a == "--line2d-view-stride") o.line2d.view_stride = to_int(a, value());
     else if (a == "--max-position") o.criterion.max_position_mm = to_double(a, value());
@@ -135,6 +145,7 @@ Options parse(int argc, char** argv) {
     else if (a == "--quiet") o.quiet = true;
     else throw Usage("unknown argument '" + a + "'");
   }
+  o.line2d.distances_mm = o.distances_mm;
   if (o.dataset.empty()) throw Usage("--dataset is required");
   if (o.templates.empty()) throw Usage("--templates is required");
   if (o.out.empty()) throw Usage("--out is required");
@@ -194,6 +205,7 @@ int run_detect(const Options& o) {
     jparts.push_back({{"name", p.name}, {"obj_id", id}, {"symmetry", p.symmetry.str()}, {"templates", f.string()}});
   }
   out["parts"] = jparts;
+  out["distances_mm"] = o.distances_mm;
   out["line2d_options"] = {{"inplane_step_deg", o.line2d.inplane_step_deg}, {"view_stride", o.line2d.view_stride},
                            {"min_similarity", o.line2d.min_similarity}};
 
@@ -226,7 +238,7 @@ int run_detect(const Options& o) {
       const auto cost = m == "fdcm" ? vision::PipelineConfig::Cost::fdcm
                         : m == "ocm" ? vision::PipelineConfig::Cost::ocm
                                      : vision::PipelineConfig::Cost::cm;
-      det = make_pipeline_detector(cost, camera, tdbs, o.threads, max_candidates);
+      det = make_pipeline_detector(cost, camera, tdbs, o.threads, max_candidates, o.distances_mm);
     }
     std::fprintf(stderr, "mfc-eval: %s ready (%.1f s setup)\n", m.c_str(), det->setup_seconds());
     json trials = json::array(), instances = json::array();
@@ -246,7 +258,7 @@ int run_detect(const Options& o) {
         // matching ones, else overall).
         json trial = {{"scene", ref.scene}, {"image", ref.image}, {"obj_id", obj_id}, {"times", times_json(d.times)},
                       {"found", !d.estimates.empty()}};
-        bool correct = false;
+        bool correct = false, correct_xy = false;
         double best_visib = 0;
         int n_inst = 0;
         std::vector<size_t> inst;
@@ -257,18 +269,24 @@ int run_detect(const Options& o) {
           for (size_t j : inst) {
             const PoseError e = score(d.estimates[0], g.gt[j]);
             const bool ok = o.criterion.accepts(e);
+            // The same criterion on the position across the optical axis only: how much of the
+            // failure is the distance (scale) of a coarse pose.
+            correct_xy = correct_xy || (std::hypot(e.abs_t_mm[0], e.abs_t_mm[1]) <= o.criterion.max_position_mm &&
+                                        e.rotation_deg <= o.criterion.max_rotation_deg);
             const double key2 = (ok ? 0 : 1e9) + e.position_mm;
             if (key2 < best_key) {
               best_key = key2;
               correct = ok;
               trial["position_mm"] = e.position_mm;
               trial["rotation_deg"] = e.rotation_deg;
+              trial["d_t_mm"] = {e.d_t_mm[0], e.d_t_mm[1], e.d_t_mm[2]};
               trial["matched_instance"] = j;
               trial["matched_visib_fract"] = g.info[j].visib_fract;
             }
           }
         }
         trial["correct"] = correct;
+        trial["correct_xy"] = correct_xy;
         trial["instances"] = n_inst;
         trial["best_visib_fract"] = best_visib;
         trials.push_back(trial);

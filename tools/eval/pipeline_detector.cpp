@@ -10,7 +10,8 @@ namespace {
 class PipelineDetector final : public Detector {
  public:
   PipelineDetector(vision::PipelineConfig::Cost cost, const vision::CameraConfig& camera,
-                   const std::vector<std::filesystem::path>& templates, int threads, int max_candidates)
+                   const std::vector<std::filesystem::path>& templates, int threads, int max_candidates,
+                   const std::vector<double>& distances_mm)
       : cost_(cost) {
     const auto t0 = std::chrono::steady_clock::now();
     vision::PipelineConfig pc;
@@ -18,6 +19,7 @@ class PipelineDetector final : public Detector {
     pc.template_files = templates;
     pc.threads = threads;
     pc.max_candidates = max_candidates;
+    pc.distances_mm = distances_mm;
     pipeline_ = std::make_unique<vision::BinPickingPipeline>(camera, pc);
     setup_s_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   }
@@ -49,8 +51,8 @@ class PipelineDetector final : public Detector {
 
 std::unique_ptr<Detector> make_pipeline_detector(vision::PipelineConfig::Cost cost, const vision::CameraConfig& camera,
                                                  const std::vector<std::filesystem::path>& templates, int threads,
-                                                 int max_candidates) {
-  return std::make_unique<PipelineDetector>(cost, camera, templates, threads, max_candidates);
+                                                 int max_candidates, const std::vector<double>& distances_mm) {
+  return std::make_unique<PipelineDetector>(cost, camera, templates, threads, max_candidates, distances_mm);
 }
 
 }  // namespace mfcd::eval

@@ -115,6 +115,7 @@ PoseError pose_error(const cv::Matx33d& R_est, const cv::Vec3d& t_est, const cv:
   const cv::Vec3d c_est = R_est * centre_mm + t_est, c_gt = best * centre_mm + t_gt;
   const cv::Vec3d d = c_est - c_gt;
   e.position_mm = cv::norm(d);
+  e.d_t_mm = d;
   e.abs_t_mm = {std::abs(d[0]), std::abs(d[1]), std::abs(d[2])};
   const cv::Vec3d r = euler_xyz_deg(rel);
   e.abs_r_deg = {std::abs(r[0]), std::abs(r[1]), std::abs(r[2])};

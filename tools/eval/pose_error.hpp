@@ -32,7 +32,8 @@ const PartEntry& part_by_id(const std::vector<PartEntry>& parts, int obj_id, con
 struct PoseError {
   double position_mm = 0;   // distance between the part centre (`centre_mm`, model frame) as placed by each pose
   double rotation_deg = 0;  // angle of R_est * R_gt'^T; for z:inf the angle between the model z axes
-  cv::Vec3d abs_t_mm{0, 0, 0};  // |t_est - t_gt'| per camera axis, of the part centre
+  cv::Vec3d d_t_mm{0, 0, 0};    // estimate minus truth of the part centre, camera axes
+  cv::Vec3d abs_t_mm{0, 0, 0};  // |d_t_mm| per axis
   // |rx|, |ry|, |rz| of the relative rotation R_est * R_gt'^T = Rz(rz) Ry(ry) Rx(rx), camera axes, degrees.
   cv::Vec3d abs_r_deg{0, 0, 0};
 };
