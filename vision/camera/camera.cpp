@@ -98,6 +98,18 @@ void validate_camera_config(const CameraConfig& c, const std::string& source) {
       fail(source, "flashes", "non-finite LED position");
     if (p[2] >= c.working_distance_mm) fail(source, "flashes", "LED behind the working distance");
   }
+  if (c.hand_eye) {
+    const cv::Matx44d& T = c.hand_eye->camera_pose;
+    for (int r = 0; r < 4; ++r)
+      for (int col = 0; col < 4; ++col)
+        if (!std::isfinite(T(r, col))) fail(source, "hand_eye.camera_pose", "non-finite entry");
+    if (T(3, 0) != 0 || T(3, 1) != 0 || T(3, 2) != 0 || T(3, 3) != 1)
+      fail(source, "hand_eye.camera_pose", "last row must be [0 0 0 1]");
+    const cv::Matx33d R = T.get_minor<3, 3>(0, 0);
+    const cv::Matx33d E = R.t() * R - cv::Matx33d::eye();
+    if (cv::norm(E, cv::NORM_INF) > 1e-6 || cv::determinant(R) < 0)
+      fail(source, "hand_eye.camera_pose", "upper-left 3x3 is not a rotation");
+  }
 }
 
 CameraConfig load_camera_config(const std::filesystem::path& file) {
@@ -141,6 +153,23 @@ CameraConfig load_camera_config(const std::filesystem::path& file) {
     if (!(r.radius_mm > 0) || r.radius_mm > 1000) fail(src, "flashes.ring_radius_mm", "must be in (0, 1000] mm");
     c.flashes = FlashRing::regular(r);
   }
+  const cv::FileNode he = root["hand_eye"];
+  if (!he.empty() && !he.isNone()) {
+    if (!he.isMap()) fail(src, "hand_eye", "expected a mapping");
+    HandEye h;
+    const cv::FileNode mode = required(he, "mode", src);
+    const std::string m = mode.isString() ? static_cast<std::string>(mode) : std::string();
+    if (m == "eye_in_hand") h.mode = HandEye::Mode::eye_in_hand;
+    else if (m == "eye_to_hand") h.mode = HandEye::Mode::eye_to_hand;
+    else fail(src, "hand_eye.mode", "expected eye_in_hand or eye_to_hand");
+    const cv::Mat T = read_matrix(he, "camera_pose", src);
+    if (T.rows != 4 || T.cols != 4) fail(src, "hand_eye.camera_pose", "expected a 4x4 matrix");
+    h.camera_pose = cv::Matx44d(T);
+    h.reprojection_rms_px = read_number(he, "reprojection_rms_px", src, "hand_eye.reprojection_rms_px");
+    h.residual_rms_mm = read_number(he, "residual_rms_mm", src, "hand_eye.residual_rms_mm");
+    h.views = read_int(he, "views", src, "hand_eye.views");
+    c.hand_eye = h;
+  }
   validate_camera_config(c, src);
   return c;
 }
@@ -168,6 +197,15 @@ void save_camera_config(const CameraConfig& c, const std::filesystem::path& file
     fs << "positions_mm" << p;
   }
   fs << "}";
+  if (c.hand_eye) {
+    fs << "hand_eye" << "{";
+    fs << "mode" << (c.hand_eye->mode == HandEye::Mode::eye_in_hand ? "eye_in_hand" : "eye_to_hand");
+    fs << "camera_pose" << cv::Mat(c.hand_eye->camera_pose);
+    fs << "reprojection_rms_px" << c.hand_eye->reprojection_rms_px;
+    fs << "residual_rms_mm" << c.hand_eye->residual_rms_mm;
+    fs << "views" << c.hand_eye->views;
+    fs << "}";
+  }
 }
 
 }  // namespace mfcd::vision

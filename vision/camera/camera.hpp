@@ -51,10 +51,26 @@ struct FlashRing {
   static FlashRing regular(const Ring& ring);
 };
 
+// Where the camera sits relative to the robot, from hand-eye calibration (vision/calib,
+// docs/calibration.md). Transforms map points of the right-hand frame into the left-hand
+// one (p_flange = T_flange_camera * p_camera), millimetres.
+struct HandEye {
+  enum class Mode { eye_in_hand, eye_to_hand };
+  Mode mode = Mode::eye_in_hand;
+  // eye_in_hand: camera in the robot flange frame (T_flange_camera);
+  // eye_to_hand: camera in the robot base frame (T_base_camera).
+  cv::Matx44d camera_pose = cv::Matx44d::eye();
+  // The figures the calibration reported, kept with the result for the record.
+  double reprojection_rms_px = 0.0;
+  double residual_rms_mm = 0.0;
+  int views = 0;
+};
+
 struct CameraConfig {
   PinholeCamera camera;
   FlashRing flashes = FlashRing::regular({});
   double working_distance_mm = 300.0;  // lens to the bin floor / parts, along z
+  std::optional<HandEye> hand_eye;     // absent until a hand-eye calibration is applied
 };
 
 // Reads a camera YAML. Throws std::runtime_error naming the file and the missing or

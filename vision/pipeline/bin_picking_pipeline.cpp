@@ -233,6 +233,8 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
   lp.threshold = m.config.max_cost_px;
   lp.templateLines = m.config.template_guides;
   lp.queryLines = m.config.query_guides;
+  lp.minOverlap = m.config.min_guide_overlap;
+  lp.slideStep = m.config.slide_step;
   lp.maxCandidates = 16;
   std::atomic<bool> late{false};
   for (auto& h : m.thread_hits) h.clear();

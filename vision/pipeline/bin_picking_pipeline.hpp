@@ -38,6 +38,8 @@ struct PipelineConfig {
   // along the query's longest `query_guides` lines of the same orientation.
   int template_guides = 4;
   int query_guides = 30;
+  double min_guide_overlap = 0.75;  // of the shorter line (LineSearchParams::minOverlap)
+  int slide_step = 2;               // px between slide positions, then the best refined (LineSearchParams)
   int refine_iterations = 10;      // per candidate; fewer when the deadline is near
   int threads = 0;                 // search threads; 0 = OpenMP default
   DepthEdgeParams depth_edges;

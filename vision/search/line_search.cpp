@@ -71,36 +71,48 @@ SearchResult lineSearchWith(const Matcher& matcher, At at, const std::vector<Ori
         cv::Point2d ta(g->a), tb(g->b);
         if ((tb - ta).dot(d) < 0) std::swap(ta, tb);
         const double tlen = (tb - ta).dot(d);
-        // Translation placing template point ta at qa + (k - tlen) * d, k = 0..steps.
-        Slide sl{cv::Point2d(ql.a) - ta - d * tlen, d, static_cast<int>(std::ceil(tlen + qlen))};
-        slides.push_back(sl);
+        // Translation placing template point ta at qa + (k - tlen) * d: the guide covers
+        // [k - tlen, k] of the query's [0, qlen], so the overlap is at least m for
+        // k in [m, tlen + qlen - m].
+        const double m = params.minOverlap * std::min(tlen, qlen);
+        const int k0 = static_cast<int>(std::ceil(m)), k1 = static_cast<int>(std::floor(tlen + qlen - m));
+        if (k1 < k0) continue;
+        slides.push_back(Slide{cv::Point2d(ql.a) - ta + d * (k0 - tlen), d, k1 - k0});
       }
     }
-    for (const Slide& sl : slides) {
-      int lastTx = std::numeric_limits<int>::min(), lastTy = 0;
-      for (int k = 0; k <= sl.steps; ++k) {
-        const cv::Point2d tr = sl.start + sl.d * k;
-        const int tx = static_cast<int>(std::lround(tr.x)), ty = static_cast<int>(std::lround(tr.y));
-        if (tx < txMin || tx > txMax || ty < tyMin || ty > tyMax) continue;
-        // Unit steps rarely round to the pixel just visited; slides of different guide pairs
-        // may cross, and a translation they share is simply evaluated twice (cheaper than
-        // remembering every translation; NMS merges the duplicates).
-        if (tx == lastTx && ty == lastTy) continue;
-        lastTx = tx, lastTy = ty;
-        ++result.stats.hypotheses;
-        uint32_t thr = tauSum;
-        if (!detect && haveBest) thr = std::min<uint64_t>(thr, uint64_t(best.sum) * n / best.pixels);
-        const uint32_t stop = params.hypothesisBound ? thr : std::numeric_limits<uint32_t>::max();
-        const uint32_t sum = at(t, tx, ty, stop, result.stats.segments);
-        ++result.stats.evaluated;
-        if (sum > thr) continue;
-        const Candidate c{o, tx, ty, sum, n};
-        if (detect) found.push_back(c);
-        else if (!haveBest || better(c, best)) {
-          best = c;
-          haveBest = true;
-        }
+    auto visit = [&](const cv::Point2d& tr) {
+      const int tx = static_cast<int>(std::lround(tr.x)), ty = static_cast<int>(std::lround(tr.y));
+      if (tx < txMin || tx > txMax || ty < tyMin || ty > tyMax) return false;
+      ++result.stats.hypotheses;
+      uint32_t thr = tauSum;
+      if (!detect && haveBest) thr = std::min<uint64_t>(thr, uint64_t(best.sum) * n / best.pixels);
+      const uint32_t stop = params.hypothesisBound ? thr : std::numeric_limits<uint32_t>::max();
+      const uint32_t sum = at(t, tx, ty, stop, result.stats.segments);
+      ++result.stats.evaluated;
+      if (sum > thr) return false;
+      const Candidate c{o, tx, ty, sum, n};
+      if (detect) found.push_back(c);
+      else if (!haveBest || better(c, best)) {
+        best = c;
+        haveBest = true;
+        return true;
       }
+      return false;
+    };
+    const int step = std::max(1, params.slideStep);
+    for (const Slide& sl : slides) {
+      // Unit steps along a slide rarely round to the same pixel twice, and a translation shared
+      // by two slides is simply evaluated twice (cheaper than remembering every translation;
+      // NMS merges duplicates). With a coarser step, the best position of the slide is then
+      // refined by visiting its skipped neighbours.
+      int improvedAt = -1;
+      for (int k = 0; k <= sl.steps; k += step)
+        if (visit(sl.start + sl.d * k)) improvedAt = k;
+      if (improvedAt >= 0 && step > 1)
+        for (int dk = 1; dk < step; ++dk) {
+          if (improvedAt - dk >= 0) visit(sl.start + sl.d * (improvedAt - dk));
+          if (improvedAt + dk <= sl.steps) visit(sl.start + sl.d * (improvedAt + dk));
+        }
     }
   }
   if (detect) {

@@ -14,6 +14,14 @@ namespace mfcd::vision {
 struct LineSearchParams {
   int templateLines = 5;   // longest template segments used as guides
   int queryLines = 40;     // longest query segments used as guides
+  // Only slide positions where the guide and the query segment overlap by at least this
+  // fraction of the shorter of the two: under the right alignment one contains most of the
+  // other (a fragment of an occluded edge lies inside the template line; a query line that
+  // merged collinear edges contains it). 0 slides over every touching position.
+  double minOverlap = 0.0;
+  // Positions visited along a slide: every `slideStep`-th, then (Best mode) the skipped
+  // neighbours of each slide's best. 1 visits all.
+  int slideStep = 1;
   SearchMode mode = SearchMode::Best;
   double threshold = std::numeric_limits<double>::infinity();
   bool hypothesisBound = true;

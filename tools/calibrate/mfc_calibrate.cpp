@@ -1,0 +1,336 @@
+// mfc-calibrate: camera intrinsics and hand-eye calibration (docs/calibration.md).
+//
+//   mfc-calibrate intrinsics (--images DIR | --sim N) --board 9x6 --square-mm S --out CAM.yaml [--apply]
+//   mfc-calibrate hand-eye --mode eye-in-hand|eye-to-hand --camera CAM.yaml (--views LIST.yaml | --sim N)
+//                 --board 9x6 --square-mm S --out CAM.yaml [--apply]
+//   mfc-calibrate rollback --out CAM.yaml
+//
+// Prints the figures; writes CAM.yaml (atomically, keeping CAM.yaml.previous) only with --apply,
+// otherwise shows what it would write. Exit status: 0 done, 1 calibration failed, 2 usage.
+#include "vision/calib/hand_eye.hpp"
+#include "vision/calib/intrinsics.hpp"
+#include "vision/calib/sim_board.hpp"
+#include "vision/calib/store.hpp"
+
+#include <opencv2/imgcodecs.hpp>
+
+#include <algorithm>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <random>
+#include <sstream>
+
+using namespace mfcd::vision;
+using namespace mfcd::vision::calib;
+namespace fs = std::filesystem;
+
+namespace {
+
+const char* kUsage =
+    "usage:\n"
+    "  mfc-calibrate intrinsics (--images DIR | --sim N) [--board 9x6] [--square-mm 10]\n"
+    "                [--distortion none|radial|radial-tangential|full] [--camera BASE.yaml]\n"
+    "                --out CAM.yaml [--apply] [--save-views DIR] [--seed N]\n"
+    "  mfc-calibrate hand-eye --mode eye-in-hand|eye-to-hand --camera CAM.yaml\n"
+    "                (--views LIST.yaml | --sim N) [--board 9x6] [--square-mm 10]\n"
+    "                --out CAM.yaml [--apply] [--check IMAGE --check-pose x,y,z,rx,ry,rz]\n"
+    "                [--save-views DIR] [--seed N]\n"
+    "  mfc-calibrate rollback --out CAM.yaml\n"
+    "LIST.yaml (OpenCV YAML): views: [ { image: v00.png, pose: [x, y, z, rx, ry, rz] }, ... ]\n"
+    "  pose: robot flange in the base frame, mm and degrees, R = Rz(rz) Ry(ry) Rx(rx);\n"
+    "  image paths relative to LIST.yaml.\n";
+
+ViewReport unreadable(const std::string& label) {
+  ViewReport r;
+  r.label = label;
+  r.reason = "cannot read image";
+  return r;
+}
+
+struct UsageError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+struct Args {
+  std::string command;
+  std::map<std::string, std::string> values;
+  bool apply = false;
+
+  bool has(const std::string& k) const { return values.count(k) != 0; }
+  std::string get(const std::string& k, const std::string& def = {}) const {
+    const auto it = values.find(k);
+    return it == values.end() ? def : it->second;
+  }
+  std::string need(const std::string& k) const {
+    if (!has(k)) throw UsageError("missing --" + k);
+    return get(k);
+  }
+  double number(const std::string& k, double def) const {
+    if (!has(k)) return def;
+    try {
+      size_t used = 0;
+      const double v = std::stod(get(k), &used);
+      if (used != get(k).size()) throw std::invalid_argument("trailing characters");
+      return v;
+    } catch (const std::exception&) {
+      throw UsageError("--" + k + " '" + get(k) + "': expected a number");
+    }
+  }
+};
+
+Args parse(int argc, char** argv) {
+  if (argc < 2) throw UsageError("no command");
+  Args a;
+  a.command = argv[1];
+  static const char* kKeys[] = {"images", "sim",   "board", "square-mm", "distortion", "camera",     "out",
+                                "mode",   "views", "check", "check-pose", "save-views", "seed"};
+  for (int i = 2; i < argc; ++i) {
+    const std::string arg = argv[i];
+    if (arg == "--apply") {
+      a.apply = true;
+      continue;
+    }
+    if (arg.rfind("--", 0) != 0 || std::find(std::begin(kKeys), std::end(kKeys), arg.substr(2)) == std::end(kKeys))
+      throw UsageError("unknown option '" + arg + "'");
+    if (i + 1 >= argc) throw UsageError(arg + " needs a value");
+    a.values[arg.substr(2)] = argv[++i];
+  }
+  return a;
+}
+
+CheckerBoard board_of(const Args& a) {
+  const cv::Size s = parse_pattern_size(a.get("board", "9x6"));
+  CheckerBoard b{s.width, s.height, a.number("square-mm", 10.0)};
+  b.validate();
+  return b;
+}
+
+int count_of(const Args& a, const std::string& key) {
+  const double n = a.number(key, 0);
+  if (n < 1 || n > 500 || n != std::floor(n)) throw UsageError("--" + key + ": expected a count 1..500");
+  return static_cast<int>(n);
+}
+
+RobotPose parse_pose(const std::string& text, const std::string& where) {
+  std::vector<double> v;
+  std::stringstream s(text);
+  std::string item;
+  while (std::getline(s, item, ',')) {
+    try {
+      v.push_back(std::stod(item));
+    } catch (const std::exception&) {
+      throw UsageError(where + ": '" + text + "' is not x,y,z,rx,ry,rz");
+    }
+  }
+  if (v.size() != 6) throw UsageError(where + ": expected 6 numbers x,y,z,rx,ry,rz, got " + std::to_string(v.size()));
+  return {v[0], v[1], v[2], v[3], v[4], v[5]};
+}
+
+fs::path sim_camera_file(const Args& a) {
+  return a.has("camera") ? fs::path(a.get("camera")) : fs::path(MFC_SOURCE_DIR "/config/camera-sim.yaml");
+}
+
+// The configuration the result is merged into: --camera, else the current --out, else the
+// simulated camera's file (flashes and working distance are not calibrated here).
+CameraConfig base_config(const Args& a) {
+  if (a.has("camera")) return load_camera_config(a.get("camera"));
+  if (fs::exists(a.need("out"))) return load_camera_config(a.get("out"));
+  return load_camera_config(MFC_SOURCE_DIR "/config/camera-sim.yaml");
+}
+
+// Shows or writes the new configuration.
+int finish(const Args& a, const CameraConfig& config) {
+  const fs::path out = a.need("out");
+  if (!a.apply) {
+    const fs::path tmp = fs::temp_directory_path() / ("mfc-calibrate-preview-" + std::to_string(::getpid()) + ".yaml");
+    save_camera_config(config, tmp);
+    std::ifstream f(tmp);
+    std::cout << "\nwould write " << out << " (run again with --apply to write it):\n" << f.rdbuf();
+    fs::remove(tmp);
+    return 0;
+  }
+  CalibrationStore store(out);
+  store.apply(config);
+  std::cout << "\nwrote " << out;
+  if (fs::exists(store.previous_file())) std::cout << " (previous kept as " << store.previous_file() << ")";
+  std::cout << '\n';
+  return 0;
+}
+
+void save_image(const fs::path& dir, const std::string& name, const cv::Mat& img) {
+  fs::create_directories(dir);
+  if (!cv::imwrite((dir / name).string(), img)) throw std::runtime_error((dir / name).string() + ": cannot write image");
+}
+
+int run_intrinsics(const Args& a) {
+  const CheckerBoard board = board_of(a);
+  IntrinsicsOptions opt;
+  opt.distortion = parse_distortion_model(a.get("distortion", "radial"));
+  IntrinsicsCalibration cal(board, opt);
+  std::cout << "board: " << board.describe() << '\n';
+  if (a.has("images") == a.has("sim")) throw UsageError("give exactly one of --images DIR, --sim N");
+  std::optional<PinholeCamera> truth;
+  if (a.has("images")) {
+    const fs::path dir = a.get("images");
+    if (!fs::is_directory(dir)) throw UsageError("--images " + dir.string() + ": not a directory");
+    std::vector<fs::path> files;
+    for (const auto& e : fs::directory_iterator(dir)) {
+      std::string ext = e.path().extension().string();
+      std::transform(ext.begin(), ext.end(), ext.begin(), ::tolower);
+      if (ext == ".png" || ext == ".jpg" || ext == ".jpeg" || ext == ".bmp" || ext == ".tif" || ext == ".tiff")
+        files.push_back(e.path());
+    }
+    std::sort(files.begin(), files.end());
+    if (files.empty()) throw UsageError("--images " + dir.string() + ": no images (png, jpg, bmp, tif)");
+    for (const auto& f : files) {
+      const cv::Mat img = cv::imread(f.string(), cv::IMREAD_GRAYSCALE);
+      const ViewReport v = img.empty() ? unreadable(f.filename()) : cal.add_view(img, f.filename());
+      std::cout << "  " << f.filename().string() << ": " << (v.accepted ? "board found" : v.reason) << '\n';
+    }
+  } else {
+    const int n = count_of(a, "sim");
+    const CameraConfig sim = load_camera_config(sim_camera_file(a));
+    truth = sim.camera;
+    SimBoardScene scene(sim, board);
+    std::mt19937 rng(static_cast<uint32_t>(a.number("seed", 1)));
+    const auto poses = random_board_views(scene, n, sim.working_distance_mm, rng, 60, 0.7, 1.1);
+    for (size_t i = 0; i < poses.size(); ++i) {
+      char name[32];
+      std::snprintf(name, sizeof name, "view-%02zu.png", i);
+      const cv::Mat1b img = scene.render(poses[i], 1000 + i);
+      if (a.has("save-views")) save_image(a.get("save-views"), name, img);
+      const ViewReport v = cal.add_view(img, name);
+      std::cout << "  " << name << " (simulated): " << (v.accepted ? "board found" : v.reason) << '\n';
+    }
+  }
+  const IntrinsicsResult r = cal.compute();
+  std::cout << r.summary();
+  if (truth) {
+    std::printf("  vs the simulated camera: fx %+.3f%%  fy %+.3f%%  cx %+.3f%%  cy %+.3f%%\n",
+                100 * (r.camera.fx() / truth->fx() - 1), 100 * (r.camera.fy() / truth->fy() - 1),
+                100 * (r.camera.cx() / truth->cx() - 1), 100 * (r.camera.cy() / truth->cy() - 1));
+  }
+  return finish(a, with_intrinsics(base_config(a), r));
+}
+
+int run_hand_eye(const Args& a) {
+  const CheckerBoard board = board_of(a);
+  const HandEyeMode mode = parse_hand_eye_mode(a.need("mode"));
+  const CameraConfig camera_cfg = load_camera_config(a.need("camera"));
+  HandEyeCalibration cal(mode, camera_cfg.camera, board);
+  std::cout << "board: " << board.describe() << ", " << to_string(mode) << '\n';
+  if (a.has("views") == a.has("sim")) throw UsageError("give exactly one of --views LIST.yaml, --sim N");
+  std::optional<SimHandEyeCell> cell;
+  std::unique_ptr<SimBoardScene> scene;
+  std::mt19937 rng(static_cast<uint32_t>(a.number("seed", 1)));
+  if (a.has("views")) {
+    const fs::path list = a.get("views");
+    cv::FileStorage fs;
+    try {
+      if (!fs.open(list.string(), cv::FileStorage::READ)) throw UsageError(list.string() + ": cannot open");
+    } catch (const cv::Exception& e) {
+      throw UsageError(list.string() + ": not an OpenCV YAML file: " + e.what());
+    }
+    const cv::FileNode views = fs["views"];
+    if (!views.isSeq()) throw UsageError(list.string() + ": key 'views': expected a sequence");
+    int i = 0;
+    for (const auto& v : views) {
+      const std::string where = list.string() + ": views[" + std::to_string(i++) + "]";
+      if (!v["image"].isString()) throw UsageError(where + ".image: missing");
+      std::vector<double> p;
+      v["pose"] >> p;
+      if (p.size() != 6) throw UsageError(where + ".pose: expected [x, y, z, rx, ry, rz]");
+      const fs::path img_path = list.parent_path() / static_cast<std::string>(v["image"]);
+      const cv::Mat img = cv::imread(img_path.string(), cv::IMREAD_GRAYSCALE);
+      const RobotPose pose{p[0], p[1], p[2], p[3], p[4], p[5]};
+      const ViewReport r = img.empty() ? unreadable(img_path.filename())
+                                       : cal.add_view(img, pose, img_path.filename().string());
+      std::cout << "  " << img_path.filename().string() << ": " << (r.accepted ? "board found" : r.reason) << '\n';
+    }
+  } else {
+    const int n = count_of(a, "sim");
+    scene = std::make_unique<SimBoardScene>(camera_cfg, board);
+    cell = make_sim_hand_eye_cell(*scene, mode, n, camera_cfg.working_distance_mm, rng);
+    cv::FileStorage list;
+    if (a.has("save-views")) {
+      fs::create_directories(a.get("save-views"));
+      list.open((fs::path(a.get("save-views")) / "views.yaml").string(), cv::FileStorage::WRITE);
+      list << "views" << "[";
+    }
+    for (size_t i = 0; i < cell->views.size(); ++i) {
+      char name[32];
+      std::snprintf(name, sizeof name, "pose-%02zu.png", i);
+      const auto& v = cell->views[i];
+      const cv::Mat1b img = scene->render(v.T_camera_board, 2000 + i);
+      if (list.isOpened()) {
+        save_image(a.get("save-views"), name, img);
+        list << "{" << "image" << name << "pose"
+             << std::vector<double>{v.flange.x_mm, v.flange.y_mm, v.flange.z_mm, v.flange.rx_deg, v.flange.ry_deg,
+                                    v.flange.rz_deg}
+             << "}";
+      }
+      const ViewReport r = cal.add_view(img, v.flange, name);
+      std::printf("  %s (simulated) flange %.3f %.3f %.3f mm %.3f %.3f %.3f deg: %s\n", name, v.flange.x_mm,
+                  v.flange.y_mm, v.flange.z_mm, v.flange.rx_deg, v.flange.ry_deg, v.flange.rz_deg,
+                  r.accepted ? "board found" : r.reason.c_str());
+    }
+    if (list.isOpened()) list << "]";
+  }
+  const HandEyeResult r = cal.compute();
+  std::cout << r.summary();
+  if (cell) {
+    std::printf("  vs the simulated cell: hand-eye %.4f mm %.5f deg, board %.4f mm %.5f deg\n",
+                cv::norm(translation_of(r.hand_eye) - translation_of(cell->hand_eye_true)),
+                rotation_angle_deg(rotation_of(r.hand_eye), rotation_of(cell->hand_eye_true)),
+                cv::norm(translation_of(r.board) - translation_of(cell->board_true)),
+                rotation_angle_deg(rotation_of(r.board), rotation_of(cell->board_true)));
+    // Check step on one more simulated pose.
+    const SimHandEyeCell more = make_sim_hand_eye_cell(*scene, mode, 1, camera_cfg.working_distance_mm, rng);
+    std::cout << "  new pose " << cal.check(r, scene->render(more.views[0].T_camera_board, 99), more.views[0].flange.matrix()).summary();
+  }
+  if (a.has("check")) {
+    const cv::Mat img = cv::imread(a.get("check"), cv::IMREAD_GRAYSCALE);
+    if (img.empty()) throw UsageError("--check " + a.get("check") + ": cannot read image");
+    const RobotPose pose = parse_pose(a.need("check-pose"), "--check-pose");
+    std::cout << "  " << a.get("check") << ' ' << cal.check(r, img, pose.matrix()).summary();
+  }
+  // Merge into the file being calibrated when it exists (it may hold newer intrinsics).
+  CameraConfig base = fs::exists(a.need("out")) ? load_camera_config(a.get("out")) : camera_cfg;
+  return finish(a, with_hand_eye(base, r));
+}
+
+int run_rollback(const Args& a) {
+  CalibrationStore store(a.need("out"));
+  store.rollback();
+  std::cout << "restored " << store.file() << " from " << store.previous_file()
+            << " (the replaced file is now the previous one)\n";
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    const Args a = parse(argc, argv);
+    if (a.command == "intrinsics") return run_intrinsics(a);
+    if (a.command == "hand-eye") return run_hand_eye(a);
+    if (a.command == "rollback") return run_rollback(a);
+    if (a.command == "--help" || a.command == "-h") {
+      std::cout << kUsage;
+      return 0;
+    }
+    throw UsageError("unknown command '" + a.command + "'");
+  } catch (const UsageError& e) {
+    std::cerr << "mfc-calibrate: " << e.what() << '\n' << kUsage;
+    return 2;
+  } catch (const CalibrationError& e) {
+    std::cerr << "mfc-calibrate: " << e.what() << "\nnothing written\n";
+    return 1;
+  } catch (const std::exception& e) {
+    std::cerr << "mfc-calibrate: " << e.what() << "\nnothing written\n";
+    return 1;
+  }
+}
