@@ -119,6 +119,32 @@ def main(bench_dir, docs_dir):
         re_ = [x["rotation_deg"] for x in trials if "rotation_deg" in x]
         w("| %s | %.2f | %.2f | %.1f mm | %.1f deg |" % (METHOD_NAMES[m], fx, nf, pct(pe, 0.5), pct(re_, 0.5)))
     w("")
+    w("Failed trials by cause (best estimate against the instance it is closest to): *depth only* = x-y position and "
+      "rotation within bounds but the distance along the optical axis off by more than %g mm (the coarse pose's "
+      "scale); *turned* = right place (x-y) but rotation off, split into upside-down/half-turn confusions (>= 150 "
+      "degrees) and others; *wrong place* = x-y off (another part, clutter, or a bad match).\n" % crit["max_position_mm"])
+    w("| method | failed | nothing found | depth only | turned >= 150 deg | turned < 150 deg | wrong place | mean signed "
+      "depth error (all found) |")
+    w("|---|---:|---:|---:|---:|---:|---:|---:|")
+    for m in methods:
+        trials = res["methods"][m]["trials"]
+        failed = [x for x in trials if not x["correct"]]
+        c = {"none": 0, "depth": 0, "flip": 0, "turn": 0, "place": 0}
+        for x in failed:
+            if not x["found"] or "d_t_mm" not in x:
+                c["none"] += 1
+                continue
+            xy = (x["d_t_mm"][0] ** 2 + x["d_t_mm"][1] ** 2) ** 0.5
+            if xy > crit["max_position_mm"]:
+                c["place"] += 1
+            elif x["rotation_deg"] > crit["max_rotation_deg"]:
+                c["flip" if x["rotation_deg"] >= 150 else "turn"] += 1
+            else:
+                c["depth"] += 1
+        dz = [x["d_t_mm"][2] for x in trials if "d_t_mm" in x]
+        w("| %s | %d | %d | %d | %d | %d | %d | %+.1f mm |" % (METHOD_NAMES[m], len(failed), c["none"], c["depth"], c["flip"],
+                                                             c["turn"], c["place"], statistics.mean(dz) if dz else 0))
+    w("")
     if "line2d" in methods:
         lo = res.get("line2d_options", {})
         w("**LINE-2D** (`cv::linemod::getDefaultLINE()`, colour-gradient modality, pyramid T = {4, 8}) is trained on "
@@ -167,7 +193,7 @@ def main(bench_dir, docs_dir):
           "occluders are other parts, clutter rods and the bin walls). An instance counts as detected when one of the "
           "first k estimates of its type's detection run matches it (k = the number of instances of that type in the "
           "image, so several instances of one type can all be found); *best only* counts only the best estimate. "
-          "Target: >= 90 %% at 25 %% occlusion.\n")
+          "Target: >= 90 % at 25 % occlusion.\n")
         w("| occlusion | instances | detected (top-k) | best only |")
         w("|---|---:|---:|---:|")
         xs, ys, y1 = [], [], []
