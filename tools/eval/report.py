@@ -33,6 +33,25 @@ def pct(values, q):
     return s[lo] + (s[hi] - s[lo]) * (k - lo)
 
 
+def causes(trials, crit):
+    """Failed trials by cause: nothing found, depth only, turned (>= 150 deg or less), wrong place."""
+    c = {"none": 0, "depth": 0, "flip": 0, "turn": 0, "place": 0}
+    for x in trials:
+        if x["correct"]:
+            continue
+        if not x["found"] or "d_t_mm" not in x:
+            c["none"] += 1
+            continue
+        xy = (x["d_t_mm"][0] ** 2 + x["d_t_mm"][1] ** 2) ** 0.5
+        if xy > crit["max_position_mm"]:
+            c["place"] += 1
+        elif x["rotation_deg"] > crit["max_rotation_deg"]:
+            c["flip" if x["rotation_deg"] >= 150 else "turn"] += 1
+        else:
+            c["depth"] += 1
+    return c
+
+
 def main(bench_dir, docs_dir):
     path = os.path.join(bench_dir, "paper.json")
     if not os.path.exists(path):
@@ -129,22 +148,33 @@ def main(bench_dir, docs_dir):
     for m in methods:
         trials = res["methods"][m]["trials"]
         failed = [x for x in trials if not x["correct"]]
-        c = {"none": 0, "depth": 0, "flip": 0, "turn": 0, "place": 0}
-        for x in failed:
-            if not x["found"] or "d_t_mm" not in x:
-                c["none"] += 1
-                continue
-            xy = (x["d_t_mm"][0] ** 2 + x["d_t_mm"][1] ** 2) ** 0.5
-            if xy > crit["max_position_mm"]:
-                c["place"] += 1
-            elif x["rotation_deg"] > crit["max_rotation_deg"]:
-                c["flip" if x["rotation_deg"] >= 150 else "turn"] += 1
-            else:
-                c["depth"] += 1
+        c = causes(trials, crit)
         dz = [x["d_t_mm"][2] for x in trials if "d_t_mm" in x]
         w("| %s | %d | %d | %d | %d | %d | %d | %+.1f mm |" % (METHOD_NAMES[m], len(failed), c["none"], c["depth"], c["flip"],
                                                              c["turn"], c["place"], statistics.mean(dz) if dz else 0))
     w("")
+    ctl_path = os.path.join(bench_dir, "paper-control.json")
+    if os.path.exists(ctl_path) and meta.get("control_images"):
+        with open(ctl_path) as f:
+            ctl = json.load(f)
+        trials = ctl["methods"]["fdcm"]["trials"]
+        w("**Control: one part alone.** The same FDCM detector and scoring on %d images of a single part dropped into "
+          "the empty bin (`mfc-sim --parts-per-image 1 --no-corrupt --seed %s`: no occlusion, no missing edges, no "
+          "clutter), to separate what the bin costs from what the coarse pose misses by itself.\n" % (
+              ctl["images"], meta.get("control_seed", "?")))
+        w("| run | trials | failure | failure, x-y only | nothing found | depth only | turned >= 150 deg | "
+          "turned < 150 deg | wrong place |")
+        w("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
+        for label, ts in [("FDCM, bins (Table 1)", res["methods"].get("fdcm", {}).get("trials", [])),
+                          ("FDCM, one part alone", trials)]:
+            if not ts:
+                continue
+            c = causes(ts, crit)
+            w("| %s | %d | %.2f | %.2f | %d | %d | %d | %d | %d |" % (
+                label, len(ts), sum(1 for x in ts if not x["correct"]) / len(ts),
+                sum(1 for x in ts if not x.get("correct_xy", x["correct"])) / len(ts), c["none"], c["depth"],
+                c["flip"], c["turn"], c["place"]))
+        w("")
     if "line2d" in methods:
         lo = res.get("line2d_options", {})
         w("**LINE-2D** (`cv::linemod::getDefaultLINE()`, colour-gradient modality, pyramid T = {4, 8}) is trained on "
