@@ -1,0 +1,228 @@
+#include "tools/eval/pose_error.hpp"
+
+#include <gtest/gtest.h>
+#include <opencv2/calib3d.hpp>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <string>
+
+namespace fs = std::filesystem;
+using namespace mfcd::eval;
+using mfcd::vision::PartSymmetry;
+
+namespace {
+
+cv::Matx33d rot(const cv::Vec3d& axis, double deg) {
+  cv::Matx33d R;
+  cv::Rodrigues(cv::Vec3d(cv::normalize(axis) * (deg * CV_PI / 180)), R);
+  return R;
+}
+cv::Matx33d rx(double d) { return rot({1, 0, 0}, d); }
+cv::Matx33d ry(double d) { return rot({0, 1, 0}, d); }
+cv::Matx33d rz(double d) { return rot({0, 0, 1}, d); }
+
+cv::Matx33d random_rotation(std::mt19937& rng) {
+  std::normal_distribution<double> n;
+  std::uniform_real_distribution<double> u(0, 180);
+  return rot({n(rng), n(rng), n(rng)}, u(rng));
+}
+
+// The slow, obviously right twin: the angle from the trace, minimised over symmetric
+// equivalents; a continuous symmetry sampled every 0.01 degree.
+double brute_force_rotation_deg(const cv::Matx33d& Re, const cv::Matx33d& Rg, const PartSymmetry& sym) {
+  auto angle = [](const cv::Matx33d& R) {
+    return std::acos(std::clamp((cv::trace(R) - 1) / 2, -1.0, 1.0)) * 180 / CV_PI;
+  };
+  double best = 1e9;
+  if (sym.kind == PartSymmetry::Kind::continuous_z) {
+    for (int k = 0; k < 36000; ++k) best = std::min(best, angle(Re * (Rg * rz(k * 0.01)).t()));
+  } else {
+    const int n = sym.kind == PartSymmetry::Kind::discrete_z ? sym.order : 1;
+    for (int k = 0; k < n; ++k) best = std::min(best, angle(Re * (Rg * rz(360.0 * k / n)).t()));
+  }
+  return best;
+}
+
+const PartSymmetry kNone = PartSymmetry::parse("none");
+
+}  // namespace
+
+TEST(EvalPoseError, IdenticalPosesHaveZeroError) {
+  const cv::Matx33d R = rx(30) * rz(50);
+  const PoseError e = pose_error(R, {1, 2, 300}, R, {1, 2, 300}, kNone, {3, 4, 5});
+  EXPECT_NEAR(e.position_mm, 0, 1e-9);
+  EXPECT_NEAR(e.rotation_deg, 0, 1e-6);
+}
+
+TEST(EvalPoseError, HandMadeAnswers) {
+  const cv::Matx33d I = cv::Matx33d::eye();
+  // A half turn about z: wrong for an asymmetric part, nothing for a 2-fold one.
+  EXPECT_NEAR(pose_error(rz(180), {0, 0, 300}, I, {0, 0, 300}, kNone).rotation_deg, 180, 1e-6);
+  EXPECT_NEAR(pose_error(rz(180), {0, 0, 300}, I, {0, 0, 300}, PartSymmetry::parse("z:2")).rotation_deg, 0, 1e-6);
+  // The knob (z:10): 20 degrees off is 16 degrees from the nearest flute; 36 is nothing.
+  EXPECT_NEAR(pose_error(rz(20), {0, 0, 300}, I, {0, 0, 300}, PartSymmetry::parse("z:10")).rotation_deg, 16, 1e-6);
+  EXPECT_NEAR(pose_error(rz(36), {0, 0, 300}, I, {0, 0, 300}, PartSymmetry::parse("z:10")).rotation_deg, 0, 1e-6);
+  // The wheel (z:5) turned 144 degrees about z and tipped 7 about x: 7 degrees off.
+  EXPECT_NEAR(pose_error(rx(7) * rz(144), {0, 0, 300}, I, {0, 0, 300}, PartSymmetry::parse("z:5")).rotation_deg, 7, 1e-6);
+  // z:inf: any turn about the model z axis is free; only the axis direction counts.
+  EXPECT_NEAR(pose_error(rz(73) * rx(9), {0, 0, 300}, I, {0, 0, 300}, PartSymmetry::parse("z:inf")).rotation_deg, 9, 1e-6);
+  EXPECT_NEAR(pose_error(rx(9) * rz(73), {0, 0, 300}, I, {0, 0, 300}, PartSymmetry::parse("z:inf")).rotation_deg, 9, 1e-6);
+  // Position: of the given centre, so a rotation about the origin moves a centre 10 mm away.
+  const PoseError e = pose_error(rz(90), {0, 0, 300}, I, {0, 0, 300}, kNone, {10, 0, 0});
+  EXPECT_NEAR(e.position_mm, std::sqrt(200.0), 1e-9);
+  EXPECT_NEAR(e.abs_t_mm[0], 10, 1e-9);
+  EXPECT_NEAR(e.abs_t_mm[1], 10, 1e-9);
+  EXPECT_NEAR(e.abs_r_deg[2], 90, 1e-6);
+  // Per-axis translation and Euler errors.
+  const PoseError f = pose_error(rx(3) * I, {1, -2, 303}, I, {0, 0, 300}, kNone);
+  EXPECT_NEAR(f.abs_t_mm[0], 1, 1e-9);
+  EXPECT_NEAR(f.abs_t_mm[1], 2, 1e-9);
+  EXPECT_NEAR(f.abs_t_mm[2], 3, 1e-9);
+  EXPECT_NEAR(f.abs_r_deg[0], 3, 1e-9);
+  EXPECT_NEAR(f.abs_r_deg[1], 0, 1e-9);
+}
+
+TEST(EvalPoseError, CriterionBoundaries) {
+  const Criterion c;  // 5 mm, 10 deg
+  const cv::Matx33d I = cv::Matx33d::eye();
+  EXPECT_TRUE(c.accepts(pose_error(rx(9.9), {4.9, 0, 300}, I, {0, 0, 300}, kNone)));
+  EXPECT_FALSE(c.accepts(pose_error(rx(10.1), {0, 0, 300}, I, {0, 0, 300}, kNone)));
+  EXPECT_FALSE(c.accepts(pose_error(I, {3, 4.1, 300}, I, {0, 0, 300}, kNone)));
+  // Symmetric parts: the symmetric equivalent is accepted.
+  EXPECT_TRUE(c.accepts(pose_error(rz(180) * rx(2), {0, 0, 300}, I, {0, 0, 300}, PartSymmetry::parse("z:2"))));
+  EXPECT_FALSE(c.accepts(pose_error(rz(90), {0, 0, 300}, I, {0, 0, 300}, PartSymmetry::parse("z:2"))));
+}
+
+TEST(EvalPoseError, MatchesBruteForceOnRandomPoses) {
+  std::mt19937 rng(7);
+  for (const char* s : {"none", "z:2", "z:5", "z:10", "z:inf"}) {
+    const PartSymmetry sym = PartSymmetry::parse(s);
+    for (int i = 0; i < 60; ++i) {
+      const cv::Matx33d Rg = random_rotation(rng);
+      // Near the ground truth (where the criterion decides) and anywhere.
+      const cv::Matx33d Re = i % 2 ? random_rotation(rng) : rot({1, 2, 3}, i * 0.5) * Rg * rz(72.0 * (i % 5));
+      const double fast = pose_error(Re, {0, 0, 300}, Rg, {0, 0, 300}, sym).rotation_deg;
+      const double slow = brute_force_rotation_deg(Re, Rg, sym);
+      ASSERT_NEAR(fast, slow, sym.kind == PartSymmetry::Kind::continuous_z ? 0.01 : 1e-5) << s << " pose " << i;
+    }
+  }
+}
+
+TEST(EvalPoseError, RotationAngleAccurateNearZeroAndHalfTurn) {
+  EXPECT_NEAR(rotation_angle_deg(rx(1e-4)), 1e-4, 1e-9);
+  EXPECT_NEAR(rotation_angle_deg(ry(179.999)), 179.999, 1e-6);
+  const cv::Vec3d e = euler_xyz_deg(rz(30) * ry(20) * rx(10));
+  EXPECT_NEAR(e[0], 10, 1e-9);
+  EXPECT_NEAR(e[1], 20, 1e-9);
+  EXPECT_NEAR(e[2], 30, 1e-9);
+}
+
+// ---- the parts table ----
+
+class EvalFiles : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("mfc_eval_test_" + std::to_string(::getpid()) + "_" +
+                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  fs::path write(const std::string& name, const std::string& text) {
+    const fs::path p = dir_ / name;
+    fs::create_directories(p.parent_path());
+    std::ofstream(p) << text;
+    return p;
+  }
+  // Runs mfc-eval; returns the exit code and the combined output.
+  std::pair<int, std::string> run(const std::string& args) {
+    const std::string cmd = std::string(MFC_EVAL_BIN) + " " + args + " 2>&1";
+    FILE* p = popen(cmd.c_str(), "r");
+    std::string out;
+    char buf[512];
+    while (p && fgets(buf, sizeof buf, p)) out += buf;
+    const int status = p ? pclose(p) : -1;
+    return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
+  }
+  fs::path dir_;
+};
+
+TEST_F(EvalFiles, ReadsTheProjectPartsTable) {
+  const auto parts = read_parts_csv(fs::path(MFC_SOURCE_DIR) / "config/parts/parts.csv");
+  ASSERT_EQ(parts.size(), 6u);
+  EXPECT_EQ(parts[0].name, "breaker");
+  EXPECT_EQ(parts[3].obj_id, 4);
+  EXPECT_EQ(part_by_id(parts, 5, "x").symmetry.order, 10);
+  EXPECT_EQ(part_by_id(parts, 6, "x").symmetry.kind, PartSymmetry::Kind::discrete_z);
+}
+
+TEST_F(EvalFiles, RefusesMalformedPartsTables) {
+  auto refused = [&](const std::string& text, const std::string& fragment) {
+    const fs::path f = write("parts.csv", text);
+    try {
+      read_parts_csv(f);
+      ADD_FAILURE() << "accepted: " << text;
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find(fragment), std::string::npos) << e.what();
+    }
+  };
+  refused("name,obj_id,symmetry\nknob,5\n", "parts.csv:2: expected 3 fields");
+  refused("knob,five,z:10\n", "parts.csv:1: obj_id 'five' is not a positive integer");
+  refused("knob,5,z:banana\n", "parts.csv:1: symmetry 'z:banana'");
+  refused("knob,5,none\nwheel,5,none\n", "obj_id 5 used by 'knob' and 'wheel'");
+  refused("# nothing\n", "no parts listed");
+  EXPECT_THROW(read_parts_csv(dir_ / "missing.csv"), std::runtime_error);
+  const auto parts = read_parts_csv(write("ok.csv", "knob,5,z:10\n"));
+  try {
+    part_by_id(parts, 9, "scene 1 scene_gt.json");
+    ADD_FAILURE();
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("scene 1 scene_gt.json: unknown part: obj_id 9"), std::string::npos) << e.what();
+  }
+}
+
+// ---- the command line: refusals name the thing and write nothing ----
+
+TEST_F(EvalFiles, CommandRefusesMalformedInput) {
+  const fs::path out = dir_ / "out.json";
+  const std::string o = " --out " + out.string();
+  auto r = run("detect --dataset " + (dir_ / "nope").string() + " --templates " + dir_.string() + o);
+  EXPECT_EQ(r.first, 1);
+  EXPECT_NE(r.second.find("nope: no such dataset folder"), std::string::npos) << r.second;
+
+  // A dataset whose only object is not in the parts table.
+  write("ds/models/models_info.json",
+        R"({"7": {"diameter": 10, "min_x": 0, "min_y": 0, "min_z": 0, "size_x": 1, "size_y": 1, "size_z": 1}})");
+  fs::create_directories(dir_ / "ds/test");
+  r = run("detect --dataset " + (dir_ / "ds").string() + " --templates " + dir_.string() + o);
+  EXPECT_EQ(r.first, 1);
+  EXPECT_NE(r.second.find("unknown part: obj_id 7 is not in the parts table"), std::string::npos) << r.second;
+
+  // A known part without its template file.
+  write("ds/models/models_info.json",
+        R"({"4": {"diameter": 10, "min_x": 0, "min_y": 0, "min_z": 0, "size_x": 1, "size_y": 1, "size_z": 1}})");
+  r = run("detect --dataset " + (dir_ / "ds").string() + " --templates " + dir_.string() + o);
+  EXPECT_EQ(r.first, 1);
+  EXPECT_NE(r.second.find("tnut.tdb: no template file for part 'tnut'"), std::string::npos) << r.second;
+
+  r = run("detect --dataset " + (dir_ / "ds").string() + " --templates " + dir_.string() + o + " --methods fdcm,sift");
+  EXPECT_EQ(r.first, 2);
+  EXPECT_NE(r.second.find("unknown method 'sift'"), std::string::npos) << r.second;
+
+  r = run("detect --dataset " + (dir_ / "ds").string() + " --templates " + dir_.string() + o + " --parts " +
+          write("bad.csv", "knob,5\n").string());
+  EXPECT_EQ(r.first, 1);
+  EXPECT_NE(r.second.find("bad.csv:1: expected 3 fields"), std::string::npos) << r.second;
+
+  r = run("detect --templates " + dir_.string() + o);
+  EXPECT_EQ(r.first, 2);
+  EXPECT_NE(r.second.find("--dataset is required"), std::string::npos) << r.second;
+  EXPECT_FALSE(fs::exists(out));
+}

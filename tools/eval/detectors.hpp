@@ -1,0 +1,59 @@
+#pragma once
+// The detectors mfc-eval compares, behind one interface: the bin-picking pipeline with each
+// matching cost (FDCM, OCM, CM: the same line-search hypotheses, paper Table 1) and LINE-2D
+// (OpenCV contrib cv::linemod, a peer method trained on the same template views).
+
+#include "vision/camera/camera.hpp"
+#include "vision/camera/mfc_frames.hpp"
+#include "vision/pipeline/bin_picking_pipeline.hpp"
+
+#include <opencv2/core.hpp>
+
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace mfcd::eval {
+
+struct Estimate {
+  int obj_id = 0;
+  cv::Matx33d R = cv::Matx33d::eye();
+  cv::Vec3d t_mm{0, 0, 0};
+  double score = 0;
+};
+
+struct Detection {
+  std::vector<Estimate> estimates;  // best first
+  vision::StageTimes times;         // stages the detector has; total_ms always set
+};
+
+class Detector {
+ public:
+  virtual ~Detector() = default;
+  virtual std::string name() const = 0;
+  // obj_id = 0: every loaded part type (best pick); otherwise that type only (the recipe).
+  virtual void detect(const vision::MfcFrames& frames, int obj_id, Detection& out) = 0;
+  // Seconds spent preparing (loading templates, training).
+  virtual double setup_seconds() const = 0;
+};
+
+// FDCM / OCM / CM through BinPickingPipeline; `distances_mm` as PipelineConfig::distances_mm.
+std::unique_ptr<Detector> make_pipeline_detector(vision::PipelineConfig::Cost cost, const vision::CameraConfig& camera,
+                                                 const std::vector<std::filesystem::path>& templates, int threads,
+                                                 int max_candidates, const std::vector<double>& distances_mm);
+
+struct Line2dOptions {
+  double inplane_step_deg = 15;  // in-plane rotations trained per view (LINE-2D is not rotation invariant)
+  int view_stride = 1;           // use every n-th template view
+  float min_similarity = 60;     // cv::linemod match threshold, percent
+  std::vector<double> distances_mm;  // trained at the scale of each (as the pipeline searches); empty = 1
+};
+// LINE-2D on the max image (the per-pixel maximum of the flash images): for every template
+// view of every part, the part rendered alone at the view's pose by MfcRenderer, turned in the
+// image plane about the part centre's image, with its silhouette as the mask.
+std::unique_ptr<Detector> make_line2d_detector(const vision::CameraConfig& camera,
+                                               const std::vector<std::filesystem::path>& templates,
+                                               const Line2dOptions& options, int max_candidates);
+
+}  // namespace mfcd::eval

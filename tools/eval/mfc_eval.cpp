@@ -1,0 +1,412 @@
+// mfc-eval: the paper's evaluation (Sec. 5.1.1) on a BOP-layout dataset of simulated bins.
+//
+//   mfc-eval detect  Table 1 (failure rate and time per part type, CM / OCM / FDCM / LINE-2D),
+//                    Fig. 13 (detection rate vs occlusion) and the per-stage timing, as JSON.
+//   mfc-eval refine  Table 2 (1-view vs 2-view refinement): needs the multi-view refiner.
+//
+// tools/eval/report.py turns the JSON into docs/results.md and docs/img/results-*.png;
+// `tools/mfc bench paper` runs mfc-sim, mfc-eval and the report in one go.
+#include "tools/eval/detectors.hpp"
+#include "tools/eval/pose_error.hpp"
+#include "tools/eval/refine_eval.hpp"
+#include "vision/dataset/bop_dataset.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <map>
+#include <set>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace fs = std::filesystem;
+using namespace mfcd;
+using namespace mfcd::eval;
+using nlohmann::json;
+
+namespace {
+
+const char* kUsage = R"(usage: mfc-eval detect --dataset DIR --templates DIR --out FILE.json [options]
+       mfc-eval refine --templates DIR --out FILE.json [options]   (Table 2)
+
+detect: for every image and every part type present in it, runs each method for that type
+(the recipe) and scores its best estimate against every ground-truth instance of the type
+(correct when it matches any: position <= 5 mm and rotation angle <= 10 deg, symmetry-aware).
+  --dataset DIR          BOP-layout dataset with flash images (mfc-sim, docs/datasets.md)
+  --split NAME           split folder (default test)
+  --templates DIR        folder with <name>.tdb per part (mfc-teach; <build>/templates)
+  --parts FILE           parts table name,obj_id,symmetry (default config/parts/parts.csv)
+  --out FILE             JSON to write
+  --methods LIST         comma-separated: fdcm, ocm, cm, line2d (default fdcm,ocm,cm)
+  --max-images N         only the first N images (default all)
+  --threads N            search threads (default: all cores)
+  --distances LIST       part distances (mm) the pipeline searches, e.g. 292,282,272,262: the
+                         templates' scale is searched for each (default: the templates' own)
+  --all-types            also run FDCM once per image over all part types (best pick; timing)
+  --line2d-step DEG      LINE-2D in-plane rotation step (default 15)
+  --line2d-view-stride S LINE-2D: train every S-th template view (default 1)
+  --max-position MM      criterion (default 5)
+  --max-rotation DEG     criterion (default 10)
+  --quiet                no per-image lines
+
+refine: each part alone in random poses (random orientation, centre within +-25, +-20 mm of the
+axis at 284-300 mm) over a floor, coarse pose from the pipeline (view 0), then refined with view
+0 alone and with views 0 and 1 (camera 1 shifted sideways and turned to look at the part).
+Needs the multi-view refiner (vision/pose/pose_refiner.hpp) in the build.
+  --templates DIR, --parts FILE, --out FILE, --distances LIST, --quiet   as for detect
+  --camera FILE          camera YAML (default config/camera-sim.yaml)
+  --trials N             random poses per part (default 10)
+  --seed N               (default 1)
+  --shift MM             sideways shift of the second camera (default 80)
+)";
+
+struct Usage : std::invalid_argument {
+  using std::invalid_argument::invalid_argument;
+};
+
+int to_int(const std::string& opt, const std::string& v) {
+  size_t used = 0;
+  int n = 0;
+  try {
+    n = std::stoi(v, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (v.empty() || used != v.size()) throw Usage(opt + " '" + v + "' is not an integer");
+  return n;
+}
+
+double to_double(const std::string& opt, const std::string& v) {
+  size_t used = 0;
+  double d = 0;
+  try {
+    d = std::stod(v, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (v.empty() || used != v.size() || !std::isfinite(d)) throw Usage(opt + " '" + v + "' is not a number");
+  return d;
+}
+
+json times_json(const vision::StageTimes& t) {
+  return {{"edges", t.edges_ms}, {"lines", t.lines_ms}, {"dt", t.distance_ms}, {"search", t.search_ms},
+          {"pose", t.pose_ms},   {"refine", t.refine_ms}, {"total", t.total_ms}};
+}
+
+std::string camera_key(const vision::CameraConfig& c) {
+  char key[256];
+  std::snprintf(key, sizeof key, "%dx%d fx %.4f fy %.4f cx %.4f cy %.4f, %zu flashes", c.camera.image_size.width,
+                c.camera.image_size.height, c.camera.fx(), c.camera.fy(), c.camera.cx(), c.camera.cy(),
+                c.flashes.positions_mm.size());
+  return key;
+}
+
+struct Options {
+  fs::path dataset, templates, parts = fs::path(MFC_SOURCE_DIR) / "config/parts/parts.csv", out;
+  std::string split = "test";
+  std::vector<std::string> methods = {"fdcm", "ocm", "cm"};
+  int max_images = 0, threads = 0;
+  std::vector<double> distances_mm;
+  bool all_types = false, quiet = false;
+  Line2dOptions line2d;
+  Criterion criterion;
+};
+
+Options parse(int argc, char** argv) {
+  Options o;
+  for (int i = 2; i < argc; ++i) {
+    const std::string a = argv[i];
+    auto value = [&]() -> std::string {
+      if (i + 1 >= argc) throw Usage(a + " needs a value");
+      return argv[++i];
+    };
+    if (a == "--dataset") o.dataset = value();
+    else if (a == "--split") o.split = value();
+    else if (a == "--templates") o.templates = value();
+    else if (a == "--parts") o.parts = value();
+    else if (a == "--out") o.out = value();
+    else if (a == "--methods") {
+      o.methods.clear();
+      std::stringstream ss(value());
+      for (std::string m; std::getline(ss, m, ',');) {
+        if (m != "fdcm" && m != "ocm" && m != "cm" && m != "line2d")
+          throw Usage("--methods: unknown method '" + m + "' (known: fdcm, ocm, cm, line2d)");
+        o.methods.push_back(m);
+      }
+      if (o.methods.empty()) throw Usage("--methods needs at least one method");
+    } else if (a == "--max-images") o.max_images = to_int(a, value());
+    else if (a == "--threads") o.threads = to_int(a, value());
+    else if (a == "--all-types") o.all_types = true;
+    else if (a == "--distances") {
+      std::stringstream ss(value());
+      for (std::string d; std::getline(ss, d, ',');) {
+        o.distances_mm.push_back(to_double(a, d));
+        if (!(o.distances_mm.back() > 0)) throw Usage("--distances: '" + d + "' is not a positive distance");
+      }
+    }
+    else if (a == "--line2d-step") o.line2d.inplane_step_deg = to_double(a, value());
+    else if (a == "--line2d-view-stride") o.line2d.view_stride = to_int(a, value());
+    else if (a == "--max-position") o.criterion.max_position_mm = to_double(a, value());
+    else if (a == "--max-rotation") o.criterion.max_rotation_deg = to_double(a, value());
+    else if (a == "--quiet") o.quiet = true;
+    else throw Usage("unknown argument '" + a + "'");
+  }
+  o.line2d.distances_mm = o.distances_mm;
+  if (o.dataset.empty()) throw Usage("--dataset is required");
+  if (o.templates.empty()) throw Usage("--templates is required");
+  if (o.out.empty()) throw Usage("--out is required");
+  if (o.max_images < 0) throw Usage("--max-images must be >= 0");
+  if (!(o.line2d.inplane_step_deg > 0 && o.line2d.inplane_step_deg <= 360)) throw Usage("--line2d-step must be in (0, 360]");
+  if (o.line2d.view_stride < 1) throw Usage("--line2d-view-stride must be >= 1");
+  if (!(o.criterion.max_position_mm > 0) || !(o.criterion.max_rotation_deg > 0))
+    throw Usage("--max-position and --max-rotation must be positive");
+  return o;
+}
+
+RefineEvalOptions parse_refine(int argc, char** argv) {
+  RefineEvalOptions o;
+  o.parts = fs::path(MFC_SOURCE_DIR) / "config/parts/parts.csv";
+  o.camera = fs::path(MFC_SOURCE_DIR) / "config/camera-sim.yaml";
+  for (int i = 2; i < argc; ++i) {
+    const std::string a = argv[i];
+    auto value = [&]() -> std::string {
+      if (i + 1 >= argc) throw Usage(a + " needs a value");
+      return argv[++i];
+    };
+    if (a == "--templates") o.templates = value();
+    else if (a == "--parts") o.parts = value();
+    else if (a == "--camera") o.camera = value();
+    else if (a == "--out") o.out = value();
+    else if (a == "--trials") o.trials_per_part = to_int(a, value());
+    else if (a == "--seed") o.seed = static_cast<unsigned>(to_int(a, value()));
+    else if (a == "--shift") o.side_shift_mm = to_double(a, value());
+    else if (a == "--distances") {
+      std::stringstream ss(value());
+      for (std::string d; std::getline(ss, d, ',');) {
+        o.distances_mm.push_back(to_double(a, d));
+        if (!(o.distances_mm.back() > 0)) throw Usage("--distances: '" + d + "' is not a positive distance");
+      }
+    } else if (a == "--quiet") o.quiet = true;
+    else throw Usage("unknown argument '" + a + "'");
+  }
+  if (o.templates.empty()) throw Usage("--templates is required");
+  if (o.out.empty()) throw Usage("--out is required");
+  if (o.trials_per_part < 1) throw Usage("--trials must be >= 1");
+  if (!fs::is_directory(o.templates)) throw std::runtime_error(o.templates.string() + ": no such templates folder");
+  return o;
+}
+
+struct ImageRef {
+  int scene = 0, image = 0;
+};
+
+int run_detect(const Options& o) {
+  if (!fs::is_directory(o.dataset)) throw std::runtime_error(o.dataset.string() + ": no such dataset folder");
+  if (!fs::is_directory(o.templates)) throw std::runtime_error(o.templates.string() + ": no such templates folder");
+  const std::vector<PartEntry> parts = read_parts_csv(o.parts);
+  const vision::BopDataset dataset(o.dataset, o.split);
+
+  // Every object of the dataset must be a known part with a template file.
+  std::map<int, fs::path> tdb_of;
+  std::map<int, cv::Vec3d> centre_of;  // bounding-box centre, model frame: the "position" of a part
+  for (const auto& [obj_id, info] : dataset.models_info()) {
+    const PartEntry& p = part_by_id(parts, obj_id, (o.dataset / "models/models_info.json").string());
+    const fs::path tdb = o.templates / (p.name + ".tdb");
+    if (!fs::is_regular_file(tdb))
+      throw std::runtime_error(tdb.string() + ": no template file for part '" + p.name + "' (obj_id " +
+                               std::to_string(obj_id) + "); run mfc-teach or build the mfc_templates target");
+    tdb_of[obj_id] = tdb;
+    centre_of[obj_id] = info.min + info.size * 0.5;
+  }
+  std::vector<fs::path> tdbs;
+  for (const auto& [id, f] : tdb_of) tdbs.push_back(f);
+
+  std::vector<ImageRef> images;
+  for (int s : dataset.scenes())
+    for (int i : dataset.images(s)) images.push_back({s, i});
+  if (images.empty()) throw std::runtime_error(o.dataset.string() + ": no images in split '" + o.split + "'");
+  if (o.max_images > 0 && static_cast<int>(images.size()) > o.max_images) images.resize(static_cast<size_t>(o.max_images));
+  const vision::CameraConfig camera = dataset.camera(images[0].scene, images[0].image).config();
+  const std::string key = camera_key(camera);
+
+  // Each method's detector, built lazily (LINE-2D trains for a while).
+  json out;
+  out["dataset"] = fs::absolute(o.dataset).string();
+  out["split"] = o.split;
+  out["images"] = images.size();
+  out["criterion"] = {{"max_position_mm", o.criterion.max_position_mm},
+                      {"max_rotation_deg", o.criterion.max_rotation_deg},
+                      {"rotation", "total angle of R_est R_gt^T, symmetry-aware"},
+                      {"position", "distance of the model bounding-box centre"}};
+  json jparts = json::array();
+  for (const auto& [id, f] : tdb_of) {
+    const PartEntry& p = part_by_id(parts, id, o.parts.string());
+    jparts.push_back({{"name", p.name}, {"obj_id", id}, {"symmetry", p.symmetry.str()}, {"templates", f.string()}});
+  }
+  out["parts"] = jparts;
+  out["distances_mm"] = o.distances_mm;
+  out["line2d_options"] = {{"inplane_step_deg", o.line2d.inplane_step_deg}, {"view_stride", o.line2d.view_stride},
+                           {"min_similarity", o.line2d.min_similarity}};
+
+  // Ground truth once.
+  struct ImageGt {
+    std::vector<vision::BopGtPose> gt;
+    std::vector<vision::BopGtInfo> info;
+  };
+  std::vector<ImageGt> gts;
+  for (const auto& ref : images) {
+    const auto cam = dataset.camera(ref.scene, ref.image).config();
+    if (camera_key(cam) != key)
+      throw std::runtime_error("scene " + std::to_string(ref.scene) + " image " + std::to_string(ref.image) +
+                               ": camera " + camera_key(cam) + " differs from the first image's (" + key + ")");
+    ImageGt g{dataset.ground_truth(ref.scene, ref.image), dataset.ground_truth_info(ref.scene, ref.image)};
+    for (const auto& p : g.gt) part_by_id(parts, p.obj_id, "scene " + std::to_string(ref.scene) + " scene_gt.json");
+    gts.push_back(std::move(g));
+  }
+
+  auto score = [&](const Estimate& e, const vision::BopGtPose& g) {
+    return pose_error(e.R, e.t_mm, g.R, g.t_mm, part_by_id(parts, g.obj_id, "").symmetry, centre_of.at(g.obj_id));
+  };
+
+  const int max_candidates = 8;
+  json methods = json::object();
+  for (const std::string& m : o.methods) {
+    std::unique_ptr<Detector> det;
+    if (m == "line2d") det = make_line2d_detector(camera, tdbs, o.line2d, max_candidates);
+    else {
+      const auto cost = m == "fdcm" ? vision::PipelineConfig::Cost::fdcm
+                        : m == "ocm" ? vision::PipelineConfig::Cost::ocm
+                                     : vision::PipelineConfig::Cost::cm;
+      det = make_pipeline_detector(cost, camera, tdbs, o.threads, max_candidates, o.distances_mm);
+    }
+    std::fprintf(stderr, "mfc-eval: %s ready (%.1f s setup)\n", m.c_str(), det->setup_seconds());
+    json trials = json::array(), instances = json::array();
+    Detection d;
+    int failures = 0, n_trials = 0;
+    double time_sum = 0;
+    for (size_t k = 0; k < images.size(); ++k) {
+      const ImageRef& ref = images[k];
+      const ImageGt& g = gts[k];
+      const vision::MfcFrames frames = dataset.frames(ref.scene, ref.image);
+      std::set<int> present;
+      for (const auto& p : g.gt) present.insert(p.obj_id);
+      for (int obj_id : present) {
+        det->detect(frames, obj_id, d);
+        // The best estimate against every instance of the type: correct if it matches any;
+        // errors reported for the instance it matches best (smallest position error among the
+        // matching ones, else overall).
+        json trial = {{"scene", ref.scene}, {"image", ref.image}, {"obj_id", obj_id}, {"times", times_json(d.times)},
+                      {"found", !d.estimates.empty()}};
+        bool correct = false, correct_xy = false;
+        double best_visib = 0;
+        int n_inst = 0;
+        std::vector<size_t> inst;
+        for (size_t j = 0; j < g.gt.size(); ++j)
+          if (g.gt[j].obj_id == obj_id) inst.push_back(j), ++n_inst, best_visib = std::max(best_visib, g.info[j].visib_fract);
+        if (!d.estimates.empty()) {
+          double best_key = 1e18;
+          for (size_t j : inst) {
+            const PoseError e = score(d.estimates[0], g.gt[j]);
+            const bool ok = o.criterion.accepts(e);
+            // The same criterion on the position across the optical axis only: how much of the
+            // failure is the distance (scale) of a coarse pose.
+            correct_xy = correct_xy || (std::hypot(e.abs_t_mm[0], e.abs_t_mm[1]) <= o.criterion.max_position_mm &&
+                                        e.rotation_deg <= o.criterion.max_rotation_deg);
+            const double key2 = (ok ? 0 : 1e9) + e.position_mm;
+            if (key2 < best_key) {
+              best_key = key2;
+              correct = ok;
+              trial["position_mm"] = e.position_mm;
+              trial["rotation_deg"] = e.rotation_deg;
+              trial["d_t_mm"] = {e.d_t_mm[0], e.d_t_mm[1], e.d_t_mm[2]};
+              trial["matched_instance"] = j;
+              trial["matched_visib_fract"] = g.info[j].visib_fract;
+            }
+          }
+        }
+        trial["correct"] = correct;
+        trial["correct_xy"] = correct_xy;
+        trial["instances"] = n_inst;
+        trial["best_visib_fract"] = best_visib;
+        trials.push_back(trial);
+        // Per instance (Fig. 13): found by the best estimate, or by any of the top-k estimates
+        // where k = the number of instances of its type in the image.
+        for (size_t j : inst) {
+          bool top1 = false, topk = false;
+          for (size_t c = 0; c < d.estimates.size() && c < inst.size(); ++c) {
+            const bool ok = o.criterion.accepts(score(d.estimates[c], g.gt[j]));
+            topk = topk || ok;
+            if (c == 0) top1 = ok;
+          }
+          instances.push_back({{"scene", ref.scene}, {"image", ref.image}, {"obj_id", obj_id}, {"instance", j},
+                               {"visib_fract", g.info[j].visib_fract}, {"top1", top1}, {"topk", topk}});
+        }
+        ++n_trials;
+        failures += !correct;
+        time_sum += d.times.total_ms;
+        if (!o.quiet)
+          std::fprintf(stderr, "%s scene %d image %d obj %d: %s (%.0f ms)\n", m.c_str(), ref.scene, ref.image, obj_id,
+                       correct ? "correct" : (d.estimates.empty() ? "nothing found" : "wrong"), d.times.total_ms);
+      }
+    }
+    std::printf("%-6s failure rate %.3f over %d trials (%zu images), %.0f ms per detection\n", m.c_str(),
+                n_trials ? double(failures) / n_trials : 0.0, n_trials, images.size(), n_trials ? time_sum / n_trials : 0.0);
+    std::fflush(stdout);
+    methods[m] = {{"setup_s", det->setup_seconds()}, {"trials", trials}, {"instances", instances}};
+
+    if (m == "fdcm" && o.all_types) {
+      // Best pick over all part types at once: the daemon's cycle.
+      json picks = json::array();
+      for (size_t k = 0; k < images.size(); ++k) {
+        const ImageRef& ref = images[k];
+        det->detect(dataset.frames(ref.scene, ref.image), 0, d);
+        bool correct = false;
+        if (!d.estimates.empty())
+          for (const auto& gp : gts[k].gt)
+            if (gp.obj_id == d.estimates[0].obj_id) correct = correct || o.criterion.accepts(score(d.estimates[0], gp));
+        picks.push_back({{"scene", ref.scene}, {"image", ref.image}, {"found", !d.estimates.empty()},
+                         {"obj_id", d.estimates.empty() ? 0 : d.estimates[0].obj_id}, {"correct", correct},
+                         {"times", times_json(d.times)}});
+      }
+      out["all_types"] = picks;
+    }
+  }
+  out["methods"] = methods;
+
+  const fs::path tmp = o.out.string() + ".tmp";
+  {
+    std::ofstream f(tmp);
+    if (!f) throw std::runtime_error(tmp.string() + ": cannot create");
+    f << out.dump(1) << "\n";
+    if (!f) throw std::runtime_error(tmp.string() + ": write failed");
+  }
+  fs::rename(tmp, o.out);
+  std::printf("wrote %s\n", o.out.c_str());
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    const std::string cmd = argc > 1 ? argv[1] : "";
+    if (cmd == "-h" || cmd == "--help" || cmd == "help") {
+      std::fputs(kUsage, stdout);
+      return 0;
+    }
+    if (cmd == "detect") return run_detect(parse(argc, argv));
+    if (cmd == "refine") return run_refine_eval(parse_refine(argc, argv));
+    throw Usage(cmd.empty() ? "a command is required" : "unknown command '" + cmd + "'");
+  } catch (const Usage& e) {
+    std::fprintf(stderr, "mfc-eval: %s\n\n%s", e.what(), kUsage);
+    return 2;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "mfc-eval: %s\n", e.what());
+    return 1;
+  }
+}

@@ -1,0 +1,125 @@
+#include "tools/eval/pose_error.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <set>
+#include <sstream>
+#include <stdexcept>
+
+namespace mfcd::eval {
+
+namespace {
+
+std::string trim(const std::string& s) {
+  const auto b = s.find_first_not_of(" \t\r");
+  if (b == std::string::npos) return "";
+  const auto e = s.find_last_not_of(" \t\r");
+  return s.substr(b, e - b + 1);
+}
+
+cv::Matx33d rot_z(double a) {
+  const double c = std::cos(a), s = std::sin(a);
+  return {c, -s, 0, s, c, 0, 0, 0, 1};
+}
+
+}  // namespace
+
+std::vector<PartEntry> read_parts_csv(const std::filesystem::path& file) {
+  std::ifstream in(file);
+  if (!in) throw std::runtime_error(file.string() + ": cannot open the parts table");
+  std::vector<PartEntry> parts;
+  std::string line;
+  int number = 0;
+  bool header = false;
+  while (std::getline(in, line)) {
+    ++number;
+    const auto hash = line.find('#');
+    if (hash != std::string::npos) line.resize(hash);
+    line = trim(line);
+    if (line.empty()) continue;
+    const std::string where = file.string() + ":" + std::to_string(number) + ": ";
+    std::vector<std::string> f;
+    std::stringstream ss(line);
+    for (std::string x; std::getline(ss, x, ',');) f.push_back(trim(x));
+    if (f.size() != 3) throw std::runtime_error(where + "expected 3 fields name,obj_id,symmetry, got " + std::to_string(f.size()));
+    if (!header && f[0] == "name") {
+      header = true;
+      continue;
+    }
+    PartEntry p;
+    p.name = f[0];
+    if (p.name.empty()) throw std::runtime_error(where + "empty part name");
+    size_t used = 0;
+    try {
+      p.obj_id = std::stoi(f[1], &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used == 0 || used != f[1].size() || p.obj_id < 1)
+      throw std::runtime_error(where + "obj_id '" + f[1] + "' is not a positive integer");
+    try {
+      p.symmetry = vision::PartSymmetry::parse(f[2]);
+    } catch (const std::exception& e) {
+      throw std::runtime_error(where + "symmetry '" + f[2] + "': " + e.what());
+    }
+    for (const auto& q : parts) {
+      if (q.name == p.name) throw std::runtime_error(where + "part '" + p.name + "' listed twice");
+      if (q.obj_id == p.obj_id)
+        throw std::runtime_error(where + "obj_id " + f[1] + " used by '" + q.name + "' and '" + p.name + "'");
+    }
+    parts.push_back(std::move(p));
+  }
+  if (parts.empty()) throw std::runtime_error(file.string() + ": no parts listed");
+  return parts;
+}
+
+const PartEntry& part_by_id(const std::vector<PartEntry>& parts, int obj_id, const std::string& source) {
+  for (const auto& p : parts)
+    if (p.obj_id == obj_id) return p;
+  throw std::runtime_error(source + ": unknown part: obj_id " + std::to_string(obj_id) + " is not in the parts table");
+}
+
+double rotation_angle_deg(const cv::Matx33d& R) {
+  // atan2 of |axis * sin| and cos: accurate at both ends, unlike acos of the trace.
+  const double c = (cv::trace(R) - 1) / 2;
+  const cv::Vec3d v(R(2, 1) - R(1, 2), R(0, 2) - R(2, 0), R(1, 0) - R(0, 1));
+  return std::atan2(cv::norm(v) / 2, c) * 180 / CV_PI;
+}
+
+cv::Vec3d euler_xyz_deg(const cv::Matx33d& R) {
+  const double y = std::asin(std::clamp(-R(2, 0), -1.0, 1.0));
+  const double x = std::atan2(R(2, 1), R(2, 2));
+  const double z = std::atan2(R(1, 0), R(0, 0));
+  return cv::Vec3d(x, y, z) * (180 / CV_PI);
+}
+
+PoseError pose_error(const cv::Matx33d& R_est, const cv::Vec3d& t_est, const cv::Matx33d& R_gt, const cv::Vec3d& t_gt,
+                     const vision::PartSymmetry& symmetry, const cv::Vec3d& centre_mm) {
+  // The ground-truth equivalent closest to the estimate.
+  cv::Matx33d best = R_gt;
+  if (symmetry.kind == vision::PartSymmetry::Kind::continuous_z) {
+    // max over a of trace(R_est^T R_gt Rz(a)) = (A00 + A11) cos a + (A01 - A10) sin a + A22.
+    const cv::Matx33d A = R_est.t() * R_gt;
+    best = R_gt * rot_z(std::atan2(A(0, 1) - A(1, 0), A(0, 0) + A(1, 1)));
+  } else {
+    double best_angle = 1e9;
+    for (const auto& S : symmetry.discrete_rotations()) {
+      const double a = rotation_angle_deg(R_est * (R_gt * S).t());
+      if (a < best_angle) best_angle = a, best = R_gt * S;
+    }
+  }
+  PoseError e;
+  const cv::Matx33d rel = R_est * best.t();
+  e.rotation_deg = rotation_angle_deg(rel);
+  const cv::Vec3d c_est = R_est * centre_mm + t_est, c_gt = best * centre_mm + t_gt;
+  const cv::Vec3d d = c_est - c_gt;
+  e.position_mm = cv::norm(d);
+  e.d_t_mm = d;
+  e.abs_t_mm = {std::abs(d[0]), std::abs(d[1]), std::abs(d[2])};
+  const cv::Vec3d r = euler_xyz_deg(rel);
+  e.abs_r_deg = {std::abs(r[0]), std::abs(r[1]), std::abs(r[2])};
+  return e;
+}
+
+}  // namespace mfcd::eval

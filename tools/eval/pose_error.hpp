@@ -1,0 +1,60 @@
+#pragma once
+// Scoring of pose estimates for the paper's evaluation (Sec. 5.1.1): symmetry-aware pose error
+// and the correctness criterion of Table 1, plus the parts table (config/parts/parts.csv) that
+// says which symmetry each part has.
+
+#include "vision/templates/template_database.hpp"
+
+#include <opencv2/core.hpp>
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace mfcd::eval {
+
+struct PartEntry {
+  std::string name;
+  int obj_id = 0;
+  vision::PartSymmetry symmetry;
+};
+
+// Reads config/parts/parts.csv ('#' comments, header "name,obj_id,symmetry"). Throws
+// std::runtime_error naming the file, line and reason (missing file, wrong field count, bad
+// obj_id, bad symmetry, duplicate name or obj_id).
+std::vector<PartEntry> read_parts_csv(const std::filesystem::path& file);
+// The entry with this obj_id; throws std::runtime_error naming `source` when there is none.
+const PartEntry& part_by_id(const std::vector<PartEntry>& parts, int obj_id, const std::string& source);
+
+// Errors of an estimate against one ground-truth pose, after choosing the ground-truth pose's
+// symmetric equivalent (R_gt * S, S a model symmetry about the model z axis through the model
+// origin) that is closest in rotation to the estimate.
+struct PoseError {
+  double position_mm = 0;   // distance between the part centre (`centre_mm`, model frame) as placed by each pose
+  double rotation_deg = 0;  // angle of R_est * R_gt'^T; for z:inf the angle between the model z axes
+  cv::Vec3d d_t_mm{0, 0, 0};    // estimate minus truth of the part centre, camera axes
+  cv::Vec3d abs_t_mm{0, 0, 0};  // |d_t_mm| per axis
+  // |rx|, |ry|, |rz| of the relative rotation R_est * R_gt'^T = Rz(rz) Ry(ry) Rx(rx), camera axes, degrees.
+  cv::Vec3d abs_r_deg{0, 0, 0};
+};
+
+PoseError pose_error(const cv::Matx33d& R_est, const cv::Vec3d& t_est, const cv::Matx33d& R_gt, const cv::Vec3d& t_gt,
+                     const vision::PartSymmetry& symmetry, const cv::Vec3d& centre_mm = {0, 0, 0});
+
+// The criterion of Table 1: position within `max_position_mm` and rotation angle within
+// `max_rotation_deg` (the total angle; stricter than asking each of three Euler angles of the
+// relative rotation to be within it).
+struct Criterion {
+  double max_position_mm = 5.0;
+  double max_rotation_deg = 10.0;
+  bool accepts(const PoseError& e) const {
+    return e.position_mm <= max_position_mm && e.rotation_deg <= max_rotation_deg;
+  }
+};
+
+// Angle of a rotation matrix, degrees (numerically safe near 0 and 180).
+double rotation_angle_deg(const cv::Matx33d& R);
+// x-y-z Euler angles (R = Rz(z) Ry(y) Rx(x)), degrees.
+cv::Vec3d euler_xyz_deg(const cv::Matx33d& R);
+
+}  // namespace mfcd::eval
