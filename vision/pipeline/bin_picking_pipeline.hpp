@@ -36,8 +36,8 @@ struct PipelineConfig {
   std::vector<double> distances_mm;  // hypothesised part distances; empty = the templates' own
   // 1-D line search (paper Sec. 4.4): each template's longest `template_guides` lines are slid
   // along the query's longest `query_guides` lines of the same orientation.
-  int template_guides = 3;
-  int query_guides = 20;
+  int template_guides = 4;
+  int query_guides = 30;
   double min_guide_overlap = 0.75;  // of the shorter line (LineSearchParams::minOverlap)
   int slide_step = 2;               // px between slide positions, then the best refined (LineSearchParams)
   int refine_iterations = 20;      // per candidate (outer ICP iterations); cut short at the deadline
