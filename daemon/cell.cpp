@@ -181,6 +181,10 @@ void Cell::acquisitionMain(std::promise<void>& ready) {
         source_->removePicked(request->picked_t_cam_mm);  // simulated world: may allocate
         continue;
       }
+      if (request->kind == CycleRequest::Kind::Refill) {
+        source_->refill();
+        continue;
+      }
       FrameSlot* slot = frames_.beginWrite();
       if (!slot) {  // cannot happen while the main thread keeps at most one cycle in flight
         framesDropped_.fetch_add(1, std::memory_order_relaxed);

@@ -31,7 +31,7 @@ enum class CycleError : std::uint16_t {
 };
 
 struct CycleRequest {
-  enum class Kind : std::uint8_t { Capture, RemovePicked };
+  enum class Kind : std::uint8_t { Capture, RemovePicked, Refill };
   Kind kind = Kind::Capture;
   CycleOrigin origin = CycleOrigin::Plc;
   std::uint64_t cycle_id = 0;
@@ -43,6 +43,7 @@ struct CycleRequest {
   Clock::time_point trigger{};
   Clock::time_point deadline{};
   cv::Vec3d picked_t_cam_mm{0, 0, 0};  // RemovePicked: where the robot took a part (camera frame)
+  // Refill: the simulated bin looked empty to vision (nothing found): the operator refills it.
 };
 
 // Ground truth of the simulated bin at capture (camera frame); empty on real hardware.

@@ -425,6 +425,12 @@ void Daemon::onResult(const CycleResult& r) {
     take.kind = CycleRequest::Kind::RemovePicked;
     take.picked_t_cam_mm = r.candidates[static_cast<std::size_t>(r.chosen)].t_cam_mm;
     cell_->submit(take);
+  } else if (r.error == CycleError::None && r.candidate_count == 0 && r.truth.count > 0 && cell_) {
+    // Simulated cell: vision sees nothing in a bin that still holds parts (all unrecognised); like
+    // an operator would, tip in a fresh bin so the cell does not stall on one scene.
+    CycleRequest refill;
+    refill.kind = CycleRequest::Kind::Refill;
+    cell_->submit(refill);
   }
   for (auto it = waiters_.begin(); it != waiters_.end();) {
     if (it->what == Waiter::What::Trigger && it->cycle == r.request.cycle_id) {

@@ -86,7 +86,7 @@ public:
         for (const auto& v : m.mesh.vertices) m.radius = std::max(m.radius, std::hypot(double(v[0]), double(v[1])));
       }
       cell_ = std::make_unique<hal::RenderedCellScene>(*renderer_, std::vector<vision::ScenePart>{});
-      refill();
+      fillBin();
     }
     camera_ = std::make_unique<hal::SimulatedCamera>(
         hal::SimulatedCameraConfig{format, "sim-cell", static_cast<std::int64_t>(c.camera.simulated_exposure_us) * 1000},
@@ -134,10 +134,16 @@ public:
     bin_.erase(bin_.begin() + static_cast<std::ptrdiff_t>(best));
     if (bin_.empty()) {
       logf(LogLevel::Info, "simulated cell: bin empty, refilling");
-      refill();
+      fillBin();
     } else {
       updateScene();
     }
+  }
+
+  void refill() override {
+    if (!cell_) return;
+    logf(LogLevel::Info, "simulated cell: vision found nothing, refilling the bin");
+    fillBin();
   }
 
 private:
@@ -154,7 +160,7 @@ private:
 
   // Parts lie flat (mesh +z towards the camera) at random yaw, spread over the field of view at
   // the floor without overlapping (bounding circles), in the order of the recipes, cycling.
-  void refill() {
+  void fillBin() {
     bin_.clear();
     const double f = sim_.floor_distance_mm;
     const double halfW = (model_.camera.image_size.width / 2.0) / model_.camera.fx() * f;

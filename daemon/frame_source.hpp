@@ -26,6 +26,7 @@ public:
   // Simulated cell only: the bin's ground truth, and the robot taking the part at `t_cam_mm`.
   virtual void truth(SimTruth& out) const { out.count = 0; }
   virtual void removePicked(const cv::Vec3d& /*t_cam_mm*/) {}
+  virtual void refill() {}
 };
 
 // Builds the source the configuration asks for. Throws (HalError, std::runtime_error) naming the
