@@ -14,7 +14,6 @@
 #include <cstring>
 #include <filesystem>
 #include <iostream>
-#include <regex>
 #include <string>
 
 using namespace mfcd::vision;
@@ -38,12 +37,15 @@ void usage(std::FILE* to) {
                "  --quiet            no progress bar\n");
 }
 
+// N for a model named like a BOP model, obj_00000N.ply; 1 otherwise. (Parsed by hand: std::regex
+// trips GCC 12's -Wmaybe-uninitialized under ASan.)
 int default_obj_id(const std::filesystem::path& model) {
-  std::smatch m;
   const std::string stem = model.stem().string();
-  static const std::regex bop("obj_0*([0-9]+)");
-  if (std::regex_match(stem, m, bop)) return std::stoi(m[1].str());
-  return 1;
+  const std::string prefix = "obj_";
+  if (stem.size() <= prefix.size() || stem.compare(0, prefix.size(), prefix) != 0) return 1;
+  const std::string digits = stem.substr(prefix.size());
+  if (digits.size() > 9 || digits.find_first_not_of("0123456789") != std::string::npos) return 1;
+  return std::max(1, std::stoi(digits));
 }
 
 // A contact sheet of up to 64 views spread over the database: edge points grey, lines coloured by
