@@ -178,13 +178,14 @@ def main(bench_dir, docs_dir):
     if "line2d" in methods:
         lo = res.get("line2d_options", {})
         w("**LINE-2D** (`cv::linemod::getDefaultLINE()`, colour-gradient modality, pyramid T = {4, 8}) is trained on "
-          "the same template views: every %s view of each part's `.tdb`, the part rendered alone at the view's pose by "
+          "the same template views: %s of each part's `.tdb`, the part rendered alone at the view's pose by "
           "`MfcRenderer` (noise off), its max image (per-pixel maximum of the eight flash images) and silhouette mask, "
           "turned in the image plane about the part centre every %g degrees (LINE-2D is not rotation invariant); "
           "the class pose of a template is (view, in-plane angle), and a match's pose is back-projected exactly like "
           "`coarse_pose` does for FDCM. Queries are the scenes' max images; threshold %g %%. Training cost is the "
           "*setup* column.\n" % (
-              "" if lo.get("view_stride", 1) == 1 else "%d-th" % lo.get("view_stride"), lo.get("inplane_step_deg", 15),
+              "every view" if lo.get("view_stride", 1) == 1 else "one view in %d" % lo.get("view_stride"),
+              lo.get("inplane_step_deg", 15),
               lo.get("min_similarity", 60)))
 
     # Table 1 as a bar chart.
