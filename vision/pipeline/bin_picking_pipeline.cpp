@@ -4,6 +4,8 @@
 #include "vision/idt3/integral_distance_transform.hpp"
 #include "vision/lines/line_fitter.hpp"
 #include "vision/pose/coarse_pose.hpp"
+#include "vision/pose/pose_refiner.hpp"
+#include "vision/render/mfc_renderer.hpp"
 #include "vision/search/line_search.hpp"
 #include "vision/search/nms.hpp"
 #include "vision/search/oriented_template.hpp"
@@ -15,7 +17,9 @@
 
 #include <algorithm>
 #include <atomic>
+#include <limits>
 #include <optional>
+#include <span>
 #include <cmath>
 #include <stdexcept>
 
@@ -66,6 +70,11 @@ struct BinPickingPipeline::Impl {
   DirectionalDistanceTransform dt3;
   IntegralDistanceTransform idt;
   ChamferCosts chamfer;  // baselines only
+  // Refinement renders the model, so it needs a GL context bound to the thread that calls
+  // process(): made there on the first call.
+  std::unique_ptr<MfcRenderer> renderer;
+  std::unique_ptr<PoseRefiner> refiner;
+  std::vector<int> mesh_ids;  // per part
   std::vector<std::pair<int, int>> jobs;           // (part, view) searched this cycle
   std::vector<std::vector<Hit>> thread_hits;
   std::vector<uint64_t> thread_hypotheses;
@@ -115,6 +124,42 @@ double explained_fraction(const TemplateView& view, const Warp& warp, int tx, in
   return total > 0 ? double(covered) / total : 0;
 }
 
+// The search ran at the templates' own distance, but parts in a bin lie nearer (stacked, or
+// their centre above the floor): their images are larger by distance / actual distance. Around
+// a match, scale (the distance), in-plane angle (one channel step either way) and translation
+// (3 px) are searched locally with FDCM, so the coarse pose gets its depth from the image.
+void fit_distance(const LineSet& lines, const IntegralDistanceTransform& idt, TemplatePlacement& pl) {
+  const FdcmMatcher matcher(idt);
+  const double step = CV_PI / lines.q;
+  double best_cost = std::numeric_limits<double>::infinity();
+  TemplatePlacement best = pl;
+  uint64_t segments = 0;
+  for (int si = -8; si <= 14; ++si) {
+    const double scale = pl.scale * std::pow(1.01, si);
+    for (int ai = -1; ai <= 1; ++ai) {
+      const OrientedTemplate t = orientTemplate(lines, 0, Warp{pl.angle_rad + ai * step, scale, 1.0});
+      if (t.pixels <= 0) continue;
+      for (int dy = -3; dy <= 3; ++dy)
+        for (int dx = -3; dx <= 3; ++dx) {
+          const int tx = static_cast<int>(pl.origin_px.x) + dx, ty = static_cast<int>(pl.origin_px.y) + dy;
+          if (tx < t.txMin() || tx > t.txMax(idt.width()) || ty < t.tyMin() || ty > t.tyMax(idt.height())) continue;
+          const uint32_t stop = std::isfinite(best_cost)
+                                    ? static_cast<uint32_t>(best_cost * kCostScale * t.pixels) + 1
+                                    : std::numeric_limits<uint32_t>::max();
+          const uint32_t sum = matcher.evaluateAt(t, tx, ty, stop, segments);
+          const double cost = double(sum) / (double(kCostScale) * t.pixels);
+          if (cost < best_cost) {
+            best_cost = cost;
+            best.angle_rad = pl.angle_rad + ai * step;
+            best.scale = scale;
+            best.origin_px = cv::Point2d(tx, ty);
+          }
+        }
+    }
+  }
+  pl = best;
+}
+
 }  // namespace
 
 BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfig config)
@@ -123,6 +168,8 @@ BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfi
   if (m.config.template_files.empty()) throw std::runtime_error("pipeline: no template files configured");
   if (m.config.max_candidates < 1) throw std::runtime_error("pipeline: max_candidates must be >= 1");
   if (!(m.config.max_cost_px > 0)) throw std::runtime_error("pipeline: max_cost_px must be positive");
+  if (m.config.refine_candidates < 0 || m.config.refine_iterations < 1)
+    throw std::runtime_error("pipeline: refine_candidates must be >= 0 and refine_iterations >= 1");
   if (m.config.template_guides < 1 || m.config.query_guides < 1)
     throw std::runtime_error("pipeline: template_guides and query_guides must be >= 1");
   for (const auto& file : m.config.template_files) {
@@ -308,6 +355,7 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
     pl.angle_rad = w.angle;
     pl.scale = w.scale;
     pl.origin_px = cv::Point2d(h.c.tx, h.c.ty);
+    if (fdcm) fit_distance(part.db.views[h.view].lines, m.idt, pl);
     const RigidPose pose = coarse_pose(part.db, pl, m.camera.camera);
     PoseCandidate c;
     c.obj_id = part.db.obj_id;
@@ -317,12 +365,69 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
     c.t_m2c_mm = pose.t_mm;
     c.cost_px = h.c.cost();
     c.coverage = v.coverage;
-    c.score = std::clamp(1.0 - v.combined / m.config.max_cost_px, 0.0, 1.0);
+    // 1 at a perfect match, 0.5 at 2 px of combined cost, falling slowly so that a correct but
+    // unrefined match of a large part (3-4 px) still ranks above nothing.
+    c.score = 1.0 / (1.0 + v.combined / 2.0);
     c.box = h.box;
     out.candidates.push_back(std::move(c));
   }
   t = Clock::now();
   out.times.pose_ms = ms_between(t1, t);
+
+  // Multi-view refinement (paper Sec. 4.5; one view here: the cell's single MFC capture) of the
+  // best candidates, until the deadline. A candidate whose refinement fails keeps its coarse pose.
+  const int refine = std::min<int>(m.config.refine_candidates, static_cast<int>(out.candidates.size()));
+  if (refine > 0 && Clock::now() < deadline) {
+    if (!m.renderer) {
+      m.renderer = std::make_unique<MfcRenderer>(m.camera);
+      for (const auto& part : m.parts) m.mesh_ids.push_back(m.renderer->add_mesh(part.db.mesh));
+      RefinerParams rp;
+      rp.max_iterations = m.config.refine_iterations;
+      m.refiner = std::make_unique<PoseRefiner>(*m.renderer, rp);
+    }
+    const RefinementView view{&m.edges, m.camera.camera, RigidTransform{}};
+    m.refiner->prepare(std::span<const RefinementView>(&view, 1));
+    for (int i = 0; i < refine; ++i) {
+      if (Clock::now() >= deadline) {
+        out.degraded = true;
+        break;
+      }
+      PoseCandidate& c = out.candidates[i];
+      int part = 0;
+      while (m.parts[part].db.obj_id != c.obj_id) ++part;
+      const RefinementResult r = m.refiner->refine(pose_model(m.mesh_ids[part], m.parts[part].db.mesh),
+                                                  RigidTransform{c.R_m2c, c.t_m2c_mm}, deadline);
+      out.degraded = out.degraded || r.deadline_hit;
+      if (r.failed) continue;
+      // One view constrains depth and tilt weakly; a refinement that ends worse than it started
+      // (by the same Eq. 21 measure) walked into a false minimum: keep the coarse pose then.
+      const RefinementResult start =
+          m.refiner->evaluate(pose_model(m.mesh_ids[part], m.parts[part].db.mesh), RigidTransform{c.R_m2c, c.t_m2c_mm});
+      // Depth is where one view is weakest: a flat part can trade distance for tilt. The coarse
+      // distance was measured from the image scale (fit_distance, 1 % steps), so a refinement that
+      // moves the part centre along the line of sight by more than 4 % of its distance is not
+      // trusted either.
+      const cv::Vec3d c0 = c.R_m2c * m.parts[part].db.center_mm + c.t_m2c_mm;
+      const cv::Vec3d c1 = r.pose.R * m.parts[part].db.center_mm + r.pose.t;
+      const bool depth_jump = std::abs(cv::norm(c1) - cv::norm(c0)) > 0.04 * cv::norm(c0);
+      if (r.score < start.score || depth_jump) {
+        c.cost_px = start.mean_cost_px;
+        c.score = start.score;
+        continue;
+      }
+      c.R_m2c = r.pose.R;
+      c.t_m2c_mm = r.pose.t;
+      c.cost_px = r.mean_cost_px;
+      c.score = r.score;
+      c.refined = true;
+    }
+    // The refined (or re-scored) candidates by their final score; the rest keep the search order.
+    std::stable_sort(out.candidates.begin(), out.candidates.begin() + refine,
+                     [](const PoseCandidate& a, const PoseCandidate& b) { return a.score > b.score; });
+  }
+  const auto t2 = Clock::now();
+  out.times.refine_ms = ms_between(t, t2);
+  t = t2;
   out.times.total_ms = ms_between(t0, t);
 }
 

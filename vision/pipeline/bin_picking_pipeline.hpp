@@ -40,7 +40,9 @@ struct PipelineConfig {
   int query_guides = 30;
   double min_guide_overlap = 0.75;  // of the shorter line (LineSearchParams::minOverlap)
   int slide_step = 2;               // px between slide positions, then the best refined (LineSearchParams)
-  int refine_iterations = 10;      // per candidate; fewer when the deadline is near
+  int refine_iterations = 20;      // per candidate (outer ICP iterations); cut short at the deadline
+  int refine_candidates = 2;       // the best this many candidates are refined (the others keep
+                                   // their coarse pose); 0 = no refinement
   int threads = 0;                 // search threads; 0 = OpenMP default
   DepthEdgeParams depth_edges;
 };
@@ -51,7 +53,9 @@ struct PoseCandidate {
   int view = -1;                // template view (out-of-plane rotation) that matched
   cv::Matx33d R_m2c = cv::Matx33d::eye();  // model -> camera rotation
   cv::Vec3d t_m2c_mm{0, 0, 0};  // model origin in the camera frame, mm
-  double score = 0;             // 0..1, higher is better (from the final chamfer cost)
+  double score = 0;             // 0..1, higher is better: the refiner's score (inliers, Eq. 21 cost) when
+                                // refined, else 1 / (1 + c / 2 px) of the search cost c (with the
+                                // unexplained-edge penalty)
   double cost_px = 0;           // mean directional chamfer cost at the final pose
   double coverage = 0;          // fraction of image edges inside the part's outline it explains
   bool refined = false;         // false: coarse pose only (refinement skipped or failed)

@@ -95,9 +95,9 @@ TEST_P(PipelineOnRenderedPart, FindsThePartWithinFiveMillimetresAndTenDegrees) {
     const double dt = cv::norm(found_centre - centre);
     const double dr = rotation_error_deg(best.R_m2c, truth.R, db.symmetry);
     std::printf("%s trial %d: view %d -> %d, cost %.2f px, centre error %.2f mm, rotation error %.2f deg, %.1f ms "
-                "(edges %.1f lines %.1f dt %.1f search %.1f, %.2f M hypotheses)\n",
+                "(edges %.1f lines %.1f dt %.1f search %.1f refine %.1f, %.2f M hypotheses)\n",
                 GetParam(), trial, view, best.view, best.cost_px, dt, dr, result.times.total_ms,
-                result.times.edges_ms, result.times.lines_ms, result.times.distance_ms, result.times.search_ms, result.hypotheses * 1e-6);
+                result.times.edges_ms, result.times.lines_ms, result.times.distance_ms, result.times.search_ms, result.times.refine_ms, result.hypotheses * 1e-6);
     found += dt <= 5 && dr <= 10;
   }
   EXPECT_EQ(found, trials);

@@ -1,0 +1,340 @@
+#include "daemon/cell.hpp"
+
+#include <poll.h>
+#include <pthread.h>
+#include <sched.h>
+#include <sys/eventfd.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+#include <stdexcept>
+
+#include "daemon/log.hpp"
+#include "daemon/report.hpp"
+#include "mfcd/hal/error.hpp"
+#include "motion/pick_choice.h"
+#include "motion/pick_transform.h"
+
+namespace mfcd::daemon {
+
+const char* toString(CycleOrigin o) {
+  switch (o) {
+    case CycleOrigin::Plc: return "plc";
+    case CycleOrigin::Control: return "control";
+    case CycleOrigin::Continuous: return "continuous";
+    case CycleOrigin::Benchmark: return "benchmark";
+  }
+  return "?";
+}
+
+void FrameSlot::allocate(const hal::ImageFormat& format) {
+  mfc.flash.assign(hal::kLedCount, cv::Mat1b());
+  for (int k = 0; k < hal::FrameSet::kSlots; ++k) {
+    hal::Image& img = frames.frames[static_cast<std::size_t>(k)].image;
+    img.allocate(format);
+    cv::Mat1b view(format.height, format.width, img.data(), format.strideBytes());
+    if (k < hal::kLedCount)
+      mfc.flash[static_cast<std::size_t>(k)] = view;
+    else
+      mfc.ambient = view;
+  }
+}
+
+void copyFrameSet(const hal::FrameSet& from, hal::FrameSet& to) {
+  for (std::size_t k = 0; k < from.frames.size(); ++k) {
+    const hal::SlotFrame& a = from.frames[k];
+    hal::SlotFrame& b = to.frames[k];
+    if (a.image.sizeBytes() != b.image.sizeBytes())
+      throw std::logic_error("copyFrameSet: FrameSet format differs from the preallocated slot");
+    std::memcpy(b.image.data(), a.image.data(), a.image.sizeBytes());
+    b.info = a.info;
+    b.led = a.led;
+    b.onNs = a.onNs;
+    b.offNs = a.offNs;
+    b.staleDiscarded = a.staleDiscarded;
+  }
+  to.sequence = from.sequence;
+}
+
+namespace {
+
+int makeEventFd() {
+  const int fd = ::eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK);
+  if (fd < 0) throw std::system_error(errno, std::generic_category(), "eventfd");
+  return fd;
+}
+void signalFd(int fd) noexcept {
+  const std::uint64_t one = 1;
+  [[maybe_unused]] ssize_t n = ::write(fd, &one, sizeof one);
+}
+void drainFd(int fd) noexcept {
+  std::uint64_t v;
+  [[maybe_unused]] ssize_t n = ::read(fd, &v, sizeof v);
+}
+// Waits for a wake-up or `ms`; returns true if woken.
+bool waitFd(int fd, int ms) noexcept {
+  pollfd p{fd, POLLIN, 0};
+  const int r = ::poll(&p, 1, ms);
+  if (r > 0) {
+    drainFd(fd);
+    return true;
+  }
+  return false;
+}
+double msBetween(Clock::time_point a, Clock::time_point b) {
+  return std::chrono::duration<double, std::milli>(b - a).count();
+}
+
+}  // namespace
+
+Cell::Cell(DaemonConfig config, VisionStageFactory vision, FrameSourceFactory source)
+    : config_(std::move(config)), visionFactory_(std::move(vision)), sourceFactory_(std::move(source)) {
+  acqWake_ = makeEventFd();
+  visionWake_ = makeEventFd();
+  resultFd_ = makeEventFd();
+}
+
+Cell::~Cell() {
+  stop();
+  ::close(acqWake_);
+  ::close(visionWake_);
+  ::close(resultFd_);
+}
+
+void Cell::start() {
+  stop_ = false;
+  std::promise<void> acqReady, visionReady;
+  auto acqFuture = acqReady.get_future(), visionFuture = visionReady.get_future();
+  acquisition_ = std::thread([this, &acqReady] { acquisitionMain(acqReady); });
+  vision_ = std::thread([this, &visionReady] { visionMain(visionReady); });
+  std::string error;
+  try {
+    acqFuture.get();
+  } catch (const std::exception& e) {
+    error = std::string("camera: ") + e.what();
+  }
+  try {
+    visionFuture.get();
+  } catch (const std::exception& e) {
+    if (error.empty()) error = std::string("vision: ") + e.what();
+  }
+  if (!error.empty()) {
+    stop();
+    throw std::runtime_error(error);
+  }
+}
+
+void Cell::stop() noexcept {
+  stop_ = true;
+  signalFd(acqWake_);
+  signalFd(visionWake_);
+  if (acquisition_.joinable()) acquisition_.join();
+  if (vision_.joinable()) vision_.join();
+}
+
+bool Cell::submit(const CycleRequest& request) noexcept {
+  if (!requests_.push(request)) return false;
+  signalFd(acqWake_);
+  return true;
+}
+
+CycleResult* Cell::beginResult() noexcept {
+  drainFd(resultFd_);  // before looking, so a result queued after this is never without a wake-up
+  return results_.beginRead();
+}
+
+void Cell::acquisitionMain(std::promise<void>& ready) {
+  try {
+    source_ = sourceFactory_(config_);
+    source_->activate();
+    const hal::ImageFormat format = source_->format();
+    for (auto& slot : frames_.slots()) slot.allocate(format);
+    sourceDescription_ = source_->describe();
+  } catch (...) {
+    if (source_) source_->deactivate();
+    source_.reset();
+    ready.set_exception(std::current_exception());
+    return;
+  }
+  if (config_.realtime_priority > 0) {
+    sched_param sp{};
+    sp.sched_priority = config_.realtime_priority;
+    const int err = pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp);
+    realtime_ = err == 0;
+    if (err != 0)
+      logf(LogLevel::Notice, "acquisition thread: SCHED_FIFO priority %d not permitted (%s); running SCHED_OTHER "
+           "(grant LimitRTPRIO= or CAP_SYS_NICE)", config_.realtime_priority, std::strerror(err));
+    else
+      logf(LogLevel::Info, "acquisition thread: SCHED_FIFO priority %d", config_.realtime_priority);
+  }
+  pthread_setname_np(pthread_self(), "mfcd-acq");
+  ready.set_value();
+
+  while (!stop_.load()) {
+    waitFd(acqWake_, 200);
+    acqBeat_.fetch_add(1, std::memory_order_relaxed);
+    while (!stop_.load()) {
+      const auto request = requests_.pop();
+      if (!request) break;
+      if (request->kind == CycleRequest::Kind::RemovePicked) {
+        source_->removePicked(request->picked_t_cam_mm);  // simulated world: may allocate
+        continue;
+      }
+      FrameSlot* slot = frames_.beginWrite();
+      if (!slot) {  // cannot happen while the main thread keeps at most one cycle in flight
+        framesDropped_.fetch_add(1, std::memory_order_relaxed);
+        continue;
+      }
+      slot->request = *request;
+      slot->error[0] = '\0';
+      const Clock::time_point t0 = Clock::now();
+      try {
+        const hal::FrameSet& set = source_->capture();
+        copyFrameSet(set, slot->frames);
+        slot->ok = true;
+      } catch (const std::exception& e) {
+        slot->ok = false;
+        copyMessage(slot->error, sizeof slot->error, e.what());
+      }
+      slot->captured = Clock::now();
+      slot->capture_ms = msBetween(t0, slot->captured);
+      slot->leds_after = source_->leds();
+      source_->truth(slot->truth);
+      frames_.endWrite();
+      signalFd(visionWake_);
+    }
+  }
+  source_->deactivate();  // LEDs off, streaming stopped
+  logf(LogLevel::Info, "acquisition stopped, LEDs off");
+  source_.reset();
+}
+
+void Cell::visionMain(std::promise<void>& ready) {
+  try {
+    stage_ = visionFactory_(config_);
+    visionDescription_ = stage_->describe();
+    parts_ = stage_->parts();
+    pipelineResult_.candidates.reserve(64);
+  } catch (...) {
+    stage_.reset();
+    ready.set_exception(std::current_exception());
+    return;
+  }
+  pthread_setname_np(pthread_self(), "mfcd-vision");
+  ready.set_value();
+
+  while (!stop_.load()) {
+    waitFd(visionWake_, 200);
+    visionBeat_.fetch_add(1, std::memory_order_relaxed);
+    while (FrameSlot* slot = frames_.beginRead()) {
+      CycleResult* out = results_.beginWrite();
+      if (!out) {  // main thread not consuming: wait rather than drop a cycle's answer
+        if (stop_.load()) return;
+        waitFd(visionWake_, 10);
+        continue;
+      }
+      runCycle(*slot, *out);
+      const bool wantSnapshot = slot->request.snapshot ||
+                                (config_.snapshots.on_failure && slot->request.origin != CycleOrigin::Benchmark &&
+                                 (out->error != CycleError::None || out->candidate_count == 0));
+      CycleResult copy;
+      if (wantSnapshot) copy = *out;
+      results_.endWrite();
+      signalFd(resultFd_);
+      if (wantSnapshot) writeSnapshot(*slot, copy);
+      frames_.endRead();
+    }
+  }
+  stage_.reset();
+}
+
+void Cell::runCycle(FrameSlot& slot, CycleResult& out) {
+  const Clock::time_point start = Clock::now();
+  out = CycleResult{};
+  out.request = slot.request;
+  out.capture_ms = slot.capture_ms;
+  out.queue_ms = msBetween(slot.captured, start);
+  out.truth = slot.truth;
+  out.leds_off = slot.leds_after == 0;
+  if (!slot.ok) {
+    out.error = CycleError::Capture;
+    copyMessage(out.message, sizeof out.message, slot.error);
+  } else {
+    try {
+      stage_->process({slot.mfc, slot.request.obj_id, slot.request.deadline, &slot.truth}, pipelineResult_);
+      const Clock::time_point visionDone = Clock::now();
+      out.vision_ms = msBetween(start, visionDone);
+      const auto& t = pipelineResult_.times;
+      out.edges_ms = t.edges_ms, out.lines_ms = t.lines_ms, out.distance_ms = t.distance_ms;
+      out.search_ms = t.search_ms, out.pose_ms = t.pose_ms, out.refine_ms = t.refine_ms;
+      out.degraded = pipelineResult_.degraded;
+      out.edge_pixels = pipelineResult_.edge_pixels;
+
+      // Pick choice and robot-base transform, on fixed-size arrays.
+      const motion::PickTransform transform(config_.hand_eye);
+      std::array<motion::PickCandidate, CycleResult::kMaxCandidates> choice{};
+      const int n = static_cast<int>(std::min<std::size_t>(pipelineResult_.candidates.size(), CycleResult::kMaxCandidates));
+      out.candidate_count = n;
+      for (int i = 0; i < n; ++i) {
+        const vision::PoseCandidate& pc = pipelineResult_.candidates[static_cast<std::size_t>(i)];
+        CandidateOut& c = out.candidates[static_cast<std::size_t>(i)];
+        c.obj_id = pc.obj_id;
+        c.score = static_cast<float>(pc.score);
+        c.cost_px = static_cast<float>(pc.cost_px);
+        c.refined = pc.refined;
+        c.R_cam = pc.R_m2c;
+        c.t_cam_mm = pc.t_m2c_mm;
+        Eigen::Isometry3d cam_T_part = Eigen::Isometry3d::Identity();
+        for (int r = 0; r < 3; ++r) {
+          for (int k = 0; k < 3; ++k) cam_T_part.linear()(r, k) = pc.R_m2c(r, k);
+          cam_T_part.translation()(r) = pc.t_m2c_mm[r];
+        }
+        const auto pose = transform.pick_pose(cam_T_part);
+        c.base_valid = pose.has_value();
+        if (pose) c.base = *pose;
+        // Grasp visibility is not estimated by the pipeline: every candidate counts as fully visible.
+        choice[static_cast<std::size_t>(i)] = {c.score, static_cast<float>(config_.pick.bin_floor_distance_mm - pc.t_m2c_mm[2]), 1.0f};
+        const auto u = motion::pick_utility(choice[static_cast<std::size_t>(i)], config_.pick.choice);
+        c.utility = u ? *u : -1.0f;
+      }
+      if (slot.request.mode == 0) {
+        const auto best = motion::choose_pick(std::span<const motion::PickCandidate>(choice.data(), static_cast<std::size_t>(n)), config_.pick.choice);
+        if (best) {
+          out.chosen = static_cast<int>(*best);
+          if (!out.candidates[*best].base_valid) {
+            out.error = CycleError::Transform;
+            copyMessage(out.message, sizeof out.message, "the chosen pick has no valid robot-base pose");
+            out.chosen = -1;
+          }
+        }
+      }
+      out.choice_ms = msBetween(visionDone, Clock::now());
+    } catch (const std::exception& e) {
+      out.error = CycleError::Vision;
+      copyMessage(out.message, sizeof out.message, e.what());
+    }
+  }
+  out.total_ms = msBetween(slot.request.trigger, Clock::now());
+}
+
+void Cell::writeSnapshot(const FrameSlot& slot, const CycleResult& result) {
+  CycleResult saved = result;
+  saved.kind = CycleResult::Kind::SnapshotSaved;
+  try {
+    const std::string dir = saveSnapshot(config_, slot, result, pipelineResult_, stage_.get());
+    copyMessage(saved.snapshot_dir, sizeof saved.snapshot_dir, dir.c_str());
+    saved.message[0] = '\0';
+  } catch (const std::exception& e) {
+    saved.snapshot_dir[0] = '\0';
+    copyMessage(saved.message, sizeof saved.message, e.what());
+  }
+  CycleResult* out = nullptr;
+  while (!(out = results_.beginWrite()) && !stop_.load()) waitFd(visionWake_, 10);
+  if (!out) return;
+  *out = saved;
+  results_.endWrite();
+  signalFd(resultFd_);
+}
+
+}  // namespace mfcd::daemon

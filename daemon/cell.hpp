@@ -1,0 +1,91 @@
+#pragma once
+// The cell's frame path: an acquisition thread (HAL sequencer, SCHED_FIFO where permitted) and a
+// vision worker, joined by a lock-free SPSC ring of preallocated FrameSlots; results go to the main
+// thread through a second SPSC ring of CycleResults, with an eventfd to wake its poll loop.
+//
+//   main --requests(SpscQueue)--> acquisition --FrameSlots(SpscRing)--> vision --CycleResults(SpscRing)--> main
+//
+// In steady state nothing on this path allocates, locks or does blocking I/O besides the device
+// reads themselves and eventfd wake-ups; snapshots (explicitly requested, or of failed cycles) are
+// written by the vision worker after the cycle's result has been handed over.
+#include <atomic>
+#include <functional>
+#include <future>
+#include <memory>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "daemon/config.hpp"
+#include "daemon/cycle.hpp"
+#include "daemon/frame_source.hpp"
+#include "daemon/spsc_ring.hpp"
+#include "daemon/vision_stage.hpp"
+#include "motion/spsc_queue.h"
+
+namespace mfcd::daemon {
+
+using FrameSourceFactory = std::function<std::unique_ptr<FrameSource>(const DaemonConfig&)>;
+
+class Cell {
+public:
+  static constexpr std::size_t kFrameSlots = 4;
+  static constexpr std::size_t kResultSlots = 8;
+
+  Cell(DaemonConfig config, VisionStageFactory vision, FrameSourceFactory source = makeFrameSource);
+  ~Cell();
+  Cell(const Cell&) = delete;
+  Cell& operator=(const Cell&) = delete;
+
+  // Starts both threads; each builds its backend in its own thread. Returns once both are ready;
+  // throws std::runtime_error with the first failure (threads already joined).
+  void start();
+  // Stops and joins the threads; the acquisition thread switches the LEDs off (deactivate) last.
+  void stop() noexcept;
+
+  // --- main thread ---
+  bool submit(const CycleRequest& request) noexcept;  // false when the request queue is full
+  int resultFd() const { return resultFd_; }            // readable when results are queued
+  CycleResult* beginResult() noexcept;                  // drains the eventfd; nullptr when none
+  void endResult() noexcept { results_.endRead(); }
+
+  const DaemonConfig& config() const { return config_; }
+  const std::string& sourceDescription() const { return sourceDescription_; }
+  const std::string& visionDescription() const { return visionDescription_; }
+  const std::vector<std::pair<int, std::string>>& parts() const { return parts_; }
+  bool realtime() const { return realtime_; }
+  // Incremented by each thread at every wake-up (at least every 200 ms when idle); the main thread
+  // sends the systemd watchdog only while both keep moving.
+  std::uint64_t acquisitionHeartbeat() const { return acqBeat_.load(std::memory_order_relaxed); }
+  std::uint64_t visionHeartbeat() const { return visionBeat_.load(std::memory_order_relaxed); }
+  std::uint64_t framesDropped() const { return framesDropped_.load(std::memory_order_relaxed); }
+
+private:
+  void acquisitionMain(std::promise<void>& ready);
+  void visionMain(std::promise<void>& ready);
+  void runCycle(FrameSlot& slot, CycleResult& out);
+  void writeSnapshot(const FrameSlot& slot, const CycleResult& result);
+
+  DaemonConfig config_;
+  VisionStageFactory visionFactory_;
+  FrameSourceFactory sourceFactory_;
+
+  motion::SpscQueue<CycleRequest, 16> requests_;
+  SpscRing<FrameSlot, kFrameSlots> frames_;
+  SpscRing<CycleResult, kResultSlots> results_;
+  int acqWake_ = -1, visionWake_ = -1, resultFd_ = -1;
+  std::atomic<bool> stop_{false};
+  std::thread acquisition_, vision_;
+
+  // Set by the threads before they report ready (the start() handshake orders them).
+  std::unique_ptr<FrameSource> source_;  // owned by the acquisition thread
+  std::unique_ptr<VisionStage> stage_;   // owned by the vision thread
+  std::string sourceDescription_, visionDescription_;
+  std::vector<std::pair<int, std::string>> parts_;
+  bool realtime_ = false;
+
+  std::atomic<std::uint64_t> acqBeat_{0}, visionBeat_{0}, framesDropped_{0};
+  vision::PipelineResult pipelineResult_;  // vision thread; capacity reserved once
+};
+
+}  // namespace mfcd::daemon

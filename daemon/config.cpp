@@ -1,0 +1,401 @@
+#include "daemon/config.hpp"
+
+#include <yaml-cpp/yaml.h>
+
+#include <cerrno>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <map>
+#include <set>
+#include <sstream>
+
+namespace mfcd::daemon {
+
+ConfigError::ConfigError(std::string source, int line, std::string key, const std::string& reason)
+    : std::runtime_error(source + (line > 0 ? ":" + std::to_string(line) : std::string()) + ": " +
+                         (key.empty() ? std::string() : key + ": ") + reason),
+      source_(std::move(source)), key_(std::move(key)), line_(line) {}
+
+const char* toString(RunMode m) { return m == RunMode::Triggered ? "triggered" : "continuous"; }
+const char* toString(LogLevel l) {
+  switch (l) {
+    case LogLevel::Error: return "error";
+    case LogLevel::Warning: return "warning";
+    case LogLevel::Notice: return "notice";
+    case LogLevel::Info: return "info";
+    case LogLevel::Debug: return "debug";
+  }
+  return "?";
+}
+
+const RecipeConfig* DaemonConfig::recipe(int id) const {
+  for (const auto& r : recipes)
+    if (r.id == id) return &r;
+  return nullptr;
+}
+
+std::vector<fs::path> searchPath(const fs::path& configDir, const fs::path& dataDir) {
+  std::vector<fs::path> path;
+  if (!configDir.empty()) path.push_back(configDir);
+  if (!dataDir.empty()) path.push_back(dataDir);
+#ifdef MFCD_DEV_DATA_DIRS
+  // Development runs from the build tree find the generated parts/templates and config/.
+  std::stringstream dev(MFCD_DEV_DATA_DIRS);
+  for (std::string dir; std::getline(dev, dir, ':');)
+    if (!dir.empty()) path.emplace_back(dir);
+#endif
+  path.emplace_back("/var/lib/mfcd");
+  return path;
+}
+
+namespace {
+
+int lineOf(const YAML::Node& n) { return n.IsDefined() && n.Mark().line >= 0 ? n.Mark().line + 1 : 0; }
+
+struct Context {
+  std::string source;
+  const std::vector<fs::path>* searchPath;
+};
+
+// One YAML mapping being read: remembers which keys were asked for so that any other key (a
+// typo, a key from another version) is an error naming it.
+class Section {
+public:
+  Section(YAML::Node node, std::string path, int line, const Context& ctx)
+      : node_(std::move(node)), path_(std::move(path)), line_(line), ctx_(ctx) {
+    if (node_.IsDefined() && !node_.IsNull() && !node_.IsMap())
+      fail(path_, lineOf(node_), "must be a mapping of keys to values");
+    if (node_.IsDefined() && !node_.IsNull()) line_ = lineOf(node_);
+  }
+
+  [[noreturn]] void fail(const std::string& key, int line, const std::string& why) const {
+    throw ConfigError(ctx_.source, line, key, why);
+  }
+  std::string key(const char* k) const {
+    if (*k == '\0') return path_;
+    return path_.empty() ? k : path_ + "." + k;
+  }
+  int line() const { return line_; }
+
+  YAML::Node child(const char* k) {
+    known_.insert(k);
+    if (!node_.IsMap()) return YAML::Node(YAML::NodeType::Undefined);
+    for (auto it = node_.begin(); it != node_.end(); ++it)
+      if (it->first.Scalar() == k) return it->second;
+    return YAML::Node(YAML::NodeType::Undefined);
+  }
+  bool has(const char* k) {
+    YAML::Node n = child(k);
+    return n.IsDefined() && !n.IsNull();
+  }
+
+  std::string scalar(const char* k, const YAML::Node& n) const {
+    if (!n.IsScalar()) fail(key(k), lineOf(n), "must be a single value");
+    return n.Scalar();
+  }
+
+  long long integer(const char* k, long long def, long long min, long long max, bool required = false) {
+    YAML::Node n = child(k);
+    if (!n.IsDefined() || n.IsNull()) {
+      if (required) fail(key(k), line_, "missing (required)");
+      return def;
+    }
+    return toInteger(k, n, min, max);
+  }
+  long long toInteger(const char* k, const YAML::Node& n, long long min, long long max) const {
+    const std::string s = scalar(k, n);
+    errno = 0;
+    char* end = nullptr;
+    const long long v = std::strtoll(s.c_str(), &end, 0);
+    if (s.empty() || *end != '\0' || errno == ERANGE)
+      fail(key(k), lineOf(n), "'" + s + "' is not an integer");
+    if (v < min || v > max)
+      fail(key(k), lineOf(n), std::to_string(v) + " is out of range " + std::to_string(min) + ".." + std::to_string(max));
+    return v;
+  }
+  double number(const char* k, double def, double min, double max) {
+    YAML::Node n = child(k);
+    if (!n.IsDefined() || n.IsNull()) return def;
+    const std::string s = scalar(k, n);
+    char* end = nullptr;
+    const double v = std::strtod(s.c_str(), &end);
+    if (s.empty() || *end != '\0' || !std::isfinite(v)) fail(key(k), lineOf(n), "'" + s + "' is not a number");
+    if (v < min || v > max) {
+      std::ostringstream os;
+      os << v << " is out of range " << min << ".." << max;
+      fail(key(k), lineOf(n), os.str());
+    }
+    return v;
+  }
+  bool boolean(const char* k, bool def) {
+    YAML::Node n = child(k);
+    if (!n.IsDefined() || n.IsNull()) return def;
+    const std::string s = scalar(k, n);
+    if (s == "true" || s == "yes" || s == "on") return true;
+    if (s == "false" || s == "no" || s == "off") return false;
+    fail(key(k), lineOf(n), "'" + s + "' is not a boolean (true or false)");
+  }
+  std::string string(const char* k, const std::string& def, bool required = false) {
+    YAML::Node n = child(k);
+    if (!n.IsDefined() || n.IsNull()) {
+      if (required) fail(key(k), line_, "missing (required)");
+      return def;
+    }
+    const std::string s = scalar(k, n);
+    if (s.empty()) fail(key(k), lineOf(n), "must not be empty");
+    return s;
+  }
+  template <typename E>
+  E choice(const char* k, E def, std::initializer_list<std::pair<const char*, E>> options) {
+    YAML::Node n = child(k);
+    if (!n.IsDefined() || n.IsNull()) return def;
+    const std::string s = scalar(k, n);
+    std::string allowed;
+    for (const auto& [name, value] : options) {
+      if (s == name) return value;
+      allowed += (allowed.empty() ? "" : ", ") + std::string(name);
+    }
+    fail(key(k), lineOf(n), "'" + s + "' is not one of " + allowed);
+  }
+  // A path that must exist: absolute, or found in the search path (first match wins).
+  fs::path file(const char* k, bool required) {
+    YAML::Node n = child(k);
+    if (!n.IsDefined() || n.IsNull()) {
+      if (required) fail(key(k), line_, "missing (required)");
+      return {};
+    }
+    const fs::path p = scalar(k, n);
+    if (p.empty()) fail(key(k), lineOf(n), "must not be empty");
+    if (p.is_absolute()) {
+      if (!fs::exists(p)) fail(key(k), lineOf(n), "file " + p.string() + " does not exist");
+      return p;
+    }
+    std::string tried;
+    for (const auto& dir : *ctx_.searchPath) {
+      const fs::path candidate = dir / p;
+      if (fs::exists(candidate)) return fs::absolute(candidate).lexically_normal();
+      tried += (tried.empty() ? "" : ", ") + dir.string();
+    }
+    fail(key(k), lineOf(n), "file '" + p.string() + "' not found in the search path (" + tried +
+                                "); give an absolute path or pass --data-dir");
+  }
+  Section section(const char* k) { return Section(child(k), key(k), line_, ctx_); }
+
+  void finish() const {
+    if (!node_.IsMap()) return;
+    for (auto it = node_.begin(); it != node_.end(); ++it) {
+      const std::string name = it->first.Scalar();
+      if (!known_.count(name)) fail(key(name.c_str()), lineOf(it->first), "unknown key");
+    }
+  }
+
+private:
+  YAML::Node node_;
+  std::string path_;
+  int line_;
+  const Context& ctx_;
+  std::set<std::string> known_;
+};
+
+Eigen::Isometry3d readPose(Section& s) {
+  motion::PoseXYZ p;
+  p.position_mm = {s.number("x_mm", 0, -1e5, 1e5), s.number("y_mm", 0, -1e5, 1e5), s.number("z_mm", 0, -1e5, 1e5)};
+  p.rotation = {s.number("rx_deg", 0, -360, 360), s.number("ry_deg", 0, -360, 360), s.number("rz_deg", 0, -360, 360)};
+  s.finish();
+  return motion::pose_to_isometry(p);
+}
+
+}  // namespace
+
+DaemonConfig parseConfig(const std::string& yamlText, const std::string& source, const std::vector<fs::path>& path) {
+  YAML::Node root;
+  try {
+    root = YAML::Load(yamlText);
+  } catch (const YAML::Exception& e) {
+    throw ConfigError(source, e.mark.line >= 0 ? e.mark.line + 1 : 0, "", "YAML syntax error: " + e.msg);
+  }
+  if (!root.IsDefined() || root.IsNull()) throw ConfigError(source, 0, "", "the file is empty");
+  Context ctx{source, &path};
+  DaemonConfig c;
+  c.source = source;
+  c.search_path = path;
+  Section top(root, "", 1, ctx);
+
+  {
+    Section s = top.section("daemon");
+    c.mode = s.choice("mode", RunMode::Triggered, {{"triggered", RunMode::Triggered}, {"continuous", RunMode::Continuous}});
+    c.cycle_budget_ms = static_cast<int>(s.integer("cycle_budget_ms", 1000, 10, 60000));
+    c.default_recipe = static_cast<int>(s.integer("default_recipe", 0, 0, 65535));
+    c.control_socket = s.string("control_socket", c.control_socket.string());
+    if (!c.control_socket.is_absolute()) s.fail(s.key("control_socket"), lineOf(s.child("control_socket")), "must be an absolute path");
+    if (c.control_socket.string().size() >= 108)
+      s.fail(s.key("control_socket"), lineOf(s.child("control_socket")), "longer than a unix socket path may be (107 bytes)");
+    c.realtime_priority = static_cast<int>(s.integer("realtime_priority", 50, 0, 99));
+    c.lock_memory = s.boolean("lock_memory", true);
+    c.log_level = s.choice("log_level", LogLevel::Info,
+                           {{"error", LogLevel::Error}, {"warning", LogLevel::Warning}, {"notice", LogLevel::Notice},
+                            {"info", LogLevel::Info}, {"debug", LogLevel::Debug}});
+    s.finish();
+  }
+  {
+    Section s = top.section("camera");
+    c.camera.type = s.choice("type", CameraType::Simulated, {{"simulated", CameraType::Simulated}, {"v4l2", CameraType::V4L2}});
+    c.camera.model = s.file("model", true);
+    c.camera.device = s.string("device", c.camera.device);
+    c.camera.bits_per_pixel = static_cast<int>(s.integer("bits_per_pixel", 8, 8, 16));
+    if (c.camera.bits_per_pixel != 8) s.fail(s.key("bits_per_pixel"), lineOf(s.child("bits_per_pixel")), "the vision path takes 8-bit images; use 8");
+    c.camera.frame_rate = static_cast<int>(s.integer("frame_rate", 0, 0, 1000));
+    if (s.has("exposure_us")) c.camera.exposure_us = static_cast<int>(s.integer("exposure_us", 0, 1, 10'000'000));
+    if (s.has("gain")) c.camera.gain = static_cast<int>(s.integer("gain", 0, 0, 1'000'000));
+    c.camera.buffer_count = static_cast<int>(s.integer("buffer_count", 4, 2, 16));
+    c.camera.dequeue_timeout_ms = static_cast<int>(s.integer("dequeue_timeout_ms", 1000, 10, 60000));
+    c.camera.simulated_exposure_us = static_cast<int>(s.integer("simulated_exposure_us", 0, 0, 1'000'000));
+    s.finish();
+  }
+  {
+    Section s = top.section("lights");
+    c.lights.type = s.choice("type", LightsType::Simulated, {{"simulated", LightsType::Simulated}, {"gpiod", LightsType::Gpiod}});
+    c.lights.chip = s.string("chip", c.lights.chip);
+    YAML::Node offsets = s.child("offsets");
+    if (offsets.IsDefined() && !offsets.IsNull()) {
+      if (!offsets.IsSequence() || offsets.size() != 8)
+        s.fail(s.key("offsets"), lineOf(offsets), "must be a list of 8 line offsets (LED 0..7)");
+      std::set<long long> seen;
+      for (std::size_t i = 0; i < 8; ++i) {
+        const long long v = s.toInteger("offsets", offsets[i], 0, 1023);
+        if (!seen.insert(v).second)
+          s.fail(s.key("offsets"), lineOf(offsets[i]), "line offset " + std::to_string(v) + " is used twice");
+        c.lights.offsets[i] = static_cast<unsigned>(v);
+      }
+    }
+    c.lights.active_low = s.boolean("active_low", false);
+    s.finish();
+  }
+  {
+    Section s = top.section("sequencer");
+    c.settle_us = static_cast<int>(s.integer("settle_us", 0, 0, 1'000'000));
+    c.max_stale_frames = static_cast<int>(s.integer("max_stale_frames", 4, 0, 64));
+    s.finish();
+  }
+  {
+    Section s = top.section("simulation");
+    c.simulation.parts_per_bin = static_cast<int>(s.integer("parts_per_bin", 6, 1, 16));
+    c.simulation.seed = static_cast<std::uint64_t>(s.integer("seed", 1, 0, 1LL << 62));
+    c.simulation.floor_distance_mm = s.number("floor_distance_mm", 330, 50, 5000);
+    c.simulation.noise = s.boolean("noise", true);
+    s.finish();
+  }
+  {
+    Section s = top.section("vision");
+    c.vision.max_candidates = static_cast<int>(s.integer("max_candidates", 8, 1, 16));
+    if (s.has("max_cost_px")) c.vision.max_cost_px = s.number("max_cost_px", 0, 0.1, 100);
+    c.vision.refine_iterations = static_cast<int>(s.integer("refine_iterations", 10, 0, 1000));
+    c.vision.threads = static_cast<int>(s.integer("threads", 0, 0, 256));
+    s.finish();
+  }
+  {
+    YAML::Node list = top.child("recipes");
+    if (!list.IsDefined() || list.IsNull()) top.fail("recipes", top.line(), "missing (required): at least one recipe");
+    if (!list.IsSequence() || list.size() == 0) top.fail("recipes", lineOf(list), "must be a non-empty list of recipes");
+    std::set<int> ids;
+    for (std::size_t i = 0; i < list.size(); ++i) {
+      Section s(list[i], "recipes[" + std::to_string(i) + "]", lineOf(list[i]), ctx);
+      if (!list[i].IsMap()) s.fail(s.key("id").substr(0, s.key("id").size() - 3), lineOf(list[i]), "must be a mapping");
+      RecipeConfig r;
+      r.id = static_cast<int>(s.integer("id", 0, 0, 65535, true));
+      if (!ids.insert(r.id).second) s.fail(s.key("id"), lineOf(s.child("id")), "recipe id " + std::to_string(r.id) + " is used twice");
+      r.part = s.string("part", "", true);
+      r.obj_id = static_cast<int>(s.integer("obj_id", 0, 0, 65535, true));
+      if (s.has("templates")) r.templates = s.file("templates", true);
+      if (s.has("mesh")) r.mesh = s.file("mesh", true);
+      s.finish();
+      c.recipes.push_back(std::move(r));
+    }
+    if (!c.recipe(c.default_recipe))
+      top.fail("daemon.default_recipe", top.line(), "recipe " + std::to_string(c.default_recipe) + " is not in recipes");
+  }
+  {
+    Section s = top.section("pick");
+    auto& p = c.pick.choice;
+    p.weight_score = static_cast<float>(s.number("weight_score", 1.0, 0, 100));
+    p.weight_height = static_cast<float>(s.number("weight_height", 0.5, 0, 100));
+    p.weight_grasp = static_cast<float>(s.number("weight_grasp", 0.0, 0, 100));
+    p.height_scale_mm = static_cast<float>(s.number("height_scale_mm", 200, 1, 10000));
+    p.min_score = static_cast<float>(s.number("min_score", 0.5, 0, 1));
+    p.min_grasp_visibility = static_cast<float>(s.number("min_grasp_visibility", 0, 0, 1));
+    c.pick.bin_floor_distance_mm = s.number("bin_floor_distance_mm", 330, 1, 10000);
+    if (std::string e = p.validate(); !e.empty()) s.fail(s.key(""), s.line(), e);
+    s.finish();
+  }
+  {
+    Section s = top.section("hand_eye");
+    const auto setup = s.choice("setup", motion::HandEyeSetup::EyeToHand,
+                                {{"eye_to_hand", motion::HandEyeSetup::EyeToHand}, {"eye_in_hand", motion::HandEyeSetup::EyeInHand}});
+    if (setup == motion::HandEyeSetup::EyeInHand)
+      s.fail(s.key("setup"), lineOf(s.child("setup")),
+             "eye_in_hand needs the robot pose at capture, which register map version 1 does not carry; use eye_to_hand");
+    c.hand_eye.setup = setup;
+    Section cam = s.section("base_T_camera");
+    c.hand_eye.camera = readPose(cam);
+    Section grasp = s.section("part_T_grasp");
+    c.hand_eye.part_T_grasp = readPose(grasp);
+    if (std::string e = c.hand_eye.validate(); !e.empty()) s.fail(s.key(""), s.line(), e);
+    s.finish();
+  }
+  {
+    Section s = top.section("modbus");
+    auto& m = c.modbus;
+    m.bind_address = s.string("bind_address", "0.0.0.0");
+    m.port = static_cast<std::uint16_t>(s.integer("port", 502, 0, 65535));
+    m.word_order = s.choice("word_order", motion::WordOrder::ABCD, {{"ABCD", motion::WordOrder::ABCD}, {"CDAB", motion::WordOrder::CDAB}});
+    m.max_clients = static_cast<unsigned>(s.integer("max_clients", 8, 1, 64));
+    m.frame_timeout = std::chrono::milliseconds(s.integer("frame_timeout_ms", 2000, 10, 60000));
+    YAML::Node allow = s.child("allow_list");
+    if (allow.IsDefined() && !allow.IsNull()) {
+      if (!allow.IsSequence()) s.fail(s.key("allow_list"), lineOf(allow), "must be a list of addresses or CIDR prefixes");
+      for (std::size_t i = 0; i < allow.size(); ++i) m.allow_list.push_back(s.scalar("allow_list", allow[i]));
+    }
+    if (std::string e = m.validate(); !e.empty()) s.fail(s.key(""), s.line(), e);
+    s.finish();
+  }
+  {
+    Section s = top.section("can");
+    c.can_enabled = s.boolean("enabled", false);
+    c.can.interface = s.string("interface", "can0");
+    c.can.id_base = static_cast<canid_t>(s.integer("id_base", 0x180, 0, 0x7ED));
+    c.can.heartbeat_period = std::chrono::milliseconds(s.integer("heartbeat_ms", 1000, 10, 60000));
+    c.can.retry_interval = std::chrono::milliseconds(s.integer("retry_ms", 1000, 10, 60000));
+    if (std::string e = c.can.validate(); !e.empty()) s.fail(s.key(""), s.line(), e);
+    s.finish();
+  }
+  {
+    Section s = top.section("snapshots");
+    c.snapshots.directory = s.string("directory", c.snapshots.directory.string());
+    if (!c.snapshots.directory.is_absolute()) {
+      // Not a lookup: snapshots are written, so a relative directory is taken from the first
+      // search-path entry (the config file's directory).
+      c.snapshots.directory = (path.empty() ? fs::current_path() : path.front()) / c.snapshots.directory;
+    }
+    c.snapshots.quota_bytes = static_cast<std::uint64_t>(s.integer("quota_mb", 200, 1, 1 << 20)) << 20;
+    c.snapshots.on_failure = s.boolean("on_failure", true);
+    s.finish();
+  }
+  top.finish();
+  return c;
+}
+
+DaemonConfig loadConfigFile(const fs::path& file, const fs::path& dataDir) {
+  std::ifstream in(file);
+  if (!in) throw ConfigError(file.string(), 0, "", std::string("cannot read the file: ") + std::strerror(errno));
+  std::stringstream text;
+  text << in.rdbuf();
+  return parseConfig(text.str(), file.string(), searchPath(fs::absolute(file).parent_path(), dataDir));
+}
+
+DaemonConfig loadEmbeddedConfig(const fs::path& dataDir) {
+  return parseConfig(embeddedSimConfig(), "<embedded sim.yaml>", searchPath({}, dataDir));
+}
+
+}  // namespace mfcd::daemon

@@ -1,0 +1,140 @@
+#pragma once
+// mfcd's configuration: one YAML file (docs/configuration.md documents every key). Parsed and
+// validated as a whole, at start and on SIGHUP; an error names the file, the line and the key.
+// Relative paths are resolved against a search path (the config file's directory, --data-dir,
+// the build tree for development runs, /var/lib/mfcd) and must exist.
+#include <array>
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "motion/can_publisher.h"
+#include "motion/modbus_server.h"
+#include "motion/pick_choice.h"
+#include "motion/pick_transform.h"
+
+namespace mfcd::daemon {
+
+namespace fs = std::filesystem;
+
+// A configuration error: `what()` is "<source>:<line>: <key>: <reason>".
+class ConfigError : public std::runtime_error {
+public:
+  ConfigError(std::string source, int line, std::string key, const std::string& reason);
+  const std::string& source() const { return source_; }
+  int line() const { return line_; }  // 1-based; 0 when the error is about the whole file
+  const std::string& key() const { return key_; }
+
+private:
+  std::string source_, key_;
+  int line_;
+};
+
+enum class RunMode { Triggered, Continuous };
+enum class CameraType { Simulated, V4L2 };
+enum class LightsType { Simulated, Gpiod };
+enum class LogLevel { Error = 3, Warning = 4, Notice = 5, Info = 6, Debug = 7 };  // syslog values
+
+const char* toString(RunMode m);
+const char* toString(LogLevel l);
+
+struct RecipeConfig {
+  int id = 0;               // the PLC's RECIPE_ID
+  std::string part;         // part name (for logs, status, the simulated bin)
+  int obj_id = 0;           // object id in the template file; 0 = every loaded part
+  std::optional<fs::path> templates;  // .tdb (mfc-teach), resolved
+  std::optional<fs::path> mesh;       // STL for the simulated bin, resolved
+};
+
+struct CameraSettings {
+  CameraType type = CameraType::Simulated;
+  fs::path model;           // camera YAML (intrinsics + flash ring, docs/camera.md), resolved
+  std::string device = "/dev/video0";
+  int bits_per_pixel = 8;
+  int frame_rate = 0;
+  std::optional<int> exposure_us;
+  std::optional<int> gain;
+  int buffer_count = 4;
+  int dequeue_timeout_ms = 1000;
+  int simulated_exposure_us = 0;  // simulated camera: sleep this long per exposure
+};
+
+struct LightsSettings {
+  LightsType type = LightsType::Simulated;
+  std::string chip = "mfc-leds";
+  std::array<unsigned, 8> offsets{0, 1, 2, 3, 4, 5, 6, 7};
+  bool active_low = false;
+};
+
+struct SimulationSettings {
+  int parts_per_bin = 6;
+  std::uint64_t seed = 1;
+  double floor_distance_mm = 330;  // camera to bin floor along the optical axis
+  bool noise = true;
+};
+
+struct VisionSettings {
+  int max_candidates = 8;
+  std::optional<double> max_cost_px;  // unset: the pipeline's own default
+  int refine_iterations = 10;
+  int threads = 0;
+};
+
+struct PickSettings {
+  motion::PickChoiceConfig choice;
+  double bin_floor_distance_mm = 330;  // for the height-above-floor term of the pick choice
+};
+
+struct SnapshotSettings {
+  fs::path directory = "/var/lib/mfcd/snapshots";
+  std::uint64_t quota_bytes = 200ull << 20;
+  bool on_failure = true;  // save failed and empty cycles automatically
+};
+
+struct DaemonConfig {
+  std::string source;                 // file path, or "<embedded sim.yaml>"
+  std::vector<fs::path> search_path;  // where relative paths were looked up
+
+  RunMode mode = RunMode::Triggered;
+  int cycle_budget_ms = 1000;
+  int default_recipe = 0;
+  fs::path control_socket = "/run/mfcd/control.sock";
+  int realtime_priority = 50;  // SCHED_FIFO priority of the acquisition thread; 0 = don't ask
+  bool lock_memory = true;
+  LogLevel log_level = LogLevel::Info;
+
+  CameraSettings camera;
+  LightsSettings lights;
+  int settle_us = 0;
+  int max_stale_frames = 4;
+  SimulationSettings simulation;
+  VisionSettings vision;
+  std::vector<RecipeConfig> recipes;
+  PickSettings pick;
+  motion::HandEyeCalibration hand_eye;
+  motion::ModbusServerConfig modbus;
+  bool can_enabled = false;
+  motion::CanConfig can;
+  SnapshotSettings snapshots;
+
+  const RecipeConfig* recipe(int id) const;
+};
+
+// The embedded default (config/sim.yaml compiled into the binary).
+const char* embeddedSimConfig();
+
+// Directories searched for relative paths, in order: `configDir` (if not empty), `dataDir` (if
+// not empty), the compiled-in development directories (build tree, source config/), /var/lib/mfcd.
+std::vector<fs::path> searchPath(const fs::path& configDir, const fs::path& dataDir);
+
+// Parses and validates; throws ConfigError.
+DaemonConfig parseConfig(const std::string& yamlText, const std::string& source,
+                         const std::vector<fs::path>& searchPath);
+// Reads `file` and parses it with searchPath(file's directory, dataDir).
+DaemonConfig loadConfigFile(const fs::path& file, const fs::path& dataDir);
+DaemonConfig loadEmbeddedConfig(const fs::path& dataDir);
+
+}  // namespace mfcd::daemon

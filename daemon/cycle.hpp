@@ -1,0 +1,117 @@
+#pragma once
+// What one pick cycle carries between the daemon's threads. Every type here is fixed-size and
+// preallocated in a ring slot, so the frame path copies into slots that already exist.
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cstdint>
+#include <cstring>
+
+#include <opencv2/core.hpp>
+
+#include "mfcd/hal/sequencer.hpp"
+#include "motion/robot_report.h"
+#include "vision/camera/mfc_frames.hpp"
+
+namespace mfcd::daemon {
+
+using Clock = std::chrono::steady_clock;
+
+enum class CycleOrigin : std::uint8_t { Plc, Control, Continuous, Benchmark };
+const char* toString(CycleOrigin o);
+
+// Error codes published in ERROR_CODE (docs/operations.md lists them).
+enum class CycleError : std::uint16_t {
+  None = 0,
+  UnknownRecipe = 1,  // RECIPE_ID not in the configuration
+  Capture = 2,        // camera or LEDs failed (HalError)
+  Vision = 3,         // the vision stage threw
+  Transform = 4,      // the chosen pick could not be transformed into the robot base frame
+  Abandoned = 5,      // the daemon stopped before the cycle finished
+};
+
+struct CycleRequest {
+  enum class Kind : std::uint8_t { Capture, RemovePicked };
+  Kind kind = Kind::Capture;
+  CycleOrigin origin = CycleOrigin::Plc;
+  std::uint64_t cycle_id = 0;
+  std::uint16_t job_id = 0;
+  std::uint16_t recipe_id = 0;
+  std::uint16_t mode = 0;  // 0 = pick, 1 = count only
+  int obj_id = 0;
+  bool snapshot = false;
+  Clock::time_point trigger{};
+  Clock::time_point deadline{};
+  cv::Vec3d picked_t_cam_mm{0, 0, 0};  // RemovePicked: where the robot took a part (camera frame)
+};
+
+// Ground truth of the simulated bin at capture (camera frame); empty on real hardware.
+struct SimTruth {
+  static constexpr int kMaxParts = 16;
+  struct Part {
+    int obj_id = 0;
+    cv::Matx33d R = cv::Matx33d::eye();
+    cv::Vec3d t_mm{0, 0, 0};
+  };
+  int count = 0;
+  std::array<Part, kMaxParts> parts{};
+};
+
+inline void copyMessage(char* dst, std::size_t size, const char* src) {
+  const std::size_t n = std::min(std::strlen(src), size - 1);
+  std::memcpy(dst, src, n);
+  dst[n] = '\0';
+}
+
+// One FrameSet in the acquisition -> vision ring. The images are allocated once before the
+// threads start; `mfc` holds cv::Mat headers over them (no copy, no allocation per cycle).
+struct FrameSlot {
+  CycleRequest request;
+  hal::FrameSet frames;
+  vision::MfcFrames mfc;
+  bool ok = false;
+  char error[256] = {};
+  double capture_ms = 0;
+  Clock::time_point captured{};
+  SimTruth truth;
+  hal::LedMask leds_after = 0;  // LED state right after the capture (must be 0)
+
+  void allocate(const hal::ImageFormat& format);
+};
+
+// Copies a FrameSet into a preallocated one of the same format (memcpy per image).
+void copyFrameSet(const hal::FrameSet& from, hal::FrameSet& to);
+
+struct CandidateOut {
+  int obj_id = 0;
+  float score = 0;
+  float cost_px = 0;
+  bool refined = false;
+  cv::Matx33d R_cam = cv::Matx33d::eye();
+  cv::Vec3d t_cam_mm{0, 0, 0};
+  motion::PickPose base;  // in the robot base frame
+  bool base_valid = false;
+  float utility = -1;     // pick-choice utility, -1 = not eligible
+};
+
+// One cycle's outcome, vision -> main thread.
+struct CycleResult {
+  static constexpr int kMaxCandidates = 16;
+  enum class Kind : std::uint8_t { Cycle, SnapshotSaved };
+  Kind kind = Kind::Cycle;
+  CycleRequest request;
+  CycleError error = CycleError::None;
+  char message[256] = {};
+  bool degraded = false;
+  int candidate_count = 0;
+  std::array<CandidateOut, kMaxCandidates> candidates{};
+  int chosen = -1;
+  double capture_ms = 0, queue_ms = 0, vision_ms = 0, choice_ms = 0, total_ms = 0;
+  double edges_ms = 0, lines_ms = 0, distance_ms = 0, search_ms = 0, pose_ms = 0, refine_ms = 0;
+  int edge_pixels = 0;
+  SimTruth truth;
+  bool leds_off = true;
+  char snapshot_dir[256] = {};
+};
+
+}  // namespace mfcd::daemon

@@ -1,0 +1,55 @@
+#include "daemon/cycle_stats.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <vector>
+
+namespace mfcd::daemon {
+
+bool CycleStats::add(const CycleResult& r, int budget_ms) noexcept {
+  ++cycles_;
+  const bool overrun = r.total_ms > budget_ms;
+  overruns_ += overrun;
+  degraded_ += r.degraded;
+  errors_ += r.error != CycleError::None;
+  empty_ += r.error == CycleError::None && r.candidate_count == 0;
+  detections_ += static_cast<std::uint64_t>(r.candidate_count);
+  picks_ += r.chosen >= 0;
+  window_[next_] = {static_cast<float>(r.total_ms), static_cast<float>(r.capture_ms), static_cast<float>(r.vision_ms)};
+  next_ = (next_ + 1) % kWindow;
+  count_ = std::min(count_ + 1, kWindow);
+  maxMs_ = std::max(maxMs_, r.total_ms);
+  sumMs_ += r.total_ms;
+  return overrun;
+}
+
+double CycleStats::percentileMs(double p) const { return percentileMs("total", p); }
+
+double CycleStats::percentileMs(const char* stage, double p) const {
+  if (count_ == 0) return 0;
+  std::vector<float> v(count_);
+  for (std::size_t i = 0; i < count_; ++i) {
+    const Sample& s = window_[i];
+    v[i] = std::strcmp(stage, "capture") == 0 ? s.capture : std::strcmp(stage, "vision") == 0 ? s.vision : s.total;
+  }
+  std::sort(v.begin(), v.end());
+  // Nearest rank: the smallest value with at least p % of the samples at or below it.
+  const double rank = std::ceil(p / 100.0 * static_cast<double>(count_));
+  const std::size_t index = rank < 1 ? 0 : std::min(count_ - 1, static_cast<std::size_t>(rank) - 1);
+  return v[index];
+}
+
+nlohmann::json CycleStats::toJson() const {
+  nlohmann::json j = {{"cycles", cycles_},   {"overruns", overruns_},     {"degraded", degraded_},
+                      {"errors", errors_},   {"empty", empty_},           {"detections", detections_},
+                      {"picks", picks_},     {"window", count_},          {"max_ms", maxMs_},
+                      {"mean_ms", cycles_ ? sumMs_ / static_cast<double>(cycles_) : 0.0}};
+  for (const char* stage : {"total", "capture", "vision"}) {
+    j["percentiles_ms"][stage] = {{"p50", percentileMs(stage, 50)}, {"p90", percentileMs(stage, 90)},
+                                  {"p99", percentileMs(stage, 99)}, {"max", percentileMs(stage, 100)}};
+  }
+  return j;
+}
+
+}  // namespace mfcd::daemon

@@ -1,0 +1,45 @@
+#pragma once
+// Cycle accounting on the main thread: counters (cycles, overruns, degraded, errors, detections,
+// picks) and the cycle times of the last kWindow cycles for percentiles. add() does not allocate.
+#include <array>
+#include <cstdint>
+
+#include <nlohmann/json.hpp>
+
+#include "daemon/cycle.hpp"
+
+namespace mfcd::daemon {
+
+class CycleStats {
+public:
+  static constexpr std::size_t kWindow = 1024;
+
+  // Returns true when the cycle overran the budget (trigger to result > budget_ms).
+  bool add(const CycleResult& r, int budget_ms) noexcept;
+
+  std::uint64_t cycles() const { return cycles_; }
+  std::uint64_t overruns() const { return overruns_; }
+  std::uint64_t degraded() const { return degraded_; }
+  std::uint64_t errors() const { return errors_; }
+  std::uint64_t empty() const { return empty_; }
+  std::uint64_t detections() const { return detections_; }
+  std::uint64_t picks() const { return picks_; }
+
+  // Nearest-rank percentile (p in 0..100) of the total cycle time over the window; 0 when empty.
+  double percentileMs(double p) const;
+  // The same for one stage: "capture", "vision" or "total".
+  double percentileMs(const char* stage, double p) const;
+  nlohmann::json toJson() const;
+
+private:
+  struct Sample {
+    float total, capture, vision;
+  };
+  std::array<Sample, kWindow> window_{};
+  std::size_t count_ = 0;  // samples in window (<= kWindow)
+  std::size_t next_ = 0;
+  std::uint64_t cycles_ = 0, overruns_ = 0, degraded_ = 0, errors_ = 0, empty_ = 0, detections_ = 0, picks_ = 0;
+  double maxMs_ = 0, sumMs_ = 0;
+};
+
+}  // namespace mfcd::daemon

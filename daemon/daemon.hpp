@@ -1,0 +1,35 @@
+#pragma once
+// mfcd's main thread: one poll() loop over the Modbus command eventfd, the cell's result eventfd,
+// the control socket and its clients, a signalfd (SIGTERM/SIGINT/SIGHUP) and a timerfd (systemd
+// watchdog, status). It owns the robot link (ModbusServer, CanPublisher) and is the single writer
+// of their reports. See docs/operations.md.
+#include <filesystem>
+#include <optional>
+#include <string>
+
+#include "daemon/vision_stage.hpp"
+
+namespace mfcd::daemon {
+
+struct DaemonOptions {
+  std::filesystem::path configFile;  // empty: the embedded config/sim.yaml
+  std::filesystem::path dataDir;
+  bool foreground = false;           // also log to stderr
+  bool checkConfig = false;          // validate the configuration and exit
+  int benchmarkCycles = 0;           // > 0: run this many cycles without robot link, print stats, exit
+  std::filesystem::path benchmarkJson;
+};
+
+// Parses the command line (mfcd --help lists it). Returns nullopt after printing help/usage; sets
+// `exitCode` for that case.
+std::optional<DaemonOptions> parseCommandLine(int argc, char** argv, int& exitCode);
+
+// Runs mfcd with `vision` as the vision backend factory (the real mfcd passes
+// makePipelineStage). Returns the process exit code: 0 clean stop, 1 runtime failure,
+// 2 configuration error.
+int runDaemon(const DaemonOptions& options, const VisionStageFactory& vision);
+
+// main() of mfcd and of test daemons that put another vision backend below VisionStage.
+int daemonMain(int argc, char** argv, const VisionStageFactory& vision);
+
+}  // namespace mfcd::daemon

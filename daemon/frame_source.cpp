@@ -1,0 +1,217 @@
+#include "daemon/frame_source.hpp"
+
+#include <cmath>
+#include <stdexcept>
+
+#include "daemon/log.hpp"
+#include "mfcd/hal/gpiod_light_ring.hpp"
+#include "mfcd/hal/rendered_cell_scene.hpp"
+#include "mfcd/hal/simulated.hpp"
+#include "mfcd/hal/v4l2_camera.hpp"
+#include "vision/camera/camera.hpp"
+#include "vision/model/mesh.hpp"
+#include "vision/render/mfc_renderer.hpp"
+
+namespace mfcd::daemon {
+
+namespace {
+
+class HardwareFrameSource final : public FrameSource {
+public:
+  explicit HardwareFrameSource(const DaemonConfig& c)
+      : camera_(cameraConfig(c)), lights_(lightsConfig(c)),
+        sequencer_(camera_, lights_, {c.max_stale_frames, static_cast<std::int64_t>(c.settle_us) * 1000}) {}
+  void activate() override {
+    sequencer_.configure();
+    sequencer_.activate();
+  }
+  void deactivate() noexcept override {
+    try {
+      sequencer_.deactivate();
+    } catch (const std::exception& e) {
+      logf(LogLevel::Error, "deactivating %s: %s", describe().c_str(), e.what());
+    }
+  }
+  const hal::FrameSet& capture() override { return sequencer_.read(); }
+  hal::ImageFormat format() const override { return camera_.format(); }
+  hal::LedMask leds() const override { return lights_.state(); }
+  std::string describe() const override { return camera_.describe() + " + " + lights_.describe(); }
+
+private:
+  static hal::V4L2CameraConfig cameraConfig(const DaemonConfig& c) {
+    const vision::CameraConfig model = vision::load_camera_config(c.camera.model);
+    hal::V4L2CameraConfig v;
+    v.device = c.camera.device;
+    v.width = model.camera.image_size.width;
+    v.height = model.camera.image_size.height;
+    v.bitsPerPixel = c.camera.bits_per_pixel;
+    v.frameRate = c.camera.frame_rate;
+    v.exposureUs = c.camera.exposure_us;
+    v.gain = c.camera.gain;
+    v.bufferCount = c.camera.buffer_count;
+    v.dequeueTimeout = std::chrono::milliseconds(c.camera.dequeue_timeout_ms);
+    return v;
+  }
+  static hal::GpiodLightRingConfig lightsConfig(const DaemonConfig& c) {
+    hal::GpiodLightRingConfig g;
+    g.chip = c.lights.chip;
+    g.offsets = c.lights.offsets;
+    g.activeLow = c.lights.active_low;
+    return g;
+  }
+  hal::V4L2Camera camera_;
+  hal::GpiodLightRing lights_;
+  hal::MfcSequencer sequencer_;
+};
+
+// The simulated cell: a bin of CAD parts lying on the floor at random positions and yaw (fixed
+// seed), rendered through SimulatedCamera + SimulatedLightRing by the HAL sequencer. Without any
+// recipe mesh it serves the HAL's deterministic test pattern instead (no OpenGL needed).
+class SimulatedCellSource final : public FrameSource {
+public:
+  explicit SimulatedCellSource(const DaemonConfig& c) : sim_(c.simulation), rng_(c.simulation.seed) {
+    model_ = vision::load_camera_config(c.camera.model);
+    const hal::ImageFormat format{model_.camera.image_size.width, model_.camera.image_size.height, 8};
+    for (const auto& r : c.recipes) {
+      if (!r.mesh) continue;
+      meshes_.push_back({vision::load_mesh(*r.mesh), r.obj_id, -1, 0});
+    }
+    if (!meshes_.empty()) {
+      vision::RenderOptions options;
+      options.noise.enabled = sim_.noise;
+      renderer_ = std::make_unique<vision::MfcRenderer>(model_, options);
+      floorMesh_ = renderer_->add_mesh(vision::make_plane(4 * sim_.floor_distance_mm));
+      for (auto& m : meshes_) {
+        m.renderId = renderer_->add_mesh(m.mesh);
+        for (const auto& v : m.mesh.vertices) m.radius = std::max(m.radius, std::hypot(double(v[0]), double(v[1])));
+      }
+      cell_ = std::make_unique<hal::RenderedCellScene>(*renderer_, std::vector<vision::ScenePart>{});
+      refill();
+    }
+    camera_ = std::make_unique<hal::SimulatedCamera>(
+        hal::SimulatedCameraConfig{format, "sim-cell", static_cast<std::int64_t>(c.camera.simulated_exposure_us) * 1000},
+        lights_, cell_.get());
+    sequencer_ = std::make_unique<hal::MfcSequencer>(*camera_, lights_,
+                                                     hal::SequencerConfig{c.max_stale_frames, static_cast<std::int64_t>(c.settle_us) * 1000});
+  }
+  void activate() override {
+    sequencer_->configure();
+    sequencer_->activate();
+  }
+  void deactivate() noexcept override {
+    try {
+      sequencer_->deactivate();
+    } catch (const std::exception& e) {
+      logf(LogLevel::Error, "deactivating the simulated cell: %s", e.what());
+    }
+  }
+  const hal::FrameSet& capture() override { return sequencer_->read(); }
+  hal::ImageFormat format() const override { return camera_->format(); }
+  hal::LedMask leds() const override { return lights_.state(); }
+  std::string describe() const override {
+    return cell_ ? "simulated cell (" + std::to_string(meshes_.size()) + " part types, " + renderer_->gl_renderer() + ")"
+                 : "simulated camera (test pattern)";
+  }
+  void truth(SimTruth& out) const override {
+    out.count = 0;
+    for (const auto& p : bin_) {
+      if (out.count == SimTruth::kMaxParts) break;
+      out.parts[static_cast<std::size_t>(out.count++)] = {meshes_[p.mesh].obj_id, p.scene.R, p.scene.t_mm};
+    }
+  }
+  void removePicked(const cv::Vec3d& t) override {
+    if (!cell_) return;
+    std::size_t best = bin_.size();
+    double bestDist = 30.0;  // mm: a pick further than this from every part took nothing
+    for (std::size_t i = 0; i < bin_.size(); ++i) {
+      const double d = cv::norm(bin_[i].scene.t_mm - t);
+      if (d < bestDist) bestDist = d, best = i;
+    }
+    if (best == bin_.size()) {
+      logf(LogLevel::Warning, "simulated cell: the pick at (%.1f, %.1f, %.1f) mm (camera frame) is not on any part", t[0], t[1], t[2]);
+      return;
+    }
+    bin_.erase(bin_.begin() + static_cast<std::ptrdiff_t>(best));
+    if (bin_.empty()) {
+      logf(LogLevel::Info, "simulated cell: bin empty, refilling");
+      refill();
+    } else {
+      updateScene();
+    }
+  }
+
+private:
+  struct PartType {
+    vision::Mesh mesh;
+    int obj_id;
+    int renderId;
+    double radius;  // largest distance of a vertex from the mesh's z axis
+  };
+  struct BinPart {
+    std::size_t mesh;
+    vision::ScenePart scene;
+  };
+
+  // Parts lie flat (mesh +z towards the camera) at random yaw, spread over the field of view at
+  // the floor without overlapping (bounding circles), in the order of the recipes, cycling.
+  void refill() {
+    bin_.clear();
+    const double f = sim_.floor_distance_mm;
+    const double halfW = (model_.camera.image_size.width / 2.0) / model_.camera.fx() * f;
+    const double halfH = (model_.camera.image_size.height / 2.0) / model_.camera.fy() * f;
+    std::uniform_real_distribution<double> unit(0.0, 1.0);
+    for (int k = 0; k < sim_.parts_per_bin; ++k) {
+      const std::size_t m = next_++ % meshes_.size();
+      const PartType& type = meshes_[m];
+      for (int attempt = 0; attempt < 200; ++attempt) {
+        const double r = type.radius;
+        if (r >= halfW || r >= halfH) break;
+        const double x = (2 * unit(rng_) - 1) * (halfW - r), y = (2 * unit(rng_) - 1) * (halfH - r);
+        bool overlaps = false;
+        for (const auto& p : bin_)
+          overlaps = overlaps || std::hypot(p.scene.t_mm[0] - x, p.scene.t_mm[1] - y) < r + meshes_[p.mesh].radius + 2;
+        if (overlaps) continue;
+        const double yaw = (2 * unit(rng_) - 1) * M_PI, c = std::cos(yaw), s = std::sin(yaw);
+        // Rz(yaw) * Rx(180): mesh +z points back at the camera.
+        const cv::Matx33d R = cv::Matx33d(c, -s, 0, s, c, 0, 0, 0, 1) * cv::Matx33d(1, 0, 0, 0, -1, 0, 0, 0, -1);
+        const double zmin = type.mesh.bbox_min()[2];
+        bin_.push_back({m, {type.renderId, R, {x, y, f + zmin}, vision::Material::matte(0.75f)}});
+        break;
+      }
+    }
+    updateScene();
+  }
+  void updateScene() {
+    std::vector<vision::ScenePart> scene{{floorMesh_, cv::Matx33d::eye(), {0, 0, sim_.floor_distance_mm}, vision::Material::matte(0.45f)}};
+    for (const auto& p : bin_) scene.push_back(p.scene);
+    cell_->setParts(std::move(scene));
+  }
+
+  SimulationSettings sim_;
+  std::mt19937_64 rng_;
+  vision::CameraConfig model_;
+  std::vector<PartType> meshes_;
+  std::unique_ptr<vision::MfcRenderer> renderer_;
+  int floorMesh_ = -1;
+  std::unique_ptr<hal::RenderedCellScene> cell_;
+  std::vector<BinPart> bin_;
+  std::size_t next_ = 0;
+  hal::SimulatedLightRing lights_;
+  std::unique_ptr<hal::SimulatedCamera> camera_;
+  std::unique_ptr<hal::MfcSequencer> sequencer_;
+};
+
+}  // namespace
+
+std::unique_ptr<FrameSource> makeFrameSource(const DaemonConfig& config) {
+  if (config.camera.type == CameraType::Simulated) {
+    if (config.lights.type != LightsType::Simulated)
+      throw std::runtime_error(config.source + ": lights.type: a simulated camera needs simulated lights (the camera renders what the simulated ring lights)");
+    return std::make_unique<SimulatedCellSource>(config);
+  }
+  if (config.lights.type != LightsType::Gpiod)
+    throw std::runtime_error(config.source + ": lights.type: a V4L2 camera needs real LEDs (gpiod)");
+  return std::make_unique<HardwareFrameSource>(config);
+}
+
+}  // namespace mfcd::daemon

@@ -1,0 +1,35 @@
+#pragma once
+// Where FrameSets come from: the HAL sequencer over real devices (V4L2 + libgpiod) or over the
+// simulated cell (SimulatedCamera + SimulatedLightRing rendering a bin of CAD parts). Created and
+// used only by the acquisition thread (the simulated cell's EGL context is bound to it).
+#include <memory>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "daemon/config.hpp"
+#include "daemon/cycle.hpp"
+#include "mfcd/hal/sequencer.hpp"
+
+namespace mfcd::daemon {
+
+class FrameSource {
+public:
+  virtual ~FrameSource() = default;
+  virtual void activate() = 0;            // configure + activate the devices
+  virtual void deactivate() noexcept = 0; // LEDs off, streaming stopped
+  // One multi-flash capture; throws hal::HalError. Valid until the next capture().
+  virtual const hal::FrameSet& capture() = 0;
+  virtual hal::ImageFormat format() const = 0;
+  virtual hal::LedMask leds() const = 0;
+  virtual std::string describe() const = 0;
+  // Simulated cell only: the bin's ground truth, and the robot taking the part at `t_cam_mm`.
+  virtual void truth(SimTruth& out) const { out.count = 0; }
+  virtual void removePicked(const cv::Vec3d& /*t_cam_mm*/) {}
+};
+
+// Builds the source the configuration asks for. Throws (HalError, std::runtime_error) naming the
+// device or file.
+std::unique_ptr<FrameSource> makeFrameSource(const DaemonConfig& config);
+
+}  // namespace mfcd::daemon

@@ -1,0 +1,136 @@
+// mfc-plc-client: a PLC stand-in for demos. Triggers N pick cycles on mfcd over Modbus/TCP with
+// the job-id handshake of docs/register-map.md (libmodbus client) and prints each pick.
+#include <modbus/modbus.h>
+
+#include <cerrno>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <string>
+#include <thread>
+
+#include "motion/float_codec.h"
+#include "motion/register_map.h"
+
+using namespace mfcd::motion;
+using namespace std::chrono_literals;
+
+namespace {
+
+constexpr const char* kUsage =
+    "usage: mfc-plc-client [--host H] [--port P] [--cycles N] [--recipe R] [--count-only] [--first-job J] [--timeout-ms T]\n"
+    "                      [--connect-timeout-ms T]   (retries the connection while mfcd starts; default 30000)\n"
+    "  Triggers N cycles (default 5) on mfcd (default 127.0.0.1:1502, recipe 0) and prints each pick:\n"
+    "  job, recipe, x y z [mm] rx ry rz [deg] in the robot base frame, score, cycle time [ms].\n"
+    "  Exit status: 0 all cycles answered, 1 a cycle failed or timed out, 2 usage/connection.\n";
+
+struct Snapshot {
+  std::uint16_t regs[28];
+  std::uint16_t at(int addr) const { return regs[addr - reg::kStatus]; }
+  float f(int addr, WordOrder o) const { return decode_float(at(addr), at(addr + 1), o); }
+};
+
+bool readStatus(modbus_t* ctx, Snapshot& s) {
+  return modbus_read_registers(ctx, reg::kStatus, 28, s.regs) == 28;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string host = "127.0.0.1";
+  int port = 1502, cycles = 5, recipe = 0, mode = 0, firstJob = 0, timeoutMs = 10000, connectMs = 30000;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    auto next = [&]() -> const char* { return i + 1 < argc ? argv[++i] : nullptr; };
+    const char* v = nullptr;
+    if (a == "--host" && (v = next())) host = v;
+    else if (a == "--port" && (v = next())) port = std::atoi(v);
+    else if (a == "--cycles" && (v = next())) cycles = std::atoi(v);
+    else if (a == "--recipe" && (v = next())) recipe = std::atoi(v);
+    else if (a == "--first-job" && (v = next())) firstJob = std::atoi(v);
+    else if (a == "--timeout-ms" && (v = next())) timeoutMs = std::atoi(v);
+    else if (a == "--connect-timeout-ms" && (v = next())) connectMs = std::atoi(v);
+    else if (a == "--count-only") mode = 1;
+    else if (a == "-h" || a == "--help") { std::fputs(kUsage, stdout); return 0; }
+    else { std::fputs(kUsage, stderr); return 2; }
+  }
+  // mfcd may still be starting (loading templates): retry the connection for a while.
+  modbus_t* ctx = modbus_new_tcp(host.c_str(), port);
+  bool connected = false;
+  for (const auto until = std::chrono::steady_clock::now() + std::chrono::milliseconds(connectMs);;) {
+    connected = ctx && modbus_connect(ctx) == 0;
+    if (connected || std::chrono::steady_clock::now() > until) break;
+    std::this_thread::sleep_for(200ms);
+  }
+  if (!connected) {
+    std::fprintf(stderr, "mfc-plc-client: cannot connect to %s:%d: %s\n", host.c_str(), port, modbus_strerror(errno));
+    return 2;
+  }
+  modbus_set_response_timeout(ctx, 2, 0);
+  Snapshot s{};
+  if (!readStatus(ctx, s)) {
+    std::fprintf(stderr, "mfc-plc-client: reading the status block: %s\n", modbus_strerror(errno));
+    return 2;
+  }
+  const WordOrder order = s.at(reg::kWordOrder) == 1 ? WordOrder::CDAB : WordOrder::ABCD;
+  // A new job id: one past the last echoed, skipping 0 (the server refuses a repeated id).
+  std::uint16_t job = static_cast<std::uint16_t>(firstJob ? firstJob : s.at(reg::kJobIdEcho) + 1);
+  if (job == 0) job = 1;
+  std::printf("%6s %6s %9s %9s %9s %8s %8s %8s %6s %8s %s\n", "job", "recipe", "x", "y", "z", "rx", "ry", "rz", "score",
+              "cycle_ms", "part/objects");
+  int failures = 0;
+  for (int c = 0; c < cycles; ++c, job = static_cast<std::uint16_t>(job == 65535 ? 1 : job + 1)) {
+    const auto start = std::chrono::steady_clock::now();
+    const auto expired = [&] { return std::chrono::steady_clock::now() - start > std::chrono::milliseconds(timeoutMs); };
+    // 1. wait for READY; 2-3. trigger in one FC 0x10 write.
+    bool triggered = false;
+    while (!triggered && !expired()) {
+      if (!readStatus(ctx, s)) break;
+      if (s.at(reg::kStatus) & reg::kError) {
+        std::printf("%6u error %u latched: RESET\n", job, s.at(reg::kErrorCode));
+        modbus_write_register(ctx, reg::kCommand, 2);
+        std::this_thread::sleep_for(20ms);
+        continue;
+      }
+      if (!(s.at(reg::kStatus) & reg::kReady)) {
+        std::this_thread::sleep_for(10ms);
+        continue;
+      }
+      const std::uint16_t cmd[4] = {1, job, static_cast<std::uint16_t>(recipe), static_cast<std::uint16_t>(mode)};
+      if (modbus_write_registers(ctx, reg::kCommand, 4, cmd) == 4) triggered = true;
+      else std::this_thread::sleep_for(10ms);  // 0x06 busy: retry
+    }
+    // 4. poll until JOB_ID_ECHO = job.
+    bool done = false;
+    while (triggered && !expired()) {
+      if (readStatus(ctx, s) && s.at(reg::kJobIdEcho) == job) {
+        done = true;
+        break;
+      }
+      std::this_thread::sleep_for(5ms);
+    }
+    if (!done) {
+      std::printf("%6u timed out after %d ms\n", job, timeoutMs);
+      ++failures;
+      continue;
+    }
+    if (s.at(reg::kStatus) & reg::kError) {
+      std::printf("%6u %6u error %u\n", job, s.at(reg::kRecipeEcho), s.at(reg::kErrorCode));
+      ++failures;
+      continue;
+    }
+    if (s.at(reg::kStatus) & reg::kPickValid)
+      std::printf("%6u %6u %9.2f %9.2f %9.2f %8.2f %8.2f %8.2f %6.3f %8u %u found\n", job, s.at(reg::kRecipeEcho),
+                  s.f(reg::kPickX, order), s.f(reg::kPickY, order), s.f(reg::kPickZ, order), s.f(reg::kPickRx, order),
+                  s.f(reg::kPickRy, order), s.f(reg::kPickRz, order), s.f(reg::kScore, order), s.at(reg::kCycleTimeMs),
+                  s.at(reg::kObjectsRemaining));
+    else
+      std::printf("%6u %6u %9s %9s %9s %8s %8s %8s %6s %8u %u found, no pick\n", job, s.at(reg::kRecipeEcho), "-", "-", "-", "-",
+                  "-", "-", "-", s.at(reg::kCycleTimeMs), s.at(reg::kObjectsRemaining));
+    std::fflush(stdout);
+  }
+  modbus_close(ctx);
+  modbus_free(ctx);
+  return failures ? 1 : 0;
+}

@@ -1,0 +1,86 @@
+#include "daemon/vision_stage.hpp"
+
+#include <stdexcept>
+
+#include "vision/camera/camera.hpp"
+
+namespace mfcd::daemon {
+
+#ifdef MFCD_HAVE_PIPELINE
+
+namespace {
+
+class PipelineVisionStage final : public VisionStage {
+public:
+  PipelineVisionStage(const vision::CameraConfig& camera, vision::PipelineConfig config, std::string files)
+      : pipeline_(camera, std::move(config)), files_(std::move(files)) {}
+  void process(const VisionInput& in, vision::PipelineResult& out) override {
+    pipeline_.process(in.frames, in.obj_id, in.deadline, out);
+    haveEdges_ = true;
+  }
+  std::vector<std::pair<int, std::string>> parts() const override { return pipeline_.parts(); }
+  const vision::DepthEdges* lastEdges() const override { return haveEdges_ ? &pipeline_.last_edges() : nullptr; }
+  cv::Mat3b overlay(const cv::Mat1b& image, const vision::PipelineResult& result) const override {
+    return vision::draw_candidates(image, result, pipeline_.camera());
+  }
+  std::string describe() const override { return "BinPickingPipeline (" + files_ + ")"; }
+
+private:
+  vision::BinPickingPipeline pipeline_;
+  std::string files_;
+  bool haveEdges_ = false;
+};
+
+}  // namespace
+
+bool pipelineAvailable() { return true; }
+
+std::unique_ptr<VisionStage> makePipelineStage(const DaemonConfig& config) {
+  const vision::CameraConfig camera = vision::load_camera_config(config.camera.model);
+  vision::PipelineConfig pc;
+  std::string files;
+  for (const auto& r : config.recipes) {
+    if (!r.templates) {
+      if (r.obj_id != 0)
+        throw std::runtime_error(config.source + ": recipe " + std::to_string(r.id) + " (" + r.part +
+                                 "): 'templates' is required by the vision pipeline");
+      continue;
+    }
+    bool dup = false;
+    for (const auto& f : pc.template_files) dup = dup || f == *r.templates;
+    if (!dup) {
+      pc.template_files.push_back(*r.templates);
+      files += (files.empty() ? "" : ", ") + r.templates->filename().string();
+    }
+  }
+  if (pc.template_files.empty())
+    throw std::runtime_error(config.source + ": recipes: no recipe names a template file; the vision pipeline has nothing to look for");
+  pc.max_candidates = config.vision.max_candidates;
+  if (config.vision.max_cost_px) pc.max_cost_px = *config.vision.max_cost_px;
+  pc.refine_iterations = config.vision.refine_iterations;
+  pc.threads = config.vision.threads;
+  auto stage = std::make_unique<PipelineVisionStage>(camera, std::move(pc), files);
+  // Every recipe's obj_id must be one the templates define.
+  const auto loaded = stage->parts();
+  for (const auto& r : config.recipes) {
+    if (r.obj_id == 0) continue;
+    bool found = false;
+    for (const auto& [id, name] : loaded) found = found || id == r.obj_id;
+    if (!found)
+      throw std::runtime_error(config.source + ": recipe " + std::to_string(r.id) + " (" + r.part + "): obj_id " +
+                               std::to_string(r.obj_id) + " is not in any loaded template file (" + files + ")");
+  }
+  return stage;
+}
+
+#else
+
+bool pipelineAvailable() { return false; }
+
+std::unique_ptr<VisionStage> makePipelineStage(const DaemonConfig&) {
+  throw std::runtime_error("this mfcd was built without vision/pipeline (target mfcd_vision_pipeline), so it has no vision backend");
+}
+
+#endif
+
+}  // namespace mfcd::daemon

@@ -1,0 +1,49 @@
+#pragma once
+// The vision worker calls the vision path through this interface. The real backend is
+// vision::BinPickingPipeline (PipelineVisionStage); tests put their own backend below it to
+// exercise budget, overrun and queue behaviour. Constructed *in* the vision thread: the pipeline
+// owns an EGL context bound to the thread that made it.
+#include <chrono>
+#include <functional>
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "daemon/config.hpp"
+#include "daemon/cycle.hpp"
+#include "vision/pipeline/bin_picking_pipeline.hpp"
+
+namespace mfcd::daemon {
+
+struct VisionInput {
+  const vision::MfcFrames& frames;
+  int obj_id = 0;  // 0 = every loaded part
+  Clock::time_point deadline;
+  // Simulated bin ground truth at capture. Real backends ignore it; it is here so test backends
+  // below this interface can answer from the scene.
+  const SimTruth* truth = nullptr;
+};
+
+class VisionStage {
+public:
+  virtual ~VisionStage() = default;
+  // Fills `out` (its candidates vector has its capacity reserved once). Must not block past the
+  // deadline by more than one stage; sets out.degraded when it cut work short.
+  virtual void process(const VisionInput& in, vision::PipelineResult& out) = 0;
+  virtual std::vector<std::pair<int, std::string>> parts() const = 0;
+  // For snapshots: the depth edges of the last process() (nullptr if none) and an overlay.
+  virtual const vision::DepthEdges* lastEdges() const = 0;
+  virtual cv::Mat3b overlay(const cv::Mat1b& image, const vision::PipelineResult& result) const = 0;
+  virtual std::string describe() const = 0;
+};
+
+using VisionStageFactory = std::function<std::unique_ptr<VisionStage>(const DaemonConfig&)>;
+
+// True when this mfcd was built with vision/pipeline (the real backend).
+bool pipelineAvailable();
+// The real backend: a BinPickingPipeline over every recipe's template file. Throws
+// std::runtime_error naming the recipe/file on a problem.
+std::unique_ptr<VisionStage> makePipelineStage(const DaemonConfig& config);
+
+}  // namespace mfcd::daemon

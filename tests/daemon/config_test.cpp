@@ -1,0 +1,162 @@
+// Configuration parsing and validation: every error names the key and the line.
+#include <gtest/gtest.h>
+
+#include <fstream>
+
+#include "daemon/config.hpp"
+
+using namespace mfcd::daemon;
+
+namespace {
+
+const std::vector<fs::path> kPath{MFC_SOURCE_DIR "/config", MFC_BINARY_DIR};
+
+// A minimal valid file; tests splice errors into it at known lines.
+std::string minimal(const std::string& extra = "", const std::string& recipes = "recipes:\n  - {id: 0, part: any, obj_id: 0}\n") {
+  return "camera:\n  model: camera-sim.yaml\n" + recipes + extra;
+}
+
+// Parses `text` and returns the error (fails the test if it parses).
+ConfigError errorOf(const std::string& text) {
+  try {
+    parseConfig(text, "test.yaml", kPath);
+  } catch (const ConfigError& e) {
+    return e;
+  }
+  ADD_FAILURE() << "parsed without error:\n" << text;
+  return ConfigError("", 0, "", "");
+}
+
+}  // namespace
+
+TEST(Config, MinimalFileGetsTheDocumentedDefaults) {
+  const DaemonConfig c = parseConfig(minimal(), "test.yaml", kPath);
+  EXPECT_EQ(c.mode, RunMode::Triggered);
+  EXPECT_EQ(c.cycle_budget_ms, 1000);
+  EXPECT_EQ(c.modbus.port, 502);
+  EXPECT_EQ(c.control_socket, "/run/mfcd/control.sock");
+  EXPECT_EQ(c.camera.model, fs::path(MFC_SOURCE_DIR "/config/camera-sim.yaml"));
+  EXPECT_FALSE(c.can_enabled);
+  ASSERT_EQ(c.recipes.size(), 1u);
+}
+
+TEST(Config, UnknownKeyIsNamedWithItsLine) {
+  const ConfigError e = errorOf(minimal("daemon:\n  mode: triggered\n  cycle_budget: 100\n"));
+  EXPECT_EQ(e.key(), "daemon.cycle_budget");
+  EXPECT_EQ(e.line(), 7);
+  EXPECT_NE(std::string(e.what()).find("test.yaml:7: daemon.cycle_budget: unknown key"), std::string::npos) << e.what();
+}
+
+TEST(Config, WrongTypeAndRangeNameKeyAndLine) {
+  ConfigError e = errorOf(minimal("daemon:\n  cycle_budget_ms: fast\n"));
+  EXPECT_EQ(e.key(), "daemon.cycle_budget_ms");
+  EXPECT_EQ(e.line(), 6);
+  EXPECT_NE(std::string(e.what()).find("'fast' is not an integer"), std::string::npos) << e.what();
+
+  e = errorOf(minimal("modbus:\n  bind_address: 127.0.0.1\n  port: 70000\n"));
+  EXPECT_EQ(e.key(), "modbus.port");
+  EXPECT_EQ(e.line(), 7);
+  EXPECT_NE(std::string(e.what()).find("out of range 0..65535"), std::string::npos) << e.what();
+
+  e = errorOf(minimal("daemon:\n  mode: sometimes\n"));
+  EXPECT_EQ(e.key(), "daemon.mode");
+  EXPECT_NE(std::string(e.what()).find("not one of triggered, continuous"), std::string::npos) << e.what();
+
+  e = errorOf(minimal("daemon:\n  lock_memory: maybe\n"));
+  EXPECT_EQ(e.key(), "daemon.lock_memory");
+}
+
+TEST(Config, MissingRequiredKeys) {
+  ConfigError e = errorOf("recipes:\n  - {id: 0, part: any, obj_id: 0}\n");
+  EXPECT_EQ(e.key(), "camera.model");
+  e = errorOf("camera:\n  model: camera-sim.yaml\n");
+  EXPECT_EQ(e.key(), "recipes");
+  e = errorOf(minimal("", "recipes:\n  - {id: 0, obj_id: 0}\n"));
+  EXPECT_EQ(e.key(), "recipes[0].part");
+  EXPECT_EQ(e.line(), 4);
+}
+
+TEST(Config, MissingFileNamesTheSearchPath) {
+  const ConfigError e = errorOf(minimal("", "recipes:\n  - id: 3\n    part: wheel\n    obj_id: 6\n    mesh: parts/nope.stl\n"));
+  EXPECT_EQ(e.key(), "recipes[0].mesh");
+  EXPECT_EQ(e.line(), 7);
+  const std::string what = e.what();
+  EXPECT_NE(what.find("'parts/nope.stl' not found in the search path"), std::string::npos) << what;
+  EXPECT_NE(what.find(MFC_BINARY_DIR), std::string::npos) << what;
+}
+
+TEST(Config, DuplicateRecipeAndMissingDefaultRecipe) {
+  ConfigError e = errorOf(minimal("", "recipes:\n  - {id: 1, part: a, obj_id: 0}\n  - {id: 1, part: b, obj_id: 0}\n"));
+  EXPECT_EQ(e.key(), "recipes[1].id");
+  EXPECT_EQ(e.line(), 5);
+  e = errorOf(minimal("daemon:\n  default_recipe: 9\n"));
+  EXPECT_EQ(e.key(), "daemon.default_recipe");
+}
+
+TEST(Config, LedOffsetsMustBeEightDistinctLines) {
+  ConfigError e = errorOf(minimal("lights:\n  type: gpiod\n  offsets: [0, 1, 2]\n"));
+  EXPECT_EQ(e.key(), "lights.offsets");
+  EXPECT_EQ(e.line(), 7);
+  e = errorOf(minimal("lights:\n  offsets: [0, 1, 2, 3, 4, 5, 6, 3]\n"));
+  EXPECT_NE(std::string(e.what()).find("used twice"), std::string::npos) << e.what();
+}
+
+TEST(Config, YamlSyntaxErrorHasItsLine) {
+  const ConfigError e = errorOf("camera:\n  model: [unclosed\nrecipes: []\n");
+  EXPECT_GT(e.line(), 0);
+  EXPECT_NE(std::string(e.what()).find("YAML syntax error"), std::string::npos) << e.what();
+}
+
+TEST(Config, HandEyeIsValidatedAndEyeInHandRefused) {
+  ConfigError e = errorOf(minimal("hand_eye:\n  setup: eye_in_hand\n"));
+  EXPECT_EQ(e.key(), "hand_eye.setup");
+  EXPECT_EQ(e.line(), 6);
+  e = errorOf(minimal("hand_eye:\n  base_T_camera: {x_mm: 1, yy_mm: 2}\n"));
+  EXPECT_EQ(e.key(), "hand_eye.base_T_camera.yy_mm");
+}
+
+TEST(Config, RelativePathsResolveInSearchPathOrder) {
+  const fs::path dir = fs::temp_directory_path() / ("mfcd-config-test-" + std::to_string(::getpid()));
+  fs::create_directories(dir / "first");
+  fs::create_directories(dir / "second");
+  fs::copy_file(MFC_SOURCE_DIR "/config/camera-sim.yaml", dir / "second" / "cam.yaml", fs::copy_options::overwrite_existing);
+  const std::string text = "camera:\n  model: cam.yaml\nrecipes:\n  - {id: 0, part: any, obj_id: 0}\n";
+  DaemonConfig c = parseConfig(text, "t", {dir / "first", dir / "second"});
+  EXPECT_EQ(c.camera.model, dir / "second" / "cam.yaml");
+  fs::copy_file(MFC_SOURCE_DIR "/config/camera-sim.yaml", dir / "first" / "cam.yaml", fs::copy_options::overwrite_existing);
+  c = parseConfig(text, "t", {dir / "first", dir / "second"});
+  EXPECT_EQ(c.camera.model, dir / "first" / "cam.yaml") << "the config file's directory comes first";
+
+  // loadConfigFile puts the file's own directory first.
+  std::ofstream(dir / "first" / "mfcd.yaml") << text;
+  c = loadConfigFile(dir / "first" / "mfcd.yaml", dir / "second");
+  EXPECT_EQ(c.camera.model, dir / "first" / "cam.yaml");
+  EXPECT_EQ(c.search_path.at(0), dir / "first");
+  EXPECT_EQ(c.search_path.at(1), dir / "second");
+  EXPECT_EQ(c.search_path.back(), "/var/lib/mfcd");
+  fs::remove_all(dir);
+}
+
+TEST(Config, EmbeddedSimConfigIsTheShippedFile) {
+  std::ifstream in(MFC_SOURCE_DIR "/config/sim.yaml");
+  std::stringstream text;
+  text << in.rdbuf();
+  EXPECT_EQ(text.str(), embeddedSimConfig());
+}
+
+TEST(Config, SimAndCellConfigsParse) {
+  if (!fs::exists(MFC_BINARY_DIR "/templates"))
+    GTEST_SKIP() << "no " MFC_BINARY_DIR "/templates yet (the template files are generated by the vision build)";
+  const DaemonConfig sim = loadEmbeddedConfig({});
+  EXPECT_EQ(sim.modbus.port, 1502);
+  EXPECT_EQ(sim.modbus.bind_address, "127.0.0.1");
+  EXPECT_EQ(sim.recipes.size(), 7u);
+  for (const auto& r : sim.recipes)
+    if (r.obj_id != 0) {
+      EXPECT_TRUE(r.templates && r.mesh) << r.part;
+    }
+  const DaemonConfig cell = loadConfigFile(MFC_SOURCE_DIR "/config/cell.yaml", MFC_BINARY_DIR);
+  EXPECT_EQ(cell.camera.type, CameraType::V4L2);
+  EXPECT_EQ(cell.lights.type, LightsType::Gpiod);
+  EXPECT_TRUE(cell.can_enabled);
+}

@@ -1,0 +1,146 @@
+// The frame path in process: Cell (acquisition + vision threads, SPSC rings) on the simulated
+// camera with the HAL's pattern scene, and a test backend below VisionStage. Budget, deadline,
+// degraded and overrun accounting; no allocation in steady state; CycleStats against a reference.
+#include <gtest/gtest.h>
+
+#include <poll.h>
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+
+#include "../hal/alloc_counter.hpp"
+#include "daemon/cell.hpp"
+#include "daemon/cycle_stats.hpp"
+#include "test_vision_stage.hpp"
+
+using namespace mfcd::daemon;
+using namespace std::chrono_literals;
+
+namespace {
+
+DaemonConfig patternConfig(int budgetMs) {
+  // No recipe mesh: the simulated camera serves the HAL's test pattern (no OpenGL needed).
+  DaemonConfig c = parseConfig("camera:\n  model: camera-sim.yaml\nrecipes:\n  - {id: 0, part: any, obj_id: 0}\n"
+                               "daemon:\n  realtime_priority: 0\n  cycle_budget_ms: " + std::to_string(budgetMs) + "\n",
+                               "test", {MFC_SOURCE_DIR "/config"});
+  return c;
+}
+
+CycleRequest request(std::uint64_t id, int budgetMs) {
+  CycleRequest r;
+  r.origin = CycleOrigin::Benchmark;
+  r.cycle_id = id;
+  r.trigger = Clock::now();
+  r.deadline = r.trigger + std::chrono::milliseconds(budgetMs) * 9 / 10;
+  return r;
+}
+
+CycleResult runOne(Cell& cell, const CycleRequest& r) {
+  EXPECT_TRUE(cell.submit(r));
+  for (;;) {
+    pollfd p{cell.resultFd(), POLLIN, 0};
+    ::poll(&p, 1, 5000);
+    if (CycleResult* res = cell.beginResult()) {
+      const CycleResult copy = *res;
+      cell.endResult();
+      if (copy.kind == CycleResult::Kind::Cycle) return copy;
+    }
+  }
+}
+
+}  // namespace
+
+TEST(Cycle, WithinBudgetNotDegradedNotOverrun) {
+  const DaemonConfig config = patternConfig(1000);
+  Cell cell(config, [](const DaemonConfig&) { return std::make_unique<test::TruthVisionStage>(30ms); });
+  cell.start();
+  const CycleResult r = runOne(cell, request(1, 1000));
+  EXPECT_EQ(r.error, CycleError::None) << r.message;
+  EXPECT_FALSE(r.degraded);
+  EXPECT_GE(r.vision_ms, 29.0);
+  EXPECT_GT(r.capture_ms, 0.0);
+  EXPECT_GE(r.total_ms, r.capture_ms + r.vision_ms);
+  EXPECT_TRUE(r.leds_off);
+  CycleStats stats;
+  EXPECT_FALSE(stats.add(r, 1000));
+  EXPECT_EQ(stats.overruns(), 0u);
+}
+
+TEST(Cycle, DeadlineCutsTheVisionStageShortAndFlagsDegraded) {
+  const DaemonConfig config = patternConfig(200);
+  Cell cell(config, [](const DaemonConfig&) { return std::make_unique<test::TruthVisionStage>(2000ms); });
+  cell.start();
+  const auto t0 = Clock::now();
+  const CycleResult r = runOne(cell, request(1, 200));
+  const double wall = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+  EXPECT_TRUE(r.degraded);
+  EXPECT_LT(wall, 1000.0) << "the worker must not block for the backend's full 2 s";
+  EXPECT_LT(r.total_ms, 400.0);
+  CycleStats stats;
+  stats.add(r, 200);
+  EXPECT_EQ(stats.degraded(), 1u);
+}
+
+TEST(Cycle, ABackendIgnoringTheDeadlineIsCountedAsOverrun) {
+  const DaemonConfig config = patternConfig(100);
+  Cell cell(config, [](const DaemonConfig&) { return std::make_unique<test::TruthVisionStage>(250ms, false); });
+  cell.start();
+  const CycleResult r = runOne(cell, request(1, 100));
+  EXPECT_FALSE(r.degraded);
+  EXPECT_GT(r.total_ms, 250.0);
+  CycleStats stats;
+  EXPECT_TRUE(stats.add(r, 100));
+  EXPECT_EQ(stats.overruns(), 1u);
+}
+
+TEST(Cycle, BackendFailureAtStartIsReportedAndThreadsJoined) {
+  const DaemonConfig config = patternConfig(100);
+  Cell cell(config, [](const DaemonConfig&) -> std::unique_ptr<VisionStage> { throw std::runtime_error("templates/x.tdb: corrupt"); });
+  try {
+    cell.start();
+    FAIL() << "start() should throw";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("vision: templates/x.tdb: corrupt"), std::string::npos) << e.what();
+  }
+}
+
+TEST(Cycle, NoAllocationOnTheFramePathInSteadyState) {
+  const DaemonConfig config = patternConfig(1000);
+  Cell cell(config, [](const DaemonConfig&) { return std::make_unique<test::TruthVisionStage>(1ms); });
+  cell.start();
+  for (int i = 1; i <= 3; ++i) runOne(cell, request(static_cast<std::uint64_t>(i), 1000));  // warm-up
+  const std::uint64_t before = mfcd::hal::test::allocationCount();
+  for (int i = 4; i < 24; ++i) {
+    const CycleResult r = runOne(cell, request(static_cast<std::uint64_t>(i), 1000));
+    ASSERT_EQ(r.error, CycleError::None) << r.message;
+  }
+  const std::uint64_t after = mfcd::hal::test::allocationCount();
+  EXPECT_EQ(after - before, 0u) << "acquisition, copy into the ring, vision worker, results";
+}
+
+TEST(CycleStats, PercentilesMatchASortedReference) {
+  std::mt19937 rng(3);
+  for (int trial = 0; trial < 20; ++trial) {
+    CycleStats stats;
+    const int n = 1 + static_cast<int>(rng() % 3000);
+    std::vector<float> all;
+    for (int i = 0; i < n; ++i) {
+      CycleResult r;
+      r.total_ms = static_cast<float>(std::exponential_distribution<>(0.01)(rng));
+      r.candidate_count = static_cast<int>(rng() % 4);
+      stats.add(r, 150);
+      all.push_back(static_cast<float>(r.total_ms));
+    }
+    // Reference: the last kWindow samples, sorted, nearest rank.
+    std::vector<float> window(all.end() - std::min<std::ptrdiff_t>(n, CycleStats::kWindow), all.end());
+    std::sort(window.begin(), window.end());
+    for (double p : {0.0, 1.0, 50.0, 90.0, 99.0, 100.0}) {
+      std::size_t k = static_cast<std::size_t>(std::ceil(p / 100 * static_cast<double>(window.size())));
+      k = k == 0 ? 0 : k - 1;
+      EXPECT_FLOAT_EQ(static_cast<float>(stats.percentileMs(p)), window[k]) << "p" << p << " n " << n;
+    }
+    EXPECT_EQ(stats.overruns(), static_cast<std::uint64_t>(std::count_if(all.begin(), all.end(), [](float v) { return v > 150; })));
+    EXPECT_EQ(stats.cycles(), static_cast<std::uint64_t>(n));
+  }
+}

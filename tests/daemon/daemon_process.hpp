@@ -1,0 +1,176 @@
+#pragma once
+// Runs a real mfcd process (or mfcd_test_daemon) on a test configuration: port 0, control socket and
+// snapshots in a fresh temporary directory; talks to its control socket; reads its stderr log.
+#include <fcntl.h>
+#include <poll.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/socket.h>
+#include <sys/un.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <optional>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+extern char** environ;
+
+namespace mfcd::daemon::test {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+// The simulated cell with the six parts (meshes from <build>/parts), robot link on a free port.
+inline std::string simCellConfig(const fs::path& dir, int budgetMs = 1000, const std::string& extraDaemon = "",
+                                 bool templates = false) {
+  std::ostringstream s;
+  s << "daemon:\n  cycle_budget_ms: " << budgetMs << "\n  control_socket: " << (dir / "ctl.sock").string()
+    << "\n  lock_memory: false\n  realtime_priority: 0\n" << extraDaemon
+    << "camera:\n  model: camera-sim.yaml\nsimulation:\n  parts_per_bin: 4\n  seed: 5\nrecipes:\n"
+    << "  - {id: 0, part: any, obj_id: 0}\n";
+  // In the order of config/parts/parts.csv: obj_id = position + 1.
+  const char* parts[] = {"breaker", "diamond", "ellipse", "tnut", "knob", "wheel"};
+  for (int i = 0; i < 6; ++i) {
+    s << "  - {id: " << i + 1 << ", part: " << parts[i] << ", obj_id: " << i + 1 << ", mesh: parts/" << parts[i] << ".stl";
+    if (templates) s << ", templates: templates/" << parts[i] << ".tdb";
+    s << "}\n";
+  }
+  // The pipeline's score is 1 - cost / max_cost_px: a correct match of a large part often scores 0.2-0.4.
+  s << "pick:\n  min_score: 0.1\n";
+  s << "hand_eye:\n  base_T_camera: {x_mm: 500, y_mm: 0, z_mm: 800, rx_deg: 180, ry_deg: 0, rz_deg: 0}\n"
+    << "modbus:\n  bind_address: 127.0.0.1\n  port: 0\n"
+    << "snapshots:\n  directory: " << (dir / "snapshots").string() << "\n  quota_mb: 50\n  on_failure: false\n";
+  return s.str();
+}
+
+inline json ctlRequest(const fs::path& socket, const json& request, int timeoutMs = 30000) {
+  const int fd = ::socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  sockaddr_un addr{};
+  addr.sun_family = AF_UNIX;
+  std::strncpy(addr.sun_path, socket.c_str(), sizeof addr.sun_path - 1);
+  if (::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0) {
+    ::close(fd);
+    return {{"ok", false}, {"error", "connect failed"}};
+  }
+  const std::string line = request.dump() + "\n";
+  ::send(fd, line.data(), line.size(), MSG_NOSIGNAL);
+  std::string in;
+  char buf[8192];
+  while (in.find('\n') == std::string::npos) {
+    pollfd p{fd, POLLIN, 0};
+    if (::poll(&p, 1, timeoutMs) <= 0) break;
+    const ssize_t n = ::recv(fd, buf, sizeof buf, 0);
+    if (n <= 0) break;
+    in.append(buf, static_cast<std::size_t>(n));
+  }
+  ::close(fd);
+  if (in.find('\n') == std::string::npos) return {{"ok", false}, {"error", "no answer"}};
+  return json::parse(in.substr(0, in.find('\n')));
+}
+
+class DaemonProcess {
+public:
+  explicit DaemonProcess(const std::string& name) {
+    dir_ = fs::temp_directory_path() / ("mfcd-test-" + name + "-" + std::to_string(::getpid()));
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  ~DaemonProcess() {
+    if (pid_ > 0) {
+      ::kill(pid_, SIGKILL);
+      ::waitpid(pid_, nullptr, 0);
+    }
+    fs::remove_all(dir_);
+  }
+  const fs::path& dir() const { return dir_; }
+  fs::path socket() const { return dir_ / "ctl.sock"; }
+  fs::path configFile() const { return dir_ / "mfcd.yaml"; }
+  void writeConfig(const std::string& text) const { std::ofstream(configFile()) << text; }
+
+  // Starts `binary -c mfcd.yaml -f [args]` with extra environment; stderr goes to log.txt.
+  void start(const std::string& binary, std::vector<std::string> args = {}, std::vector<std::string> env = {}) {
+    std::vector<std::string> argv{binary, "-c", configFile().string(), "-f"};
+    argv.insert(argv.end(), args.begin(), args.end());
+    std::vector<char*> a;
+    for (auto& s : argv) a.push_back(s.data());
+    a.push_back(nullptr);
+    std::vector<std::string> envs;
+    for (char** e = environ; *e; ++e) envs.emplace_back(*e);
+    envs.insert(envs.end(), env.begin(), env.end());
+    // Under the tsan preset, Mesa's uninstrumented llvmpipe threads need suppressing (tsan.supp).
+    envs.emplace_back("TSAN_OPTIONS=suppressions=" MFC_SOURCE_DIR "/tests/daemon/tsan.supp halt_on_error=1");
+    std::vector<char*> ev;
+    for (auto& s : envs) ev.push_back(s.data());
+    ev.push_back(nullptr);
+    posix_spawn_file_actions_t fa;
+    posix_spawn_file_actions_init(&fa);
+    posix_spawn_file_actions_addopen(&fa, 2, (dir_ / "log.txt").c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    posix_spawn_file_actions_addopen(&fa, 1, (dir_ / "stdout.txt").c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    ::posix_spawn(&pid_, binary.c_str(), &fa, nullptr, a.data(), ev.data());
+    posix_spawn_file_actions_destroy(&fa);
+  }
+  // Waits until the control socket answers status (the daemon is ready) or the process exits.
+  bool waitReady(int timeoutMs = 60000) {
+    const auto end = std::chrono::steady_clock::now() + std::chrono::milliseconds(timeoutMs);
+    while (std::chrono::steady_clock::now() < end) {
+      if (exited()) return false;
+      if (fs::exists(socket())) {
+        const json s = ctl({{"cmd", "status"}}, 2000);
+        if (s.value("ok", false) && (s.value("state", "") == "ready" || s.value("state", "") == "busy")) return true;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    return false;
+  }
+  json ctl(const json& request, int timeoutMs = 30000) const { return ctlRequest(socket(), request, timeoutMs); }
+  int modbusPort() const { return ctl({{"cmd", "status"}})["modbus"]["port"].get<int>(); }
+  void signal(int sig) const { ::kill(pid_, sig); }
+  pid_t pid() const { return pid_; }
+  bool exited() {
+    if (pid_ <= 0) return true;
+    int status = 0;
+    if (::waitpid(pid_, &status, WNOHANG) == pid_) {
+      exitCode_ = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+      pid_ = -1;
+      return true;
+    }
+    return false;
+  }
+  // Exit code, or nullopt if still running after timeoutMs.
+  std::optional<int> wait(int timeoutMs) {
+    const auto end = std::chrono::steady_clock::now() + std::chrono::milliseconds(timeoutMs);
+    while (std::chrono::steady_clock::now() < end) {
+      if (exited()) return exitCode_;
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+    return std::nullopt;
+  }
+  std::string log() const {
+    std::ifstream in(dir_ / "log.txt");
+    std::stringstream s;
+    s << in.rdbuf();
+    return s.str();
+  }
+  std::string out() const {
+    std::ifstream in(dir_ / "stdout.txt");
+    std::stringstream s;
+    s << in.rdbuf();
+    return s.str();
+  }
+
+private:
+  fs::path dir_;
+  pid_t pid_ = -1;
+  int exitCode_ = -1;
+};
+
+}  // namespace mfcd::daemon::test

@@ -1,0 +1,142 @@
+#!/usr/bin/python3
+"""mfcd driven by an independent Modbus/TCP client (python3-pymodbus, no code shared with mfcd).
+
+  pymodbus_client_test.py DAEMON_BINARY
+
+Starts DAEMON_BINARY (mfcd_test_daemon: the real daemon with the ground-truth test backend) on the
+simulated cell with word order CDAB on a kernel-chosen port, learns the port from the control socket,
+runs three pick jobs with the job-id handshake, and checks each pick against the simulated bin's
+ground truth (from the control socket's "last"). Exit 0 ok, 1 failure, 77 pymodbus missing.
+"""
+import json
+import math
+import os
+import signal
+import socket
+import struct
+import subprocess
+import sys
+import tempfile
+import time
+
+STATUS, JOB_ECHO, ERROR_CODE, PICK_X, WORD_ORDER = 8, 9, 11, 20, 17
+READY, DONE, PICK_VALID = 1, 1 << 2, 1 << 4
+PARTS = ["breaker", "diamond", "ellipse", "tnut", "knob", "wheel"]  # config/parts/parts.csv order = obj_id
+
+failures = []
+
+
+def check(cond, what):
+    print(("ok   " if cond else "FAIL ") + what, flush=True)
+    if not cond:
+        failures.append(what)
+
+
+def ctl(path, request, timeout=30):
+    s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+    s.settimeout(timeout)
+    s.connect(path)
+    s.sendall((json.dumps(request) + "\n").encode())
+    data = b""
+    while b"\n" not in data:
+        chunk = s.recv(65536)
+        if not chunk:
+            break
+        data += chunk
+    s.close()
+    return json.loads(data.split(b"\n")[0])
+
+
+def to_float(first, second):  # CDAB: the lower address holds bits 15..0
+    return struct.unpack(">f", struct.pack(">HH", second, first))[0]
+
+
+def main():
+    try:
+        from pymodbus.client import ModbusTcpClient
+    except ImportError:
+        print("python3-pymodbus is not installed (tools/deps/daemon.txt lists it)")
+        return 77
+    daemon = sys.argv[1]
+    with tempfile.TemporaryDirectory(prefix="mfcd-pymodbus-") as tmp:
+        sock = os.path.join(tmp, "ctl.sock")
+        recipes = "\n".join(f"  - {{id: {i + 1}, part: {p}, obj_id: {i + 1}, mesh: parts/{p}.stl}}" for i, p in enumerate(PARTS))
+        with open(os.path.join(tmp, "mfcd.yaml"), "w") as f:
+            f.write(f"""daemon:
+  control_socket: {sock}
+  lock_memory: false
+  realtime_priority: 0
+camera:
+  model: camera-sim.yaml
+recipes:
+  - {{id: 0, part: any, obj_id: 0}}
+{recipes}
+hand_eye:
+  base_T_camera: {{x_mm: 500, y_mm: 0, z_mm: 800, rx_deg: 180, ry_deg: 0, rz_deg: 0}}
+modbus:
+  bind_address: 127.0.0.1
+  port: 0
+  word_order: CDAB
+snapshots:
+  directory: {tmp}/snapshots
+""")
+        log = open(os.path.join(tmp, "log.txt"), "w")
+        proc = subprocess.Popen([daemon, "-c", os.path.join(tmp, "mfcd.yaml"), "-f"], stderr=log)
+        try:
+            status = None
+            for _ in range(600):
+                if proc.poll() is not None:
+                    break
+                try:
+                    status = ctl(sock, {"cmd": "status"}, 2)
+                    if status.get("state") == "ready":
+                        break
+                except OSError:
+                    pass
+                time.sleep(0.05)
+            check(status is not None and status.get("state") == "ready", "mfcd ready")
+            if failures:
+                print(open(os.path.join(tmp, "log.txt")).read())
+                return 1
+            port = status["modbus"]["port"]
+            client = ModbusTcpClient("127.0.0.1", port=port, timeout=3)
+            check(client.connect(), f"connect to 127.0.0.1:{port}")
+            regs = client.read_holding_registers(0, 64, slave=1).registers
+            check(regs[WORD_ORDER] == 1, "word order register says CDAB")
+            for job in (31, 32, 33):
+                for _ in range(500):
+                    regs = client.read_holding_registers(0, 64, slave=1).registers
+                    if regs[STATUS] & READY:
+                        break
+                    time.sleep(0.01)
+                wr = client.write_registers(0, [1, job, 0, 0], slave=1)
+                check(not wr.isError(), f"job {job}: trigger accepted")
+                for _ in range(2000):
+                    regs = client.read_holding_registers(0, 64, slave=1).registers
+                    if regs[JOB_ECHO] == job:
+                        break
+                    time.sleep(0.01)
+                check(regs[JOB_ECHO] == job, f"job {job}: echoed")
+                check(regs[STATUS] & DONE and regs[STATUS] & PICK_VALID and regs[ERROR_CODE] == 0,
+                      f"job {job}: done, pick valid, no error")
+                pick = [to_float(regs[PICK_X + 2 * i], regs[PICK_X + 2 * i + 1]) for i in range(6)]
+                last = ctl(sock, {"cmd": "last"})["result"]
+                check(last["job_id"] == job, f"job {job}: control socket shows the same job")
+                best = min(math.dist(pick[:3], [t["base"]["x"], t["base"]["y"], t["base"]["z"]]) for t in last["sim_truth"])
+                check(best < 0.01, f"job {job}: pick {['%.2f' % v for v in pick]} is on a simulated part ({best:.4f} mm)")
+            rr = client.write_registers(0, [1, 33, 0, 0], slave=1)
+            check(rr.isError() and rr.exception_code == 3, "repeated job id -> exception 3")
+            client.close()
+        finally:
+            proc.send_signal(signal.SIGTERM)
+            try:
+                code = proc.wait(timeout=15)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                code = None
+            check(code == 0, f"clean exit on SIGTERM ({code})")
+    return 1 if failures else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,106 @@
+#include "vision/pose/edge_correspondence.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace mfcd::vision {
+
+double undirected_angle_difference(double a, double b) {
+  double d = std::fmod(std::abs(a - b), std::numbers::pi);
+  return std::min(d, std::numbers::pi - d);
+}
+
+DirectionalEdgeIndex::DirectionalEdgeIndex(int cell_px) : cell_(cell_px) {
+  if (cell_px < 1) throw std::invalid_argument("DirectionalEdgeIndex: cell size must be >= 1 px");
+}
+
+void DirectionalEdgeIndex::build(const DepthEdges& edges, const char* source) {
+  const std::string name = source;
+  if (edges.edges.empty()) throw std::invalid_argument(name + ": the edge image is empty");
+  if (edges.edges.type() != CV_8UC1) throw std::invalid_argument(name + ": edges must be 8-bit single channel");
+  if (edges.direction.size() != edges.edges.size() || edges.direction.type() != CV_32FC1)
+    throw std::invalid_argument(name + ": direction must be a float image of the edges' size (" +
+                                std::to_string(edges.edges.cols) + "x" + std::to_string(edges.edges.rows) + "), got " +
+                                std::to_string(edges.direction.cols) + "x" + std::to_string(edges.direction.rows));
+  size_ = edges.edges.size();
+  grid_w_ = (size_.width + cell_ - 1) / cell_;
+  grid_h_ = (size_.height + cell_ - 1) / cell_;
+  const size_t cells = static_cast<size_t>(grid_w_) * grid_h_;
+  cell_start_.assign(cells + 1, 0);
+  // Counting sort by cell: count, prefix sums, place.
+  for (int y = 0; y < size_.height; ++y) {
+    const uint8_t* e = edges.edges.ptr<uint8_t>(y);
+    const uint32_t row = static_cast<uint32_t>(y / cell_) * grid_w_;
+    for (int x = 0; x < size_.width; ++x)
+      if (e[x]) ++cell_start_[row + static_cast<uint32_t>(x / cell_) + 1];
+  }
+  for (size_t c = 0; c < cells; ++c) cell_start_[c + 1] += cell_start_[c];
+  points_.resize(cell_start_[cells]);
+  fill_.assign(cell_start_.begin(), cell_start_.end() - 1);
+  for (int y = 0; y < size_.height; ++y) {
+    const uint8_t* e = edges.edges.ptr<uint8_t>(y);
+    const float* d = edges.direction.ptr<float>(y);
+    const uint32_t row = static_cast<uint32_t>(y / cell_) * grid_w_;
+    for (int x = 0; x < size_.width; ++x)
+      if (e[x]) points_[fill_[row + static_cast<uint32_t>(x / cell_)]++] = {static_cast<float>(x), static_cast<float>(y), d[x]};
+  }
+}
+
+EdgeMatch DirectionalEdgeIndex::nearest(cv::Point2d u, double angle, double lambda, double max_cost) const {
+  EdgeMatch best;
+  if (points_.empty() || !(max_cost >= 0) || !std::isfinite(u.x) || !std::isfinite(u.y)) return best;
+  // Clamp u into the pixel area: the clamped point is no farther from any edge pixel than u
+  // (projection onto a convex set), so ring bounds computed from it stay valid lower bounds.
+  const double cxu = std::clamp(u.x, -0.5, size_.width - 0.5);
+  const double cyu = std::clamp(u.y, -0.5, size_.height - 0.5);
+  const int gx = std::clamp(static_cast<int>(std::floor((cxu + 0.5) / cell_)), 0, grid_w_ - 1);
+  const int gy = std::clamp(static_cast<int>(std::floor((cyu + 0.5) / cell_)), 0, grid_h_ - 1);
+  double best_cost = max_cost;
+  const int max_ring = std::max(grid_w_, grid_h_);
+  auto scan_cell = [&](int cx, int cy) {
+    const size_t c = static_cast<size_t>(cy) * grid_w_ + cx;
+    for (uint32_t i = cell_start_[c]; i < cell_start_[c + 1]; ++i) {
+      const Entry& p = points_[i];
+      const double dx = p.x - u.x, dy = p.y - u.y;
+      const double d2 = dx * dx + dy * dy;
+      if (d2 > best_cost * best_cost) continue;
+      const double cost = std::sqrt(d2) + lambda * undirected_angle_difference(angle, p.angle);
+      if (cost < best_cost || (cost == best_cost && !best.found)) {
+        best_cost = cost;
+        best = {true, p.x, p.y, p.angle, cost};
+      }
+    }
+  };
+  for (int r = 0; r <= max_ring; ++r) {
+    // Every pixel of ring r lies at least (r - 1) cells plus the half-pixel border from u
+    // along one axis (u's cell spans [g*cell - 0.5, (g+1)*cell - 0.5)).
+    if (r >= 1 && (r - 1) * cell_ + 0.5 > best_cost) break;
+    const int x0 = gx - r, x1 = gx + r, y0 = gy - r, y1 = gy + r;
+    for (int cy = std::max(y0, 0); cy <= std::min(y1, grid_h_ - 1); ++cy) {
+      if (cy == y0 || cy == y1) {
+        for (int cx = std::max(x0, 0); cx <= std::min(x1, grid_w_ - 1); ++cx) scan_cell(cx, cy);
+      } else {
+        if (x0 >= 0) scan_cell(x0, cy);
+        if (x1 < grid_w_ && x1 != x0) scan_cell(x1, cy);
+      }
+    }
+  }
+  return best;
+}
+
+EdgeMatch nearest_edge_brute_force(const DepthEdges& edges, cv::Point2d u, double angle, double lambda,
+                                   double max_cost) {
+  EdgeMatch best;
+  for (int y = 0; y < edges.edges.rows; ++y)
+    for (int x = 0; x < edges.edges.cols; ++x) {
+      if (!edges.edges(y, x)) continue;
+      const double cost = std::hypot(x - u.x, y - u.y) + lambda * undirected_angle_difference(angle, edges.direction(y, x));
+      if (cost <= max_cost && (!best.found || cost < best.cost))
+        best = {true, static_cast<float>(x), static_cast<float>(y), edges.direction(y, x), cost};
+    }
+  return best;
+}
+
+}  // namespace mfcd::vision
