@@ -38,10 +38,12 @@ class Detector {
   virtual double setup_seconds() const = 0;
 };
 
-// FDCM / OCM / CM through BinPickingPipeline; `distances_mm` as PipelineConfig::distances_mm.
+// FDCM / OCM / CM through BinPickingPipeline; `distances_mm` and `refine_candidates` as in
+// PipelineConfig (refine_candidates < 0: the pipeline's default).
 std::unique_ptr<Detector> make_pipeline_detector(vision::PipelineConfig::Cost cost, const vision::CameraConfig& camera,
                                                  const std::vector<std::filesystem::path>& templates, int threads,
-                                                 int max_candidates, const std::vector<double>& distances_mm);
+                                                 int max_candidates, const std::vector<double>& distances_mm,
+                                                 int refine_candidates);
 
 struct Line2dOptions {
   double inplane_step_deg = 15;  // in-plane rotations trained per view (LINE-2D is not rotation invariant)

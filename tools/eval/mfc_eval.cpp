@@ -47,6 +47,8 @@ detect: for every image and every part type present in it, runs each method for 
   --threads N            search threads (default: all cores)
   --distances LIST       part distances (mm) the pipeline searches, e.g. 292,282,272,262: the
                          templates' scale is searched for each (default: the templates' own)
+  --refine-candidates N  candidates the pipeline refines (1 view); 0 = coarse poses only
+                         (default: the pipeline's default, PipelineConfig::refine_candidates)
   --all-types            also run FDCM once per image over all part types (best pick; timing)
   --line2d-step DEG      LINE-2D in-plane rotation step (default 15)
   --line2d-view-stride S LINE-2D: train every S-th template view (default 1)
@@ -110,7 +112,7 @@ struct Options {
   fs::path dataset, templates, parts = fs::path(MFC_SOURCE_DIR) / "config/parts/parts.csv", out;
   std::string split = "test";
   std::vector<std::string> methods = {"fdcm", "ocm", "cm"};
-  int max_images = 0, threads = 0;
+  int max_images = 0, threads = 0, refine_candidates = -1;
   std::vector<double> distances_mm;
   bool all_types = false, quiet = false;
   Line2dOptions line2d;
@@ -142,6 +144,10 @@ Options parse(int argc, char** argv) {
     } else if (a == "--max-images") o.max_images = to_int(a, value());
     else if (a == "--threads") o.threads = to_int(a, value());
     else if (a == "--all-types") o.all_types = true;
+    else if (a == "--refine-candidates") {
+      o.refine_candidates = to_int(a, value());
+      if (o.refine_candidates < 0) throw Usage("--refine-candidates must be >= 0");
+    }
     else if (a == "--distances") {
       std::stringstream ss(value());
       for (std::string d; std::getline(ss, d, ',');) {
@@ -250,6 +256,7 @@ int run_detect(const Options& o) {
   }
   out["parts"] = jparts;
   out["distances_mm"] = o.distances_mm;
+  out["refine_candidates"] = o.refine_candidates >= 0 ? o.refine_candidates : vision::PipelineConfig{}.refine_candidates;
   out["line2d_options"] = {{"inplane_step_deg", o.line2d.inplane_step_deg}, {"view_stride", o.line2d.view_stride},
                            {"min_similarity", o.line2d.min_similarity}};
 
@@ -282,7 +289,7 @@ int run_detect(const Options& o) {
       const auto cost = m == "fdcm" ? vision::PipelineConfig::Cost::fdcm
                         : m == "ocm" ? vision::PipelineConfig::Cost::ocm
                                      : vision::PipelineConfig::Cost::cm;
-      det = make_pipeline_detector(cost, camera, tdbs, o.threads, max_candidates, o.distances_mm);
+      det = make_pipeline_detector(cost, camera, tdbs, o.threads, max_candidates, o.distances_mm, o.refine_candidates);
     }
     std::fprintf(stderr, "mfc-eval: %s ready (%.1f s setup)\n", m.c_str(), det->setup_seconds());
     json trials = json::array(), instances = json::array();

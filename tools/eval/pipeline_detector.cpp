@@ -11,7 +11,7 @@ class PipelineDetector final : public Detector {
  public:
   PipelineDetector(vision::PipelineConfig::Cost cost, const vision::CameraConfig& camera,
                    const std::vector<std::filesystem::path>& templates, int threads, int max_candidates,
-                   const std::vector<double>& distances_mm)
+                   const std::vector<double>& distances_mm, int refine_candidates)
       : cost_(cost) {
     const auto t0 = std::chrono::steady_clock::now();
     vision::PipelineConfig pc;
@@ -20,6 +20,7 @@ class PipelineDetector final : public Detector {
     pc.threads = threads;
     pc.max_candidates = max_candidates;
     pc.distances_mm = distances_mm;
+    if (refine_candidates >= 0) pc.refine_candidates = refine_candidates;
     pipeline_ = std::make_unique<vision::BinPickingPipeline>(camera, pc);
     setup_s_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   }
@@ -51,8 +52,10 @@ class PipelineDetector final : public Detector {
 
 std::unique_ptr<Detector> make_pipeline_detector(vision::PipelineConfig::Cost cost, const vision::CameraConfig& camera,
                                                  const std::vector<std::filesystem::path>& templates, int threads,
-                                                 int max_candidates, const std::vector<double>& distances_mm) {
-  return std::make_unique<PipelineDetector>(cost, camera, templates, threads, max_candidates, distances_mm);
+                                                 int max_candidates, const std::vector<double>& distances_mm,
+                                                 int refine_candidates) {
+  return std::make_unique<PipelineDetector>(cost, camera, templates, threads, max_candidates, distances_mm,
+                                            refine_candidates);
 }
 
 }  // namespace mfcd::eval

@@ -86,6 +86,7 @@ int run_refine_eval(const RefineEvalOptions& o) {
     PipelineConfig pc;
     pc.template_files = {tdb};
     pc.distances_mm = o.distances_mm;
+    pc.refine_candidates = 0;  // the coarse pose (Sec. 4.4); both refinements start from it
     BinPickingPipeline pipeline(cam, pc);
     const int mesh = renderer.add_mesh(db.mesh);
     const PoseModel model = pose_model(mesh, db.mesh);
