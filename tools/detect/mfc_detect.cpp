@@ -4,6 +4,7 @@
 //   scene_id,im_id,obj_id,score,R,t,time
 // with R row-major (9 values) and t in mm (3 values), space-separated, and time the wall time of
 // the image in seconds (the same for every estimate of the image, as BOP asks).
+#include "tools/common/cli_numbers.hpp"
 #include "vision/dataset/bop_dataset.hpp"
 #include "vision/pipeline/bin_picking_pipeline.hpp"
 
@@ -35,17 +36,6 @@ void usage(std::FILE* to) {
                "  --quiet              no per-image lines\n");
 }
 
-int to_int(const std::string& opt, const std::string& v) {
-  size_t used = 0;
-  int n = 0;
-  try {
-    n = std::stoi(v, &used);
-  } catch (const std::exception&) {
-    used = 0;
-  }
-  if (used != v.size() || v.empty()) throw std::invalid_argument(opt + " '" + v + "' is not an integer");
-  return n;
-}
 
 }  // namespace
 
@@ -70,11 +60,11 @@ int main(int argc, char** argv) {
       } else if (a == "--dataset") dataset_dir = value();
       else if (a == "--split") split = value();
       else if (a == "--out") out = value();
-      else if (a == "--views") views = to_int(a, value());
-      else if (a == "--max-per-image") max_per_image = to_int(a, value());
-      else if (a == "--threads") threads = to_int(a, value());
-      else if (a == "--scene") only_scenes.push_back(to_int(a, value()));
-      else if (a == "--max-cost") max_cost = std::stod(value());
+      else if (a == "--views") views = mfcd::tools::parse_int(a, value());
+      else if (a == "--max-per-image") max_per_image = mfcd::tools::parse_int(a, value());
+      else if (a == "--threads") threads = mfcd::tools::parse_int(a, value());
+      else if (a == "--scene") only_scenes.push_back(mfcd::tools::parse_int(a, value()));
+      else if (a == "--max-cost") max_cost = mfcd::tools::parse_double(a, value());
       else if (a == "--quiet") quiet = true;
       else if (a == "--templates") {
         while (i + 1 < argc && argv[i + 1][0] != '-') templates.emplace_back(argv[++i]);

@@ -6,6 +6,7 @@
 //
 // tools/eval/report.py turns the JSON into docs/results.md and docs/img/results-*.png;
 // `tools/mfc bench paper` runs mfc-sim, mfc-eval and the report in one go.
+#include "tools/common/cli_numbers.hpp"
 #include "tools/eval/detectors.hpp"
 #include "tools/eval/pose_error.hpp"
 #include "tools/eval/refine_eval.hpp"
@@ -71,28 +72,21 @@ struct Usage : std::invalid_argument {
   using std::invalid_argument::invalid_argument;
 };
 
+// The shared parsers, refusing with Usage (exit code 2) instead of a plain invalid_argument.
 int to_int(const std::string& opt, const std::string& v) {
-  size_t used = 0;
-  int n = 0;
   try {
-    n = std::stoi(v, &used);
-  } catch (const std::exception&) {
-    used = 0;
+    return mfcd::tools::parse_int(opt, v);
+  } catch (const std::invalid_argument& e) {
+    throw Usage(e.what());
   }
-  if (v.empty() || used != v.size()) throw Usage(opt + " '" + v + "' is not an integer");
-  return n;
 }
 
 double to_double(const std::string& opt, const std::string& v) {
-  size_t used = 0;
-  double d = 0;
   try {
-    d = std::stod(v, &used);
-  } catch (const std::exception&) {
-    used = 0;
+    return mfcd::tools::parse_double(opt, v);
+  } catch (const std::invalid_argument& e) {
+    throw Usage(e.what());
   }
-  if (v.empty() || used != v.size() || !std::isfinite(d)) throw Usage(opt + " '" + v + "' is not a number");
-  return d;
 }
 
 json times_json(const vision::StageTimes& t) {

@@ -2,6 +2,7 @@
 //   mfc-teach MODEL --camera CAMERA.yaml --out PART.tdb [--obj-id N] [--name NAME]
 //             [--unit mm|cm|m|in|<mm per unit>] [--views K] [--symmetry none|z:N|z:inf]
 //             [--distance MM] [--threads N] [--quiet]
+#include "tools/common/cli_numbers.hpp"
 #include "vision/model/mesh.hpp"
 #include "vision/templates/template_teacher.hpp"
 
@@ -90,18 +91,7 @@ int main(int argc, char** argv) {
         if (i + 1 >= argc) throw std::invalid_argument(std::string(opt) + " needs a value");
         return argv[++i];
       };
-      auto integer = [&](const char* opt) {
-        const std::string v = value(opt);
-        size_t used = 0;
-        int n = 0;
-        try {
-          n = std::stoi(v, &used);
-        } catch (const std::exception&) {
-          used = 0;
-        }
-        if (used != v.size()) throw std::invalid_argument(std::string(opt) + " '" + v + "' is not an integer");
-        return n;
-      };
+      auto integer = [&](const char* opt) { return mfcd::tools::parse_int(opt, value(opt)); };
       if (a == "-h" || a == "--help") {
         usage(stdout);
         return 0;
@@ -115,13 +105,8 @@ int main(int argc, char** argv) {
       else if (a == "--threads") threads = integer("--threads");
       else if (a == "--distance") {
         const std::string v = value("--distance");
-        size_t used = 0;
-        try {
-          distance = std::stod(v, &used);
-        } catch (const std::exception&) {
-          used = 0;
-        }
-        if (used != v.size() || !(distance > 0)) throw std::invalid_argument("--distance '" + v + "' is not a positive number");
+        distance = mfcd::tools::parse_double("--distance", v);
+        if (!(distance > 0)) throw std::invalid_argument("--distance '" + v + "' is not a positive number");
       } else if (a == "--quiet") quiet = true;
       else if (a == "--preview") preview = value("--preview");
       else if (!a.empty() && a[0] == '-') throw std::invalid_argument("unknown option " + a);
