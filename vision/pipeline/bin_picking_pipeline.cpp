@@ -282,7 +282,6 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
   lp.queryLines = m.config.query_guides;
   lp.minOverlap = m.config.min_guide_overlap;
   lp.slideStep = m.config.slide_step;
-  lp.maxCandidates = 16;
   std::atomic<bool> late{false};
   for (auto& h : m.thread_hits) h.clear();
   std::fill(m.thread_hypotheses.begin(), m.thread_hypotheses.end(), 0);
