@@ -12,6 +12,7 @@
 // there.
 
 #include "vision/camera/camera.hpp"
+#include "vision/edges/edge_tangents.hpp"
 #include "vision/model/mesh.hpp"
 #include "vision/pose/rigid_transform.hpp"
 #include "vision/render/mfc_renderer.hpp"
@@ -59,12 +60,6 @@ struct ModelEdgeParams {
 void occluding_edges(const cv::Mat1f& depth_mm, float min_jump_mm, float min_jump_ratio, cv::Mat1b& edges,
                      const cv::Mat1b* part_index = nullptr);
 
-// Tangent angle ([0, pi), image axes) of every edge pixel of `edges` (non-zero = edge): the
-// principal axis of the edge pixels within a (2 radius + 1)^2 window, i.e. the local direction
-// of the pixel chain. 0 off edges. Used for the model's edges and for edge maps without
-// directions (e.g. depth discontinuities of a render).
-void edge_tangents(const cv::Mat1b& edges, cv::Mat1f& direction, int radius = 3);
-float edge_tangent_at(const cv::Mat1b& edges, int x, int y, int radius = 3);
 
 class ModelEdgeSampler {
  public:

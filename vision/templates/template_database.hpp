@@ -38,7 +38,7 @@ struct PartSymmetry {
 // One edge pixel of a template view and the model point it images.
 struct TemplateEdgePoint {
   cv::Point2f pixel;     // relative to the view's origin (image of the part centre)
-  float direction = 0;   // edge tangent, radians in [0, pi), image axes
+  float direction = 0;   // edge tangent, radians in [0, pi), image axes, of the pixel chain (edge_tangents)
   cv::Vec3f model_mm;    // the visible surface point on the near side of the depth edge, model frame
 };
 
