@@ -27,6 +27,22 @@ struct ChamferAt {
   }
 };
 
+// Offers c to the kept list (sorted best first, at most `keep`, pairwise more than `sep` px
+// apart in tx or ty). A hypothesis at the place of a kept one replaces it only when better.
+// Returns whether c was kept.
+bool keepBest(std::vector<Candidate>& kept, size_t keep, int sep, const Candidate& c) {
+  auto near = [&](const Candidate& k) { return std::abs(k.tx - c.tx) <= sep && std::abs(k.ty - c.ty) <= sep; };
+  for (const Candidate& k : kept)
+    if (near(k) && !better(c, k)) return false;  // a better one holds this place
+  std::erase_if(kept, near);                     // every one here is worse: c takes the place
+  if (kept.size() == keep) {
+    if (!better(c, kept.back())) return false;
+    kept.pop_back();
+  }
+  kept.insert(std::upper_bound(kept.begin(), kept.end(), c, better), c);
+  return true;
+}
+
 template <class Matcher, class At>
 SearchResult lineSearchWith(const Matcher& matcher, At at, const std::vector<OrientedTemplate>& templates,
                             const std::vector<LineSegment>& queryLines, const LineSearchParams& params) {
@@ -34,8 +50,10 @@ SearchResult lineSearchWith(const Matcher& matcher, At at, const std::vector<Ori
   const bool detect = params.mode == SearchMode::Detect;
   SearchResult result;
   const size_t nq = std::min<size_t>(queryLines.size(), std::max(0, params.queryLines));
-  Candidate best;
-  bool haveBest = false;
+  const size_t keep = static_cast<size_t>(std::max(1, params.keep));
+  const int sep = std::max(0, params.separationPx);
+  std::vector<Candidate> kept;  // Best mode: at most `keep`, pairwise more than `sep` apart
+  kept.reserve(keep);
   std::vector<Candidate> found;
   struct Slide {
     cv::Point2d start, d;  // translation at k = 0 and its step
@@ -85,19 +103,21 @@ SearchResult lineSearchWith(const Matcher& matcher, At at, const std::vector<Ori
       if (tx < txMin || tx > txMax || ty < tyMin || ty > tyMax) return false;
       ++result.stats.hypotheses;
       uint32_t thr = tauSum;
-      if (!detect && haveBest) thr = std::min<uint64_t>(thr, uint64_t(best.sum) * n / best.pixels);
+      if (!detect && kept.size() == keep) {
+        // The bound: the worst kept hypothesis (the only one when keep = 1).
+        const Candidate& worst = kept.back();
+        thr = std::min<uint64_t>(thr, uint64_t(worst.sum) * n / worst.pixels);
+      }
       const uint32_t stop = params.hypothesisBound ? thr : std::numeric_limits<uint32_t>::max();
       const uint32_t sum = at(t, tx, ty, stop, result.stats.segments);
       ++result.stats.evaluated;
       if (sum > thr) return false;
       const Candidate c{o, tx, ty, sum, n};
-      if (detect) found.push_back(c);
-      else if (!haveBest || better(c, best)) {
-        best = c;
-        haveBest = true;
-        return true;
+      if (detect) {
+        found.push_back(c);
+        return false;
       }
-      return false;
+      return keepBest(kept, keep, sep, c);
     };
     const int step = std::max(1, params.slideStep);
     for (const Slide& sl : slides) {
@@ -122,8 +142,8 @@ SearchResult lineSearchWith(const Matcher& matcher, At at, const std::vector<Ori
       result.truncated = true;
     }
     result.candidates = std::move(found);
-  } else if (haveBest) {
-    result.candidates.push_back(best);
+  } else {
+    result.candidates = std::move(kept);
   }
   return result;
 }

@@ -23,6 +23,12 @@ struct LineSearchParams {
   // neighbours of each slide's best. 1 visits all.
   int slideStep = 1;
   SearchMode mode = SearchMode::Best;
+  // Best mode: keep the `keep` best hypotheses that lie more than `separationPx` apart (in tx or
+  // ty) instead of the single best. In clutter the best placement of a template is often on
+  // other parts' edges while the part itself is its second or third; the bound is then the
+  // keep-th cost.
+  int keep = 1;
+  int separationPx = 8;
   double threshold = std::numeric_limits<double>::infinity();
   bool hypothesisBound = true;
   size_t maxCandidates = 200000;
