@@ -1,0 +1,290 @@
+#include "vision/pose/template_pose_fit.hpp"
+
+#include "vision/pose/model_edges.hpp"
+#include "vision/pose/rigid_transform.hpp"
+
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numbers>
+#include <stdexcept>
+#include <string>
+
+namespace mfcd::vision {
+
+void TemplateFitParams::validate() const {
+  auto fail = [](const char* field, const char* why) {
+    throw std::invalid_argument(std::string("template fit: ") + field + " " + why);
+  };
+  if (max_points < 12) fail("max_points", "must be >= 12");
+  if (iterations < 0) fail("iterations", "must be >= 0");
+  if (!(final_gate_px > 0) || !(initial_gate_px >= final_gate_px)) fail("gates", "need initial >= final > 0");
+  if (!(huber_px > 0)) fail("huber_px", "must be positive");
+  if (!(damping >= 0)) fail("damping", "must be >= 0");
+  if (!(score_gate_px > 0) || !(inlier_cost_px > 0)) fail("score_gate_px/inlier_cost_px", "must be positive");
+  if (!(lambda_px_per_rad >= 0)) fail("lambda_px_per_rad", "must be >= 0");
+  if (min_correspondences < 6) fail("min_correspondences", "must be >= 6");
+}
+
+TemplatePoseFit::TemplatePoseFit(const TemplateFitParams& params) : params_(params) { params_.validate(); }
+
+void TemplatePoseFit::prepare(const DepthEdges& edges) {
+  if (edges.edges.empty() || edges.edges.type() != CV_8UC1)
+    throw std::invalid_argument("template fit: the edge map must be a non-empty 8-bit image");
+  chain_edges_.edges = edges.edges;  // shared, not copied
+  edges_ = edges.edges;
+  edge_tangents(edges.edges, chain_edges_.direction);
+  index_.build(chain_edges_, "template fit: edge map");
+}
+
+namespace {
+
+cv::Matx33d rot_z(double a) {
+  const double c = std::cos(a), s = std::sin(a);
+  return {c, -s, 0, s, c, 0, 0, 0, 1};
+}
+
+// The in-plane angle by which the image of the part at `pose` is turned relative to the
+// template view's image (as placement_of measures it).
+double in_plane_angle(const TemplateDatabase& db, int view, const RigidPose& pose, const PinholeCamera& camera) {
+  const cv::Vec3d c = pose.R * db.center_mm + pose.t_mm;
+  const cv::Matx33d Rz = ray_alignment(camera, camera.project(c)).t() * pose.R * db.views[view].R_m2c.t();
+  return std::atan2(Rz(1, 0), Rz(0, 0));
+}
+
+}  // namespace
+
+int TemplatePoseFit::nearest_view(const TemplateDatabase& db, const PinholeCamera& /*camera*/, RigidPose& pose) {
+  if (db.views.empty()) throw std::invalid_argument("template fit: the database has no views");
+  const cv::Vec3d c = pose.R * db.center_mm + pose.t_mm;
+  const double n = cv::norm(c);
+  if (!(n > 0)) throw std::invalid_argument("template fit: the part centre is at the camera");
+  // Direction from the part centre towards the camera, in the model frame.
+  const cv::Vec3d d = pose.R.t() * (-c / n);
+  std::vector<cv::Matx33d> turns;
+  if (db.symmetry.kind == PartSymmetry::Kind::continuous_z) {
+    // Turn about z so that d lies in the views' meridian.
+    double meridian = 0;
+    for (const auto& v : db.views)
+      if (std::hypot(v.view_direction[0], v.view_direction[1]) > 1e-6) {
+        meridian = std::atan2(v.view_direction[1], v.view_direction[0]);
+        break;
+      }
+    turns.push_back(rot_z(std::atan2(d[1], d[0]) - meridian));
+  } else {
+    turns = db.symmetry.discrete_rotations();
+    if (turns.empty()) turns.push_back(cv::Matx33d::eye());
+  }
+  int best_view = 0;
+  double best_dot = -2;
+  const cv::Matx33d* best_turn = &turns[0];
+  for (const auto& S : turns) {
+    // The copy R S of the pose sees the part from S^T d.
+    const cv::Vec3d ds = S.t() * d;
+    for (int v = 0; v < static_cast<int>(db.views.size()); ++v) {
+      const double dot = ds.dot(db.views[v].view_direction);
+      if (dot > best_dot) best_dot = dot, best_view = v, best_turn = &S;
+    }
+  }
+  const cv::Matx33d& S = *best_turn;
+  // Same placed part: rotated by S about the symmetry axis through the centre.
+  // (Computed into locals first: assigning a braced temporary built from `pose` itself let
+  // GCC 12 construct it in place, overwriting R while it was still being read.)
+  const cv::Matx33d R = pose.R * S;
+  const cv::Vec3d t = pose.t_mm + pose.R * (db.center_mm - S * db.center_mm);
+  pose.R = R;
+  pose.t_mm = t;
+  return best_view;
+}
+
+void TemplatePoseFit::load_view(const TemplateDatabase& db, int view, const PinholeCamera& camera,
+                                Workspace& ws) const {
+  const TemplateView& tv = db.views[static_cast<size_t>(view)];
+  const auto& pts = tv.points;
+  ws.model.clear();
+  ws.angle.clear();
+  ws.offset.clear();
+  const cv::Point2d origin(camera.cx(), camera.cy());
+  const size_t n = pts.size();
+  const size_t keep = std::min<size_t>(n, static_cast<size_t>(params_.max_points));
+  for (size_t k = 0; k < keep; ++k) {
+    const auto& p = pts[k * n / keep];
+    ws.model.emplace_back(p.model_mm[0], p.model_mm[1], p.model_mm[2]);
+    ws.angle.push_back(p.direction);
+    // A detected depth edge lies off the projected silhouette point by a fraction of a pixel to
+    // about one (on the shadow side); carried along so that the fit does not shrink or grow the
+    // part (i.e. move it in depth) to close that gap.
+    const cv::Point2d seen = camera.project(tv.R_m2c * ws.model.back() + tv.t_m2c_mm) - origin;
+    ws.offset.emplace_back(p.pixel.x - seen.x, p.pixel.y - seen.y);
+  }
+}
+
+double point_to_line_residual(const RigidPose& pose, const cv::Vec3d& centre_cam, const cv::Vec3d& model_point,
+                              const PinholeCamera& camera, const cv::Point2d& edge, const cv::Vec2d& normal,
+                              cv::Matx16d* jacobian) {
+  const cv::Vec3d p = pose.R * model_point + pose.t_mm;
+  const double iz = 1.0 / p[2];
+  const double u = camera.fx() * p[0] * iz + camera.cx(), v = camera.fy() * p[1] * iz + camera.cy();
+  const double r = normal[0] * (u - edge.x) + normal[1] * (v - edge.y);
+  if (jacobian) {
+    // d(u, v)/dp, then dp/dw = -[p - c]x (rotation about the centre), dp/dtau = I.
+    const double gx = normal[0] * camera.fx() * iz, gy = normal[1] * camera.fy() * iz;
+    const double gz = -(normal[0] * camera.fx() * p[0] + normal[1] * camera.fy() * p[1]) * iz * iz;
+    const cv::Vec3d g(gx, gy, gz);           // dr/dp
+    const cv::Vec3d a = p - centre_cam;
+    const cv::Vec3d gw = a.cross(g);         // dr/dw = g^T (-[a]x) = (a x g)^T
+    *jacobian = cv::Matx16d(gw[0], gw[1], gw[2], g[0], g[1], g[2]);
+  }
+  return r;
+}
+
+RigidPose apply_pose_update(const RigidPose& pose, const cv::Vec3d& centre_model, const cv::Vec6d& update) {
+  const cv::Vec3d c = pose.R * centre_model + pose.t_mm;
+  RigidPose out;
+  out.R = rotation_from_angle_axis({update[0], update[1], update[2]}) * pose.R;
+  const cv::Vec3d c1 = c + cv::Vec3d(update[3], update[4], update[5]);
+  out.t_mm = c1 - out.R * centre_model;
+  return out;
+}
+
+void TemplatePoseFit::score(const TemplateDatabase& db, int view, const PinholeCamera& camera, Workspace& ws,
+                            TemplateFitResult& r) const {
+  const double turn = in_plane_angle(db, view, r.pose, camera);
+  const double ct = std::cos(turn), st = std::sin(turn);
+  const double gate = params_.score_gate_px;
+  double sum = 0;
+  int inliers = 0, count = 0;
+  for (size_t i = 0; i < ws.model.size(); ++i) {
+    const cv::Vec3d p = r.pose.R * ws.model[i] + r.pose.t_mm;
+    double cost = gate;
+    if (p[2] > 1e-6) {
+      double a = std::fmod(ws.angle[i] + turn, std::numbers::pi);
+      if (a < 0) a += std::numbers::pi;
+      const cv::Vec2d& o = ws.offset[i];
+      const cv::Point2d q = camera.project(p) + cv::Point2d(ct * o[0] - st * o[1], st * o[0] + ct * o[1]);
+      const EdgeMatch m = index_.nearest(q, a, params_.lambda_px_per_rad, gate);
+      if (m.found) cost = m.cost;
+    }
+    sum += cost;
+    inliers += cost <= params_.inlier_cost_px;
+    ++count;
+  }
+  r.points = count;
+  r.mean_cost_px = count ? sum / count : gate;
+  r.inlier_fraction = count ? double(inliers) / count : 0;
+  r.score = std::clamp(r.inlier_fraction * (1.0 - r.mean_cost_px / gate), 0.0, 1.0);
+  r.coverage = coverage(db, view, r.pose, camera, ws);
+}
+
+double TemplatePoseFit::coverage(const TemplateDatabase& db, int view, const RigidPose& pose,
+                                 const PinholeCamera& camera, Workspace& ws) const {
+  const cv::Size size = edges_.size();
+  if (ws.explained.size() != size) {
+    ws.explained = cv::Mat1b::zeros(size);
+    ws.inside = cv::Mat1b::zeros(size);
+  }
+  const TemplateView& tv = db.views[static_cast<size_t>(view)];
+  const double turn = in_plane_angle(db, view, pose, camera);
+  const double ct = std::cos(turn), st = std::sin(turn);
+  const cv::Point2d origin(camera.cx(), camera.cy());
+  const cv::Rect image(cv::Point(0, 0), size);
+  ws.placed.clear();
+  for (const auto& p : tv.points) {
+    const cv::Vec3d X(p.model_mm[0], p.model_mm[1], p.model_mm[2]);
+    const cv::Vec3d c = pose.R * X + pose.t_mm;
+    if (c[2] <= 1e-6) continue;
+    // The same edge offset as the fit (template pixel minus the model point's projection there).
+    const cv::Point2d seen = camera.project(tv.R_m2c * X + tv.t_m2c_mm) - origin;
+    const double ox = p.pixel.x - seen.x, oy = p.pixel.y - seen.y;
+    const cv::Point2d q = camera.project(c) + cv::Point2d(ct * ox - st * oy, st * ox + ct * oy);
+    const cv::Point r(cvRound(q.x), cvRound(q.y));
+    if (image.contains(r)) ws.placed.push_back(r);
+  }
+  if (ws.placed.size() < 3) return 0;
+  cv::convexHull(ws.placed, ws.hull);
+  const cv::Rect box = (cv::boundingRect(ws.hull) + cv::Size(5, 5) - cv::Point(2, 2)) & image;
+  for (const auto& r : ws.placed) cv::circle(ws.explained, r, 2, cv::Scalar(255), cv::FILLED);
+  cv::fillConvexPoly(ws.inside, ws.hull, cv::Scalar(255));
+  int total = 0, covered = 0;
+  for (int y = box.y; y < box.y + box.height; ++y) {
+    const uint8_t* e = edges_.ptr<uint8_t>(y);
+    const uint8_t* in = ws.inside.ptr<uint8_t>(y);
+    const uint8_t* ex = ws.explained.ptr<uint8_t>(y);
+    for (int x = box.x; x < box.x + box.width; ++x)
+      if (e[x] && in[x]) ++total, covered += ex[x] != 0;
+  }
+  ws.explained(box).setTo(0);
+  ws.inside(box).setTo(0);
+  return total > 0 ? double(covered) / total : 0;
+}
+
+TemplateFitResult TemplatePoseFit::evaluate(const TemplateDatabase& db, int view, const RigidPose& pose,
+                                            const PinholeCamera& camera, Workspace& ws) const {
+  if (view < 0 || view >= static_cast<int>(db.views.size()))
+    throw std::invalid_argument("template fit: view " + std::to_string(view) + " out of range");
+  TemplateFitResult r;
+  r.pose = pose;
+  r.view = view;
+  load_view(db, view, camera, ws);
+  score(db, view, camera, ws, r);
+  return r;
+}
+
+TemplateFitResult TemplatePoseFit::fit(const TemplateDatabase& db, int view, const RigidPose& initial,
+                                       const PinholeCamera& camera, Workspace& ws) const {
+  if (view < 0 || view >= static_cast<int>(db.views.size()))
+    throw std::invalid_argument("template fit: view " + std::to_string(view) + " out of range");
+  TemplateFitResult r;
+  r.pose = initial;
+  r.view = view;
+  load_view(db, view, camera, ws);
+  const int steps = params_.iterations;
+  for (int it = 0; it < steps; ++it) {
+    const double f = steps > 1 ? double(it) / (steps - 1) : 1.0;
+    const double gate = params_.initial_gate_px * std::pow(params_.final_gate_px / params_.initial_gate_px, f);
+    const double turn = in_plane_angle(db, r.view, r.pose, camera);
+    const double ct = std::cos(turn), st = std::sin(turn);
+    const cv::Vec3d centre = r.pose.R * db.center_mm + r.pose.t_mm;
+    cv::Matx66d H = cv::Matx66d::zeros();
+    cv::Vec6d g(0, 0, 0, 0, 0, 0);
+    int n = 0;
+    for (size_t i = 0; i < ws.model.size(); ++i) {
+      const cv::Vec3d p = r.pose.R * ws.model[i] + r.pose.t_mm;
+      if (p[2] <= 1e-6) continue;
+      double a = std::fmod(ws.angle[i] + turn, std::numbers::pi);
+      if (a < 0) a += std::numbers::pi;
+      const cv::Vec2d& o = ws.offset[i];
+      const cv::Point2d shift(ct * o[0] - st * o[1], st * o[0] + ct * o[1]);
+      const EdgeMatch m = index_.nearest(camera.project(p) + shift, a, params_.lambda_px_per_rad, gate);
+      if (!m.found) continue;
+      const cv::Vec2d normal(-std::sin(m.angle), std::cos(m.angle));
+      cv::Matx16d J;
+      const double res =
+          point_to_line_residual(r.pose, centre, ws.model[i], camera, cv::Point2d(m.x, m.y) - shift, normal, &J);
+      const double w = std::abs(res) <= params_.huber_px ? 1.0 : params_.huber_px / std::abs(res);
+      H += w * (J.t() * J);
+      g += w * res * cv::Vec6d(J.val);
+      ++n;
+    }
+    if (n < params_.min_correspondences) break;
+    for (int k = 0; k < 6; ++k) H(k, k) += params_.damping * H(k, k) + 1e-9;
+    cv::Vec6d delta;
+    if (!cv::solve(H, -g, delta, cv::DECOMP_CHOLESKY)) break;
+    r.pose = apply_pose_update(r.pose, db.center_mm, delta);
+    r.iterations = it + 1;
+    // Turned nearer to another view: continue with its points.
+    RigidPose moved = r.pose;
+    const int nearest = nearest_view(db, camera, moved);
+    if (nearest != r.view) {
+      r.pose = moved;
+      r.view = nearest;
+      load_view(db, r.view, camera, ws);
+    }
+  }
+  score(db, r.view, camera, ws, r);
+  return r;
+}
+
+}  // namespace mfcd::vision
