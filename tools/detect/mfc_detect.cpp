@@ -30,7 +30,7 @@ void usage(std::FILE* to) {
                "  --out FILE           BOP results CSV to write\n"
                "  --views N            views used by the refinement (default 1; more need camera poses)\n"
                "  --max-per-image N    estimates kept per image (default 10)\n"
-               "  --max-cost PX        detection threshold, mean directional chamfer px (default 5)\n"
+               "  --max-cost PX        search threshold, mean directional chamfer px (default 8)\n"
                "  --scene ID           only this scene (repeatable)\n"
                "  --threads N          search threads (default: all cores)\n"
                "  --quiet              no per-image lines\n");
@@ -45,7 +45,7 @@ int main(int argc, char** argv) {
   std::vector<fs::path> templates;
   std::vector<int> only_scenes;
   int views = 1, max_per_image = 10, threads = 0;
-  double max_cost = 5.0;
+  double max_cost = PipelineConfig{}.max_cost_px;
   bool quiet = false;
   try {
     for (int i = 1; i < argc; ++i) {

@@ -11,6 +11,7 @@
 
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -21,6 +22,8 @@ struct Estimate {
   cv::Matx33d R = cv::Matx33d::eye();
   cv::Vec3d t_mm{0, 0, 0};
   double score = 0;
+  double rank_px = 0;  // pipeline detectors: the search's ranking measure (PoseCandidate::rank_px)
+  double rank = 0;     // pipeline detectors: the fitted hypothesis' rank (PoseCandidate::fit_rank)
 };
 
 struct Detection {
@@ -34,6 +37,11 @@ class Detector {
   virtual std::string name() const = 0;
   // obj_id = 0: every loaded part type (best pick); otherwise that type only (the recipe).
   virtual void detect(const vision::MfcFrames& frames, int obj_id, Detection& out) = 0;
+  // How the last detect()'s image scores a given pose (the truth), measured as the detector
+  // ranks its own hypotheses; detectors without such a measure return nothing.
+  virtual std::optional<vision::PoseScore> score_pose(int /*obj_id*/, const cv::Matx33d& /*R*/, const cv::Vec3d& /*t_mm*/) {
+    return std::nullopt;
+  }
   // Seconds spent preparing (loading templates, training).
   virtual double setup_seconds() const = 0;
 };

@@ -330,6 +330,19 @@ int run_detect(const Options& o) {
             }
           }
         }
+        // Search miss or cost miss: how the truth scores on this image, by the detector's own
+        // ranking measure, against the estimate it chose.
+        {
+          json truth = json::array();
+          for (size_t j : inst)
+            if (const auto ps = det->score_pose(obj_id, g.gt[j].R, g.gt[j].t_mm))
+              truth.push_back({{"instance", j}, {"visib_fract", g.info[j].visib_fract}, {"view", ps->view},
+                               {"view_angle_deg", ps->view_angle_deg}, {"cost_px", ps->cost_px},
+                               {"coverage", ps->coverage}, {"rank_px", ps->rank_px},
+                               {"fit_score", ps->fit_score}});
+          if (!truth.empty()) trial["truth_scores"] = truth;
+          if (!d.estimates.empty()) trial["best_rank_px"] = d.estimates[0].rank_px, trial["best_score"] = d.estimates[0].rank;
+        }
         trial["correct"] = correct;
         trial["correct_xy"] = correct_xy;
         trial["instances"] = n_inst;

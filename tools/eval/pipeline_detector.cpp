@@ -36,8 +36,12 @@ class PipelineDetector final : public Detector {
     // No deadline: the evaluation measures the full search of every method.
     pipeline_->process(frames, obj_id, std::chrono::steady_clock::now() + std::chrono::hours(1), result_);
     out.estimates.clear();
-    for (const auto& c : result_.candidates) out.estimates.push_back({c.obj_id, c.R_m2c, c.t_m2c_mm, c.score});
+    for (const auto& c : result_.candidates) out.estimates.push_back({c.obj_id, c.R_m2c, c.t_m2c_mm, c.score, c.rank_px, c.fit_rank});
     out.times = result_.times;
+  }
+  std::optional<vision::PoseScore> score_pose(int obj_id, const cv::Matx33d& R, const cv::Vec3d& t_mm) override {
+    if (cost_ != vision::PipelineConfig::Cost::fdcm) return std::nullopt;
+    return pipeline_->score_pose(obj_id, R, t_mm);
   }
   double setup_seconds() const override { return setup_s_; }
 

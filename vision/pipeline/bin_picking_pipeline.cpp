@@ -5,6 +5,7 @@
 #include "vision/lines/line_fitter.hpp"
 #include "vision/pose/coarse_pose.hpp"
 #include "vision/pose/pose_refiner.hpp"
+#include "vision/pose/template_pose_fit.hpp"
 #include "vision/render/mfc_renderer.hpp"
 #include "vision/search/line_search.hpp"
 #include "vision/search/nms.hpp"
@@ -57,6 +58,9 @@ double iou(const cv::Rect2d& a, const cv::Rect2d& b) {
 // much as 3 px of mean chamfer distance.
 constexpr double kUnexplainedPenaltyPx = 3.0;
 
+// Largest change of the part's distance a hypothesis fit may make (fraction of the distance).
+constexpr double kMaxFitDepthChange = 0.08;
+
 }  // namespace
 
 struct BinPickingPipeline::Impl {
@@ -83,7 +87,12 @@ struct BinPickingPipeline::Impl {
   struct Verified {
     Hit hit;
     double coverage = 0, combined = 0;
+    RigidPose coarse, fitted;
+    int view = 0;
+    double fit_score = -1, fit_cost = 0, fit_coverage = 0, fit_rank = -1;
   };
+  TemplatePoseFit fitter;
+  std::vector<TemplatePoseFit::Workspace> fit_workspaces;  // per search thread
   std::vector<Verified> verified;
   cv::Mat1b explained, inside;  // verification scratch, image size, kept zero outside use
   std::vector<cv::Point> placed, hull;
@@ -124,11 +133,20 @@ double explained_fraction(const TemplateView& view, const Warp& warp, int tx, in
   return total > 0 ? double(covered) / total : 0;
 }
 
+// The rank of a fitted hypothesis: its fit score, less a penalty for the image edges inside its
+// outline it leaves unexplained.
+// All of them unexplained costs 0.3, about the score a correct fit of a part in a full bin
+// reaches (measured on mfc-sim bins: correct picks score 0.1-0.5).
+double fitted_rank(const TemplateFitResult& f) {
+  constexpr double kUnexplainedWeight = 0.3;
+  return f.score - kUnexplainedWeight * (1.0 - f.coverage);
+}
+
 // The search ran at the templates' own distance, but parts in a bin lie nearer (stacked, or
 // their centre above the floor): their images are larger by distance / actual distance. Around
 // a match, scale (the distance), in-plane angle (one channel step either way) and translation
 // (3 px) are searched locally with FDCM, so the coarse pose gets its depth from the image.
-void fit_distance(const LineSet& lines, const IntegralDistanceTransform& idt, TemplatePlacement& pl) {
+double fit_distance(const LineSet& lines, const IntegralDistanceTransform& idt, TemplatePlacement& pl) {
   const FdcmMatcher matcher(idt);
   const double step = CV_PI / lines.q;
   double best_cost = std::numeric_limits<double>::infinity();
@@ -158,6 +176,7 @@ void fit_distance(const LineSet& lines, const IntegralDistanceTransform& idt, Te
     }
   }
   pl = best;
+  return best_cost;
 }
 
 }  // namespace
@@ -214,7 +233,9 @@ BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfi
   m.thread_views.resize(static_cast<size_t>(threads));
   for (auto& h : m.thread_hits) h.reserve(4096);
   m.hits.reserve(4096);
-  m.verified.reserve(static_cast<size_t>(6 * m.config.max_candidates));
+  if (m.config.fit_candidates < 1) throw std::runtime_error("pipeline: fit_candidates must be >= 1");
+  m.verified.reserve(static_cast<size_t>(m.config.fit_candidates));
+  m.fit_workspaces.resize(static_cast<size_t>(threads));
   m.explained = cv::Mat1b::zeros(camera.camera.image_size);
   m.inside = cv::Mat1b::zeros(camera.camera.image_size);
 }
@@ -282,6 +303,8 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
   lp.queryLines = m.config.query_guides;
   lp.minOverlap = m.config.min_guide_overlap;
   lp.slideStep = m.config.slide_step;
+  lp.keep = m.config.keep_per_view;
+  lp.separationPx = m.config.keep_separation_px;
   std::atomic<bool> late{false};
   for (auto& h : m.thread_hits) h.clear();
   std::fill(m.thread_hypotheses.begin(), m.thread_hypotheses.end(), 0);
@@ -327,18 +350,71 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
   // The distinct best hits are re-ranked by also asking the converse: which fraction of the
   // image's edges inside the placed outline the template explains (within 2 px).
   m.verified.clear();
+  const int hypotheses = m.config.fit_candidates;
   for (const Hit& h : m.hits) {
-    if (static_cast<int>(m.verified.size()) >= 6 * m.config.max_candidates) break;
+    if (static_cast<int>(m.verified.size()) >= hypotheses) break;
     bool duplicate = false;
     for (const auto& k : m.verified) duplicate = duplicate || (k.hit.part == h.part && iou(k.hit.box, h.box) > 0.8 &&
                                                                k.hit.view == h.view);
     if (duplicate) continue;
     const PartModel& part = m.parts[h.part];
     const double coverage = explained_fraction(part.db.views[h.view], part.warps[h.warp], h.c.tx, h.c.ty, m);
-    m.verified.push_back({h, coverage, h.c.cost() + kUnexplainedPenaltyPx * (1.0 - coverage)});
+    Impl::Verified v;
+    v.hit = h;
+    v.coverage = coverage;
+    v.combined = h.c.cost() + kUnexplainedPenaltyPx * (1.0 - coverage);
+    m.verified.push_back(v);
   }
-  std::stable_sort(m.verified.begin(), m.verified.end(),
-                   [](const Impl::Verified& a, const Impl::Verified& b) { return a.combined < b.combined; });
+
+  // Each hypothesis: local fit of distance, angle and translation (FDCM), its coarse 3-D pose,
+  // then the 6-DoF fit with the template's model points (TemplatePoseFit): the sampled views are
+  // up to ~6 degrees off any real pose, and only after this fit does the truth score clearly
+  // better than clutter. Hypotheses are then ranked by the fitted score.
+  if (fdcm && !m.verified.empty()) m.fitter.prepare(m.edges);
+#pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
+  for (int i = 0; i < static_cast<int>(m.verified.size()); ++i) {
+    Impl::Verified& v = m.verified[i];
+    const Hit& h = v.hit;
+    const PartModel& part = m.parts[h.part];
+    const Warp& w = part.warps[h.warp];
+    TemplatePlacement pl;
+    pl.view = h.view;
+    pl.angle_rad = w.angle;
+    pl.scale = w.scale;
+    pl.origin_px = cv::Point2d(h.c.tx, h.c.ty);
+    if (fdcm) fit_distance(part.db.views[h.view].lines, m.idt, pl);
+    v.coarse = coarse_pose(part.db, pl, m.camera.camera);
+    v.view = h.view;
+    v.fit_score = -1;
+    if (fdcm && m.config.fit_hypotheses) {
+      const TemplateFitResult f =
+          m.fitter.fit(part.db, h.view, v.coarse, m.camera.camera, m.fit_workspaces[omp_get_thread_num()]);
+      // One view constrains depth weakly; a fit that walks far along the line of sight from the
+      // distance the image scale gave (fit_distance) has slid onto other edges.
+      const double z0 = cv::norm(v.coarse.R * part.db.center_mm + v.coarse.t_mm);
+      const double z1 = cv::norm(f.pose.R * part.db.center_mm + f.pose.t_mm);
+      if (std::abs(z1 - z0) > kMaxFitDepthChange * z0) {
+        v.fitted = v.coarse;
+        v.fit_score = 0;
+        v.fit_rank = -1;
+        continue;
+      }
+      v.fitted = f.pose;
+      v.view = f.view;
+      v.fit_score = f.score;
+      v.fit_cost = f.mean_cost_px;
+      v.fit_coverage = f.coverage;
+      v.fit_rank = fitted_rank(f);
+    } else {
+      v.fitted = v.coarse;
+    }
+  }
+  if (fdcm && m.config.fit_hypotheses)
+    std::stable_sort(m.verified.begin(), m.verified.end(),
+                     [](const Impl::Verified& a, const Impl::Verified& b) { return a.fit_rank > b.fit_rank; });
+  else
+    std::stable_sort(m.verified.begin(), m.verified.end(),
+                     [](const Impl::Verified& a, const Impl::Verified& b) { return a.combined < b.combined; });
 
   // Non-maximum suppression across views and part types: one part per place in the bin.
   for (const Impl::Verified& v : m.verified) {
@@ -348,25 +424,19 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
     for (const auto& k : out.candidates) overlaps = overlaps || iou(k.box, h.box) > 0.3;
     if (overlaps) continue;
     const PartModel& part = m.parts[h.part];
-    const Warp& w = part.warps[h.warp];
-    TemplatePlacement pl;
-    pl.view = h.view;
-    pl.angle_rad = w.angle;
-    pl.scale = w.scale;
-    pl.origin_px = cv::Point2d(h.c.tx, h.c.ty);
-    if (fdcm) fit_distance(part.db.views[h.view].lines, m.idt, pl);
-    const RigidPose pose = coarse_pose(part.db, pl, m.camera.camera);
     PoseCandidate c;
     c.obj_id = part.db.obj_id;
     c.part = part.db.part_name;
-    c.view = h.view;
-    c.R_m2c = pose.R;
-    c.t_m2c_mm = pose.t_mm;
+    c.view = v.view;
+    c.R_m2c = v.fitted.R;
+    c.t_m2c_mm = v.fitted.t_mm;
     c.cost_px = h.c.cost();
     c.coverage = v.coverage;
+    c.rank_px = v.combined;
+    c.fit_rank = v.fit_rank;
     // 1 at a perfect match, 0.5 at 2 px of combined cost, falling slowly so that a correct but
     // unrefined match of a large part (3-4 px) still ranks above nothing.
-    c.score = 1.0 / (1.0 + v.combined / 2.0);
+    c.score = v.fit_score >= 0 ? std::clamp(v.fit_rank, 0.0, 1.0) : 1.0 / (1.0 + v.combined / 2.0);
     c.box = h.box;
     out.candidates.push_back(std::move(c));
   }
@@ -411,23 +481,59 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
       const bool depth_jump = std::abs(cv::norm(c1) - cv::norm(c0)) > 0.04 * cv::norm(c0);
       if (r.score < start.score || depth_jump) {
         c.cost_px = start.mean_cost_px;
-        c.score = start.score;
         continue;
       }
       c.R_m2c = r.pose.R;
       c.t_m2c_mm = r.pose.t;
       c.cost_px = r.mean_cost_px;
-      c.score = r.score;
       c.refined = true;
     }
-    // The refined (or re-scored) candidates by their final score; the rest keep the search order.
-    std::stable_sort(out.candidates.begin(), out.candidates.begin() + refine,
-                     [](const PoseCandidate& a, const PoseCandidate& b) { return a.score > b.score; });
+    // The order stays the fitted ranking's (TemplatePoseFit with the unexplained-edge check): the
+    // refiner polishes a pose, its score (model edges found, no converse check) does not tell a
+    // part from its own back or from clutter as well.
   }
   const auto t2 = Clock::now();
   out.times.refine_ms = ms_between(t, t2);
   t = t2;
   out.times.total_ms = ms_between(t0, t);
+}
+
+PoseScore BinPickingPipeline::score_pose(int obj_id, const cv::Matx33d& R_m2c, const cv::Vec3d& t_m2c_mm) {
+  Impl& m = *impl_;
+  if (m.config.cost != PipelineConfig::Cost::fdcm) throw std::invalid_argument("pipeline: score_pose needs the FDCM cost");
+  const PartModel* part = nullptr;
+  for (const auto& p : m.parts)
+    if (p.db.obj_id == obj_id) part = &p;
+  if (!part) throw std::invalid_argument("pipeline: no templates loaded for obj_id " + std::to_string(obj_id));
+  // The nearest view over the part's symmetric copies of the pose (the views cover one wedge).
+  std::vector<cv::Matx33d> turns = part->db.symmetry.discrete_rotations();
+  if (turns.empty()) turns.push_back(cv::Matx33d::eye());
+  PoseScore out;
+  double best = std::numeric_limits<double>::infinity();
+  TemplatePlacement placement;
+  for (const auto& S : turns) {
+    const RigidPose pose{R_m2c * S, t_m2c_mm + R_m2c * (part->db.center_mm - S * part->db.center_mm)};
+    for (int v = 0; v < static_cast<int>(part->db.views.size()); ++v) {
+      const TemplatePlacement pl = placement_of(part->db, v, pose, m.camera.camera);
+      const RigidPose c = coarse_pose(part->db, pl, m.camera.camera);
+      const cv::Matx33d D = c.R.t() * pose.R;
+      const double angle = std::acos(std::clamp((cv::trace(D) - 1.0) / 2.0, -1.0, 1.0));
+      if (angle < best) best = angle, placement = pl, out.view = v;
+    }
+  }
+  out.view_angle_deg = best * 180.0 / CV_PI;
+  const TemplateView& view = part->db.views[static_cast<size_t>(out.view)];
+  out.cost_px = fit_distance(view.lines, m.idt, placement);
+  if (!std::isfinite(out.cost_px)) out.cost_px = m.dt3_params.maxCost;
+  const Warp w{placement.angle_rad, placement.scale, 1.0};
+  out.coverage = explained_fraction(view, w, static_cast<int>(placement.origin_px.x),
+                                    static_cast<int>(placement.origin_px.y), m);
+  out.rank_px = out.cost_px + kUnexplainedPenaltyPx * (1.0 - out.coverage);
+  m.fitter.prepare(m.edges);
+  const RigidPose start = coarse_pose(part->db, placement, m.camera.camera);
+  const TemplateFitResult f = m.fitter.fit(part->db, out.view, start, m.camera.camera, m.fit_workspaces[0]);
+  out.fit_score = fitted_rank(f);
+  return out;
 }
 
 cv::Mat3b draw_candidates(const cv::Mat1b& image, const PipelineResult& result, const CameraConfig& camera) {

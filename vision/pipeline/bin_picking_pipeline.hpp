@@ -31,15 +31,22 @@ struct PipelineConfig {
   Cost cost = Cost::fdcm;
   std::vector<std::filesystem::path> template_files;  // *.tdb, one per part type (mfc-teach)
   int max_candidates = 8;          // pick candidates kept per cycle, best first
-  double max_cost_px = 5.0;        // FDCM detection threshold, px (mean directional chamfer cost); large
-                                   // parts between template views reach 3-4 px
+  double max_cost_px = 8.0;        // search threshold, px (mean directional chamfer cost). A part between
+                                   // template views reaches 3-4 px alone and 5-7 px in a full bin; the
+                                   // hypothesis fit decides, so this only bounds the search
   std::vector<double> distances_mm;  // hypothesised part distances; empty = the templates' own
   // 1-D line search (paper Sec. 4.4): each template's longest `template_guides` lines are slid
   // along the query's longest `query_guides` lines of the same orientation.
   int template_guides = 4;
-  int query_guides = 30;
+  int query_guides = 60;   // long clutter (rods, other parts) fills the first 30 in a full bin
   double min_guide_overlap = 0.75;  // of the shorter line (LineSearchParams::minOverlap)
+  int keep_per_view = 1;            // best placements kept per view, more than keep_separation_px apart
+  int keep_separation_px = 8;
   int slide_step = 2;               // px between slide positions, then the best refined (LineSearchParams)
+  // Hypotheses (distinct best search hits) fitted in 6-DoF with their template's model points
+  // and ranked by the fitted score (TemplatePoseFit); false = ranked by the search cost.
+  int fit_candidates = 48;
+  bool fit_hypotheses = true;
   int refine_iterations = 20;      // per candidate (outer ICP iterations); cut short at the deadline
   int refine_candidates = 2;       // the best this many candidates are refined (the others keep
                                    // their coarse pose); 0 = no refinement
@@ -53,11 +60,13 @@ struct PoseCandidate {
   int view = -1;                // template view (out-of-plane rotation) that matched
   cv::Matx33d R_m2c = cv::Matx33d::eye();  // model -> camera rotation
   cv::Vec3d t_m2c_mm{0, 0, 0};  // model origin in the camera frame, mm
-  double score = 0;             // 0..1, higher is better: the refiner's score (inliers, Eq. 21 cost) when
-                                // refined, else 1 / (1 + c / 2 px) of the search cost c (with the
-                                // unexplained-edge penalty)
+  double score = 0;             // 0..1, higher is better: the fitted rank (TemplatePoseFit score less the
+                                // unexplained-edge penalty), clamped; without the fit (baselines)
+                                // 1 / (1 + c / 2 px) of the search cost c with the penalty
   double cost_px = 0;           // mean directional chamfer cost at the final pose
   double coverage = 0;          // fraction of image edges inside the part's outline it explains
+  double rank_px = 0;           // the search's ranking measure: cost_px + the unexplained-edge penalty
+  double fit_rank = 0;          // the rank after TemplatePoseFit (fit score less unexplained edges)
   bool refined = false;         // false: coarse pose only (refinement skipped or failed)
   cv::Rect2d box;               // image bounding box of the matched template
 };
@@ -77,6 +86,17 @@ struct PipelineResult {
   int views_searched = 0;     // template views searched (fewer than loaded when degraded)
 };
 
+// How the last processed image scores a given pose of a part, measured the way the search
+// scores its own hypotheses (for the evaluation: was a miss the search's or the cost's?).
+struct PoseScore {
+  int view = -1;           // nearest template view (symmetry-aware)
+  double view_angle_deg = 0;  // rotation between the given pose and that view's coarse pose
+  double cost_px = 0;      // mean directional chamfer cost after the local fit (fit_distance)
+  double coverage = 0;     // fraction of image edges inside the outline the view explains
+  double rank_px = 0;      // cost_px + unexplained-edge penalty: compare with PoseCandidate::rank_px
+  double fit_score = 0;    // TemplatePoseFit score from the view's coarse pose: compare with PoseCandidate::score
+};
+
 class BinPickingPipeline {
  public:
   // Loads and checks every template file against `camera` (refused with the file and the
@@ -92,6 +112,10 @@ class BinPickingPipeline {
   // more than one stage.
   void process(const MfcFrames& frames, int obj_id, std::chrono::steady_clock::time_point deadline,
                PipelineResult& out);
+
+  // The pose (model -> camera) of part obj_id scored on the last process()'s image (FDCM cost
+  // only). Throws std::invalid_argument for an unknown obj_id or another cost.
+  PoseScore score_pose(int obj_id, const cv::Matx33d& R_m2c, const cv::Vec3d& t_m2c_mm);
 
   // Part types loaded, as (obj_id, name).
   std::vector<std::pair<int, std::string>> parts() const;
