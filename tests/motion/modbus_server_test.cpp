@@ -557,10 +557,11 @@ TEST(ModbusServer, RobotPoseBlockWrittenByThePlc)
 		EXPECT_EQ(p.rz_deg, pose[5]);
 		// The block reads back as written (the PLC can verify its write).
 		EXPECT_EQ(plc.read(reg::kRobotPoseX, 14), pose_block(pose, 1, 17, order));
-		if (order == WordOrder::ABCD) // the example in docs/register-map.md, word for word
+		if (order == WordOrder::ABCD) { // the example in docs/register-map.md, word for word
 			EXPECT_EQ(plc.read(reg::kRobotPoseX, 14),
 			          (std::vector<std::uint16_t>{0x4400, 0x1000, 0xC302, 0x8000, 0x4439, 0x0800, 0x4333, 0x8000,
 			                                      0xC010, 0x0000, 0x4234, 0x0000, 1, 17}));
+		}
 
 		// Clearing the valid flag alone (FC 0x06) keeps the pose and marks it not current.
 		ASSERT_EQ(modbus_write_register(plc.ctx, reg::kRobotPoseValid, 0), 1);
