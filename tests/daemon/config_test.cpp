@@ -160,3 +160,46 @@ TEST(Config, SimAndCellConfigsParse) {
   EXPECT_EQ(cell.lights.type, LightsType::Gpiod);
   EXPECT_TRUE(cell.can_enabled);
 }
+
+TEST(Config, CalibrationBoardAndSimulatedPlate) {
+  DaemonConfig c = parseConfig(minimal(), "test.yaml", kPath);
+  EXPECT_EQ(c.calibration.board_columns, 9);
+  EXPECT_EQ(c.calibration.board_rows, 6);
+  EXPECT_EQ(c.calibration.square_mm, 10);
+  EXPECT_EQ(c.calibration.distortion, "radial");
+  EXPECT_FALSE(c.simulation.plate.enabled);
+
+  c = parseConfig(minimal("calibration:\n  board: 7x5\n  square_mm: 25\n  distortion: none\n"
+                          "simulation:\n  calibration_plate:\n    room_light_dn: 120\n"
+                          "    eye_to_hand:\n      base_T_camera: {x_mm: 600, z_mm: 900, rx_deg: 180}\n"
+                          "      flange_T_plate: {z_mm: 20}\n"
+                          "    eye_in_hand:\n      flange_T_camera: {x_mm: 40, z_mm: 90}\n"
+                          "      base_T_plate: {x_mm: 450, rx_deg: 180}\n"),
+                  "test.yaml", kPath);
+  EXPECT_EQ(c.calibration.board_columns, 7);
+  EXPECT_EQ(c.calibration.board_rows, 5);
+  EXPECT_EQ(c.calibration.square_mm, 25);
+  EXPECT_EQ(c.calibration.distortion, "none");
+  EXPECT_TRUE(c.simulation.plate.enabled);
+  EXPECT_EQ(c.simulation.plate.room_light_dn, 120);
+  EXPECT_EQ(c.simulation.plate.eye_to_hand_base_T_camera.x_mm, 600);
+  EXPECT_EQ(c.simulation.plate.eye_to_hand_base_T_camera.rx_deg, 180);
+  EXPECT_EQ(c.simulation.plate.eye_in_hand_base_T_plate.x_mm, 450);
+
+  ConfigError e = errorOf(minimal("calibration:\n  board: 9by6\n"));
+  EXPECT_EQ(e.key(), "calibration.board");
+  EXPECT_EQ(e.line(), 6);
+  EXPECT_NE(std::string(e.what()).find("COLUMNSxROWS"), std::string::npos) << e.what();
+  e = errorOf(minimal("calibration:\n  board: 6x6\n"));  // a square board has no unique orientation
+  EXPECT_EQ(e.key(), "calibration.board");
+  e = errorOf(minimal("calibration:\n  square_mm: 0\n"));
+  EXPECT_EQ(e.key(), "calibration.square_mm");
+  e = errorOf(minimal("calibration:\n  distortion: fisheye\n"));
+  EXPECT_EQ(e.key(), "calibration.distortion");
+  e = errorOf(minimal("simulation:\n  calibration_plate:\n    eye_to_hand:\n      base_T_camera: {x_mm: 1}\n"));
+  EXPECT_EQ(e.key(), "simulation.calibration_plate.eye_to_hand.flange_T_plate");
+  EXPECT_NE(std::string(e.what()).find("missing (required)"), std::string::npos) << e.what();
+  e = errorOf(minimal("simulation:\n  calibration_plate:\n    eye_to_hand:\n      base_T_camera: {x_mm: 1, q: 2}\n"));
+  EXPECT_EQ(e.key(), "simulation.calibration_plate.eye_to_hand.base_T_camera.q");
+  EXPECT_EQ(e.line(), 8);
+}
