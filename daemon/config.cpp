@@ -2,6 +2,8 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include "vision/camera/camera.hpp"
+
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
@@ -364,10 +366,37 @@ DaemonConfig parseConfig(const std::string& yamlText, const std::string& source,
                                 {{"eye_to_hand", motion::HandEyeSetup::EyeToHand}, {"eye_in_hand", motion::HandEyeSetup::EyeInHand}});
     if (setup == motion::HandEyeSetup::EyeInHand)
       s.fail(s.key("setup"), lineOf(s.child("setup")),
-             "eye_in_hand needs the robot pose at capture, which register map version 1 does not carry; use eye_to_hand");
+             "eye_in_hand picking needs the robot pose at every capture, which mfcd does not read for picks (the "
+             "register map's robot pose block serves calibration views only); use eye_to_hand");
     c.hand_eye.setup = setup;
-    Section cam = s.section("base_T_camera");
-    c.hand_eye.camera = readPose(cam);
+    // The camera pose from the camera file's hand_eye section (written by mfcd-ctl calibrate
+    // hand-eye apply), so an applied calibration is used for picking after the reload it triggers.
+    if (s.boolean("from_camera_file", false)) {
+      const int line = lineOf(s.child("from_camera_file"));
+      if (s.has("base_T_camera"))
+        s.fail(s.key("base_T_camera"), lineOf(s.child("base_T_camera")),
+               "give base_T_camera or from_camera_file: true, not both");
+      vision::CameraConfig model;
+      try {
+        model = vision::load_camera_config(c.camera.model);
+      } catch (const std::exception& e) {
+        s.fail(s.key("from_camera_file"), line, e.what());
+      }
+      if (!model.hand_eye)
+        s.fail(s.key("from_camera_file"), line,
+               c.camera.model.string() + " has no hand_eye section (run mfcd-ctl calibrate hand-eye and apply it)");
+      if (model.hand_eye->mode != vision::HandEye::Mode::eye_to_hand)
+        s.fail(s.key("from_camera_file"), line, c.camera.model.string() + ": its hand_eye is eye_in_hand; picking needs eye_to_hand");
+      Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+      for (int r = 0; r < 3; ++r) {
+        for (int k = 0; k < 3; ++k) T.linear()(r, k) = model.hand_eye->camera_pose(r, k);
+        T.translation()(r) = model.hand_eye->camera_pose(r, 3);
+      }
+      c.hand_eye.camera = T;
+    } else {
+      Section cam = s.section("base_T_camera");
+      c.hand_eye.camera = readPose(cam);
+    }
     Section grasp = s.section("part_T_grasp");
     c.hand_eye.part_T_grasp = readPose(grasp);
     if (std::string e = c.hand_eye.validate(); !e.empty()) s.fail(s.key(""), s.line(), e);

@@ -4,6 +4,9 @@
 #include <fstream>
 
 #include "daemon/config.hpp"
+#include "vision/camera/camera.hpp"
+
+#include <unistd.h>
 
 using namespace mfcd::daemon;
 
@@ -202,4 +205,32 @@ TEST(Config, CalibrationBoardAndSimulatedPlate) {
   e = errorOf(minimal("simulation:\n  calibration_plate:\n    eye_to_hand:\n      base_T_camera: {x_mm: 1, q: 2}\n"));
   EXPECT_EQ(e.key(), "simulation.calibration_plate.eye_to_hand.base_T_camera.q");
   EXPECT_EQ(e.line(), 8);
+}
+
+// hand_eye.from_camera_file: the camera pose an applied hand-eye calibration wrote.
+TEST(Config, HandEyeFromTheCameraFile) {
+  const fs::path dir = fs::temp_directory_path() / ("mfcd-config-he-" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  mfcd::vision::CameraConfig cam = mfcd::vision::load_camera_config(MFC_SOURCE_DIR "/config/camera-sim.yaml");
+  mfcd::vision::save_camera_config(cam, dir / "plain.yaml");
+  mfcd::vision::HandEye he;
+  he.mode = mfcd::vision::HandEye::Mode::eye_to_hand;
+  he.camera_pose = cv::Matx44d(0, 1, 0, 620, 1, 0, 0, 110, 0, 0, -1, 950, 0, 0, 0, 1);
+  cam.hand_eye = he;
+  mfcd::vision::save_camera_config(cam, dir / "calibrated.yaml");
+  const auto text = [&](const std::string& file, const std::string& he_extra) {
+    return "camera:\n  model: " + (dir / file).string() + "\nrecipes:\n  - {id: 0, part: any, obj_id: 0}\nhand_eye:\n" + he_extra;
+  };
+  const DaemonConfig c = parseConfig(text("calibrated.yaml", "  from_camera_file: true\n"), "test.yaml", kPath);
+  EXPECT_NEAR(c.hand_eye.camera.translation().x(), 620, 1e-9);
+  EXPECT_NEAR(c.hand_eye.camera.translation().z(), 950, 1e-9);
+  EXPECT_NEAR(c.hand_eye.camera.linear()(2, 2), -1, 1e-12);
+
+  ConfigError e = errorOf(text("plain.yaml", "  from_camera_file: true\n"));
+  EXPECT_EQ(e.key(), "hand_eye.from_camera_file");
+  EXPECT_EQ(e.line(), 6);
+  EXPECT_NE(std::string(e.what()).find("has no hand_eye section"), std::string::npos) << e.what();
+  e = errorOf(text("calibrated.yaml", "  from_camera_file: true\n  base_T_camera: {x_mm: 1}\n"));
+  EXPECT_EQ(e.key(), "hand_eye.base_T_camera");
+  fs::remove_all(dir);
 }
