@@ -342,15 +342,7 @@ void ModbusServer::run() noexcept
 				send_exception(c, v.function, ModbusException::IllegalDataValue);
 				return;
 			}
-		}
-
-		modbus_set_socket(m.ctx, c.fd);
-		if (modbus_reply(m.ctx, c.buf, static_cast<int>(size), m.map) < 0) {
-			close_client(c, true);
-		} else {
-			answered_.fetch_add(1);
-		}
-		if (pose_write) {
+			// Published before the answer: once the PLC has its acknowledgement, mfcd sees the pose.
 			RobotPoseReading p = robot_pose_.read();
 			const auto f = [&](std::uint16_t at) {
 				const std::uint16_t *q = pose_block + (at - reg::kRobotPoseBegin);
@@ -362,6 +354,12 @@ void ModbusServer::run() noexcept
 			p.x_mm = f(reg::kRobotPoseX), p.y_mm = f(reg::kRobotPoseY), p.z_mm = f(reg::kRobotPoseZ);
 			p.rx_deg = f(reg::kRobotPoseRx), p.ry_deg = f(reg::kRobotPoseRy), p.rz_deg = f(reg::kRobotPoseRz);
 			robot_pose_.publish(p);
+		}
+		modbus_set_socket(m.ctx, c.fd);
+		if (modbus_reply(m.ctx, c.buf, static_cast<int>(size), m.map) < 0) {
+			close_client(c, true);
+		} else {
+			answered_.fetch_add(1);
 		}
 		if (command) {
 			regs[reg::kCommand] = 0; // reads back 0 once taken
