@@ -165,6 +165,37 @@ TEST_F(CalibrationE2E, IntrinsicsRecoverTheSimulatedCameraAndApplyKeepsThePrevio
     ASSERT_EQ(r.exit, 0) << r.text;
   }
   EXPECT_EQ(r.answer["views"], 20);
+
+  // Compute runs on the calibration worker: the main loop keeps answering meanwhile.
+  {
+    const int fd = ::socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    sockaddr_un addr{};
+    addr.sun_family = AF_UNIX;
+    std::strncpy(addr.sun_path, proc->socket().c_str(), sizeof addr.sun_path - 1);
+    ASSERT_EQ(::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr), 0);
+    const std::string line = json{{"cmd", "calibrate"}, {"action", "compute"}}.dump() + "\n";
+    const auto t0 = std::chrono::steady_clock::now();
+    ASSERT_EQ(::send(fd, line.data(), line.size(), MSG_NOSIGNAL), static_cast<ssize_t>(line.size()));
+    int statusWhileWorking = 0, statusRequests = 0;
+    double slowestStatusMs = 0;
+    pollfd p{fd, POLLIN, 0};
+    while (::poll(&p, 1, 0) == 0) {
+      const auto s0 = std::chrono::steady_clock::now();
+      const json st = proc->ctl({{"cmd", "status"}}, 5000);
+      slowestStatusMs = std::max(slowestStatusMs, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - s0).count());
+      ASSERT_TRUE(st["ok"]) << st.dump();
+      ++statusRequests;
+      if (st["calibration"].value("working", "") == "compute") ++statusWhileWorking;
+      ASSERT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(60)) << "compute never answered";
+    }
+    const double computeMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    ::close(fd);
+    std::printf("[ figures  ] intrinsics compute took %.0f ms; %d status requests answered meanwhile, slowest %.1f ms\n",
+                computeMs, statusWhileWorking, slowestStatusMs);
+    // Every status sent before compute answered says so (the last may cross its end).
+    EXPECT_GE(statusWhileWorking, statusRequests - 1) << "status was not answered while compute ran";
+    EXPECT_LT(slowestStatusMs, 250) << "the main loop waited for compute";
+  }
   r = ctl("calibrate compute");
   ASSERT_EQ(r.exit, 0) << r.text;
   const json k = r.answer["intrinsics"];
