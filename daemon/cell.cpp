@@ -150,6 +150,7 @@ void Cell::acquisitionMain(std::promise<void>& ready) {
     source_->activate();
     const hal::ImageFormat format = source_->format();
     for (auto& slot : frames_.slots()) slot.allocate(format);
+    calibrationImage_.create(format.height, format.width);
     sourceDescription_ = source_->describe();
   } catch (...) {
     if (source_) source_->deactivate();
@@ -193,13 +194,24 @@ void Cell::acquisitionMain(std::promise<void>& ready) {
       slot->request = *request;
       slot->error[0] = '\0';
       const Clock::time_point t0 = Clock::now();
+      const bool calibration = request->kind == CycleRequest::Kind::CalibrationCapture;
       try {
+        // A calibration capture (operator-driven, picking paused) may re-stage the simulated
+        // scene; that allocates, which the cycle path never does.
+        if (calibration) source_->showPlate(request->plate);
         const hal::FrameSet& set = source_->capture();
         copyFrameSet(set, slot->frames);
         slot->ok = true;
       } catch (const std::exception& e) {
         slot->ok = false;
         copyMessage(slot->error, sizeof slot->error, e.what());
+      }
+      if (calibration) {
+        try {
+          source_->showPlate({});
+        } catch (const std::exception& e) {
+          logf(LogLevel::Error, "simulated cell: putting the bin back after a calibration capture: %s", e.what());
+        }
       }
       slot->captured = Clock::now();
       slot->capture_ms = msBetween(t0, slot->captured);
@@ -238,6 +250,13 @@ void Cell::visionMain(std::promise<void>& ready) {
         waitFd(visionWake_, 10);
         continue;
       }
+      if (slot->request.kind == CycleRequest::Kind::CalibrationCapture) {
+        handOverCalibrationImage(*slot, *out);
+        results_.endWrite();
+        signalFd(resultFd_);
+        frames_.endRead();
+        continue;
+      }
       runCycle(*slot, *out);
       const bool wantSnapshot = slot->request.snapshot ||
                                 (config_.snapshots.on_failure && slot->request.origin != CycleOrigin::Benchmark &&
@@ -251,6 +270,21 @@ void Cell::visionMain(std::promise<void>& ready) {
     }
   }
   stage_.reset();
+}
+
+void Cell::handOverCalibrationImage(const FrameSlot& slot, CycleResult& out) {
+  out = CycleResult{};
+  out.kind = CycleResult::Kind::CalibrationImage;
+  out.request = slot.request;
+  out.capture_ms = slot.capture_ms;
+  out.leds_off = slot.leds_after == 0;
+  if (!slot.ok) {
+    out.error = CycleError::Capture;
+    copyMessage(out.message, sizeof out.message, slot.error);
+  } else {
+    slot.mfc.ambient.copyTo(calibrationImage_);  // same size: no allocation
+  }
+  out.total_ms = msBetween(slot.request.trigger, Clock::now());
 }
 
 void Cell::runCycle(FrameSlot& slot, CycleResult& out) {

@@ -49,6 +49,10 @@ public:
   CycleResult* beginResult() noexcept;                  // drains the eventfd; nullptr when none
   void endResult() noexcept { results_.endRead(); }
 
+  // The ambient image of the last CalibrationCapture (see CycleResult::Kind::CalibrationImage);
+  // preallocated, written by the vision thread before it posts that result.
+  const cv::Mat1b& calibrationImage() const { return calibrationImage_; }
+
   const DaemonConfig& config() const { return config_; }
   const std::string& sourceDescription() const { return sourceDescription_; }
   const std::string& visionDescription() const { return visionDescription_; }
@@ -64,6 +68,7 @@ private:
   void acquisitionMain(std::promise<void>& ready);
   void visionMain(std::promise<void>& ready);
   void runCycle(FrameSlot& slot, CycleResult& out);
+  void handOverCalibrationImage(const FrameSlot& slot, CycleResult& out);
   void writeSnapshot(const FrameSlot& slot, const CycleResult& result);
 
   DaemonConfig config_;
@@ -86,6 +91,7 @@ private:
 
   std::atomic<std::uint64_t> acqBeat_{0}, visionBeat_{0}, framesDropped_{0};
   vision::PipelineResult pipelineResult_;  // vision thread; capacity reserved once
+  cv::Mat1b calibrationImage_;             // allocated before the threads report ready
 };
 
 }  // namespace mfcd::daemon

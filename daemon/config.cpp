@@ -2,6 +2,8 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include "vision/camera/camera.hpp"
+
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
@@ -207,6 +209,20 @@ Eigen::Isometry3d readPose(Section& s) {
   return motion::pose_to_isometry(p);
 }
 
+PoseSetting readPoseSetting(Section s, bool required) {
+  if (required && !s.has("x_mm") && !s.has("y_mm") && !s.has("z_mm"))
+    s.fail(s.key(""), s.line(), "missing (required): a pose {x_mm, y_mm, z_mm, rx_deg, ry_deg, rz_deg}");
+  PoseSetting p;
+  p.x_mm = s.number("x_mm", 0, -1e5, 1e5);
+  p.y_mm = s.number("y_mm", 0, -1e5, 1e5);
+  p.z_mm = s.number("z_mm", 0, -1e5, 1e5);
+  p.rx_deg = s.number("rx_deg", 0, -360, 360);
+  p.ry_deg = s.number("ry_deg", 0, -360, 360);
+  p.rz_deg = s.number("rz_deg", 0, -360, 360);
+  s.finish();
+  return p;
+}
+
 }  // namespace
 
 DaemonConfig parseConfig(const std::string& yamlText, const std::string& source, const std::vector<fs::path>& path) {
@@ -285,6 +301,21 @@ DaemonConfig parseConfig(const std::string& yamlText, const std::string& source,
     c.simulation.seed = static_cast<std::uint64_t>(s.integer("seed", 1, 0, 1LL << 62));
     c.simulation.floor_distance_mm = s.number("floor_distance_mm", 330, 50, 5000);
     c.simulation.noise = s.boolean("noise", true);
+    if (s.has("calibration_plate")) {
+      Section p = s.section("calibration_plate");
+      auto& plate = c.simulation.plate;
+      plate.enabled = true;
+      plate.room_light_dn = p.number("room_light_dn", 150, 20, 250);
+      Section e2h = p.section("eye_to_hand");
+      plate.eye_to_hand_base_T_camera = readPoseSetting(e2h.section("base_T_camera"), true);
+      plate.eye_to_hand_flange_T_plate = readPoseSetting(e2h.section("flange_T_plate"), true);
+      e2h.finish();
+      Section e2f = p.section("eye_in_hand");
+      plate.eye_in_hand_flange_T_camera = readPoseSetting(e2f.section("flange_T_camera"), true);
+      plate.eye_in_hand_base_T_plate = readPoseSetting(e2f.section("base_T_plate"), true);
+      e2f.finish();
+      p.finish();
+    }
     s.finish();
   }
   {
@@ -335,10 +366,37 @@ DaemonConfig parseConfig(const std::string& yamlText, const std::string& source,
                                 {{"eye_to_hand", motion::HandEyeSetup::EyeToHand}, {"eye_in_hand", motion::HandEyeSetup::EyeInHand}});
     if (setup == motion::HandEyeSetup::EyeInHand)
       s.fail(s.key("setup"), lineOf(s.child("setup")),
-             "eye_in_hand needs the robot pose at capture, which register map version 1 does not carry; use eye_to_hand");
+             "eye_in_hand picking needs the robot pose at every capture, which mfcd does not read for picks (the "
+             "register map's robot pose block serves calibration views only); use eye_to_hand");
     c.hand_eye.setup = setup;
-    Section cam = s.section("base_T_camera");
-    c.hand_eye.camera = readPose(cam);
+    // The camera pose from the camera file's hand_eye section (written by mfcd-ctl calibrate
+    // hand-eye apply), so an applied calibration is used for picking after the reload it triggers.
+    if (s.boolean("from_camera_file", false)) {
+      const int line = lineOf(s.child("from_camera_file"));
+      if (s.has("base_T_camera"))
+        s.fail(s.key("base_T_camera"), lineOf(s.child("base_T_camera")),
+               "give base_T_camera or from_camera_file: true, not both");
+      vision::CameraConfig model;
+      try {
+        model = vision::load_camera_config(c.camera.model);
+      } catch (const std::exception& e) {
+        s.fail(s.key("from_camera_file"), line, e.what());
+      }
+      if (!model.hand_eye)
+        s.fail(s.key("from_camera_file"), line,
+               c.camera.model.string() + " has no hand_eye section (run mfcd-ctl calibrate hand-eye and apply it)");
+      if (model.hand_eye->mode != vision::HandEye::Mode::eye_to_hand)
+        s.fail(s.key("from_camera_file"), line, c.camera.model.string() + ": its hand_eye is eye_in_hand; picking needs eye_to_hand");
+      Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+      for (int r = 0; r < 3; ++r) {
+        for (int k = 0; k < 3; ++k) T.linear()(r, k) = model.hand_eye->camera_pose(r, k);
+        T.translation()(r) = model.hand_eye->camera_pose(r, 3);
+      }
+      c.hand_eye.camera = T;
+    } else {
+      Section cam = s.section("base_T_camera");
+      c.hand_eye.camera = readPose(cam);
+    }
     Section grasp = s.section("part_T_grasp");
     c.hand_eye.part_T_grasp = readPose(grasp);
     if (std::string e = c.hand_eye.validate(); !e.empty()) s.fail(s.key(""), s.line(), e);
@@ -368,6 +426,25 @@ DaemonConfig parseConfig(const std::string& yamlText, const std::string& source,
     c.can.heartbeat_period = std::chrono::milliseconds(s.integer("heartbeat_ms", 1000, 10, 60000));
     c.can.retry_interval = std::chrono::milliseconds(s.integer("retry_ms", 1000, 10, 60000));
     if (std::string e = c.can.validate(); !e.empty()) s.fail(s.key(""), s.line(), e);
+    s.finish();
+  }
+  {
+    Section s = top.section("calibration");
+    auto& k = c.calibration;
+    const std::string board = s.string("board", "9x6");
+    const auto x = board.find('x');
+    char* end = nullptr;
+    const long cols = x == std::string::npos ? 0 : std::strtol(board.c_str(), &end, 10);
+    const bool colsOk = x != std::string::npos && end == board.c_str() + x;
+    const long rows = colsOk ? std::strtol(board.c_str() + x + 1, &end, 10) : 0;
+    if (!colsOk || *end != '\0' || cols < 3 || rows < 3 || cols > 50 || rows > 50 || cols == rows)
+      s.fail(s.key("board"), lineOf(s.child("board")),
+             "'" + board + "' is not COLUMNSxROWS inner corners, 3..50 each and not square (e.g. 9x6)");
+    k.board_columns = static_cast<int>(cols);
+    k.board_rows = static_cast<int>(rows);
+    k.square_mm = s.number("square_mm", 10, 0.5, 500);
+    k.distortion = s.choice<std::string>("distortion", "radial",
+                                         {{"none", "none"}, {"radial", "radial"}, {"radial-tangential", "radial-tangential"}, {"full", "full"}});
     s.finish();
   }
   {

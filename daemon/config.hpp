@@ -69,11 +69,38 @@ struct LightsSettings {
   bool active_low = false;
 };
 
+// A pose as an operator writes it: mm and degrees, R = Rz(rz) * Ry(ry) * Rx(rx).
+struct PoseSetting {
+  double x_mm = 0, y_mm = 0, z_mm = 0;
+  double rx_deg = 0, ry_deg = 0, rz_deg = 0;
+};
+
+// The simulated cell's calibration plate (simulation.calibration_plate): the ground truth the
+// calibration workflow must recover. The plate itself is the calibration.board.
+struct SimPlateSettings {
+  bool enabled = false;            // the key is present: the simulated cell can show the plate
+  double room_light_dn = 150;      // ambient grey level while the plate is shown (an evenly lit room)
+  PoseSetting eye_to_hand_base_T_camera;   // eye-to-hand: camera fixed above the cell ...
+  PoseSetting eye_to_hand_flange_T_plate;  // ... plate held by the flange
+  PoseSetting eye_in_hand_flange_T_camera; // eye-in-hand: camera on the flange ...
+  PoseSetting eye_in_hand_base_T_plate;    // ... plate lying in the cell
+};
+
 struct SimulationSettings {
   int parts_per_bin = 6;
   std::uint64_t seed = 1;
   double floor_distance_mm = 330;  // camera to bin floor along the optical axis
   bool noise = true;
+  SimPlateSettings plate;
+};
+
+// mfcd-ctl calibrate: the checkerboard the operator shows and the lens model to fit. The
+// result is written to camera.model (the file the cell loads), keeping <file>.previous.
+struct CalibrationSettings {
+  int board_columns = 9;   // inner corners per row
+  int board_rows = 6;      // inner corners per column
+  double square_mm = 10;
+  std::string distortion = "radial";  // none | radial | radial-tangential | full
 };
 
 struct VisionSettings {
@@ -119,6 +146,7 @@ struct DaemonConfig {
   bool can_enabled = false;
   motion::CanConfig can;
   SnapshotSettings snapshots;
+  CalibrationSettings calibration;
 
   const RecipeConfig* recipe(int id) const;
 };

@@ -28,10 +28,26 @@ enum class CycleError : std::uint16_t {
   Vision = 3,         // the vision stage threw
   Transform = 4,      // the chosen pick could not be transformed into the robot base frame
   Abandoned = 5,      // the daemon stopped before the cycle finished
+  Calibrating = 6,    // a calibration session is running (mfcd-ctl calibrate): picking is paused
+};
+
+// Where the simulated cell puts its calibration plate for a calibration capture (real cells
+// ignore it: the robot or the operator has put the real plate in view).
+struct PlateRequest {
+  enum class Kind : std::uint8_t {
+    None,        // the cell as it is (the bin)
+    Camera,      // at `pose` in the camera frame (intrinsics: mfcd-ctl calibrate capture --sim-plate-pose)
+    EyeToHand,   // `pose` is the flange pose; plate on the flange, camera fixed (the sim's true transforms)
+    EyeInHand,   // `pose` is the flange pose; camera on the flange, plate in the cell
+  };
+  Kind kind = Kind::None;
+  std::array<double, 6> pose{};  // x, y, z mm, rx, ry, rz deg, R = Rz Ry Rx
 };
 
 struct CycleRequest {
-  enum class Kind : std::uint8_t { Capture, RemovePicked, Refill };
+  // CalibrationCapture: one frame set whose ambient image goes to the calibration session
+  // instead of the vision pipeline.
+  enum class Kind : std::uint8_t { Capture, RemovePicked, Refill, CalibrationCapture };
   Kind kind = Kind::Capture;
   CycleOrigin origin = CycleOrigin::Plc;
   std::uint64_t cycle_id = 0;
@@ -43,6 +59,7 @@ struct CycleRequest {
   Clock::time_point trigger{};
   Clock::time_point deadline{};
   cv::Vec3d picked_t_cam_mm{0, 0, 0};  // RemovePicked: where the robot took a part (camera frame)
+  PlateRequest plate;                  // CalibrationCapture, simulated cell
   // Refill: the simulated bin looked empty to vision (nothing found): the operator refills it.
 };
 
@@ -98,7 +115,9 @@ struct CandidateOut {
 // One cycle's outcome, vision -> main thread.
 struct CycleResult {
   static constexpr int kMaxCandidates = 16;
-  enum class Kind : std::uint8_t { Cycle, SnapshotSaved };
+  // CalibrationImage: the ambient image of a CalibrationCapture is in Cell::calibrationImage()
+  // (error/message say why not), valid until the next calibration capture is submitted.
+  enum class Kind : std::uint8_t { Cycle, SnapshotSaved, CalibrationImage };
   Kind kind = Kind::Cycle;
   CycleRequest request;
   CycleError error = CycleError::None;

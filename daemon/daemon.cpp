@@ -15,6 +15,7 @@
 #include <systemd/sd-daemon.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
@@ -25,6 +26,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "daemon/calibration.hpp"
 #include "daemon/cell.hpp"
 #include "daemon/config.hpp"
 #include "daemon/cycle_stats.hpp"
@@ -54,6 +56,7 @@ struct ControlClient {
   int fd = -1;
   std::string in;
   uid_t uid = 0;
+  std::uint64_t id = 0;  // names the client in calibration jobs answered later
 };
 
 struct Waiter {
@@ -88,6 +91,11 @@ private:
   void reply(int fd, const json& j);
   void closeClient(int fd);
   json statusJson() const;
+  void replyToClient(std::uint64_t id, const json& j);
+  bool calibrating() const { return calib_ && (calib_->active() || calib_->busy() || capture_); }
+  void handleCalibrate(ControlClient& c, const json& req);
+  void onCalibrationImage(const CycleResult& r);
+  void onCalibrationDone();
 
   std::optional<std::uint64_t> startCycle(CycleOrigin origin, std::uint16_t job, std::uint16_t recipe, std::uint16_t mode,
                                           bool snapshot);
@@ -115,7 +123,7 @@ private:
   std::optional<CycleRequest> inFlight_;
   std::optional<motion::PlcCommand> pendingPlc_;
   std::vector<Waiter> waiters_;
-  std::vector<int> reloadWaiters_;
+  std::vector<std::pair<int, json>> reloadWaiters_;  // fd, and what to add to the reload's answer
   std::uint64_t nextCycle_ = 1;
   std::uint16_t nextContinuousJob_ = 1;
   int selectedRecipe_ = 0;
@@ -124,6 +132,20 @@ private:
 
   int signalFd_ = -1, timerFd_ = -1, listenFd_ = -1;
   std::vector<ControlClient> clients_;
+  std::uint64_t nextClientId_ = 1;
+
+  // mfcd-ctl calibrate: the session runs on the service's worker; a capture in flight waits here
+  // for its frame set.
+  struct PendingCapture {
+    std::uint64_t client = 0;
+    std::uint64_t cycle = 0;
+    bool check = false;
+    std::optional<vision::calib::RobotPose> flange;
+    json about;
+  };
+  std::unique_ptr<CalibrationService> calib_;
+  std::optional<PendingCapture> capture_;
+  std::optional<std::uint16_t> lastPlcPoseSeq_;
   std::uint64_t watchdogUsec_ = 0;
   std::uint64_t lastAcqBeat_ = 0, lastVisionBeat_ = 0;
   Clock::time_point acqMoved_ = Clock::now(), visionMoved_ = Clock::now();
@@ -202,7 +224,7 @@ void Daemon::acceptControlClient() {
       ::close(fd);
       continue;
     }
-    clients_.push_back({fd, {}, uid});
+    clients_.push_back({fd, {}, uid, nextClientId_++});
   }
 }
 
@@ -231,7 +253,16 @@ void Daemon::closeClient(int fd) {
       break;
     }
   std::erase_if(waiters_, [fd](const Waiter& w) { return w.fd == fd; });
-  std::erase(reloadWaiters_, fd);
+  std::erase_if(reloadWaiters_, [fd](const auto& w) { return w.first == fd; });
+}
+
+void Daemon::replyToClient(std::uint64_t id, const json& j) {
+  for (const auto& c : clients_)
+    if (c.id == id) {
+      reply(c.fd, j);
+      return;
+    }
+  // The client went away: the job's outcome is in the log and in calibrate status.
 }
 
 void Daemon::readControlClient(ControlClient& c) {
@@ -265,7 +296,12 @@ json Daemon::statusJson() const {
   j["pid"] = ::getpid();
   j["config"] = config_.source;
   j["mode"] = toString(config_.mode);
-  j["state"] = stopping_ ? "stopping" : reloadPending_ ? "reloading" : inFlight_ ? "busy" : cellOk_ ? "ready" : "failed";
+  j["state"] = stopping_        ? "stopping"
+               : reloadPending_ ? "reloading"
+               : calibrating()  ? "calibrating"
+               : inFlight_      ? "busy"
+               : cellOk_        ? "ready"
+                                : "failed";
   j["ready"] = report_.ready != 0;
   j["vision_ok"] = report_.vision_ok != 0;
   j["error_code"] = report_.error_code;
@@ -290,6 +326,10 @@ json Daemon::statusJson() const {
   if (can_) j["can"] = {{"interface", config_.can.interface}, {"state", motion::to_string(can_->state())}};
   j["cycles"] = stats_.cycles();
   j["overruns"] = stats_.overruns();
+  if (calib_) {
+    j["calibration"] = calib_->state();
+    if (calib_->busy()) j["calibration"]["working"] = calib_->working();
+  }
   if (!lastResult_.is_null()) {
     j["last_cycle"] = {{"cycle", lastResult_["cycle"]}, {"total_ms", lastResult_["times_ms"]["total"]},
                        {"overrun", lastResult_["overrun"]}, {"degraded", lastResult_["degraded"]},
@@ -304,7 +344,9 @@ void Daemon::publish() {
 }
 
 void Daemon::updateReady() {
-  const std::uint16_t ready = cellOk_ && !inFlight_ && !reloadPending_ && !stopping_ && config_.mode == RunMode::Triggered;
+  // A calibration session pauses picking: the camera looks at the calibration plate, not the bin.
+  const std::uint16_t ready =
+      cellOk_ && !inFlight_ && !reloadPending_ && !stopping_ && !calibrating() && config_.mode == RunMode::Triggered;
   const std::uint16_t visionOk = cellOk_;
   if (ready != report_.ready || visionOk != report_.vision_ok) {
     report_.ready = ready;
@@ -353,6 +395,17 @@ void Daemon::onPlcCommand(const motion::PlcCommand& cmd) {
     return;
   }
   logf(LogLevel::Debug, "PLC: TRIGGER job %u recipe %u mode %u", cmd.job_id, cmd.recipe_id, cmd.mode);
+  if (calibrating()) {
+    // READY is clear during a session, so only a trigger racing the session's start gets here:
+    // it is answered at once with ERROR_CODE 6 rather than left pending.
+    logf(LogLevel::Warning, "PLC: TRIGGER job %u refused: a calibration session is running", cmd.job_id);
+    report_.job_id = cmd.job_id;
+    report_.recipe_id = cmd.recipe_id;
+    report_.error_code = static_cast<std::uint16_t>(CycleError::Calibrating);
+    report_.pick_valid = 0;
+    publish();
+    return;
+  }
   if (inFlight_ || reloadPending_) {
     pendingPlc_ = cmd;  // accepted by the server during a local cycle: runs right after it
     return;
@@ -361,6 +414,10 @@ void Daemon::onPlcCommand(const motion::PlcCommand& cmd) {
 }
 
 void Daemon::onResult(const CycleResult& r) {
+  if (r.kind == CycleResult::Kind::CalibrationImage) {
+    onCalibrationImage(r);
+    return;
+  }
   if (r.kind == CycleResult::Kind::SnapshotSaved) {
     if (r.snapshot_dir[0])
       logf(LogLevel::Info, "snapshot of cycle %llu saved in %s", static_cast<unsigned long long>(r.request.cycle_id), r.snapshot_dir);
@@ -451,7 +508,18 @@ void Daemon::afterCycle() {
   if (reloadPending_) {
     std::string message;
     const bool ok = reload(message);
-    for (int fd : reloadWaiters_) reply(fd, ok ? json{{"ok", true}, {"message", message}} : json{{"ok", false}, {"error", message}});
+    for (auto& [fd, base] : reloadWaiters_) {
+      json j = base.is_object() ? base : json::object();
+      if (ok) {
+        j["ok"] = j.value("ok", true);
+        j["reload"] = message;
+      } else {
+        j["ok"] = false;
+        j["error"] = j.contains("message") ? j.value("message", "") + "; but " + message : message;
+      }
+      if (!base.is_object()) j["message"] = message;
+      reply(fd, j);
+    }
     reloadWaiters_.clear();
     reloadPending_ = false;
     updateReady();
@@ -463,7 +531,7 @@ void Daemon::afterCycle() {
     startCycle(CycleOrigin::Plc, cmd.job_id, cmd.recipe_id, cmd.mode, false);
     return;
   }
-  if (config_.mode == RunMode::Continuous && cellOk_) {
+  if (config_.mode == RunMode::Continuous && cellOk_ && !calibrating()) {
     const std::uint16_t job = nextContinuousJob_;
     nextContinuousJob_ = static_cast<std::uint16_t>(nextContinuousJob_ == 65535 ? 1 : nextContinuousJob_ + 1);
     startCycle(CycleOrigin::Continuous, job, static_cast<std::uint16_t>(selectedRecipe_), 0, false);
@@ -581,6 +649,11 @@ void Daemon::handleRequest(ControlClient& c, const std::string& line) {
       reply(c.fd, {{"ok", false}, {"error", "recipe must be 0..65535"}});
       return;
     }
+    if (calibrating()) {
+      reply(c.fd, {{"ok", false}, {"error", "busy: a calibration session is running (picking is paused; "
+                                            "mfcd-ctl calibrate apply or abort ends it)"}});
+      return;
+    }
     if (stopping_ || reloadPending_ || inFlight_ || config_.mode == RunMode::Continuous || !cellOk_) {
       reply(c.fd, {{"ok", false}, {"error", config_.mode == RunMode::Continuous ? "busy: continuous mode runs cycles by itself"
                                                                                  : "busy: a cycle is running or mfcd is not ready"}});
@@ -608,16 +681,182 @@ void Daemon::handleRequest(ControlClient& c, const std::string& line) {
     reply(c.fd, {{"ok", true}, {"recipe", selectedRecipe_}, {"part", config_.recipe(selectedRecipe_)->part}});
   } else if (cmd == "reload") {
     reloadPending_ = true;
-    reloadWaiters_.push_back(c.fd);
+    reloadWaiters_.emplace_back(c.fd, json());
     updateReady();
     afterCycle();
   } else if (cmd == "calibrate") {
-    // Calibration hook: the calibration library (vision/calib) is wired here. Until then the
-    // command is refused with a clear message; see docs/operations.md "calibrate".
-    reply(c.fd, {{"ok", false}, {"error", "calibrate: not available in this build (the hand-eye/intrinsics calibration library is not wired into mfcd yet)"}});
+    handleCalibrate(c, req);
   } else {
     reply(c.fd, {{"ok", false}, {"error", "unknown command '" + cmd + "' (status, stats, last, trigger, snapshot, part, reload, calibrate)"}});
   }
+}
+
+void Daemon::handleCalibrate(ControlClient& c, const json& req) {
+  std::string action;
+  const auto refuse = [&](const std::string& why) {
+    reply(c.fd, {{"ok", false}, {"error", "calibrate" + (action.empty() ? std::string() : " " + action) + ": " + why}});
+  };
+  try {
+    action = req.contains("action") && req["action"].is_string() ? req["action"].get<std::string>() : "";
+    if (action == "status") {
+      json j = {{"ok", true}, {"session", calib_->state()}, {"picking", calibrating() ? "paused" : "running"}};
+      if (calib_->busy()) j["working"] = calib_->working();
+      if (capture_) j["capturing"] = true;
+      j["camera_file"] = config_.camera.model.string();
+      reply(c.fd, j);
+      return;
+    }
+    if (action == "abort") {  // also while a job runs: it is queued behind it
+      if (capture_) return refuse("a capture is in flight; abort again when it has answered");
+      calib_->abort(c.id);
+      updateReady();
+      return;
+    }
+    if (calib_->busy()) return refuse("busy: still working on '" + calib_->working() + "'; try again when it has answered");
+    if (capture_) return refuse("busy: a capture is in flight");
+    if (action == "start") {
+      if (calib_->active())
+        return refuse("a " + calib_->state().value("kind", "") + " session is already running (mfcd-ctl calibrate abort ends it)");
+      if (stopping_ || reloadPending_ || !cellOk_) return refuse("mfcd is not ready (stopping, reloading, or the cell failed)");
+      if (inFlight_ || pendingPlc_) return refuse("busy: a pick cycle is running; try again when it is done");
+      const std::string kind = req.contains("kind") && req["kind"].is_string() ? req["kind"].get<std::string>() : "";
+      if (kind != "intrinsics" && kind != "hand-eye") return refuse("kind must be intrinsics or hand-eye");
+      auto mode = vision::calib::HandEyeMode::eye_to_hand;
+      if (kind == "hand-eye" && req.contains("mode")) {
+        if (!req["mode"].is_string()) return refuse("mode must be eye-in-hand or eye-to-hand");
+        mode = vision::calib::parse_hand_eye_mode(req["mode"].get<std::string>());
+      }
+      lastPlcPoseSeq_.reset();
+      calib_->start(c.id, kind == "intrinsics" ? CalibrationService::Kind::Intrinsics : CalibrationService::Kind::HandEye, mode,
+                    config_.camera.model, config_.calibration);
+      updateReady();  // READY drops for the session
+      return;
+    }
+    if (action == "capture" || action == "check") {
+      const bool check = action == "check";
+      if (!calib_->active()) return refuse("no calibration session (mfcd-ctl calibrate intrinsics start, or hand-eye start)");
+      if (check && (!calib_->handEye() || !calib_->computed()))
+        return refuse("check needs a computed hand-eye calibration (calibrate compute first)");
+      if (inFlight_ || reloadPending_ || stopping_ || !cellOk_ || !cell_)
+        return refuse("busy: a cycle or reload is running, or the cell failed");
+      const bool fromPlc = req.value("pose_from_plc", false);
+      if (fromPlc && req.contains("pose")) return refuse("give --pose or --pose-from-plc, not both");
+      std::optional<vision::calib::RobotPose> flange;
+      json about = json::object();
+      if (req.contains("pose")) {
+        flange = poseFromJson(req["pose"], "--pose");
+        about["pose_source"] = "command line";
+      } else if (fromPlc) {
+        const motion::RobotPoseReading p = modbus_->robot_pose();
+        if (p.writes == 0)
+          return refuse("--pose-from-plc: the PLC has not written the robot pose block (registers 36..49, "
+                        "docs/register-map.md)");
+        if (p.valid == 0) return refuse("--pose-from-plc: ROBOT_POSE_VALID (register 48) is 0: the PLC marks the pose as not current");
+        if (lastPlcPoseSeq_ && *lastPlcPoseSeq_ == p.sequence)
+          return refuse("--pose-from-plc: ROBOT_POSE_SEQ (register 49) is still " + std::to_string(p.sequence) +
+                        " as for the previous view: the PLC has not written a new pose");
+        flange = vision::calib::RobotPose{p.x_mm, p.y_mm, p.z_mm, p.rx_deg, p.ry_deg, p.rz_deg};
+        about["pose_source"] = "plc";
+        about["pose_sequence"] = p.sequence;
+      }
+      if (flange)
+        about["pose"] = {flange->x_mm, flange->y_mm, flange->z_mm, flange->rx_deg, flange->ry_deg, flange->rz_deg};
+      if (calib_->handEye() && !flange)
+        return refuse("a hand-eye view needs the robot flange pose: --pose x,y,z,rx,ry,rz or --pose-from-plc");
+      // The simulated cell stages the plate; a real cell ignores this (the plate is really there).
+      PlateRequest plate;
+      if (req.contains("sim_plate_pose")) {
+        const auto p = poseFromJson(req["sim_plate_pose"], "--sim-plate-pose");
+        plate.kind = PlateRequest::Kind::Camera;
+        plate.pose = {p.x_mm, p.y_mm, p.z_mm, p.rx_deg, p.ry_deg, p.rz_deg};
+      } else if (calib_->handEye() && flange) {
+        plate.kind = calib_->eyeInHand() ? PlateRequest::Kind::EyeInHand : PlateRequest::Kind::EyeToHand;
+        plate.pose = {flange->x_mm, flange->y_mm, flange->z_mm, flange->rx_deg, flange->ry_deg, flange->rz_deg};
+      }
+      CycleRequest r;
+      r.kind = CycleRequest::Kind::CalibrationCapture;
+      r.origin = CycleOrigin::Control;
+      r.cycle_id = nextCycle_++;
+      r.trigger = Clock::now();
+      r.deadline = r.trigger + std::chrono::milliseconds(config_.cycle_budget_ms);
+      r.plate = plate;
+      if (!cell_->submit(r)) return refuse("busy: the acquisition queue is full");
+      inFlight_ = r;
+      capture_ = PendingCapture{c.id, r.cycle_id, check, flange, std::move(about)};
+      updateReady();
+      return;
+    }
+    if (action == "compute") {
+      if (!calib_->active()) return refuse("no calibration session");
+      calib_->compute(c.id);
+      return;
+    }
+    if (action == "apply") {
+      if (!calib_->active()) return refuse("no calibration session");
+      if (!calib_->computed()) return refuse("nothing computed yet (calibrate compute, then apply)");
+      if (!req.value("confirm", false))
+        return refuse("this writes " + config_.camera.model.string() + ": confirm with --yes (mfcd-ctl asks y/N on a terminal)");
+      calib_->apply(c.id);
+      return;
+    }
+    if (action == "rollback") {
+      if (calib_->active()) return refuse("a calibration session is running: apply or abort it first");
+      if (!req.value("confirm", false))
+        return refuse("this overwrites " + config_.camera.model.string() + " with its .previous copy: confirm with --yes");
+      calib_->rollback(c.id, config_.camera.model);
+      return;
+    }
+    refuse("unknown action '" + action + "' (start, capture, compute, check, apply, rollback, abort, status)");
+  } catch (const std::exception& e) {  // bad field types, bad poses, unknown hand-eye mode
+    refuse(e.what());
+  }
+}
+
+void Daemon::onCalibrationImage(const CycleResult& r) {
+  inFlight_.reset();
+  if (!capture_ || capture_->cycle != r.request.cycle_id) {
+    logf(LogLevel::Warning, "calibration image of cycle %llu arrived with no capture waiting for it",
+         static_cast<unsigned long long>(r.request.cycle_id));
+    updateReady();
+    return;
+  }
+  PendingCapture pc = std::move(*capture_);
+  capture_.reset();
+  if (!r.leds_off) logf(LogLevel::Error, "calibration capture %llu: LEDs were not all off after the capture",
+                        static_cast<unsigned long long>(r.request.cycle_id));
+  if (r.error != CycleError::None) {
+    json j = pc.about;
+    j["ok"] = false;
+    j["error"] = std::string("capture failed: ") + r.message;
+    replyToClient(pc.client, j);
+    updateReady();
+    return;
+  }
+  if (pc.about.contains("pose_sequence")) lastPlcPoseSeq_ = pc.about["pose_sequence"].get<std::uint16_t>();
+  pc.about["capture_ms"] = r.capture_ms;
+  cv::Mat1b image = cell_->calibrationImage().clone();  // the cell's buffer is reused by the next capture
+  if (pc.check)
+    calib_->check(pc.client, std::move(image), *pc.flange, std::move(pc.about));
+  else
+    calib_->addView(pc.client, std::move(image), pc.flange, std::move(pc.about));
+  updateReady();
+}
+
+void Daemon::onCalibrationDone() {
+  for (auto& d : calib_->takeDone()) {
+    if (d.reload) {
+      // The camera file changed: the cell is rebuilt on it through the ordinary reload path;
+      // the client is answered when that is done.
+      const auto it = std::find_if(clients_.begin(), clients_.end(), [&](const ControlClient& c) { return c.id == d.client; });
+      if (it != clients_.end()) reloadWaiters_.emplace_back(it->fd, d.reply);
+      logf(LogLevel::Info, "calibration: reloading so the cell uses the new camera file");
+      reloadPending_ = true;
+    } else {
+      replyToClient(d.client, d.reply);
+    }
+  }
+  updateReady();
+  notifyStatus();
 }
 
 void Daemon::shutdownFds() {
@@ -720,6 +959,7 @@ int Daemon::run() {
       can_->start();
     }
     openControlSocket();
+    calib_ = std::make_unique<CalibrationService>();
   } catch (const std::exception& e) {
     logf(LogLevel::Error, "%s", e.what());
     cell_.reset();
@@ -770,6 +1010,7 @@ int Daemon::run() {
     fds.push_back({cell_ ? cell_->resultFd() : -1, POLLIN, 0});
     fds.push_back({timerFd_, POLLIN, 0});
     fds.push_back({listenFd_, POLLIN, 0});
+    fds.push_back({calib_ ? calib_->completionFd() : -1, POLLIN, 0});
     for (const auto& c : clients_) fds.push_back({c.fd, POLLIN, 0});
     const int n = ::poll(fds.data(), fds.size(), stopping_ ? 100 : -1);
     if (n < 0 && errno != EINTR) {
@@ -808,7 +1049,8 @@ int Daemon::run() {
     }
     if (fds[3].revents & POLLIN) onTimer();
     if (fds[4].revents & POLLIN) acceptControlClient();
-    for (std::size_t i = 5; i < fds.size(); ++i) {
+    if (fds[5].revents & POLLIN) onCalibrationDone();
+    for (std::size_t i = 6; i < fds.size(); ++i) {
       if (!fds[i].revents) continue;
       const int fd = fds[i].fd;
       for (auto& c : clients_)
@@ -825,6 +1067,7 @@ int Daemon::run() {
   publish();
   for (const auto& w : waiters_) reply(w.fd, {{"ok", false}, {"error", "mfcd is stopping"}});
   waiters_.clear();
+  calib_.reset();  // joins the worker after the job it is running (an abandoned session writes nothing)
   cell_.reset();
   if (can_) can_->stop();
   modbus_->stop();

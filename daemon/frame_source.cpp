@@ -8,6 +8,7 @@
 #include "mfcd/hal/rendered_cell_scene.hpp"
 #include "mfcd/hal/simulated.hpp"
 #include "mfcd/hal/v4l2_camera.hpp"
+#include "vision/calib/sim_board.hpp"
 #include "vision/camera/camera.hpp"
 #include "vision/model/mesh.hpp"
 #include "vision/render/mfc_renderer.hpp"
@@ -76,15 +77,19 @@ public:
       if (!r.mesh) continue;
       meshes_.push_back({vision::load_mesh(*r.mesh), r.obj_id, -1, 0});
     }
-    if (!meshes_.empty()) {
+    if (!meshes_.empty() || sim_.plate.enabled) {
       vision::RenderOptions options;
       options.noise.enabled = sim_.noise;
       renderer_ = std::make_unique<vision::MfcRenderer>(model_, options);
+      cellLight_ = options.light;
       floorMesh_ = renderer_->add_mesh(vision::make_plane(4 * sim_.floor_distance_mm));
       for (auto& m : meshes_) {
         m.renderId = renderer_->add_mesh(m.mesh);
         for (const auto& v : m.mesh.vertices) m.radius = std::max(m.radius, std::hypot(double(v[0]), double(v[1])));
       }
+      const auto& k = c.calibration;
+      plate_ = std::make_unique<vision::calib::SimCalibrationPlate>(
+          *renderer_, vision::calib::CheckerBoard{k.board_columns, k.board_rows, k.square_mm});
       cell_ = std::make_unique<hal::RenderedCellScene>(*renderer_, std::vector<vision::ScenePart>{});
       fillBin();
     }
@@ -109,7 +114,8 @@ public:
   hal::ImageFormat format() const override { return camera_->format(); }
   hal::LedMask leds() const override { return lights_.state(); }
   std::string describe() const override {
-    return cell_ ? "simulated cell (" + std::to_string(meshes_.size()) + " part types, " + renderer_->gl_renderer() + ")"
+    return cell_ ? "simulated cell (" + std::to_string(meshes_.size()) + " part types" +
+                       (sim_.plate.enabled ? ", calibration plate" : "") + ", " + renderer_->gl_renderer() + ")"
                  : "simulated camera (test pattern)";
   }
   void truth(SimTruth& out) const override {
@@ -146,6 +152,45 @@ public:
     fillBin();
   }
 
+  void showPlate(const PlateRequest& plate) override {
+    if (plate.kind == PlateRequest::Kind::None) {
+      if (!plateShown_) return;
+      renderer_->options().light = cellLight_;
+      plateShown_ = false;
+      updateScene();
+      return;
+    }
+    if (!cell_)
+      throw std::runtime_error("the simulated camera shows a test pattern (no recipe meshes, no simulation.calibration_plate): "
+                               "it cannot show the calibration plate");
+    namespace calib = vision::calib;
+    const auto matrix = [](const PoseSetting& p) {
+      return calib::RobotPose{p.x_mm, p.y_mm, p.z_mm, p.rx_deg, p.ry_deg, p.rz_deg}.matrix();
+    };
+    const cv::Matx44d given =
+        calib::RobotPose{plate.pose[0], plate.pose[1], plate.pose[2], plate.pose[3], plate.pose[4], plate.pose[5]}.matrix();
+    cv::Matx44d T_camera_board = given;
+    if (plate.kind != PlateRequest::Kind::Camera) {
+      if (!sim_.plate.enabled)
+        throw std::runtime_error("simulation.calibration_plate is not configured: the simulated cell has no true hand-eye "
+                                 "transform to place the plate by the flange pose");
+      const auto& t = sim_.plate;
+      T_camera_board = plate.kind == PlateRequest::Kind::EyeToHand
+                           ? calib::sim_camera_board(calib::HandEyeMode::eye_to_hand, matrix(t.eye_to_hand_base_T_camera),
+                                                     matrix(t.eye_to_hand_flange_T_plate), given)
+                           : calib::sim_camera_board(calib::HandEyeMode::eye_in_hand, matrix(t.eye_in_hand_flange_T_camera),
+                                                     matrix(t.eye_in_hand_base_T_plate), given);
+    }
+    // The room light is switched on for calibration: the ambient image (no flash) is the
+    // calibration image. The bin is out of the way (the robot holds the plate above it).
+    vision::Illumination lit = cellLight_;
+    lit.ambient_dn = static_cast<float>(sim_.plate.enabled ? sim_.plate.room_light_dn : 150.0);
+    lit.room_dn = 40.0f;
+    renderer_->options().light = lit;
+    plateShown_ = true;
+    cell_->setParts(plate_->parts(T_camera_board));
+  }
+
 private:
   struct PartType {
     vision::Mesh mesh;
@@ -162,6 +207,10 @@ private:
   // the floor without overlapping (bounding circles), in the order of the recipes, cycling.
   void fillBin() {
     bin_.clear();
+    if (meshes_.empty()) {  // a cell configured for calibration only: an empty floor
+      updateScene();
+      return;
+    }
     const double f = sim_.floor_distance_mm;
     const double halfW = (model_.camera.image_size.width / 2.0) / model_.camera.fx() * f;
     const double halfH = (model_.camera.image_size.height / 2.0) / model_.camera.fy() * f;
@@ -200,6 +249,9 @@ private:
   std::unique_ptr<vision::MfcRenderer> renderer_;
   int floorMesh_ = -1;
   std::unique_ptr<hal::RenderedCellScene> cell_;
+  std::unique_ptr<vision::calib::SimCalibrationPlate> plate_;
+  vision::Illumination cellLight_;
+  bool plateShown_ = false;
   std::vector<BinPart> bin_;
   std::size_t next_ = 0;
   hal::SimulatedLightRing lights_;

@@ -27,6 +27,9 @@ public:
   virtual void truth(SimTruth& out) const { out.count = 0; }
   virtual void removePicked(const cv::Vec3d& /*t_cam_mm*/) {}
   virtual void refill() {}
+  // Simulated cell only: shows the calibration plate as asked for the next capture(s); Kind::None
+  // brings the bin back. Throws std::runtime_error when the cell cannot show it.
+  virtual void showPlate(const PlateRequest& /*plate*/) {}
 };
 
 // Builds the source the configuration asks for. Throws (HalError, std::runtime_error) naming the

@@ -42,6 +42,7 @@ const char* errorName(CycleError e) {
     case CycleError::Vision: return "vision failed";
     case CycleError::Transform: return "pick transform failed";
     case CycleError::Abandoned: return "abandoned";
+    case CycleError::Calibrating: return "calibrating";
   }
   return "?";
 }

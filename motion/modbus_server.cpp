@@ -5,6 +5,7 @@
 #include "motion/request_guard.h"
 
 #include <arpa/inet.h>
+#include <cmath>
 #include <fcntl.h>
 #include <modbus/modbus.h>
 #include <netinet/in.h>
@@ -45,7 +46,7 @@ std::string ModbusServerConfig::validate() const
 
 namespace {
 
-constexpr RegisterPolicy kPolicy{reg::kBlockSize, 0, reg::kWritableEnd};
+constexpr RegisterPolicy kPolicy{reg::kBlockSize, 0, reg::kWritableEnd, reg::kRobotPoseBegin, reg::kRobotPoseEnd};
 
 struct Client {
 	int fd = -1;
@@ -324,6 +325,36 @@ void ModbusServer::run() noexcept
 			}
 		}
 
+		// A write into the robot pose block is checked as the block it would leave: a valid flag
+		// other than 0/1 or a non-finite float is refused and nothing is written.
+		const bool pose_write = w.count > 0 && w.address < reg::kRobotPoseEnd && w.address + w.count > reg::kRobotPoseBegin;
+		std::uint16_t pose_block[reg::kRobotPoseEnd - reg::kRobotPoseBegin];
+		if (pose_write) {
+			std::copy(regs + reg::kRobotPoseBegin, regs + reg::kRobotPoseEnd, pose_block);
+			for (std::uint16_t i = 0; i < w.count; ++i)
+				pose_block[w.address + i - reg::kRobotPoseBegin] = be16(w.values + 2 * i);
+			bool ok = pose_block[reg::kRobotPoseValid - reg::kRobotPoseBegin] <= 1;
+			for (std::uint16_t at = reg::kRobotPoseX; at < reg::kRobotPoseValid; at += 2) {
+				const std::uint16_t *p = pose_block + (at - reg::kRobotPoseBegin);
+				ok = ok && std::isfinite(decode_float(p[0], p[1], config_.word_order));
+			}
+			if (!ok) {
+				send_exception(c, v.function, ModbusException::IllegalDataValue);
+				return;
+			}
+			// Published before the answer: once the PLC has its acknowledgement, mfcd sees the pose.
+			RobotPoseReading p = robot_pose_.read();
+			const auto f = [&](std::uint16_t at) {
+				const std::uint16_t *q = pose_block + (at - reg::kRobotPoseBegin);
+				return decode_float(q[0], q[1], config_.word_order);
+			};
+			++p.writes;
+			p.valid = pose_block[reg::kRobotPoseValid - reg::kRobotPoseBegin];
+			p.sequence = pose_block[reg::kRobotPoseSeq - reg::kRobotPoseBegin];
+			p.x_mm = f(reg::kRobotPoseX), p.y_mm = f(reg::kRobotPoseY), p.z_mm = f(reg::kRobotPoseZ);
+			p.rx_deg = f(reg::kRobotPoseRx), p.ry_deg = f(reg::kRobotPoseRy), p.rz_deg = f(reg::kRobotPoseRz);
+			robot_pose_.publish(p);
+		}
 		modbus_set_socket(m.ctx, c.fd);
 		if (modbus_reply(m.ctx, c.buf, static_cast<int>(size), m.map) < 0) {
 			close_client(c, true);

@@ -76,6 +76,8 @@ public:
 	std::optional<PlcCommand> next_command() noexcept;
 	// Readable (eventfd) while commands are queued; -1 before start().
 	int command_fd() const noexcept { return command_event_fd_; }
+	// The robot pose block as the PLC last wrote it (seqlock: wait-free for the server thread).
+	RobotPoseReading robot_pose() const noexcept { return robot_pose_.read(); }
 
 	ModbusServerStats stats() const noexcept;
 
@@ -86,6 +88,7 @@ private:
 	ModbusServerConfig config_;
 	std::unique_ptr<Impl> impl_;
 	SeqlockSnapshot<RobotReport> report_;
+	SeqlockSnapshot<RobotPoseReading> robot_pose_;
 	SpscQueue<PlcCommand, 16> commands_;
 	int command_event_fd_ = -1;
 	int stop_event_fd_ = -1;

@@ -9,7 +9,7 @@ namespace mfcd::motion::reg {
 // Everything lives in one block of holding registers starting at protocol address 0, so a
 // single "read holding registers" (FC 0x03) of kBlockSize covers the whole map.
 inline constexpr std::uint16_t kBlockSize = 64;
-inline constexpr std::uint16_t kMapVersion = 1;
+inline constexpr std::uint16_t kMapVersion = 2;  // 2: robot pose block at 36..49
 
 // --- Control block: written by the PLC ---------------------------------------------------
 inline constexpr std::uint16_t kCommand = 0;  // command code, see Command; reads back 0 once taken
@@ -43,7 +43,22 @@ inline constexpr std::uint16_t kPickRz = 30;
 inline constexpr std::uint16_t kScore = 32;  // 0..1
 inline constexpr std::uint16_t kTestVector = 34; // always 123456.0f, to check the word order
 inline constexpr float kTestVectorValue = 123456.0f;
-// 36..63 reserved, read 0.
+
+// --- Robot pose: written by the PLC (map version 2) ----------------------------------------
+// The robot flange pose in the base frame, for mfcd-ctl calibrate capture --pose-from-plc:
+// float32 pairs in the configured word order, then a valid flag and a sequence number the PLC
+// changes for every new pose. Write the whole block with one FC 0x10.
+inline constexpr std::uint16_t kRobotPoseX = 36;   // mm
+inline constexpr std::uint16_t kRobotPoseY = 38;
+inline constexpr std::uint16_t kRobotPoseZ = 40;
+inline constexpr std::uint16_t kRobotPoseRx = 42;  // degrees, R = Rz(rz) * Ry(ry) * Rx(rx)
+inline constexpr std::uint16_t kRobotPoseRy = 44;
+inline constexpr std::uint16_t kRobotPoseRz = 46;
+inline constexpr std::uint16_t kRobotPoseValid = 48; // 1: registers 36..47 hold the current pose; 0: not
+inline constexpr std::uint16_t kRobotPoseSeq = 49;   // changed by the PLC for every new pose
+inline constexpr std::uint16_t kRobotPoseBegin = 36;
+inline constexpr std::uint16_t kRobotPoseEnd = 50;
+// 50..63 reserved, read 0.
 
 enum class Command : std::uint16_t { None = 0, Trigger = 1, Reset = 2 };
 enum class Mode : std::uint16_t { Pick = 0, CountOnly = 1 };

@@ -22,6 +22,13 @@ GuardVerdict refuse(std::uint8_t function, ModbusException why) noexcept
 	return v;
 }
 
+bool writable(const RegisterPolicy &policy, std::uint16_t address, std::uint16_t count) noexcept
+{
+	return range_inside(address, count, policy.writable_begin, policy.writable_end) ||
+	       (policy.second_writable_end > policy.second_writable_begin &&
+	        range_inside(address, count, policy.second_writable_begin, policy.second_writable_end));
+}
+
 } // namespace
 
 std::size_t mbap_frame_size(std::span<const std::uint8_t, kMbapHeaderSize> header) noexcept
@@ -61,7 +68,7 @@ GuardVerdict check_request(std::span<const std::uint8_t> adu, const RegisterPoli
 		if (pdu_size != 5)
 			return refuse(function, ModbusException::IllegalDataValue);
 		const std::uint16_t address = be16(pdu + 1);
-		if (!range_inside(address, 1, policy.writable_begin, policy.writable_end))
+		if (!writable(policy, address, 1))
 			return refuse(function, ModbusException::IllegalDataAddress);
 		GuardVerdict v = refuse(function, ModbusException::None);
 		v.write = {address, 1, pdu + 3};
@@ -76,7 +83,7 @@ GuardVerdict check_request(std::span<const std::uint8_t> adu, const RegisterPoli
 		if (count < 1 || count > kMaxWriteRegisters || byte_count != 2 * count ||
 		    pdu_size != 6u + byte_count)
 			return refuse(function, ModbusException::IllegalDataValue);
-		if (!range_inside(address, count, policy.writable_begin, policy.writable_end))
+		if (!writable(policy, address, count))
 			return refuse(function, ModbusException::IllegalDataAddress);
 		GuardVerdict v = refuse(function, ModbusException::None);
 		v.write = {address, count, pdu + 6};
@@ -95,7 +102,7 @@ GuardVerdict check_request(std::span<const std::uint8_t> adu, const RegisterPoli
 		    pdu_size != 10u + byte_count)
 			return refuse(function, ModbusException::IllegalDataValue);
 		if (!range_inside(read_address, read_count, 0, policy.readable_end) ||
-		    !range_inside(write_address, write_count, policy.writable_begin, policy.writable_end))
+		    !writable(policy, write_address, write_count))
 			return refuse(function, ModbusException::IllegalDataAddress);
 		GuardVerdict v = refuse(function, ModbusException::None);
 		v.write = {write_address, write_count, pdu + 10};

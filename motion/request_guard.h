@@ -34,12 +34,15 @@ enum class ModbusException : std::uint8_t {
 // has no trustworthy frame boundary, so the connection must be closed.
 std::size_t mbap_frame_size(std::span<const std::uint8_t, kMbapHeaderSize> header) noexcept;
 
-// Which register ranges requests may touch: [0, readable_end) for reads,
-// [writable_begin, writable_end) for writes.
+// Which register ranges requests may touch: [0, readable_end) for reads; for writes
+// [writable_begin, writable_end) and, when not empty, [second_writable_begin,
+// second_writable_end). One write must lie wholly inside one of the ranges.
 struct RegisterPolicy {
 	std::uint16_t readable_end;
 	std::uint16_t writable_begin;
 	std::uint16_t writable_end;
+	std::uint16_t second_writable_begin = 0;
+	std::uint16_t second_writable_end = 0;
 };
 
 // One write a request makes, for the server's command handling.

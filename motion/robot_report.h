@@ -29,6 +29,15 @@ struct RobotReport {
 	float score = 0;
 };
 
+// The robot pose block (registers 36..49) as the PLC last wrote it.
+struct RobotPoseReading {
+	std::uint32_t writes = 0;     // accepted writes to the block; 0 = never written
+	std::uint16_t valid = 0;      // ROBOT_POSE_VALID
+	std::uint16_t sequence = 0;   // ROBOT_POSE_SEQ
+	float x_mm = 0, y_mm = 0, z_mm = 0;
+	float rx_deg = 0, ry_deg = 0, rz_deg = 0;
+};
+
 // Written by the PLC (Modbus) and handed to the daemon.
 struct PlcCommand {
 	enum class Kind : std::uint16_t { Trigger = 1, Reset = 2 };

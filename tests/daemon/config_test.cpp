@@ -4,6 +4,9 @@
 #include <fstream>
 
 #include "daemon/config.hpp"
+#include "vision/camera/camera.hpp"
+
+#include <unistd.h>
 
 using namespace mfcd::daemon;
 
@@ -159,4 +162,75 @@ TEST(Config, SimAndCellConfigsParse) {
   EXPECT_EQ(cell.camera.type, CameraType::V4L2);
   EXPECT_EQ(cell.lights.type, LightsType::Gpiod);
   EXPECT_TRUE(cell.can_enabled);
+}
+
+TEST(Config, CalibrationBoardAndSimulatedPlate) {
+  DaemonConfig c = parseConfig(minimal(), "test.yaml", kPath);
+  EXPECT_EQ(c.calibration.board_columns, 9);
+  EXPECT_EQ(c.calibration.board_rows, 6);
+  EXPECT_EQ(c.calibration.square_mm, 10);
+  EXPECT_EQ(c.calibration.distortion, "radial");
+  EXPECT_FALSE(c.simulation.plate.enabled);
+
+  c = parseConfig(minimal("calibration:\n  board: 7x5\n  square_mm: 25\n  distortion: none\n"
+                          "simulation:\n  calibration_plate:\n    room_light_dn: 120\n"
+                          "    eye_to_hand:\n      base_T_camera: {x_mm: 600, z_mm: 900, rx_deg: 180}\n"
+                          "      flange_T_plate: {z_mm: 20}\n"
+                          "    eye_in_hand:\n      flange_T_camera: {x_mm: 40, z_mm: 90}\n"
+                          "      base_T_plate: {x_mm: 450, rx_deg: 180}\n"),
+                  "test.yaml", kPath);
+  EXPECT_EQ(c.calibration.board_columns, 7);
+  EXPECT_EQ(c.calibration.board_rows, 5);
+  EXPECT_EQ(c.calibration.square_mm, 25);
+  EXPECT_EQ(c.calibration.distortion, "none");
+  EXPECT_TRUE(c.simulation.plate.enabled);
+  EXPECT_EQ(c.simulation.plate.room_light_dn, 120);
+  EXPECT_EQ(c.simulation.plate.eye_to_hand_base_T_camera.x_mm, 600);
+  EXPECT_EQ(c.simulation.plate.eye_to_hand_base_T_camera.rx_deg, 180);
+  EXPECT_EQ(c.simulation.plate.eye_in_hand_base_T_plate.x_mm, 450);
+
+  ConfigError e = errorOf(minimal("calibration:\n  board: 9by6\n"));
+  EXPECT_EQ(e.key(), "calibration.board");
+  EXPECT_EQ(e.line(), 6);
+  EXPECT_NE(std::string(e.what()).find("COLUMNSxROWS"), std::string::npos) << e.what();
+  e = errorOf(minimal("calibration:\n  board: 6x6\n"));  // a square board has no unique orientation
+  EXPECT_EQ(e.key(), "calibration.board");
+  e = errorOf(minimal("calibration:\n  square_mm: 0\n"));
+  EXPECT_EQ(e.key(), "calibration.square_mm");
+  e = errorOf(minimal("calibration:\n  distortion: fisheye\n"));
+  EXPECT_EQ(e.key(), "calibration.distortion");
+  e = errorOf(minimal("simulation:\n  calibration_plate:\n    eye_to_hand:\n      base_T_camera: {x_mm: 1}\n"));
+  EXPECT_EQ(e.key(), "simulation.calibration_plate.eye_to_hand.flange_T_plate");
+  EXPECT_NE(std::string(e.what()).find("missing (required)"), std::string::npos) << e.what();
+  e = errorOf(minimal("simulation:\n  calibration_plate:\n    eye_to_hand:\n      base_T_camera: {x_mm: 1, q: 2}\n"));
+  EXPECT_EQ(e.key(), "simulation.calibration_plate.eye_to_hand.base_T_camera.q");
+  EXPECT_EQ(e.line(), 8);
+}
+
+// hand_eye.from_camera_file: the camera pose an applied hand-eye calibration wrote.
+TEST(Config, HandEyeFromTheCameraFile) {
+  const fs::path dir = fs::temp_directory_path() / ("mfcd-config-he-" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  mfcd::vision::CameraConfig cam = mfcd::vision::load_camera_config(MFC_SOURCE_DIR "/config/camera-sim.yaml");
+  mfcd::vision::save_camera_config(cam, dir / "plain.yaml");
+  mfcd::vision::HandEye he;
+  he.mode = mfcd::vision::HandEye::Mode::eye_to_hand;
+  he.camera_pose = cv::Matx44d(0, 1, 0, 620, 1, 0, 0, 110, 0, 0, -1, 950, 0, 0, 0, 1);
+  cam.hand_eye = he;
+  mfcd::vision::save_camera_config(cam, dir / "calibrated.yaml");
+  const auto text = [&](const std::string& file, const std::string& he_extra) {
+    return "camera:\n  model: " + (dir / file).string() + "\nrecipes:\n  - {id: 0, part: any, obj_id: 0}\nhand_eye:\n" + he_extra;
+  };
+  const DaemonConfig c = parseConfig(text("calibrated.yaml", "  from_camera_file: true\n"), "test.yaml", kPath);
+  EXPECT_NEAR(c.hand_eye.camera.translation().x(), 620, 1e-9);
+  EXPECT_NEAR(c.hand_eye.camera.translation().z(), 950, 1e-9);
+  EXPECT_NEAR(c.hand_eye.camera.linear()(2, 2), -1, 1e-12);
+
+  ConfigError e = errorOf(text("plain.yaml", "  from_camera_file: true\n"));
+  EXPECT_EQ(e.key(), "hand_eye.from_camera_file");
+  EXPECT_EQ(e.line(), 6);
+  EXPECT_NE(std::string(e.what()).find("has no hand_eye section"), std::string::npos) << e.what();
+  e = errorOf(text("calibrated.yaml", "  from_camera_file: true\n  base_T_camera: {x_mm: 1}\n"));
+  EXPECT_EQ(e.key(), "hand_eye.base_T_camera");
+  fs::remove_all(dir);
 }

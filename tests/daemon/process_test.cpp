@@ -245,7 +245,11 @@ TEST_F(DaemonE2E, ControlSocketStatusStatsSnapshotAndTheRealCli) {
   EXPECT_GT(stats["percentiles_ms"]["total"]["p50"].get<double>(), 0.0);
   EXPECT_EQ(proc->ctl({{"cmd", "part"}, {"recipe", 42}})["ok"], false);
   EXPECT_EQ(proc->ctl({{"cmd", "part"}, {"recipe", 3}})["part"], "ellipse");
-  EXPECT_EQ(proc->ctl({{"cmd", "calibrate"}})["ok"], false);
+  const json cal = proc->ctl({{"cmd", "calibrate"}});  // no action: refused, naming the actions
+  EXPECT_EQ(cal["ok"], false);
+  EXPECT_NE(cal["error"].get<std::string>().find("start, capture, compute"), std::string::npos) << cal.dump();
+  EXPECT_EQ(proc->ctl({{"cmd", "calibrate"}, {"action", "compute"}})["ok"], false) << "no session";
+  EXPECT_EQ(proc->ctl({{"cmd", "calibrate"}, {"action", "status"}})["session"]["active"], false);
   EXPECT_EQ(proc->ctl({{"cmd", "frobnicate"}})["ok"], false);
 
   // mfcd-ctl itself.

@@ -177,7 +177,7 @@ TEST_F(CanDbc, StatusAndHeartbeatMatchTheDbc)
 		ASSERT_EQ(signal(h, "CycleTime"), r.cycle_time_ms);
 		ASSERT_EQ(signal(h, "RecipeEcho"), r.recipe_id);
 		ASSERT_EQ(signal(h, "CandidateCount"), std::min<int>(r.candidate_count, 255));
-		ASSERT_EQ(signal(h, "MapVersion"), 1);
+		ASSERT_EQ(signal(h, "MapVersion"), reg::kMapVersion) << "the heartbeat names the Modbus register map version";
 	}
 }
 

@@ -508,3 +508,81 @@ TEST(ModbusServer, WorkedExampleFromTheRegisterMapDoc)
 	EXPECT_EQ(pick, (std::vector<std::uint16_t>{0x42F2, 0x0000, 0xC37A, 0x8000, 0x4229, 0x0000, 0x4334, 0x0000,
 	                                            0xBF00, 0x0000, 0xC28A, 0x0000, 0x3F60, 0x0000}));
 }
+
+namespace {
+
+std::vector<std::uint16_t> pose_block(const float v[6], std::uint16_t valid, std::uint16_t seq, WordOrder order)
+{
+	std::vector<std::uint16_t> block;
+	for (int i = 0; i < 6; ++i) {
+		const auto w = encode_float(v[i], order);
+		block.push_back(w[0]);
+		block.push_back(w[1]);
+	}
+	block.push_back(valid);
+	block.push_back(seq);
+	return block;
+}
+
+RobotPoseReading wait_for_pose_writes(const ModbusServer &server, std::uint32_t writes)
+{
+	// The write is answered after the server publishes the pose, so it is there at once.
+	const RobotPoseReading p = server.robot_pose();
+	EXPECT_EQ(p.writes, writes);
+	return p;
+}
+
+} // namespace
+
+// Map version 2: the PLC writes the robot flange pose (FC 0x10) for calibration views.
+TEST(ModbusServer, RobotPoseBlockWrittenByThePlc)
+{
+	for (const WordOrder order : {WordOrder::ABCD, WordOrder::CDAB}) {
+		ModbusServer server(loopback_config(order));
+		server.start();
+		LibmodbusClient plc(server.port());
+		EXPECT_EQ(plc.read(reg::kMapVersionReg, 1)[0], 2);
+		EXPECT_EQ(server.robot_pose().writes, 0u) << "never written";
+
+		const float pose[6] = {512.25f, -130.5f, 740.125f, 179.5f, -2.25f, 45.0f};
+		ASSERT_EQ(plc.write(reg::kRobotPoseX, pose_block(pose, 1, 17, order)), 0);
+		RobotPoseReading p = wait_for_pose_writes(server, 1);
+		EXPECT_EQ(p.valid, 1);
+		EXPECT_EQ(p.sequence, 17);
+		EXPECT_EQ(p.x_mm, pose[0]);
+		EXPECT_EQ(p.y_mm, pose[1]);
+		EXPECT_EQ(p.z_mm, pose[2]);
+		EXPECT_EQ(p.rx_deg, pose[3]);
+		EXPECT_EQ(p.ry_deg, pose[4]);
+		EXPECT_EQ(p.rz_deg, pose[5]);
+		// The block reads back as written (the PLC can verify its write).
+		EXPECT_EQ(plc.read(reg::kRobotPoseX, 14), pose_block(pose, 1, 17, order));
+		if (order == WordOrder::ABCD) { // the example in docs/register-map.md, word for word
+			EXPECT_EQ(plc.read(reg::kRobotPoseX, 14),
+			          (std::vector<std::uint16_t>{0x4400, 0x1000, 0xC302, 0x8000, 0x4439, 0x0800, 0x4333, 0x8000,
+			                                      0xC010, 0x0000, 0x4234, 0x0000, 1, 17}));
+		}
+
+		// Clearing the valid flag alone (FC 0x06) keeps the pose and marks it not current.
+		ASSERT_EQ(modbus_write_register(plc.ctx, reg::kRobotPoseValid, 0), 1);
+		p = wait_for_pose_writes(server, 2);
+		EXPECT_EQ(p.valid, 0);
+		EXPECT_EQ(p.x_mm, pose[0]);
+
+		// Bad writes get exceptions and change nothing.
+		const float nan_pose[6] = {std::nanf(""), 0, 0, 0, 0, 0};
+		EXPECT_EQ(plc.write(reg::kRobotPoseX, pose_block(nan_pose, 1, 18, order)), EMBXILVAL) << "NaN";
+		const float inf_pose[6] = {0, 0, 0, 0, 0, INFINITY};
+		EXPECT_EQ(plc.write(reg::kRobotPoseX, pose_block(inf_pose, 1, 18, order)), EMBXILVAL) << "infinity";
+		EXPECT_EQ(plc.write(reg::kRobotPoseValid, {2}), EMBXILVAL) << "valid flag must be 0 or 1";
+		EXPECT_EQ(plc.write(reg::kRobotPoseX - 2, {0, 0, 0, 0}), EMBXILADD) << "starts in TEST_VECTOR (read-only)";
+		EXPECT_EQ(plc.write(reg::kRobotPoseSeq, {1, 2}), EMBXILADD) << "runs into the reserved 50..63";
+		EXPECT_EQ(plc.write(reg::kMode, std::vector<std::uint16_t>(reg::kRobotPoseSeq - reg::kMode + 1, 0)), EMBXILADD)
+			<< "control and pose blocks in one write cross the read-only status block";
+		EXPECT_EQ(plc.write(55, {1}), EMBXILADD) << "reserved";
+		EXPECT_EQ(server.robot_pose().writes, 2u);
+		EXPECT_EQ(plc.read(reg::kRobotPoseX, 14), pose_block(pose, 0, 17, order));
+		// The pose block is not a command: nothing was queued for the daemon.
+		EXPECT_FALSE(server.next_command().has_value());
+	}
+}

@@ -157,3 +157,39 @@ TEST(RequestGuard, RandomFramesNeverPassMalformed)
 		}
 	}
 }
+
+// The map-v2 policy: control block and robot pose block writable, nothing in between. Compared
+// on every (address, count) with the obvious per-register check.
+TEST(RequestGuard, TwoWritableRangesMatchThePerRegisterRule)
+{
+	constexpr RegisterPolicy two{64, 0, 4, 36, 50};
+	const auto writable_register = [](unsigned a) { return a < 4 || (a >= 36 && a < 50); };
+	for (unsigned address = 0; address < 70; ++address) {
+		for (unsigned count = 1; count <= 20; ++count) {
+			bool one_range = false;
+			for (const auto &[b, e] : {std::pair{0u, 4u}, std::pair{36u, 50u}}) {
+				bool inside = true;
+				for (unsigned a = address; a < address + count; ++a)
+					inside = inside && writable_register(a) && a >= b && a < e;
+				one_range = one_range || inside;
+			}
+			std::vector<std::uint8_t> pdu{0x10, 0, static_cast<std::uint8_t>(address), 0,
+			                              static_cast<std::uint8_t>(count), static_cast<std::uint8_t>(2 * count)};
+			for (unsigned i = 0; i < 2 * count; ++i)
+				pdu.push_back(0);
+			const GuardVerdict v = check_request(adu(pdu), two);
+			EXPECT_EQ(v.exception == ModbusException::None, one_range) << "address " << address << " count " << count;
+			if (one_range) {
+				EXPECT_EQ(v.write.address, address);
+				EXPECT_EQ(v.write.count, count);
+			} else {
+				EXPECT_EQ(v.exception, ModbusException::IllegalDataAddress);
+			}
+		}
+		// FC 0x06 on one register.
+		const GuardVerdict single = check_request(adu({0x06, 0, static_cast<std::uint8_t>(address), 0, 1}), two);
+		EXPECT_EQ(single.exception == ModbusException::None, writable_register(address)) << "address " << address;
+	}
+	// The single-range policy (map v1) still refuses the pose block.
+	EXPECT_EQ(check(adu({0x06, 0, 36, 0, 1})), ModbusException::IllegalDataAddress);
+}

@@ -13,6 +13,26 @@
 
 namespace mfcd::vision::calib {
 
+// The calibration plate as meshes in someone else's renderer (the daemon's simulated cell
+// shows it among its own scene): the checker-painted plate and its white backing plate.
+class SimCalibrationPlate {
+ public:
+  SimCalibrationPlate(MfcRenderer& renderer, const CheckerBoard& board);
+  // The two scene parts that put the plate at T_camera_board (board frame as in CheckerBoard).
+  std::vector<ScenePart> parts(const cv::Matx44d& T_camera_board) const;
+  const CheckerBoard& board() const { return board_; }
+
+ private:
+  CheckerBoard board_;
+  int plate_mesh_ = -1, backing_mesh_ = -1;
+  cv::Matx44d T_board_plate_, T_board_backing_;
+};
+
+// True when every corner of the plate (with its white margin), plus `margin_px`, falls inside
+// the image of `camera`, in front of it, seen from the printed side.
+bool plate_fully_visible(const PinholeCamera& camera, const CheckerBoard& board, const cv::Matx44d& T_camera_board,
+                         double margin_px = 12);
+
 class SimBoardScene {
  public:
   // The renderer's ambient light is raised to an evenly lit room so the ambient image (no
@@ -35,8 +55,7 @@ class SimBoardScene {
   CameraConfig config_;
   CheckerBoard board_;
   std::unique_ptr<MfcRenderer> renderer_;
-  int plate_mesh_ = -1, backing_mesh_ = -1;
-  cv::Matx44d T_board_plate_, T_board_backing_;
+  std::unique_ptr<SimCalibrationPlate> plate_;
   MfcRender out_;
 };
 
@@ -59,6 +78,20 @@ struct SimHandEyeCell {
   };
   std::vector<View> views;
 };
+
+// The two directions of a simulated hand-eye cell with true X (hand_eye) and Y (board), see
+// hand_eye.hpp: the board pose the camera sees at a flange pose, and the flange pose that
+// shows the board at T_camera_board.
+cv::Matx44d sim_camera_board(HandEyeMode mode, const cv::Matx44d& hand_eye, const cv::Matx44d& board,
+                             const cv::Matx44d& T_base_flange);
+cv::Matx44d sim_flange_pose(HandEyeMode mode, const cv::Matx44d& hand_eye, const cv::Matx44d& board,
+                            const cv::Matx44d& T_camera_board);
+
+// Board poses in the camera frame as random_board_views() draws them, from the camera and board
+// alone (no renderer): for tests that drive a simulated cell elsewhere (mfcd's).
+std::vector<cv::Matx44d> random_plate_views(const PinholeCamera& camera, const CheckerBoard& board, int count,
+                                            double working_distance_mm, std::mt19937& rng, double max_tilt_deg = 40,
+                                            double near = 0.8, double far = 1.25);
 
 // Builds a cell with a fixed, plausible true transform and `count` robot poses that show
 // the whole board from well-spread directions (rotation axes spread in 3-D).

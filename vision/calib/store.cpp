@@ -108,8 +108,9 @@ std::optional<CameraConfig> CalibrationStore::previous() const {
   return load_camera_config(previous_file());
 }
 
-void CalibrationStore::write_atomically(const CameraConfig& config) {
-  const fs::path tmp = write_temp(config, file_, hook_);
+void CalibrationStore::write_atomically(const CameraConfig& config) { install(write_temp(config, file_, hook_)); }
+
+void CalibrationStore::install(const fs::path& tmp) {
   try {
     if (fs::exists(file_)) {
       // Keep the file being replaced: a hard link to its inode (the rename below only
@@ -146,8 +147,21 @@ void CalibrationStore::rollback() {
   if (!fs::exists(previous_file()))
     throw std::runtime_error(file_.string() + ": no previous calibration to roll back to (" +
                              previous_file().string() + " missing)");
-  const CameraConfig prev = load_camera_config(previous_file());
-  write_atomically(prev);
+  // Restored byte for byte (the operator's comments and number formatting included), after
+  // checking that it still loads.
+  load_camera_config(previous_file());
+  const fs::path tmp = temp_beside(file_);
+  try {
+    fs::copy_file(previous_file(), tmp);
+    if (hook_) hook_("temp-written");
+    fsync_path(tmp, false);
+    if (hook_) hook_("temp-synced");
+  } catch (const std::exception& e) {
+    std::error_code ec;
+    fs::remove(tmp, ec);
+    throw std::runtime_error(file_.string() + ": rollback not done (nothing changed): " + e.what());
+  }
+  install(tmp);
 }
 
 }  // namespace mfcd::vision::calib

@@ -6,8 +6,8 @@
 // directory, fsync'ed, read back and compared, then the current file is kept as
 // "<file>.previous" (hard link, else copy) and the temporary renamed over the file; the
 // directory is fsync'ed last. On any error the temporary is removed and the camera file is
-// untouched. rollback() does the same with the previous file's content, so a second
-// rollback undoes the first.
+// untouched. rollback() does the same with a byte-for-byte copy of the previous file, so a
+// second rollback undoes the first.
 
 #include "vision/camera/camera.hpp"
 
@@ -39,6 +39,8 @@ class CalibrationStore {
 
  private:
   void write_atomically(const CameraConfig& config);
+  // Keeps the current file as .previous and renames the (synced) temporary `tmp` over it.
+  void install(const std::filesystem::path& tmp);
   std::filesystem::path file_;
   FaultHook hook_;
 };
