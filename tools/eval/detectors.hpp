@@ -48,10 +48,12 @@ class Detector {
 
 // FDCM / OCM / CM through BinPickingPipeline; `distances_mm` and `refine_candidates` as in
 // PipelineConfig (refine_candidates < 0: the pipeline's default).
-std::unique_ptr<Detector> make_pipeline_detector(vision::PipelineConfig::Cost cost, const vision::CameraConfig& camera,
+// `fit_hypotheses` as PipelineConfig's (the FDCM cost only); `name` is the method's name.
+std::unique_ptr<Detector> make_pipeline_detector(const std::string& name, vision::PipelineConfig::Cost cost,
+                                                 const vision::CameraConfig& camera,
                                                  const std::vector<std::filesystem::path>& templates, int threads,
                                                  int max_candidates, const std::vector<double>& distances_mm,
-                                                 int refine_candidates);
+                                                 int refine_candidates, bool fit_hypotheses);
 
 struct Line2dOptions {
   double inplane_step_deg = 15;  // in-plane rotations trained per view (LINE-2D is not rotation invariant)

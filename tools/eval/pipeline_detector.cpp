@@ -9,10 +9,10 @@ namespace {
 
 class PipelineDetector final : public Detector {
  public:
-  PipelineDetector(vision::PipelineConfig::Cost cost, const vision::CameraConfig& camera,
+  PipelineDetector(std::string name, vision::PipelineConfig::Cost cost, const vision::CameraConfig& camera,
                    const std::vector<std::filesystem::path>& templates, int threads, int max_candidates,
-                   const std::vector<double>& distances_mm, int refine_candidates)
-      : cost_(cost) {
+                   const std::vector<double>& distances_mm, int refine_candidates, bool fit_hypotheses)
+      : name_(std::move(name)), cost_(cost) {
     const auto t0 = std::chrono::steady_clock::now();
     vision::PipelineConfig pc;
     pc.cost = cost;
@@ -20,18 +20,12 @@ class PipelineDetector final : public Detector {
     pc.threads = threads;
     pc.max_candidates = max_candidates;
     pc.distances_mm = distances_mm;
+    pc.fit_hypotheses = fit_hypotheses;
     if (refine_candidates >= 0) pc.refine_candidates = refine_candidates;
     pipeline_ = std::make_unique<vision::BinPickingPipeline>(camera, pc);
     setup_s_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   }
-  std::string name() const override {
-    switch (cost_) {
-      case vision::PipelineConfig::Cost::fdcm: return "fdcm";
-      case vision::PipelineConfig::Cost::ocm: return "ocm";
-      case vision::PipelineConfig::Cost::cm: return "cm";
-    }
-    return "?";
-  }
+  std::string name() const override { return name_; }
   void detect(const vision::MfcFrames& frames, int obj_id, Detection& out) override {
     // No deadline: the evaluation measures the full search of every method.
     pipeline_->process(frames, obj_id, std::chrono::steady_clock::now() + std::chrono::hours(1), result_);
@@ -46,6 +40,7 @@ class PipelineDetector final : public Detector {
   double setup_seconds() const override { return setup_s_; }
 
  private:
+  std::string name_;
   vision::PipelineConfig::Cost cost_;
   std::unique_ptr<vision::BinPickingPipeline> pipeline_;
   vision::PipelineResult result_;
@@ -54,12 +49,13 @@ class PipelineDetector final : public Detector {
 
 }  // namespace
 
-std::unique_ptr<Detector> make_pipeline_detector(vision::PipelineConfig::Cost cost, const vision::CameraConfig& camera,
+std::unique_ptr<Detector> make_pipeline_detector(const std::string& name, vision::PipelineConfig::Cost cost,
+                                                 const vision::CameraConfig& camera,
                                                  const std::vector<std::filesystem::path>& templates, int threads,
                                                  int max_candidates, const std::vector<double>& distances_mm,
-                                                 int refine_candidates) {
-  return std::make_unique<PipelineDetector>(cost, camera, templates, threads, max_candidates, distances_mm,
-                                            refine_candidates);
+                                                 int refine_candidates, bool fit_hypotheses) {
+  return std::make_unique<PipelineDetector>(name, cost, camera, templates, threads, max_candidates, distances_mm,
+                                            refine_candidates, fit_hypotheses);
 }
 
 }  // namespace mfcd::eval

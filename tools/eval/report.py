@@ -14,8 +14,9 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-METHOD_NAMES = {"cm": "CM", "ocm": "OCM", "fdcm": "FDCM", "line2d": "LINE-2D (OpenCV linemod)"}
-ORDER = ["cm", "ocm", "fdcm", "line2d"]
+METHOD_NAMES = {"cm": "CM", "ocm": "OCM", "fdcm-search": "FDCM, search only", "fdcm": "FDCM (pipeline)",
+                "line2d": "LINE-2D (OpenCV linemod)"}
+ORDER = ["cm", "ocm", "fdcm-search", "fdcm", "line2d"]
 PAPER = {  # Table 1 of the paper: failure rate per part, average, time (s)
     "fdcm": ([0.03, 0.01, 0.05, 0.11, 0.04, 0.08], 0.05, 0.71),
     "ocm": ([0.05, 0.05, 0.14, 0.17, 0.04, 0.17], 0.10, 65.3),
@@ -89,8 +90,12 @@ def main(bench_dir, docs_dir):
       "`z:N` takes the minimum over the N turns about the model z axis, `z:inf` compares only the z axis direction. "
       "%s The pipeline searches the templates at %s.\n" % (
           crit["max_position_mm"], crit["position"], crit["max_rotation_deg"], crit["rotation"],
-          ("Poses are the pipeline's as the daemon gets them: the coarse pose of the template match (Sec. 4.4), the "
-           "best %d candidates refined with the one view (Sec. 4.5; the paper's Table 1 scores coarse poses)."
+          ("Poses are the pipeline's as the daemon gets them. *FDCM (pipeline)*: the 48 best distinct search "
+           "hypotheses are each fitted in 6-DoF with their template view's model points (`TemplatePoseFit`, render-free "
+           "Sec. 4.5) and ranked by the fitted score less the image edges they leave unexplained; the best %d then "
+           "refined with the one view (`PoseRefiner`). *FDCM, search only*, *CM* and *OCM*: the same search, "
+           "hypotheses ranked by their own matching cost (with the unexplained-edge check), coarse poses (Sec. 4.4): "
+           "the matching costs compared on equal terms, as the paper's Table 1 does."
            % res["refine_candidates"]) if res.get("refine_candidates") else
           "Poses are the coarse poses of the template match (Sec. 4.4), not refined (the paper's Table 1 protocol).",
           ("distances " + ", ".join("%g" % d for d in dist) + " mm (one template scale per distance)") if dist
@@ -98,9 +103,10 @@ def main(bench_dir, docs_dir):
 
     # ---- Table 1 ----
     w("## Table 1: detection failure rate and time per detection\n")
-    head = "| method | " + " | ".join(p["name"] for p in parts) + " | avg | pooled | time per detection | setup |"
+    head = ("| method | " + " | ".join(p["name"] for p in parts) +
+            " | avg | pooled | avg, <= 25 % occluded | time per detection | setup |")
     w(head)
-    w("|---|" + "---:|" * (len(parts) + 4))
+    w("|---|" + "---:|" * (len(parts) + 5))
     summary = {}
     for m in methods:
         trials = res["methods"][m]["trials"]
@@ -113,15 +119,26 @@ def main(bench_dir, docs_dir):
                 rates.append(rate)
             cells.append("%.2f (%d/%d)" % (rate, fails, len(t)) if t else "-")
         avg = sum(rates) / len(rates) if rates else float("nan")
+        # The same over the trials whose best-visible instance of the type is at most 25 % occluded
+        # (the occlusion the paper's Fig. 13 target is set at).
+        light = []
+        for p in parts:
+            t = [x for x in trials if x["obj_id"] == p["obj_id"] and x.get("best_visib_fract", 0) >= 0.75]
+            if t:
+                light.append(sum(1 for x in t if not x["correct"]) / len(t))
+        light_n = sum(1 for x in trials if x.get("best_visib_fract", 0) >= 0.75)
+        light_avg = sum(light) / len(light) if light else float("nan")
         pooled_f = sum(1 for x in trials if not x["correct"])
         pooled = pooled_f / len(trials) if trials else float("nan")
         tmean = statistics.mean(x["times"]["total"] for x in trials) if trials else float("nan")
         summary[m] = (avg, tmean)
-        w("| %s | %s | **%.2f** | %.2f | %.0f ms | %.1f s |" % (METHOD_NAMES[m], " | ".join(cells), avg, pooled, tmean,
-                                                                 res["methods"][m]["setup_s"]))
+        w("| %s | %s | **%.2f** | %.2f | %.2f (%d trials) | %.0f ms | %.1f s |" % (
+            METHOD_NAMES[m], " | ".join(cells), avg, pooled, light_avg, light_n, tmean, res["methods"][m]["setup_s"]))
     w("")
     w("Cells: failure rate (failures/trials); *avg* = mean of the per-part rates (as the paper), *pooled* = over all "
-      "trials. Time = mean wall time of one detection (one image, one part type: depth edges, lines, distance "
+      "trials; *<= 25 %% occluded* = the per-part average over the trials whose best-visible instance of the type is "
+      "at least 75 %% visible (the bins here are deeper than the paper's: many parts are more than 40 %% hidden, "
+      "see Fig. 13's bins). Time = mean wall time of one detection (one image, one part type: depth edges, lines, distance "
       "transforms, search, pose) on this machine. Paper (Table 1, its 2010 hardware): " +
       "; ".join("%s avg %.2f, %.2f s" % (METHOD_NAMES[k], PAPER[k][1], PAPER[k][2]) for k in ["fdcm", "ocm", "cm"]) +
       ". Target for this project: FDCM avg <= 0.03.\n")

@@ -189,6 +189,8 @@ BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfi
   if (!(m.config.max_cost_px > 0)) throw std::runtime_error("pipeline: max_cost_px must be positive");
   if (m.config.refine_candidates < 0 || m.config.refine_iterations < 1)
     throw std::runtime_error("pipeline: refine_candidates must be >= 0 and refine_iterations >= 1");
+  if (m.config.view_stride < 1 || m.config.keep_per_view < 1 || m.config.slide_step < 1)
+    throw std::runtime_error("pipeline: view_stride, keep_per_view and slide_step must be >= 1");
   if (m.config.template_guides < 1 || m.config.query_guides < 1)
     throw std::runtime_error("pipeline: template_guides and query_guides must be >= 1");
   for (const auto& file : m.config.template_files) {
@@ -287,7 +289,7 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
   m.jobs.clear();
   for (int p = 0; p < static_cast<int>(m.parts.size()); ++p)
     if (obj_id == 0 || m.parts[p].db.obj_id == obj_id)
-      for (int v = 0; v < static_cast<int>(m.parts[p].db.views.size()); ++v) m.jobs.emplace_back(p, v);
+      for (int v = 0; v < static_cast<int>(m.parts[p].db.views.size()); v += m.config.view_stride) m.jobs.emplace_back(p, v);
   const FdcmMatcher matcher(m.idt);
   std::optional<ChamferMatcher> baseline;  // built from the baseline costs only when they exist
   if (!fdcm)

@@ -37,18 +37,19 @@ struct PipelineConfig {
   std::vector<double> distances_mm;  // hypothesised part distances; empty = the templates' own
   // 1-D line search (paper Sec. 4.4): each template's longest `template_guides` lines are slid
   // along the query's longest `query_guides` lines of the same orientation.
-  int template_guides = 4;
+  int template_guides = 3;
   int query_guides = 60;   // long clutter (rods, other parts) fills the first 30 in a full bin
   double min_guide_overlap = 0.75;  // of the shorter line (LineSearchParams::minOverlap)
+  int view_stride = 1;              // search every n-th view only (the hypothesis fit moves between views)
   int keep_per_view = 1;            // best placements kept per view, more than keep_separation_px apart
   int keep_separation_px = 8;
-  int slide_step = 2;               // px between slide positions, then the best refined (LineSearchParams)
+  int slide_step = 3;               // px between slide positions, then the best refined (LineSearchParams)
   // Hypotheses (distinct best search hits) fitted in 6-DoF with their template's model points
   // and ranked by the fitted score (TemplatePoseFit); false = ranked by the search cost.
   int fit_candidates = 48;
   bool fit_hypotheses = true;
   int refine_iterations = 20;      // per candidate (outer ICP iterations); cut short at the deadline
-  int refine_candidates = 2;       // the best this many candidates are refined (the others keep
+  int refine_candidates = 1;       // the best this many candidates are refined (the others keep
                                    // their coarse pose); 0 = no refinement
   int threads = 0;                 // search threads; 0 = OpenMP default
   DepthEdgeParams depth_edges;
