@@ -22,7 +22,7 @@ struct PickChoiceConfig {
 	float weight_height = 0.5f;
 	float weight_grasp = 0.5f;
 	float height_scale_mm = 200.0f; // height at which the height term saturates at 1 (bin depth)
-	float min_score = 0.5f;         // candidates below are never picked
+	float min_score = 0.1f;         // candidates below are never picked (the pipeline's fitted rank, docs/configuration.md)
 	float min_grasp_visibility = 0.0f;
 
 	// Empty when valid; else names the key and the reason.

@@ -54,7 +54,7 @@ TEST(PickChoice, HiddenGraspFeatureLoses)
 
 TEST(PickChoice, NothingEligible)
 {
-	const PickCandidate c[] = {{0.2f, 100.0f, 1.0f}, {std::nanf(""), 100.0f, 1.0f}};
+	const PickCandidate c[] = {{0.05f, 100.0f, 1.0f}, {std::nanf(""), 100.0f, 1.0f}};
 	EXPECT_FALSE(choose_pick(c, PickChoiceConfig{}));
 	EXPECT_FALSE(choose_pick(std::span<const PickCandidate>{}, PickChoiceConfig{}));
 	std::uint16_t order[4];

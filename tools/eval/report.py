@@ -136,11 +136,12 @@ def main(bench_dir, docs_dir):
             METHOD_NAMES[m], " | ".join(cells), avg, pooled, light_avg, light_n, tmean, res["methods"][m]["setup_s"]))
     w("")
     w("Cells: failure rate (failures/trials); *avg* = mean of the per-part rates (as the paper), *pooled* = over all "
-      "trials; *<= 25 %% occluded* = the per-part average over the trials whose best-visible instance of the type is "
-      "at least 75 %% visible (the bins here are deeper than the paper's: many parts are more than 40 %% hidden, "
+      "trials; *<= 25 % occluded* = the per-part average over the trials whose best-visible instance of the type is "
+      "at least 75 % visible (the bins here are deeper than the paper's: many parts are more than 40 % hidden, "
       "see Fig. 13's bins). Time = mean wall time of one detection (one image, one part type: depth edges, lines, distance "
       "transforms, search, pose) on this machine. Paper (Table 1, its 2010 hardware): " +
-      "; ".join("%s avg %.2f, %.2f s" % (METHOD_NAMES[k], PAPER[k][1], PAPER[k][2]) for k in ["fdcm", "ocm", "cm"]) +
+      "; ".join("%s avg %.2f, %.2f s" % (name, PAPER[k][1], PAPER[k][2])
+                for k, name in [("fdcm", "FDCM"), ("ocm", "OCM"), ("cm", "CM")]) +
       ". Target for this project: FDCM avg <= 0.03.\n")
     w("Where the failures come from (same trials): failure rate when only the position *across* the optical axis "
       "is checked (x-y within %g mm, rotation as above), i.e. forgiving the distance error of a coarse pose, and "

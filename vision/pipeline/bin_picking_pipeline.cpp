@@ -115,22 +115,7 @@ double explained_fraction(const TemplateView& view, const Warp& warp, int tx, in
     const cv::Point r(cvRound(q[0] + tx), cvRound(q[1] + ty));
     if (image.contains(r)) m.placed.push_back(r);
   }
-  if (m.placed.size() < 3) return 0;
-  cv::convexHull(m.placed, m.hull);
-  const cv::Rect box = (cv::boundingRect(m.hull) + cv::Size(5, 5) - cv::Point(2, 2)) & image;
-  for (const auto& r : m.placed) cv::circle(m.explained, r, 2, cv::Scalar(255), cv::FILLED);
-  cv::fillConvexPoly(m.inside, m.hull, cv::Scalar(255));
-  int total = 0, covered = 0;
-  for (int y = box.y; y < box.y + box.height; ++y) {
-    const uint8_t* e = m.edges.edges.template ptr<uint8_t>(y);
-    const uint8_t* in = m.inside.template ptr<uint8_t>(y);
-    const uint8_t* ex = m.explained.template ptr<uint8_t>(y);
-    for (int x = box.x; x < box.x + box.width; ++x)
-      if (e[x] && in[x]) ++total, covered += ex[x] != 0;
-  }
-  m.explained(box).setTo(0);
-  m.inside(box).setTo(0);
-  return total > 0 ? double(covered) / total : 0;
+  return explained_edge_fraction(m.edges.edges, m.placed, m.hull, m.explained, m.inside);
 }
 
 // The rank of a fitted hypothesis: its fit score, less a penalty for the image edges inside its

@@ -63,32 +63,36 @@ int TemplatePoseFit::nearest_view(const TemplateDatabase& db, const PinholeCamer
   if (!(n > 0)) throw std::invalid_argument("template fit: the part centre is at the camera");
   // Direction from the part centre towards the camera, in the model frame.
   const cv::Vec3d d = pose.R.t() * (-c / n);
-  std::vector<cv::Matx33d> turns;
+  // The symmetric copies R S of the pose, S a turn about z: continuous symmetry, the one turn that
+  // puts d in the views' meridian; discrete, the order's turns (computed, not listed: this runs
+  // per fit iteration on the frame path).
+  int turns = 1;
+  double first = 0, step = 0;
   if (db.symmetry.kind == PartSymmetry::Kind::continuous_z) {
-    // Turn about z so that d lies in the views' meridian.
     double meridian = 0;
     for (const auto& v : db.views)
       if (std::hypot(v.view_direction[0], v.view_direction[1]) > 1e-6) {
         meridian = std::atan2(v.view_direction[1], v.view_direction[0]);
         break;
       }
-    turns.push_back(rot_z(std::atan2(d[1], d[0]) - meridian));
-  } else {
-    turns = db.symmetry.discrete_rotations();
-    if (turns.empty()) turns.push_back(cv::Matx33d::eye());
+    first = std::atan2(d[1], d[0]) - meridian;
+  } else if (db.symmetry.kind == PartSymmetry::Kind::discrete_z) {
+    turns = std::max(1, db.symmetry.order);
+    step = 2 * std::numbers::pi / turns;
   }
   int best_view = 0;
   double best_dot = -2;
-  const cv::Matx33d* best_turn = &turns[0];
-  for (const auto& S : turns) {
+  cv::Matx33d best_turn = cv::Matx33d::eye();
+  for (int k = 0; k < turns; ++k) {
+    const cv::Matx33d S = rot_z(first + k * step);
     // The copy R S of the pose sees the part from S^T d.
     const cv::Vec3d ds = S.t() * d;
     for (int v = 0; v < static_cast<int>(db.views.size()); ++v) {
       const double dot = ds.dot(db.views[v].view_direction);
-      if (dot > best_dot) best_dot = dot, best_view = v, best_turn = &S;
+      if (dot > best_dot) best_dot = dot, best_view = v, best_turn = S;
     }
   }
-  const cv::Matx33d& S = *best_turn;
+  const cv::Matx33d& S = best_turn;
   // Same placed part: rotated by S about the symmetry axis through the centre.
   // (Computed into locals first: assigning a braced temporary built from `pose` itself let
   // GCC 12 construct it in place, overwriting R while it was still being read.)
@@ -202,21 +206,27 @@ double TemplatePoseFit::coverage(const TemplateDatabase& db, int view, const Rig
     const cv::Point r(cvRound(q.x), cvRound(q.y));
     if (image.contains(r)) ws.placed.push_back(r);
   }
-  if (ws.placed.size() < 3) return 0;
-  cv::convexHull(ws.placed, ws.hull);
-  const cv::Rect box = (cv::boundingRect(ws.hull) + cv::Size(5, 5) - cv::Point(2, 2)) & image;
-  for (const auto& r : ws.placed) cv::circle(ws.explained, r, 2, cv::Scalar(255), cv::FILLED);
-  cv::fillConvexPoly(ws.inside, ws.hull, cv::Scalar(255));
+  return explained_edge_fraction(edges_, ws.placed, ws.hull, ws.explained, ws.inside);
+}
+
+double explained_edge_fraction(const cv::Mat1b& edges, const std::vector<cv::Point>& placed,
+                               std::vector<cv::Point>& hull, cv::Mat1b& explained, cv::Mat1b& inside) {
+  if (placed.size() < 3) return 0;
+  const cv::Rect image(cv::Point(0, 0), edges.size());
+  cv::convexHull(placed, hull);
+  const cv::Rect box = (cv::boundingRect(hull) + cv::Size(5, 5) - cv::Point(2, 2)) & image;
+  for (const auto& r : placed) cv::circle(explained, r, 2, cv::Scalar(255), cv::FILLED);
+  cv::fillConvexPoly(inside, hull, cv::Scalar(255));
   int total = 0, covered = 0;
   for (int y = box.y; y < box.y + box.height; ++y) {
-    const uint8_t* e = edges_.ptr<uint8_t>(y);
-    const uint8_t* in = ws.inside.ptr<uint8_t>(y);
-    const uint8_t* ex = ws.explained.ptr<uint8_t>(y);
+    const uint8_t* e = edges.ptr<uint8_t>(y);
+    const uint8_t* in = inside.ptr<uint8_t>(y);
+    const uint8_t* ex = explained.ptr<uint8_t>(y);
     for (int x = box.x; x < box.x + box.width; ++x)
       if (e[x] && in[x]) ++total, covered += ex[x] != 0;
   }
-  ws.explained(box).setTo(0);
-  ws.inside(box).setTo(0);
+  explained(box).setTo(0);
+  inside(box).setTo(0);
   return total > 0 ? double(covered) / total : 0;
 }
 

@@ -97,6 +97,12 @@ class TemplatePoseFit {
   DirectionalEdgeIndex index_;
 };
 
+// The share of the edge pixels of `edges` inside the convex hull of `placed` (image pixels) that
+// lie within 2 px of one of them: the converse of a chamfer cost. `hull`, `explained` and
+// `inside` are scratch (the masks image-sized and zero, and left zero).
+double explained_edge_fraction(const cv::Mat1b& edges, const std::vector<cv::Point>& placed,
+                               std::vector<cv::Point>& hull, cv::Mat1b& explained, cv::Mat1b& inside);
+
 // The point-to-line residual of one template point and its 1x6 Jacobian with respect to the
 // update (rotation w about the part centre, then translation of the centre), both in camera
 // coordinates; exposed for the finite-difference test.
