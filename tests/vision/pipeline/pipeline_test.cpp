@@ -124,3 +124,35 @@ TEST(Pipeline, RefusesBadConfiguration) {
   pc.template_files = {kTemplates / "tnut.tdb"};
   EXPECT_THROW(BinPickingPipeline(other, pc), std::runtime_error);
 }
+
+// The render-based refinement stage (off by default with one view, see PipelineConfig) still runs
+// when asked: the refined best candidate stays within the correctness bounds.
+TEST(Pipeline, RefinesTheBestCandidateWhenAsked) {
+  const fs::path tdb = kTemplates / "tnut.tdb";
+  ASSERT_TRUE(fs::exists(tdb)) << tdb;
+  const TemplateDatabase db = load_template_database(tdb);
+  const CameraConfig cam = sim_camera();
+  PipelineConfig pc;
+  pc.template_files = {tdb};
+  pc.refine_candidates = 1;
+  BinPickingPipeline pipeline(cam, pc);
+  MfcRenderer renderer(cam);
+  const int part_id = renderer.add_mesh(db.mesh);
+  const int floor_id = renderer.add_mesh(make_plane(600));
+  int view = 0;
+  while (db.views[view].view_direction[2] < 0.5) ++view;
+  const RigidPose truth = coarse_pose(db, TemplatePlacement{view, 0.7, 1.0, {300, 250}}, cam.camera);
+  const cv::Vec3d centre = truth.R * db.center_mm + truth.t_mm;
+  const ScenePart parts[2] = {{part_id, truth.R, truth.t_mm, Material::matte(0.6f)},
+                              {floor_id, cv::Matx33d::eye(), {0, 0, centre[2] + db.diameter_mm / 2 + 10},
+                               Material::matte(0.5f)}};
+  MfcRender render;
+  renderer.render(parts, render, 7);
+  PipelineResult result;
+  pipeline.process(render.frames, 0, std::chrono::steady_clock::now() + std::chrono::seconds(30), result);
+  ASSERT_FALSE(result.candidates.empty());
+  EXPECT_GT(result.times.refine_ms, 0.0);
+  const PoseCandidate& best = result.candidates.front();
+  EXPECT_LE(cv::norm(best.R_m2c * db.center_mm + best.t_m2c_mm - centre), 5.0);
+  EXPECT_LE(rotation_error_deg(best.R_m2c, truth.R, db.symmetry), 10.0);
+}
