@@ -323,6 +323,7 @@ DaemonConfig parseConfig(const std::string& yamlText, const std::string& source,
     c.vision.max_candidates = static_cast<int>(s.integer("max_candidates", 8, 1, 16));
     if (s.has("max_cost_px")) c.vision.max_cost_px = s.number("max_cost_px", 0, 0.1, 100);
     c.vision.refine_iterations = static_cast<int>(s.integer("refine_iterations", 10, 0, 1000));
+    c.vision.refine_candidates = static_cast<int>(s.integer("refine_candidates", 0, 0, 64));
     c.vision.threads = static_cast<int>(s.integer("threads", 0, 0, 256));
     s.finish();
   }

@@ -107,6 +107,7 @@ struct VisionSettings {
   int max_candidates = 8;
   std::optional<double> max_cost_px;  // unset: the pipeline's own default
   int refine_iterations = 10;
+  int refine_candidates = 0;  // render-based refinement of the best n (0: the fitted pose is kept)
   int threads = 0;
 };
 

@@ -1,5 +1,6 @@
 #include "daemon/vision_stage.hpp"
 
+#include <algorithm>
 #include <stdexcept>
 
 #include "vision/camera/camera.hpp"
@@ -57,7 +58,8 @@ std::unique_ptr<VisionStage> makePipelineStage(const DaemonConfig& config) {
     throw std::runtime_error(config.source + ": recipes: no recipe names a template file; the vision pipeline has nothing to look for");
   pc.max_candidates = config.vision.max_candidates;
   if (config.vision.max_cost_px) pc.max_cost_px = *config.vision.max_cost_px;
-  pc.refine_iterations = config.vision.refine_iterations;
+  pc.refine_iterations = std::max(1, config.vision.refine_iterations);
+  pc.refine_candidates = config.vision.refine_iterations > 0 ? config.vision.refine_candidates : 0;
   pc.threads = config.vision.threads;
   auto stage = std::make_unique<PipelineVisionStage>(camera, std::move(pc), files);
   // Every recipe's obj_id must be one the templates define.

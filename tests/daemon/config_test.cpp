@@ -67,6 +67,16 @@ TEST(Config, WrongTypeAndRangeNameKeyAndLine) {
 
   e = errorOf(minimal("daemon:\n  lock_memory: maybe\n"));
   EXPECT_EQ(e.key(), "daemon.lock_memory");
+
+  e = errorOf(minimal("vision:\n  refine_candidates: 65\n"));
+  EXPECT_EQ(e.key(), "vision.refine_candidates");
+  EXPECT_EQ(e.line(), 6);
+  EXPECT_NE(std::string(e.what()).find("out of range 0..64"), std::string::npos) << e.what();
+}
+
+TEST(Config, RefinementIsOffUnlessAsked) {
+  EXPECT_EQ(parseConfig(minimal(), "test.yaml", kPath).vision.refine_candidates, 0);
+  EXPECT_EQ(parseConfig(minimal("vision:\n  refine_candidates: 2\n"), "test.yaml", kPath).vision.refine_candidates, 2);
 }
 
 TEST(Config, MissingRequiredKeys) {
