@@ -90,9 +90,11 @@ struct BinPickingPipeline::Impl {
     RigidPose coarse, fitted;
     int view = 0;
     double fit_score = -1, fit_cost = 0, fit_coverage = 0, fit_rank = -1;
+    bool skipped = false;  // not fitted: the deadline had passed
   };
   TemplatePoseFit fitter;
   std::vector<TemplatePoseFit::Workspace> fit_workspaces;  // per search thread
+  double last_fit_ms = 0;  // the hypothesis fit's time last cycle: the search leaves it that much
   std::vector<Verified> verified;
   cv::Mat1b explained, inside;  // verification scratch, image size, kept zero outside use
   std::vector<cv::Point> placed, hull;
@@ -270,7 +272,10 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
   out.times.distance_ms = ms_between(t1, t);
 
   // Search: the 1-D line search (paper Sec. 4.4) over every view of every selected part, views
-  // shared out among the threads. Past the deadline the remaining views are skipped.
+  // shared out among the threads. Past the search's deadline the remaining views are skipped: it
+  // leaves the hypothesis fit the time it took last cycle, with a margin.
+  const auto search_deadline =
+      deadline - std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double, std::milli>(1.5 * m.last_fit_ms));
   m.jobs.clear();
   for (int p = 0; p < static_cast<int>(m.parts.size()); ++p)
     if (obj_id == 0 || m.parts[p].db.obj_id == obj_id)
@@ -300,7 +305,7 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
 #pragma omp parallel for schedule(dynamic, 4) num_threads(threads)
   for (int j = 0; j < static_cast<int>(m.jobs.size()); ++j) {
     if (late.load(std::memory_order_relaxed)) continue;
-    if (Clock::now() > deadline) {
+    if (Clock::now() > search_deadline) {
       late = true;
       continue;
     }
@@ -357,10 +362,18 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
   // then the 6-DoF fit with the template's model points (TemplatePoseFit): the sampled views are
   // up to ~6 degrees off any real pose, and only after this fit does the truth score clearly
   // better than clutter. Hypotheses are then ranked by the fitted score.
+  const auto fit_start = Clock::now();
   if (fdcm && !m.verified.empty()) m.fitter.prepare(m.edges);
+  std::atomic<bool> fit_late{false};
 #pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
   for (int i = 0; i < static_cast<int>(m.verified.size()); ++i) {
     Impl::Verified& v = m.verified[i];
+    v.fit_score = -1;
+    v.skipped = fit_late.load(std::memory_order_relaxed) || Clock::now() > deadline;
+    if (v.skipped) {
+      fit_late = true;
+      continue;
+    }
     const Hit& h = v.hit;
     const PartModel& part = m.parts[h.part];
     const Warp& w = part.warps[h.warp];
@@ -372,7 +385,6 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
     if (fdcm) fit_distance(part.db.views[h.view].lines, m.idt, pl);
     v.coarse = coarse_pose(part.db, pl, m.camera.camera);
     v.view = h.view;
-    v.fit_score = -1;
     if (fdcm && m.config.fit_hypotheses) {
       const TemplateFitResult f =
           m.fitter.fit(part.db, h.view, v.coarse, m.camera.camera, m.fit_workspaces[omp_get_thread_num()]);
@@ -396,6 +408,10 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
       v.fitted = v.coarse;
     }
   }
+  // Hypotheses the deadline left unfitted are dropped (the best-so-far result is flagged degraded).
+  std::erase_if(m.verified, [](const Impl::Verified& v) { return v.skipped; });
+  out.degraded = out.degraded || fit_late.load();
+  m.last_fit_ms = ms_between(fit_start, Clock::now());
   if (fdcm && m.config.fit_hypotheses)
     std::stable_sort(m.verified.begin(), m.verified.end(),
                      [](const Impl::Verified& a, const Impl::Verified& b) { return a.fit_rank > b.fit_rank; });

@@ -156,3 +156,40 @@ TEST(Pipeline, RefinesTheBestCandidateWhenAsked) {
   EXPECT_LE(cv::norm(best.R_m2c * db.center_mm + best.t_m2c_mm - centre), 5.0);
   EXPECT_LE(rotation_error_deg(best.R_m2c, truth.R, db.symmetry), 10.0);
 }
+
+// A deadline shorter than the search returns soon after it, flagged degraded, with only poses it
+// fitted (never a pose the fit skipped). A generous one is not degraded.
+TEST(Pipeline, DeadlineCutsTheSearchAndTheFitShort) {
+  std::vector<fs::path> all;
+  for (const char* p : {"breaker", "diamond", "ellipse", "tnut", "knob", "wheel"}) all.push_back(kTemplates / (std::string(p) + ".tdb"));
+  const CameraConfig cam = sim_camera();
+  PipelineConfig pc;
+  pc.template_files = all;
+  BinPickingPipeline pipeline(cam, pc);
+  const TemplateDatabase db = load_template_database(all[3]);
+  MfcRenderer renderer(cam);
+  const int part_id = renderer.add_mesh(db.mesh);
+  const int floor_id = renderer.add_mesh(make_plane(600));
+  int view = 0;
+  while (db.views[view].view_direction[2] < 0.5) ++view;
+  const RigidPose truth = coarse_pose(db, TemplatePlacement{view, 0.3, 1.0, {330, 230}}, cam.camera);
+  const cv::Vec3d centre = truth.R * db.center_mm + truth.t_mm;
+  const ScenePart parts[2] = {{part_id, truth.R, truth.t_mm, Material::matte(0.6f)},
+                              {floor_id, cv::Matx33d::eye(), {0, 0, centre[2] + db.diameter_mm / 2 + 10},
+                               Material::matte(0.5f)}};
+  MfcRender render;
+  renderer.render(parts, render, 11);
+  PipelineResult full;
+  pipeline.process(render.frames, 0, std::chrono::steady_clock::now() + std::chrono::seconds(60), full);
+  EXPECT_FALSE(full.degraded);
+  const double budget_ms = full.times.total_ms / 4;
+  PipelineResult cut;
+  const auto start = std::chrono::steady_clock::now();
+  pipeline.process(render.frames, 0, start + std::chrono::microseconds(static_cast<int64_t>(budget_ms * 1000)), cut);
+  const double took_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  EXPECT_TRUE(cut.degraded);
+  EXPECT_LT(cut.views_searched, full.views_searched);
+  // Cut short: well under the full run measured just before (a ratio within one run, not a time).
+  EXPECT_LT(took_ms, 0.75 * full.times.total_ms) << "full " << full.times.total_ms << " ms";
+  for (const auto& c : cut.candidates) EXPECT_GT(c.t_m2c_mm[2], 100.0) << "an unfitted (identity) pose came out";
+}
