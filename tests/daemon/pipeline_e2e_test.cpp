@@ -86,12 +86,11 @@ TEST(PipelineE2E, RealMfcdPicksSimulatedPartsWithinToleranceAndBudget) {
   }
   modbus_close(ctx);
   modbus_free(ctx);
-  // Measured (seed 1 bin): breaker, T-nut and diamond picks land within tolerance; an ellipse
-  // lying in this bin is picked 4-5 mm off laterally and 35-40 mm too deep, every time (a known
-  // failure of the one-view pose on that flat part; see the issue notes and docs/results.md). A
-  // wrong pick does not empty the simulated bin, so the ellipse is picked again: 3 of 6 picks
-  // match today. The test holds the line there: a regression below that fails.
-  EXPECT_GE(matched, 3) << "picks on a simulated part of the reported type within tolerance";
+  // Measured (seed 1 bin), release and ASan (degraded by the deadline): all 6 picks on a part of
+  // the reported type, within 0.4 mm laterally and 1.4 mm in depth (before the hypothesis fit an
+  // ellipse was picked 35-40 mm too deep every time). One pick of slack for a slower machine,
+  // where the deadline cuts the search shorter.
+  EXPECT_GE(matched, 5) << "picks on a simulated part of the reported type within tolerance";
   EXPECT_EQ(picks, 6);
   proc.signal(SIGTERM);
   EXPECT_EQ(proc.wait(15000), 0);
