@@ -139,8 +139,8 @@ double fit_distance(const LineSet& lines, const IntegralDistanceTransform& idt, 
   double best_cost = std::numeric_limits<double>::infinity();
   TemplatePlacement best = pl;
   uint64_t segments = 0;
-  for (int si = -4; si <= 7; ++si) {
-    const double scale = pl.scale * std::pow(1.02, si);
+  for (int si = -8; si <= 14; ++si) {
+    const double scale = pl.scale * std::pow(1.01, si);
     for (int ai = -1; ai <= 1; ++ai) {
       const OrientedTemplate t = orientTemplate(lines, 0, Warp{pl.angle_rad + ai * step, scale, 1.0});
       if (t.pixels <= 0) continue;
@@ -476,7 +476,7 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
       const RefinementResult start =
           m.refiner->evaluate(pose_model(m.mesh_ids[part], m.parts[part].db.mesh), RigidTransform{c.R_m2c, c.t_m2c_mm});
       // Depth is where one view is weakest: a flat part can trade distance for tilt. The coarse
-      // distance was measured from the image scale (fit_distance, 2 % steps, then the hypothesis fit), so a refinement that
+      // distance was measured from the image scale (fit_distance, 1 % steps, then the hypothesis fit), so a refinement that
       // moves the part centre along the line of sight by more than 4 % of its distance is not
       // trusted either.
       const cv::Vec3d c0 = c.R_m2c * m.parts[part].db.center_mm + c.t_m2c_mm;
