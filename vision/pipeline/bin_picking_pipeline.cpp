@@ -58,6 +58,10 @@ double iou(const cv::Rect2d& a, const cv::Rect2d& b) {
 // much as 3 px of mean chamfer distance.
 constexpr double kUnexplainedPenaltyPx = 3.0;
 
+// Hypotheses fitted even past the deadline (the best few by search cost): a late cycle still
+// gives picks.
+constexpr int kAlwaysFitted = 4;
+
 // Largest change of the part's distance a hypothesis fit may make (fraction of the distance).
 constexpr double kMaxFitDepthChange = 0.08;
 
@@ -94,7 +98,9 @@ struct BinPickingPipeline::Impl {
   };
   TemplatePoseFit fitter;
   std::vector<TemplatePoseFit::Workspace> fit_workspaces;  // per search thread
-  double last_fit_ms = 0;  // the hypothesis fit's time last cycle: the search leaves it that much
+  // What fitting all hypotheses took last cycle (scaled up when the deadline cut it short): the
+  // search leaves the fit that much, with a margin. Before the first cycle, 2 ms per hypothesis.
+  double fit_ms_estimate = 0;
   std::vector<Verified> verified;
   cv::Mat1b explained, inside;  // verification scratch, image size, kept zero outside use
   std::vector<cv::Point> placed, hull;
@@ -225,6 +231,10 @@ BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfi
   if (m.config.fit_candidates < 1) throw std::runtime_error("pipeline: fit_candidates must be >= 1");
   m.verified.reserve(static_cast<size_t>(m.config.fit_candidates));
   m.fit_workspaces.resize(static_cast<size_t>(threads));
+  size_t views = 0;
+  for (const auto& part : m.parts) views += part.db.views.size();
+  m.jobs.reserve(views);
+  m.fit_ms_estimate = 2.0 * m.config.fit_candidates / threads;
   m.explained = cv::Mat1b::zeros(camera.camera.image_size);
   m.inside = cv::Mat1b::zeros(camera.camera.image_size);
 }
@@ -274,12 +284,28 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
   // Search: the 1-D line search (paper Sec. 4.4) over every view of every selected part, views
   // shared out among the threads. Past the search's deadline the remaining views are skipped: it
   // leaves the hypothesis fit the time it took last cycle, with a margin.
+  // At most half the time left goes to the fit: the search always gets the other half.
+  const double left_ms = std::max(0.0, ms_between(Clock::now(), deadline));
   const auto search_deadline =
-      deadline - std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double, std::milli>(1.5 * m.last_fit_ms));
+      deadline - std::chrono::duration_cast<Clock::duration>(
+                     std::chrono::duration<double, std::milli>(std::min(1.5 * m.fit_ms_estimate, 0.5 * left_ms)));
+  // Coarse to fine, every part at once: every 4th view of every selected part first, then the
+  // views halfway between, then the rest (views are numbered along a spiral on the sphere, so each
+  // pass is spread over it). A search the deadline cuts short has still looked at every part from
+  // all round, and the hypothesis fit moves between neighbouring views.
   m.jobs.clear();
-  for (int p = 0; p < static_cast<int>(m.parts.size()); ++p)
-    if (obj_id == 0 || m.parts[p].db.obj_id == obj_id)
-      for (int v = 0; v < static_cast<int>(m.parts[p].db.views.size()); v += m.config.view_stride) m.jobs.emplace_back(p, v);
+  static constexpr int kPassOf[4] = {0, 2, 1, 3};  // pass of view index % 4
+  for (int pass = 0; pass < 4; ++pass)
+    for (int v = 0;; v += m.config.view_stride) {
+      bool any = false;
+      for (int p = 0; p < static_cast<int>(m.parts.size()); ++p) {
+        if (obj_id != 0 && m.parts[p].db.obj_id != obj_id) continue;
+        if (v >= static_cast<int>(m.parts[p].db.views.size())) continue;
+        any = true;
+        if (kPassOf[(v / m.config.view_stride) % 4] == pass) m.jobs.emplace_back(p, v);
+      }
+      if (!any) break;
+    }
   const FdcmMatcher matcher(m.idt);
   std::optional<ChamferMatcher> baseline;  // built from the baseline costs only when they exist
   if (!fdcm)
@@ -369,7 +395,9 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
   for (int i = 0; i < static_cast<int>(m.verified.size()); ++i) {
     Impl::Verified& v = m.verified[i];
     v.fit_score = -1;
-    v.skipped = fit_late.load(std::memory_order_relaxed) || Clock::now() > deadline;
+    // Past the deadline only the first few (the best by search cost) are still fitted, so that a
+    // late cycle still gives its best-so-far picks.
+    v.skipped = i >= kAlwaysFitted && (fit_late.load(std::memory_order_relaxed) || Clock::now() > deadline);
     if (v.skipped) {
       fit_late = true;
       continue;
@@ -411,7 +439,10 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
   // Hypotheses the deadline left unfitted are dropped (the best-so-far result is flagged degraded).
   std::erase_if(m.verified, [](const Impl::Verified& v) { return v.skipped; });
   out.degraded = out.degraded || fit_late.load();
-  m.last_fit_ms = ms_between(fit_start, Clock::now());
+  // The time the fit of all hypotheses takes, from the fits that ran (the search leaves it that).
+  const int fitted = static_cast<int>(m.verified.size());
+  if (fitted > 0)
+    m.fit_ms_estimate = ms_between(fit_start, Clock::now()) * m.config.fit_candidates / std::max(fitted, 1);
   if (fdcm && m.config.fit_hypotheses)
     std::stable_sort(m.verified.begin(), m.verified.end(),
                      [](const Impl::Verified& a, const Impl::Verified& b) { return a.fit_rank > b.fit_rank; });
