@@ -39,6 +39,26 @@ double rotation_error_deg(const cv::Matx33d& a, const cv::Matx33d& b, const Part
   return best;
 }
 
+// The part at `truth` on a floor 10 mm below its bounding sphere, seen by the simulated MFC.
+MfcRender render_on_floor(MfcRenderer& renderer, int part_id, int floor_id, const TemplateDatabase& db,
+                          const RigidPose& truth, int seed) {
+  const cv::Vec3d centre = truth.R * db.center_mm + truth.t_mm;
+  const ScenePart parts[2] = {{part_id, truth.R, truth.t_mm, Material::matte(0.6f)},
+                              {floor_id, cv::Matx33d::eye(), {0, 0, centre[2] + db.diameter_mm / 2 + 10},
+                               Material::matte(0.5f)}};
+  MfcRender render;
+  renderer.render(parts, render, seed);
+  return render;
+}
+
+// The coarse pose of the first template view that sees the part from well above, placed at
+// `origin` turned by `angle` in the image.
+RigidPose upper_view_pose(const TemplateDatabase& db, const CameraConfig& cam, double angle, cv::Point2d origin) {
+  int view = 0;
+  while (db.views[view].view_direction[2] < 0.5) ++view;
+  return coarse_pose(db, TemplatePlacement{view, angle, 1.0, origin}, cam.camera);
+}
+
 struct SceneCase {
   const char* part;
 };
@@ -78,11 +98,7 @@ TEST_P(PipelineOnRenderedPart, FindsThePartWithinFiveMillimetresAndTenDegrees) {
     const cv::Vec3d centre = truth.R * db.center_mm + truth.t_mm;
     truth.R = tilt * truth.R;
     truth.t_mm = centre - truth.R * db.center_mm;
-    const ScenePart parts[2] = {{part_id, truth.R, truth.t_mm, Material::matte(0.6f)},
-                                {floor_id, cv::Matx33d::eye(), {0, 0, centre[2] + db.diameter_mm / 2 + 10},
-                                 Material::matte(0.5f)}};
-    MfcRender render;
-    renderer.render(parts, render, 100 + trial);
+    const MfcRender render = render_on_floor(renderer, part_id, floor_id, db, truth, 100 + trial);
     PipelineResult result;
     pipeline.process(render.frames, 0, std::chrono::steady_clock::now() + std::chrono::seconds(30), result);
     if (const char* dir = std::getenv("MFC_TEST_DUMP"))
@@ -139,15 +155,9 @@ TEST(Pipeline, RefinesTheBestCandidateWhenAsked) {
   MfcRenderer renderer(cam);
   const int part_id = renderer.add_mesh(db.mesh);
   const int floor_id = renderer.add_mesh(make_plane(600));
-  int view = 0;
-  while (db.views[view].view_direction[2] < 0.5) ++view;
-  const RigidPose truth = coarse_pose(db, TemplatePlacement{view, 0.7, 1.0, {300, 250}}, cam.camera);
+  const RigidPose truth = upper_view_pose(db, cam, 0.7, {300, 250});
   const cv::Vec3d centre = truth.R * db.center_mm + truth.t_mm;
-  const ScenePart parts[2] = {{part_id, truth.R, truth.t_mm, Material::matte(0.6f)},
-                              {floor_id, cv::Matx33d::eye(), {0, 0, centre[2] + db.diameter_mm / 2 + 10},
-                               Material::matte(0.5f)}};
-  MfcRender render;
-  renderer.render(parts, render, 7);
+  const MfcRender render = render_on_floor(renderer, part_id, floor_id, db, truth, 7);
   PipelineResult result;
   pipeline.process(render.frames, 0, std::chrono::steady_clock::now() + std::chrono::seconds(30), result);
   ASSERT_FALSE(result.candidates.empty());
@@ -171,15 +181,7 @@ TEST(Pipeline, DeadlineCutsTheSearchAndTheFitShort) {
   MfcRenderer renderer(cam);
   const int part_id = renderer.add_mesh(db.mesh);
   const int floor_id = renderer.add_mesh(make_plane(600));
-  int view = 0;
-  while (db.views[view].view_direction[2] < 0.5) ++view;
-  const RigidPose truth = coarse_pose(db, TemplatePlacement{view, 0.3, 1.0, {330, 230}}, cam.camera);
-  const cv::Vec3d centre = truth.R * db.center_mm + truth.t_mm;
-  const ScenePart parts[2] = {{part_id, truth.R, truth.t_mm, Material::matte(0.6f)},
-                              {floor_id, cv::Matx33d::eye(), {0, 0, centre[2] + db.diameter_mm / 2 + 10},
-                               Material::matte(0.5f)}};
-  MfcRender render;
-  renderer.render(parts, render, 11);
+  const MfcRender render = render_on_floor(renderer, part_id, floor_id, db, upper_view_pose(db, cam, 0.3, {330, 230}), 11);
   PipelineResult full;
   pipeline.process(render.frames, 0, std::chrono::steady_clock::now() + std::chrono::seconds(60), full);
   EXPECT_FALSE(full.degraded);

@@ -10,6 +10,43 @@
 using namespace mfcd::vision;
 using namespace mfcd::vision::testing;
 
+namespace {
+
+// A random line template planted at (160, 120), turned by a random whole number of channels,
+// among random clutter; the query's lines and IDT3, and the template under every rotation.
+struct PlantedScene {
+  int rotation = 0;  // channels
+  LineFitResult fit;
+  IntegralDistanceTransform idt;
+  std::vector<OrientedTemplate> templates;
+};
+
+PlantedScene plantedScene(std::mt19937& rng) {
+  const OrientationChannels ch(60);
+  Dt3Params p;
+  PlantedScene scene;
+  const LineSet set = randomLineSet(rng, p.q, 8, 15, 60, 35);
+  scene.rotation = static_cast<int>(rng() % 120);
+  const OrientedTemplate planted = orientTemplate(set, 0, Warp{scene.rotation * ch.step(), 1, 1});
+  LineSet drawn;
+  drawn.q = p.q;
+  drawn.lines = planted.lines;
+  cv::Mat1b edges(240, 320, uchar(0));
+  cv::Mat1b map = randomChannelMap(rng, edges.size(), p.q, 30, 50);
+  drawLineSet(map, drawn, {160, 120});
+  for (int y = 0; y < map.rows; ++y)
+    for (int x = 0; x < map.cols; ++x) edges(y, x) = map(y, x) != kNoChannel ? 255 : 0;
+  scene.fit = fitLines(edges);
+  DirectionalDistanceTransform dt3;
+  dt3.compute(scene.fit.channelMap, p);
+  scene.idt.compute(dt3);
+  WarpGrid grid;
+  for (const Warp& w : grid.warps(p.q)) scene.templates.push_back(orientTemplate(set, 0, w));
+  return scene;
+}
+
+}  // namespace
+
 // The 1-D search along major lines finds a planted, rotated template as well as the exhaustive
 // search does, while evaluating far fewer hypotheses.
 TEST(LineSearch, FindsPlantedTemplateWithFewHypotheses) {
@@ -17,27 +54,11 @@ TEST(LineSearch, FindsPlantedTemplateWithFewHypotheses) {
   const OrientationChannels ch(60);
   int found = 0;
   for (int trial = 0; trial < 8; ++trial) {
-    Dt3Params p;
-    const LineSet set = randomLineSet(rng, p.q, 8, 15, 60, 35);
-    const int rot = static_cast<int>(rng() % 120);
-    const OrientedTemplate planted = orientTemplate(set, 0, Warp{rot * ch.step(), 1, 1});
-    LineSet drawn;
-    drawn.q = p.q;
-    drawn.lines = planted.lines;
-    cv::Mat1b edges(240, 320, uchar(0));
-    cv::Mat1b map = randomChannelMap(rng, edges.size(), p.q, 30, 50);
-    drawLineSet(map, drawn, {160, 120});
-    for (int y = 0; y < map.rows; ++y)
-      for (int x = 0; x < map.cols; ++x) edges(y, x) = map(y, x) != kNoChannel ? 255 : 0;
-    const LineFitResult fit = fitLines(edges);
-    DirectionalDistanceTransform dt3;
-    dt3.compute(fit.channelMap, p);
-    IntegralDistanceTransform idt;
-    idt.compute(dt3);
-    WarpGrid grid;
-    std::vector<OrientedTemplate> ts;
-    for (const Warp& w : grid.warps(p.q)) ts.push_back(orientTemplate(set, 0, w));
-    const FdcmMatcher m(idt);
+    const PlantedScene scene = plantedScene(rng);
+    const int rot = scene.rotation;
+    const auto& fit = scene.fit;
+    const auto& ts = scene.templates;
+    const FdcmMatcher m(scene.idt);
     LineSearchParams lp;
     const SearchResult r = lineSearch(m, ts, fit.set.lines, lp);
     SearchParams ep;
@@ -64,28 +85,11 @@ TEST(LineSearch, FindsPlantedTemplateWithFewHypotheses) {
 // places as a greedy selection from the full list.
 TEST(LineSearch, KeepsSeveralSeparatedBestHypotheses) {
   std::mt19937 rng(7);
-  const OrientationChannels ch(60);
   for (int trial = 0; trial < 6; ++trial) {
-    Dt3Params p;
-    const LineSet set = randomLineSet(rng, p.q, 8, 15, 60, 35);
-    const OrientedTemplate planted = orientTemplate(set, 0, Warp{static_cast<int>(rng() % 120) * ch.step(), 1, 1});
-    LineSet drawn;
-    drawn.q = p.q;
-    drawn.lines = planted.lines;
-    cv::Mat1b edges(240, 320, uchar(0));
-    cv::Mat1b map = randomChannelMap(rng, edges.size(), p.q, 30, 50);
-    drawLineSet(map, drawn, {160, 120});
-    for (int y = 0; y < map.rows; ++y)
-      for (int x = 0; x < map.cols; ++x) edges(y, x) = map(y, x) != kNoChannel ? 255 : 0;
-    const LineFitResult fit = fitLines(edges);
-    DirectionalDistanceTransform dt3;
-    dt3.compute(fit.channelMap, p);
-    IntegralDistanceTransform idt;
-    idt.compute(dt3);
-    WarpGrid grid;
-    std::vector<OrientedTemplate> ts;
-    for (const Warp& w : grid.warps(p.q)) ts.push_back(orientTemplate(set, 0, w));
-    const FdcmMatcher m(idt);
+    const PlantedScene scene = plantedScene(rng);
+    const auto& fit = scene.fit;
+    const auto& ts = scene.templates;
+    const FdcmMatcher m(scene.idt);
     LineSearchParams lp;
     lp.threshold = 12;
     lp.keep = 5;
