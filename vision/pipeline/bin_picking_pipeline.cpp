@@ -5,6 +5,7 @@
 #include "vision/lines/line_fitter.hpp"
 #include "vision/pose/coarse_pose.hpp"
 #include "vision/pose/pose_refiner.hpp"
+#include "vision/pose/rigid_transform.hpp"
 #include "vision/pose/template_pose_fit.hpp"
 #include "vision/render/mfc_renderer.hpp"
 #include "vision/search/line_search.hpp"
@@ -93,10 +94,11 @@ struct BinPickingPipeline::Impl {
     double coverage = 0, combined = 0;
     RigidPose coarse, fitted;
     int view = 0;
-    double fit_score = -1, fit_cost = 0, fit_coverage = 0, fit_rank = -1;
+    double fit_score = -1, fit_rank = -1;
     bool skipped = false;  // not fitted: the deadline had passed
   };
   TemplatePoseFit fitter;
+  bool fitter_prepared = false;  // the fitter indexes this cycle's edges (score_pose reuses them)
   std::vector<TemplatePoseFit::Workspace> fit_workspaces;  // per search thread
   // What fitting all hypotheses took last cycle (scaled up when the deadline cut it short): the
   // search leaves the fit that much, with a margin. Before the first cycle, 2 ms per hypothesis.
@@ -262,6 +264,7 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
   if (!known) throw std::invalid_argument("pipeline: no templates loaded for obj_id " + std::to_string(obj_id));
 
   m.extractor.extract(frames, m.edges);
+  m.fitter_prepared = false;
   auto t = Clock::now();
   out.times.edges_ms = ms_between(t0, t);
 
@@ -389,7 +392,10 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
   // up to ~6 degrees off any real pose, and only after this fit does the truth score clearly
   // better than clutter. Hypotheses are then ranked by the fitted score.
   const auto fit_start = Clock::now();
-  if (fdcm && !m.verified.empty()) m.fitter.prepare(m.edges);
+  if (fdcm && !m.verified.empty()) {
+    m.fitter.prepare(m.edges);
+    m.fitter_prepared = true;
+  }
   std::atomic<bool> fit_late{false};
 #pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
   for (int i = 0; i < static_cast<int>(m.verified.size()); ++i) {
@@ -429,8 +435,6 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
       v.fitted = f.pose;
       v.view = f.view;
       v.fit_score = f.score;
-      v.fit_cost = f.mean_cost_px;
-      v.fit_coverage = f.coverage;
       v.fit_rank = fitted_rank(f);
     } else {
       v.fitted = v.coarse;
@@ -539,22 +543,13 @@ PoseScore BinPickingPipeline::score_pose(int obj_id, const cv::Matx33d& R_m2c, c
   for (const auto& p : m.parts)
     if (p.db.obj_id == obj_id) part = &p;
   if (!part) throw std::invalid_argument("pipeline: no templates loaded for obj_id " + std::to_string(obj_id));
-  // The nearest view over the part's symmetric copies of the pose (the views cover one wedge).
-  std::vector<cv::Matx33d> turns = part->db.symmetry.discrete_rotations();
-  if (turns.empty()) turns.push_back(cv::Matx33d::eye());
+  // The nearest view over the part's symmetric copies of the pose (the views cover one wedge),
+  // as the hypothesis fit chooses it.
   PoseScore out;
-  double best = std::numeric_limits<double>::infinity();
-  TemplatePlacement placement;
-  for (const auto& S : turns) {
-    const RigidPose pose{R_m2c * S, t_m2c_mm + R_m2c * (part->db.center_mm - S * part->db.center_mm)};
-    for (int v = 0; v < static_cast<int>(part->db.views.size()); ++v) {
-      const TemplatePlacement pl = placement_of(part->db, v, pose, m.camera.camera);
-      const RigidPose c = coarse_pose(part->db, pl, m.camera.camera);
-      const cv::Matx33d D = c.R.t() * pose.R;
-      const double angle = std::acos(std::clamp((cv::trace(D) - 1.0) / 2.0, -1.0, 1.0));
-      if (angle < best) best = angle, placement = pl, out.view = v;
-    }
-  }
+  RigidPose pose{R_m2c, t_m2c_mm};
+  out.view = TemplatePoseFit::nearest_view(part->db, m.camera.camera, pose);
+  TemplatePlacement placement = placement_of(part->db, out.view, pose, m.camera.camera);
+  const double best = rotation_angle(coarse_pose(part->db, placement, m.camera.camera).R.t() * pose.R);
   out.view_angle_deg = best * 180.0 / CV_PI;
   const TemplateView& view = part->db.views[static_cast<size_t>(out.view)];
   out.cost_px = fit_distance(view.lines, m.idt, placement);
@@ -563,7 +558,10 @@ PoseScore BinPickingPipeline::score_pose(int obj_id, const cv::Matx33d& R_m2c, c
   out.coverage = explained_fraction(view, w, static_cast<int>(placement.origin_px.x),
                                     static_cast<int>(placement.origin_px.y), m);
   out.rank_px = out.cost_px + kUnexplainedPenaltyPx * (1.0 - out.coverage);
-  m.fitter.prepare(m.edges);
+  if (!m.fitter_prepared) {
+    m.fitter.prepare(m.edges);
+    m.fitter_prepared = true;
+  }
   const RigidPose start = coarse_pose(part->db, placement, m.camera.camera);
   const TemplateFitResult f = m.fitter.fit(part->db, out.view, start, m.camera.camera, m.fit_workspaces[0]);
   out.fit_score = fitted_rank(f);
