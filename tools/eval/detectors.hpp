@@ -29,6 +29,11 @@ struct Estimate {
 struct Detection {
   std::vector<Estimate> estimates;  // best first
   vision::StageTimes times;         // stages the detector has; total_ms always set
+  int views_searched = 0;           // pipeline detectors: template views the search visited
+  uint64_t evaluated = 0;           // pipeline detectors: hypotheses the search evaluated
+  // Pipeline detectors with PipelineConfig::trace (--set trace=1): every fitted hypothesis,
+  // before (coarse) and after the fit, in search order.
+  std::vector<Estimate> coarse_hypotheses, fitted_hypotheses;
 };
 
 class Detector {
@@ -48,12 +53,18 @@ class Detector {
 
 // FDCM / OCM / CM through BinPickingPipeline; `distances_mm` and `refine_candidates` as in
 // PipelineConfig (refine_candidates < 0: the pipeline's default).
-// `fit_hypotheses` as PipelineConfig's (the FDCM cost only); `name` is the method's name.
+// `fit_hypotheses` as PipelineConfig's (the FDCM cost only); `name` is the method's name;
+// `settings` ("key=value", apply_pipeline_setting) are applied last.
 std::unique_ptr<Detector> make_pipeline_detector(const std::string& name, vision::PipelineConfig::Cost cost,
                                                  const vision::CameraConfig& camera,
                                                  const std::vector<std::filesystem::path>& templates, int threads,
                                                  int max_candidates, const std::vector<double>& distances_mm,
-                                                 int refine_candidates, bool fit_hypotheses);
+                                                 int refine_candidates, bool fit_hypotheses,
+                                                 const std::vector<std::string>& settings = {});
+
+// One "key=value" of PipelineConfig's search and fit settings (mfc-eval --set, for tuning
+// experiments). Throws std::invalid_argument naming the key or value it refuses.
+void apply_pipeline_setting(vision::PipelineConfig& config, const std::string& setting);
 
 struct Line2dOptions {
   double inplane_step_deg = 15;  // in-plane rotations trained per view (LINE-2D is not rotation invariant)

@@ -52,6 +52,8 @@ detect: for every image and every part type present in it, runs each method for 
                          templates' scale is searched for each (default: the templates' own)
   --refine-candidates N  candidates the pipeline refines (1 view); 0 = coarse poses only
                          (default: the pipeline's default, PipelineConfig::refine_candidates)
+  --set KEY=VALUE        a PipelineConfig setting for the pipeline methods (repeatable), e.g.
+                         --set view_stride=2; keys: see tools/eval/pipeline_detector.cpp
   --all-types            also run FDCM once per image over all part types (best pick; timing)
   --line2d-step DEG      LINE-2D in-plane rotation step (default 15)
   --line2d-view-stride S LINE-2D: train every S-th template view (default 1)
@@ -110,6 +112,7 @@ struct Options {
   std::vector<std::string> methods = {"fdcm", "ocm", "cm"};
   int max_images = 0, threads = 0, refine_candidates = -1;
   std::vector<double> distances_mm;
+  std::vector<std::string> pipeline_settings;  // --set KEY=VALUE, applied in order
   bool all_types = false, quiet = false;
   Line2dOptions line2d;
   Criterion criterion;
@@ -149,6 +152,15 @@ Options parse(int argc, char** argv) {
       for (std::string d; std::getline(ss, d, ',');) {
         o.distances_mm.push_back(to_double(a, d));
         if (!(o.distances_mm.back() > 0)) throw Usage("--distances: '" + d + "' is not a positive distance");
+      }
+    }
+    else if (a == "--set") {
+      o.pipeline_settings.push_back(value());
+      try {  // refused here, before any dataset is read
+        vision::PipelineConfig probe;
+        apply_pipeline_setting(probe, o.pipeline_settings.back());
+      } catch (const std::invalid_argument& e) {
+        throw Usage(std::string("--set: ") + e.what());
       }
     }
     else if (a == "--line2d-step") o.line2d.inplane_step_deg = to_double(a, value());
@@ -286,7 +298,7 @@ int run_detect(const Options& o) {
                         : m == "ocm"                      ? vision::PipelineConfig::Cost::ocm
                                                           : vision::PipelineConfig::Cost::cm;
       det = make_pipeline_detector(m, cost, camera, tdbs, o.threads, max_candidates, o.distances_mm,
-                                   o.refine_candidates, /*fit_hypotheses=*/m != "fdcm-search");
+                                   o.refine_candidates, /*fit_hypotheses=*/m != "fdcm-search", o.pipeline_settings);
     }
     std::fprintf(stderr, "mfc-eval: %s ready (%.1f s setup)\n", m.c_str(), det->setup_seconds());
     json trials = json::array(), instances = json::array();
@@ -305,7 +317,7 @@ int run_detect(const Options& o) {
         // errors reported for the instance it matches best (smallest position error among the
         // matching ones, else overall).
         json trial = {{"scene", ref.scene}, {"image", ref.image}, {"obj_id", obj_id}, {"times", times_json(d.times)},
-                      {"found", !d.estimates.empty()}};
+                      {"found", !d.estimates.empty()}, {"views_searched", d.views_searched}, {"evaluated", d.evaluated}};
         bool correct = false, correct_xy = false;
         double best_visib = 0;
         int n_inst = 0;
@@ -345,6 +357,40 @@ int run_detect(const Options& o) {
                                {"fit_score", ps->fit_score}});
           if (!truth.empty()) trial["truth_scores"] = truth;
           if (!d.estimates.empty()) trial["best_rank_px"] = d.estimates[0].rank_px, trial["best_score"] = d.estimates[0].rank;
+        }
+        // Where the first correct estimate stands in the detector's ranking (-1: none of them):
+        // a ranking miss rather than a search miss when > 0.
+        {
+          int first = -1;
+          for (size_t c = 0; c < d.estimates.size() && first < 0; ++c)
+            for (size_t j : inst)
+              if (o.criterion.accepts(score(d.estimates[c], g.gt[j]))) {
+                first = static_cast<int>(c);
+                break;
+              }
+          trial["first_correct_rank"] = first;
+        }
+        // With --set trace=1: the hypothesis nearest the truth (any instance), before and after
+        // the fit: a search miss has none near it, a fit miss loses it in the fit.
+        auto nearest = [&](const std::vector<Estimate>& hyps) {
+          json best;
+          double best_key = 1e18;
+          for (size_t c = 0; c < hyps.size(); ++c)
+            for (size_t j : inst) {
+              if (hyps[c].obj_id != obj_id) continue;
+              const PoseError e = score(hyps[c], g.gt[j]);
+              const double rank_key = (o.criterion.accepts(e) ? 0 : 1e9) + e.position_mm + e.rotation_deg;
+              if (rank_key < best_key)
+                best_key = rank_key, best = {{"index", c}, {"instance", j}, {"correct", o.criterion.accepts(e)},
+                                        {"position_mm", e.position_mm}, {"rotation_deg", e.rotation_deg},
+                                        {"rank", hyps[c].rank}};
+            }
+          return best;
+        };
+        if (!d.coarse_hypotheses.empty()) {
+          trial["hypotheses"] = d.coarse_hypotheses.size();
+          trial["nearest_coarse"] = nearest(d.coarse_hypotheses);
+          trial["nearest_fitted"] = nearest(d.fitted_hypotheses);
         }
         trial["correct"] = correct;
         trial["correct_xy"] = correct_xy;

@@ -2,6 +2,8 @@
 #include "tools/eval/detectors.hpp"
 
 #include <chrono>
+#include <cmath>
+#include <stdexcept>
 
 namespace mfcd::eval {
 
@@ -11,7 +13,8 @@ class PipelineDetector final : public Detector {
  public:
   PipelineDetector(std::string name, vision::PipelineConfig::Cost cost, const vision::CameraConfig& camera,
                    const std::vector<std::filesystem::path>& templates, int threads, int max_candidates,
-                   const std::vector<double>& distances_mm, int refine_candidates, bool fit_hypotheses)
+                   const std::vector<double>& distances_mm, int refine_candidates, bool fit_hypotheses,
+                   const std::vector<std::string>& settings)
       : name_(std::move(name)), cost_(cost) {
     const auto t0 = std::chrono::steady_clock::now();
     vision::PipelineConfig pc;
@@ -22,6 +25,7 @@ class PipelineDetector final : public Detector {
     pc.distances_mm = distances_mm;
     pc.fit_hypotheses = fit_hypotheses;
     if (refine_candidates >= 0) pc.refine_candidates = refine_candidates;
+    for (const auto& s : settings) apply_pipeline_setting(pc, s);
     pipeline_ = std::make_unique<vision::BinPickingPipeline>(camera, pc);
     setup_s_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   }
@@ -32,6 +36,14 @@ class PipelineDetector final : public Detector {
     out.estimates.clear();
     for (const auto& c : result_.candidates) out.estimates.push_back({c.obj_id, c.R_m2c, c.t_m2c_mm, c.score, c.rank_px, c.fit_rank});
     out.times = result_.times;
+    out.views_searched = result_.views_searched;
+    out.evaluated = result_.hypotheses;
+    out.coarse_hypotheses.clear();
+    out.fitted_hypotheses.clear();
+    for (const auto& h : result_.trace) {
+      out.coarse_hypotheses.push_back({h.obj_id, h.R_coarse, h.t_coarse_mm, 0, h.search_cost_px, h.fit_rank});
+      out.fitted_hypotheses.push_back({h.obj_id, h.R_fitted, h.t_fitted_mm, 0, h.search_cost_px, h.fit_rank});
+    }
   }
   std::optional<vision::PoseScore> score_pose(int obj_id, const cv::Matx33d& R, const cv::Vec3d& t_mm) override {
     if (cost_ != vision::PipelineConfig::Cost::fdcm) return std::nullopt;
@@ -53,9 +65,45 @@ std::unique_ptr<Detector> make_pipeline_detector(const std::string& name, vision
                                                  const vision::CameraConfig& camera,
                                                  const std::vector<std::filesystem::path>& templates, int threads,
                                                  int max_candidates, const std::vector<double>& distances_mm,
-                                                 int refine_candidates, bool fit_hypotheses) {
+                                                 int refine_candidates, bool fit_hypotheses,
+                                                 const std::vector<std::string>& settings) {
   return std::make_unique<PipelineDetector>(name, cost, camera, templates, threads, max_candidates, distances_mm,
-                                            refine_candidates, fit_hypotheses);
+                                            refine_candidates, fit_hypotheses, settings);
+}
+
+void apply_pipeline_setting(vision::PipelineConfig& c, const std::string& setting) {
+  const auto eq = setting.find('=');
+  if (eq == std::string::npos) throw std::invalid_argument("'" + setting + "' is not key=value");
+  const std::string key = setting.substr(0, eq), value = setting.substr(eq + 1);
+  auto number = [&]() {
+    size_t used = 0;
+    double v = 0;
+    try {
+      v = std::stod(value, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used != value.size() || value.empty()) throw std::invalid_argument(key + ": '" + value + "' is not a number");
+    return v;
+  };
+  auto integer = [&]() {
+    const double v = number();
+    if (v != std::floor(v)) throw std::invalid_argument(key + ": '" + value + "' is not an integer");
+    return static_cast<int>(v);
+  };
+  if (key == "max_cost_px") c.max_cost_px = number();
+  else if (key == "template_guides") c.template_guides = integer();
+  else if (key == "query_guides") c.query_guides = integer();
+  else if (key == "min_guide_overlap") c.min_guide_overlap = number();
+  else if (key == "view_stride") c.view_stride = integer();
+  else if (key == "coarse_seeds") c.coarse_seeds = integer();
+  else if (key == "keep_per_view") c.keep_per_view = integer();
+  else if (key == "slide_step") c.slide_step = integer();
+  else if (key == "fit_candidates") c.fit_candidates = integer();
+  else if (key == "max_candidates") c.max_candidates = integer();
+  else if (key == "share_search_bound") c.share_search_bound = integer() != 0;
+  else if (key == "trace") c.trace = integer() != 0;
+  else throw std::invalid_argument("unknown key '" + key + "'");
 }
 
 }  // namespace mfcd::eval

@@ -42,7 +42,7 @@ DepthEdgeExtractor::DepthEdgeExtractor(const PinholeCamera& camera, const FlashR
   ratio_.resize(epipoles_.size());
   for (auto& r : ratio_) r.create(size);
   response_.create(size);
-  inv_max_.create(1, size.width);
+  inv_max_.create(size);  // per row, so that rows can run in parallel
   normal_x_.create(size);
   normal_y_.create(size);
   state_.create(size);
@@ -68,6 +68,8 @@ void DepthEdgeExtractor::extract(const MfcFrames& frames, DepthEdges& out) {
 
   // 1. Ambient subtraction, max image (eq. 17) and ratio images (eq. 18).
   const float min_flash = params_.min_flash_dn;
+  // Rows are independent in steps 1 and 2: shared among the cores.
+#pragma omp parallel for schedule(static)
   for (int y = 0; y < H; ++y) {
     const uint8_t* amb = frames.ambient.ptr<uint8_t>(y);
     float* mx = max_image_.ptr<float>(y);
@@ -81,7 +83,7 @@ void DepthEdgeExtractor::extract(const MfcFrames& frames, DepthEdges& out) {
         mx[x] = std::max(mx[x], v);
       }
     }
-    float* inv = inv_max_.ptr<float>(0);  // one row of scratch
+    float* inv = inv_max_.ptr<float>(y);
     for (int x = 0; x < W; ++x) inv[x] = mx[x] >= min_flash ? 1.f / mx[x] : 0.f;
     for (size_t i = 0; i < n; ++i) {
       float* r = ratio_[i].ptr<float>(y);
@@ -97,7 +99,8 @@ void DepthEdgeExtractor::extract(const MfcFrames& frames, DepthEdges& out) {
   normal_x_.setTo(0);
   normal_y_.setTo(0);
   const float dim2 = params_.dim_flash_dn * params_.dim_flash_dn;
-  for (int y = 1; y + 1 < H; ++y) {
+#pragma omp parallel for schedule(static)
+  for (int y = 1; y < H - 1; ++y) {
     float* s = response_.ptr<float>(y);
     float* gx_sum = normal_x_.ptr<float>(y);
     float* gy_sum = normal_y_.ptr<float>(y);

@@ -41,13 +41,67 @@ struct PartModel {
   std::string file;
   std::vector<Warp> warps;
   std::vector<std::vector<OrientedTemplate>> oriented;  // [view][warp]
+  // Per view, the other views whose direction lies within the fine stage's radius
+  // (symmetry-aware), nearest first.
+  std::vector<std::vector<int>> neighbours;
+  std::vector<uint8_t> searched;  // per view, this cycle
 };
+
+// Angle between two viewing directions of a part, the smallest over its symmetric copies.
+double view_angle(const PartSymmetry& sym, const cv::Vec3d& a, const cv::Vec3d& b) {
+  auto angle = [](const cv::Vec3d& u, const cv::Vec3d& v) { return std::acos(std::clamp(u.dot(v), -1.0, 1.0)); };
+  if (sym.kind == PartSymmetry::Kind::continuous_z)
+    return std::abs(std::acos(std::clamp(a[2], -1.0, 1.0)) - std::acos(std::clamp(b[2], -1.0, 1.0)));
+  double best = angle(a, b);
+  if (sym.kind == PartSymmetry::Kind::discrete_z)
+    for (int k = 1; k < sym.order; ++k) {
+      const double phi = 2 * CV_PI * k / sym.order, c = std::cos(phi), s = std::sin(phi);
+      best = std::min(best, angle(a, cv::Vec3d(c * b[0] - s * b[1], s * b[0] + c * b[1], b[2])));
+    }
+  return best;
+}
+
+// The fine stage's neighbours of every view. A true pose lies within about 0.6 spacings of its
+// nearest view (K directions on the sphere are sqrt(4 pi / K) apart), so the coarse view that
+// found it lies within 0.6 sqrt(stride) spacings, and the view nearest the truth within
+// 0.6 (sqrt(stride) + 1) spacings of that coarse view.
+std::vector<std::vector<int>> view_neighbours(const TemplateDatabase& db, int stride) {
+  const size_t n = db.views.size();
+  std::vector<std::vector<int>> out(n);
+  if (stride <= 1 || n == 0) return out;
+  const double spacing = std::sqrt(4 * CV_PI / std::max(1, db.sphere_samples));
+  const double radius = 0.6 * (std::sqrt(double(stride)) + 1.0) * spacing;
+  std::vector<std::pair<double, int>> near;
+  for (size_t v = 0; v < n; ++v) {
+    near.clear();
+    for (size_t u = 0; u < n; ++u) {
+      if (u == v) continue;
+      const double a = view_angle(db.symmetry, db.views[v].view_direction, db.views[u].view_direction);
+      if (a <= radius) near.emplace_back(a, static_cast<int>(u));
+    }
+    std::sort(near.begin(), near.end());
+    for (const auto& [a, u] : near) out[v].push_back(u);
+  }
+  return out;
+}
 
 struct Hit {
   int part = 0, view = 0, warp = 0;
   Candidate c;
   cv::Rect2d box;
 };
+
+// Best search cost first; ties broken by everything else, so that the order does not depend on
+// which thread found what.
+bool hit_order(const Hit& a, const Hit& b) {
+  const uint64_t l = uint64_t(a.c.sum) * b.c.pixels, r = uint64_t(b.c.sum) * a.c.pixels;
+  if (l != r) return l < r;
+  if (a.part != b.part) return a.part < b.part;
+  if (a.view != b.view) return a.view < b.view;
+  if (a.warp != b.warp) return a.warp < b.warp;
+  if (a.c.tx != b.c.tx) return a.c.tx < b.c.tx;
+  return a.c.ty < b.c.ty;
+}
 
 double iou(const cv::Rect2d& a, const cv::Rect2d& b) {
   const double inter = (a & b).area();
@@ -89,6 +143,10 @@ struct BinPickingPipeline::Impl {
   std::vector<uint64_t> thread_hypotheses;
   std::vector<int> thread_views;
   std::vector<Hit> hits;
+  // Only the best fit_candidates hits of a cycle are used: each thread keeps a max-heap of its
+  // best that many, and the worst of a full heap bounds every search (SharedCostBound).
+  std::vector<std::vector<Candidate>> thread_best;
+  std::atomic<uint64_t> shared_bound{SharedCostBound::kNone};
   struct Verified {
     Hit hit;
     double coverage = 0, combined = 0;
@@ -222,13 +280,19 @@ BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfi
         list.push_back(std::move(t));
       }
     }
+    part.neighbours = view_neighbours(part.db, m.config.view_stride);
+    part.searched.assign(part.db.views.size(), 0);
     m.parts.push_back(std::move(part));
   }
+  if (m.config.coarse_seeds < 0) throw std::runtime_error("pipeline: coarse_seeds must be >= 0");
   const int threads = m.config.threads > 0 ? m.config.threads : omp_get_max_threads();
   m.thread_hits.resize(static_cast<size_t>(threads));
   m.thread_hypotheses.resize(static_cast<size_t>(threads));
   m.thread_views.resize(static_cast<size_t>(threads));
   for (auto& h : m.thread_hits) h.reserve(4096);
+  m.thread_best.resize(static_cast<size_t>(threads));
+  for (auto& h : m.thread_best)
+    h.reserve(std::max<size_t>(m.config.fit_candidates * m.config.keep_per_view, m.config.coarse_seeds * m.parts.size()) + 1);
   m.hits.reserve(4096);
   if (m.config.fit_candidates < 1) throw std::runtime_error("pipeline: fit_candidates must be >= 1");
   m.verified.reserve(static_cast<size_t>(m.config.fit_candidates));
@@ -292,20 +356,23 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
   const auto search_deadline =
       deadline - std::chrono::duration_cast<Clock::duration>(
                      std::chrono::duration<double, std::milli>(std::min(1.5 * m.fit_ms_estimate, 0.5 * left_ms)));
-  // Coarse to fine, every part at once: every 4th view of every selected part first, then the
-  // views halfway between, then the rest (views are numbered along a spiral on the sphere, so each
-  // pass is spread over it). A search the deadline cuts short has still looked at every part from
-  // all round, and the hypothesis fit moves between neighbouring views.
+  // Coarse to fine, every part at once. The coarse stage: every `view_stride`-th view of every
+  // selected part, in four passes (every 4th of them first, then those halfway between, then the
+  // rest: views are numbered along a spiral on the sphere, so each pass is spread over it). A
+  // search the deadline cuts short has still looked at every part from all round, and the
+  // hypothesis fit moves between neighbouring views.
   m.jobs.clear();
-  static constexpr int kPassOf[4] = {0, 2, 1, 3};  // pass of view index % 4
+  const int stride = m.config.view_stride;
+  static constexpr int kPassOf[4] = {0, 2, 1, 3};  // pass of (view / stride) % 4
+  for (auto& part : m.parts) std::fill(part.searched.begin(), part.searched.end(), 0);
   for (int pass = 0; pass < 4; ++pass)
-    for (int v = 0;; v += m.config.view_stride) {
+    for (int v = 0;; v += stride) {
       bool any = false;
       for (int p = 0; p < static_cast<int>(m.parts.size()); ++p) {
         if (obj_id != 0 && m.parts[p].db.obj_id != obj_id) continue;
         if (v >= static_cast<int>(m.parts[p].db.views.size())) continue;
         any = true;
-        if (kPassOf[(v / m.config.view_stride) % 4] == pass) m.jobs.emplace_back(p, v);
+        if (kPassOf[(v / stride) % 4] == pass) m.jobs.emplace_back(p, v), m.parts[p].searched[v] = 1;
       }
       if (!any) break;
     }
@@ -326,27 +393,65 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
   lp.slideStep = m.config.slide_step;
   lp.keep = m.config.keep_per_view;
   lp.separationPx = m.config.keep_separation_px;
+  m.shared_bound.store(SharedCostBound::kNone);
+  if (m.config.share_search_bound) lp.sharedBound = &m.shared_bound;
+  size_t selected_parts = 0;
+  for (const auto& part : m.parts) selected_parts += obj_id == 0 || part.db.obj_id == obj_id;
+  const size_t useful = std::max(static_cast<size_t>(m.config.fit_candidates * m.config.keep_per_view),
+                                 static_cast<size_t>(m.config.coarse_seeds) * selected_parts);
+  for (auto& h : m.thread_best) h.clear();
   std::atomic<bool> late{false};
   for (auto& h : m.thread_hits) h.clear();
   std::fill(m.thread_hypotheses.begin(), m.thread_hypotheses.end(), 0);
   std::fill(m.thread_views.begin(), m.thread_views.end(), 0);
   const int threads = static_cast<int>(m.thread_hits.size());
+  auto search_jobs = [&](size_t first) {
 #pragma omp parallel for schedule(dynamic, 4) num_threads(threads)
-  for (int j = 0; j < static_cast<int>(m.jobs.size()); ++j) {
-    if (late.load(std::memory_order_relaxed)) continue;
-    if (Clock::now() > search_deadline) {
-      late = true;
-      continue;
+    for (int j = static_cast<int>(first); j < static_cast<int>(m.jobs.size()); ++j) {
+      if (late.load(std::memory_order_relaxed)) continue;
+      if (Clock::now() > search_deadline) {
+        late = true;
+        continue;
+      }
+      const auto [p, v] = m.jobs[j];
+      const auto& list = m.parts[p].oriented[v];
+      const SearchResult r =
+          fdcm ? lineSearch(matcher, list, fit.set.lines, lp) : lineSearch(*baseline, list, fit.set.lines, lp);
+      const int me = omp_get_thread_num();
+      auto& mine = m.thread_hits[me];
+      m.thread_hypotheses[me] += r.stats.evaluated;
+      ++m.thread_views[me];
+      auto& best = m.thread_best[me];
+      for (const Candidate& c : r.candidates) {
+        mine.push_back({p, v, c.oriented, c, placedBox(list[c.oriented], c)});
+        best.push_back(c);
+        std::push_heap(best.begin(), best.end(), better);  // worst on top
+        if (best.size() > useful) {
+          std::pop_heap(best.begin(), best.end(), better);
+          best.pop_back();
+        }
+        if (best.size() == useful)
+          SharedCostBound::lower(m.shared_bound, best.front().sum, static_cast<uint32_t>(best.front().pixels));
+      }
     }
-    const auto [p, v] = m.jobs[j];
-    const auto& list = m.parts[p].oriented[v];
-    const SearchResult r =
-        fdcm ? lineSearch(matcher, list, fit.set.lines, lp) : lineSearch(*baseline, list, fit.set.lines, lp);
-    const int me = omp_get_thread_num();
-    auto& mine = m.thread_hits[me];
-    m.thread_hypotheses[me] += r.stats.evaluated;
-    ++m.thread_views[me];
-    for (const Candidate& c : r.candidates) mine.push_back({p, v, c.oriented, c, placedBox(list[c.oriented], c)});
+  };
+  search_jobs(0);
+  // The fine stage: the views around the best coarse_seeds x (parts searched) coarse hits, the
+  // best hit's first, so that a deadline cuts the least promising. (These seeds are always among
+  // the hits the shared bound keeps: it keeps at least that many.)
+  if (stride > 1 && m.config.coarse_seeds > 0 && !late.load()) {
+    const size_t coarse_jobs = m.jobs.size();
+    m.hits.clear();
+    for (const auto& h : m.thread_hits) m.hits.insert(m.hits.end(), h.begin(), h.end());
+    std::sort(m.hits.begin(), m.hits.end(), hit_order);
+    const size_t seeds = std::min(m.hits.size(), static_cast<size_t>(m.config.coarse_seeds) * selected_parts);
+    for (size_t i = 0; i < seeds; ++i) {
+      const Hit& h = m.hits[i];
+      PartModel& part = m.parts[h.part];
+      for (int u : part.neighbours[h.view])
+        if (!part.searched[u]) part.searched[u] = 1, m.jobs.emplace_back(h.part, u);
+    }
+    search_jobs(coarse_jobs);
   }
   out.degraded = late.load();
   out.hypotheses = 0;
@@ -354,15 +459,7 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
   for (int k = 0; k < threads; ++k) out.hypotheses += m.thread_hypotheses[k], out.views_searched += m.thread_views[k];
   m.hits.clear();
   for (const auto& h : m.thread_hits) m.hits.insert(m.hits.end(), h.begin(), h.end());
-  std::sort(m.hits.begin(), m.hits.end(), [](const Hit& a, const Hit& b) {
-    const uint64_t l = uint64_t(a.c.sum) * b.c.pixels, r = uint64_t(b.c.sum) * a.c.pixels;
-    if (l != r) return l < r;
-    if (a.part != b.part) return a.part < b.part;
-    if (a.view != b.view) return a.view < b.view;
-    if (a.warp != b.warp) return a.warp < b.warp;
-    if (a.c.tx != b.c.tx) return a.c.tx < b.c.tx;
-    return a.c.ty < b.c.ty;
-  });
+  std::sort(m.hits.begin(), m.hits.end(), hit_order);
   t1 = Clock::now();
   out.times.search_ms = ms_between(t, t1);
 
@@ -447,6 +544,22 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
   const int fitted = static_cast<int>(m.verified.size());
   if (fitted > 0)
     m.fit_ms_estimate = ms_between(fit_start, Clock::now()) * m.config.fit_candidates / std::max(fitted, 1);
+  out.trace.clear();
+  if (m.config.trace)
+    for (const Impl::Verified& v : m.verified) {
+      HypothesisTrace h;
+      h.obj_id = m.parts[v.hit.part].db.obj_id;
+      h.search_view = v.hit.view;
+      h.fitted_view = v.view;
+      h.search_cost_px = v.hit.c.cost();
+      h.coverage = v.coverage;
+      h.R_coarse = v.coarse.R;
+      h.t_coarse_mm = v.coarse.t_mm;
+      h.R_fitted = v.fitted.R;
+      h.t_fitted_mm = v.fitted.t_mm;
+      h.fit_rank = v.fit_rank;
+      out.trace.push_back(h);
+    }
   if (fdcm && m.config.fit_hypotheses)
     std::stable_sort(m.verified.begin(), m.verified.end(),
                      [](const Impl::Verified& a, const Impl::Verified& b) { return a.fit_rank > b.fit_rank; });

@@ -108,6 +108,8 @@ SearchResult lineSearchWith(const Matcher& matcher, At at, const std::vector<Ori
         const Candidate& worst = kept.back();
         thr = std::min<uint64_t>(thr, uint64_t(worst.sum) * n / worst.pixels);
       }
+      if (!detect && params.sharedBound)
+        thr = std::min(thr, SharedCostBound::sumLimit(params.sharedBound->load(std::memory_order_relaxed), n));
       const uint32_t stop = params.hypothesisBound ? thr : std::numeric_limits<uint32_t>::max();
       const uint32_t sum = at(t, tx, ty, stop, result.stats.segments);
       ++result.stats.evaluated;

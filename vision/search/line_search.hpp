@@ -5,6 +5,10 @@
 // channel, the template is slid along the query segment, from "template end on query start" to
 // "template start on query end", one pixel at a time, and evaluated with FDCM. This reduces the
 // 3-DoF (theta, tx, ty) search to 1-DoF searches whose count depends only on line counts.
+#include <algorithm>
+#include <atomic>
+#include <cstdint>
+#include <limits>
 #include <vector>
 
 #include "vision/search/exhaustive_search.hpp"
@@ -30,8 +34,34 @@ struct LineSearchParams {
   int keep = 1;
   int separationPx = 8;
   double threshold = std::numeric_limits<double>::infinity();
+  // Best mode: a bound shared by concurrent searches (SharedCostBound), tightened by the caller
+  // as hits come in: a placement costing more can never be used, so it is abandoned early.
+  const std::atomic<uint64_t>* sharedBound = nullptr;
   bool hypothesisBound = true;
   size_t maxCandidates = 200000;
+};
+
+// A mean cost sum / pixels packed into one atomic word (sum in the high 32 bits), so that
+// concurrent searches share a bound without locks. pixels = 0: no bound yet.
+struct SharedCostBound {
+  static constexpr uint64_t kNone = 0;
+  static uint64_t pack(uint32_t sum, uint32_t pixels) { return (uint64_t(sum) << 32) | pixels; }
+  // The largest sum over n pixels not above the bound (UINT32_MAX without one).
+  static uint32_t sumLimit(uint64_t packed, int n) {
+    const uint64_t pixels = packed & 0xffffffffu, sum = packed >> 32;
+    if (pixels == 0) return std::numeric_limits<uint32_t>::max();
+    return static_cast<uint32_t>(std::min<uint64_t>(sum * uint64_t(n) / pixels, std::numeric_limits<uint32_t>::max()));
+  }
+  // Lowers the bound to sum / pixels if that is lower (lock-free).
+  static void lower(std::atomic<uint64_t>& bound, uint32_t sum, uint32_t pixels) {
+    uint64_t cur = bound.load(std::memory_order_relaxed);
+    const uint64_t mine = pack(sum, pixels);
+    while (true) {
+      const uint64_t cp = cur & 0xffffffffu, cs = cur >> 32;
+      if (cp != 0 && uint64_t(sum) * cp >= cs * uint64_t(pixels)) return;
+      if (bound.compare_exchange_weak(cur, mine, std::memory_order_relaxed)) return;
+    }
+  }
 };
 
 // `queryLines`: the query's fitted segments, longest first (LineFitResult::set.lines).

@@ -125,3 +125,65 @@ TEST(LineSearch, KeepsSeveralSeparatedBestHypotheses) {
     EXPECT_GE(2 * r.candidates.size(), greedy.size());
   }
 }
+
+// SharedCostBound::sumLimit is the largest sum over n pixels whose mean is not above the bound,
+// checked against the definition on random ratios.
+TEST(SharedCostBound, SumLimitIsTheLargestSumNotAboveTheBound) {
+  std::mt19937 rng(7);
+  EXPECT_EQ(SharedCostBound::sumLimit(SharedCostBound::kNone, 100), std::numeric_limits<uint32_t>::max());
+  for (int i = 0; i < 2000; ++i) {
+    const uint32_t sum = rng() % 200000, pixels = 1 + rng() % 3000;
+    const int n = 1 + static_cast<int>(rng() % 3000);
+    const uint32_t limit = SharedCostBound::sumLimit(SharedCostBound::pack(sum, pixels), n);
+    // limit / n <= sum / pixels < (limit + 1) / n
+    EXPECT_LE(uint64_t(limit) * pixels, uint64_t(sum) * n);
+    EXPECT_GT(uint64_t(limit + 1) * pixels, uint64_t(sum) * n);
+  }
+}
+
+// Threads lowering one bound at once leave the lowest ratio any of them offered.
+TEST(SharedCostBound, ConcurrentLoweringKeepsTheMinimum) {
+  std::atomic<uint64_t> bound{SharedCostBound::kNone};
+  std::vector<std::pair<uint32_t, uint32_t>> offers;
+  std::mt19937 rng(3);
+  for (int i = 0; i < 4000; ++i) offers.emplace_back(1000 + rng() % 100000, 1 + rng() % 2000);
+  double lowest = 1e18;
+  for (const auto& [s, p] : offers) lowest = std::min(lowest, double(s) / p);
+#pragma omp parallel for num_threads(4)
+  for (int i = 0; i < static_cast<int>(offers.size()); ++i)
+    SharedCostBound::lower(bound, offers[i].first, offers[i].second);
+  const uint64_t b = bound.load();
+  EXPECT_DOUBLE_EQ(double(b >> 32) / double(b & 0xffffffffu), lowest);
+}
+
+// A shared bound only removes what lies above it: at the best hypothesis' own cost the search
+// returns that same hypothesis, one unit below it nothing.
+TEST(LineSearch, SharedBoundKeepsEverythingNotAboveIt) {
+  std::mt19937 rng(11);
+  for (int trial = 0; trial < 6; ++trial) {
+    const PlantedScene scene = plantedScene(rng);
+    const FdcmMatcher matcher(scene.idt);
+    LineSearchParams lp;
+    lp.keep = 3;
+    const SearchResult free = lineSearch(matcher, scene.templates, scene.fit.set.lines, lp);
+    ASSERT_FALSE(free.candidates.empty());
+    const Candidate& worst = free.candidates.back();
+    std::atomic<uint64_t> bound{SharedCostBound::pack(worst.sum, static_cast<uint32_t>(worst.pixels))};
+    lp.sharedBound = &bound;
+    const SearchResult bounded = lineSearch(matcher, scene.templates, scene.fit.set.lines, lp);
+    ASSERT_EQ(bounded.candidates.size(), free.candidates.size());
+    for (size_t i = 0; i < free.candidates.size(); ++i) {
+      EXPECT_EQ(bounded.candidates[i].oriented, free.candidates[i].oriented);
+      EXPECT_EQ(bounded.candidates[i].tx, free.candidates[i].tx);
+      EXPECT_EQ(bounded.candidates[i].ty, free.candidates[i].ty);
+      EXPECT_EQ(bounded.candidates[i].sum, free.candidates[i].sum);
+    }
+    EXPECT_LE(bounded.stats.segments, free.stats.segments);
+    const Candidate& best = free.candidates.front();
+    if (best.sum == 0) continue;
+    bound = SharedCostBound::pack(best.sum - 1, static_cast<uint32_t>(best.pixels));
+    const SearchResult below = lineSearch(matcher, scene.templates, scene.fit.set.lines, lp);
+    for (const Candidate& c : below.candidates)
+      EXPECT_TRUE(better(c, best)) << "a hypothesis costing more than the bound was kept";
+  }
+}
