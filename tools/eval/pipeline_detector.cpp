@@ -101,6 +101,7 @@ void apply_pipeline_setting(vision::PipelineConfig& c, const std::string& settin
   else if (key == "slide_step") c.slide_step = integer();
   else if (key == "fit_candidates") c.fit_candidates = integer();
   else if (key == "max_candidates") c.max_candidates = integer();
+  else if (key == "flip_checks") c.flip_checks = integer();
   else if (key == "share_search_bound") c.share_search_bound = integer() != 0;
   else if (key == "trace") c.trace = integer() != 0;
   else throw std::invalid_argument("unknown key '" + key + "'");

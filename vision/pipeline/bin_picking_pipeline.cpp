@@ -45,7 +45,19 @@ struct PartModel {
   // (symmetry-aware), nearest first.
   std::vector<std::vector<int>> neighbours;
   std::vector<uint8_t> searched;  // per view, this cycle
+  // Turns by 180 degrees about the model axes through the centre that are not symmetries of the
+  // part: the turned-over poses the fit checks.
+  std::vector<cv::Matx33d> flips;
 };
+
+std::vector<cv::Matx33d> turned_over(const PartSymmetry& sym) {
+  const cv::Matx33d rx(1, 0, 0, 0, -1, 0, 0, 0, -1), ry(-1, 0, 0, 0, 1, 0, 0, 0, -1), rz(-1, 0, 0, 0, -1, 0, 0, 0, 1);
+  const bool half_turn_z = sym.kind == PartSymmetry::Kind::continuous_z ||
+                           (sym.kind == PartSymmetry::Kind::discrete_z && sym.order % 2 == 0);
+  // With the half turn about z a symmetry, the turn about y is the one about x followed by it.
+  if (half_turn_z) return {rx};
+  return {rx, ry, rz};
+}
 
 // Angle between two viewing directions of a part, the smallest over its symmetric copies.
 double view_angle(const PartSymmetry& sym, const cv::Vec3d& a, const cv::Vec3d& b) {
@@ -120,6 +132,13 @@ constexpr int kAlwaysFitted = 4;
 // Largest change of the part's distance a hypothesis fit may make (fraction of the distance).
 constexpr double kMaxFitDepthChange = 0.08;
 
+// Turned-over check: the turned pose is considered when its fit scores at least this share of
+// the pose's, and taken when at least kFlipMinPoints of its points differ from the pose's and a
+// larger share of those (by kFlipMargin) lie on image edges than of the pose's own differing ones.
+constexpr double kFlipMinScoreRatio = 0.6;
+constexpr int kFlipMinPoints = 6;
+constexpr double kFlipMargin = 0.2;
+
 }  // namespace
 
 struct BinPickingPipeline::Impl {
@@ -154,6 +173,7 @@ struct BinPickingPipeline::Impl {
     int view = 0;
     double fit_score = -1, fit_rank = -1;
     bool skipped = false;  // not fitted: the deadline had passed
+    bool turned = false;   // the turned-over check replaced the fitted pose
   };
   TemplatePoseFit fitter;
   bool fitter_prepared = false;  // the fitter indexes this cycle's edges (score_pose reuses them)
@@ -282,6 +302,7 @@ BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfi
     }
     part.neighbours = view_neighbours(part.db, m.config.view_stride);
     part.searched.assign(part.db.views.size(), 0);
+    part.flips = turned_over(part.db.symmetry);
     m.parts.push_back(std::move(part));
   }
   if (m.config.coarse_seeds < 0) throw std::runtime_error("pipeline: coarse_seeds must be >= 0");
@@ -560,10 +581,44 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
       h.fit_rank = v.fit_rank;
       out.trace.push_back(h);
     }
-  if (fdcm && m.config.fit_hypotheses)
-    std::stable_sort(m.verified.begin(), m.verified.end(),
-                     [](const Impl::Verified& a, const Impl::Verified& b) { return a.fit_rank > b.fit_rank; });
-  else
+  if (fdcm && m.config.fit_hypotheses) {
+    auto by_rank = [](const Impl::Verified& a, const Impl::Verified& b) { return a.fit_rank > b.fit_rank; };
+    std::stable_sort(m.verified.begin(), m.verified.end(), by_rank);
+    // Turned-over check of the best few: a part that is symmetric but for a small feature (the
+    // breaker's toggle) fits as well turned by 180 degrees about an axis; the edges can only tell
+    // the two apart where they differ (TemplatePoseFit::compare).
+    const int checks = std::min<int>(m.config.flip_checks, static_cast<int>(m.verified.size()));
+#pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
+    for (int i = 0; i < checks; ++i) {
+      Impl::Verified& v = m.verified[i];
+      if (v.fit_score <= 0 || Clock::now() > deadline) continue;
+      const PartModel& part = m.parts[v.hit.part];
+      auto& ws = m.fit_workspaces[omp_get_thread_num()];
+      TemplateFitResult current;
+      current.pose = v.fitted;
+      current.view = v.view;
+      current.score = v.fit_score;
+      const double z0 = cv::norm(v.coarse.R * part.db.center_mm + v.coarse.t_mm);
+      for (const cv::Matx33d& S : part.flips) {
+        RigidPose turned;
+        turned.R = current.pose.R * S;
+        turned.t_mm = current.pose.t_mm + current.pose.R * (part.db.center_mm - S * part.db.center_mm);
+        const int view = TemplatePoseFit::nearest_view(part.db, m.camera.camera, turned);
+        const TemplateFitResult f = m.fitter.fit(part.db, view, turned, m.camera.camera, ws);
+        const double z1 = cv::norm(f.pose.R * part.db.center_mm + f.pose.t_mm);
+        if (std::abs(z1 - z0) > kMaxFitDepthChange * z0 || f.score < kFlipMinScoreRatio * current.score) continue;
+        const TemplatePoseFit::Difference d = m.fitter.compare(part.db, current, f, m.camera.camera, ws);
+        if (d.only_b < kFlipMinPoints || d.found_b < d.found_a + kFlipMargin) continue;
+        current = f;
+        v.fitted = f.pose;
+        v.view = f.view;
+        v.fit_score = f.score;
+        v.fit_rank = std::max(v.fit_rank, fitted_rank(f));
+        v.turned = true;
+      }
+    }
+    std::stable_sort(m.verified.begin(), m.verified.end(), by_rank);
+  } else
     std::stable_sort(m.verified.begin(), m.verified.end(),
                      [](const Impl::Verified& a, const Impl::Verified& b) { return a.combined < b.combined; });
 

@@ -58,6 +58,10 @@ struct PipelineConfig {
   // Hypotheses (distinct best search hits) fitted in 6-DoF with their template's model points
   // and ranked by the fitted score (TemplatePoseFit); false = ranked by the search cost.
   int fit_candidates = 48;
+  // The best this many fitted hypotheses are also fitted turned over (by 180 degrees about each
+  // model axis that is not a symmetry) and replaced by the turned pose when the edges where the
+  // two differ favour it (TemplatePoseFit::compare). 0 = off.
+  int flip_checks = 6;
   bool fit_hypotheses = true;
   int refine_iterations = 20;      // per candidate (outer ICP iterations); cut short at the deadline
   // The best this many candidates are refined by the render-based PoseRefiner with the cell's one

@@ -103,8 +103,8 @@ int TemplatePoseFit::nearest_view(const TemplateDatabase& db, const PinholeCamer
   return best_view;
 }
 
-void TemplatePoseFit::load_view(const TemplateDatabase& db, int view, const PinholeCamera& camera,
-                                Workspace& ws) const {
+void TemplatePoseFit::load_view(const TemplateDatabase& db, int view, const PinholeCamera& camera, Workspace& ws,
+                                int max_points) const {
   const TemplateView& tv = db.views[static_cast<size_t>(view)];
   const auto& pts = tv.points;
   ws.model.clear();
@@ -112,7 +112,7 @@ void TemplatePoseFit::load_view(const TemplateDatabase& db, int view, const Pinh
   ws.offset.clear();
   const cv::Point2d origin(camera.cx(), camera.cy());
   const size_t n = pts.size();
-  const size_t keep = std::min<size_t>(n, static_cast<size_t>(params_.max_points));
+  const size_t keep = std::min<size_t>(n, static_cast<size_t>(max_points > 0 ? max_points : params_.max_points));
   for (size_t k = 0; k < keep; ++k) {
     const auto& p = pts[k * n / keep];
     ws.model.emplace_back(p.model_mm[0], p.model_mm[1], p.model_mm[2]);
@@ -295,6 +295,71 @@ TemplateFitResult TemplatePoseFit::fit(const TemplateDatabase& db, int view, con
   }
   score(db, r.view, camera, ws, r);
   return r;
+}
+
+void TemplatePoseFit::place_points(const TemplateDatabase& db, int view, const RigidPose& pose,
+                                   const PinholeCamera& camera, const Workspace& ws, std::vector<cv::Point2d>& seen,
+                                   std::vector<double>& angle) const {
+  const double turn = in_plane_angle(db, view, pose, camera);
+  const double ct = std::cos(turn), st = std::sin(turn);
+  seen.clear();
+  angle.clear();
+  for (size_t i = 0; i < ws.model.size(); ++i) {
+    const cv::Vec3d p = pose.R * ws.model[i] + pose.t_mm;
+    if (p[2] <= 1e-6) continue;
+    double a = std::fmod(ws.angle[i] + turn, std::numbers::pi);
+    if (a < 0) a += std::numbers::pi;
+    const cv::Vec2d& o = ws.offset[i];
+    seen.push_back(camera.project(p) + cv::Point2d(ct * o[0] - st * o[1], st * o[0] + ct * o[1]));
+    angle.push_back(a);
+  }
+}
+
+TemplatePoseFit::Difference TemplatePoseFit::compare(const TemplateDatabase& db, const TemplateFitResult& a,
+                                                     const TemplateFitResult& b, const PinholeCamera& camera,
+                                                     Workspace& ws, double apart_px) const {
+  for (const auto* r : {&a, &b})
+    if (r->view < 0 || r->view >= static_cast<int>(db.views.size()))
+      throw std::invalid_argument("template fit: view " + std::to_string(r->view) + " out of range");
+  // Every point of both views (the fit's subsample is too sparse to say which points coincide).
+  constexpr int kAll = std::numeric_limits<int>::max();
+  load_view(db, a.view, camera, ws, kAll);
+  place_points(db, a.view, a.pose, camera, ws, ws.seen_a, ws.angle_a);
+  load_view(db, b.view, camera, ws, kAll);
+  place_points(db, b.view, b.pose, camera, ws, ws.seen_b, ws.angle_b);
+  const cv::Size size = edges_.size();
+  if (ws.explained.size() != size) {
+    ws.explained = cv::Mat1b::zeros(size);
+    ws.inside = cv::Mat1b::zeros(size);
+  }
+  const cv::Rect image(cv::Point(0, 0), size);
+  const int r = std::max(0, static_cast<int>(std::lround(apart_px)));
+  // The other pose's points, widened by apart_px, as a mask (ws.explained, cleared again after).
+  auto only = [&](const std::vector<cv::Point2d>& mine, const std::vector<double>& angle,
+                  const std::vector<cv::Point2d>& other, int& count, double& found) {
+    cv::Rect touched;
+    for (const auto& q : other) {
+      const cv::Point c(cvRound(q.x), cvRound(q.y));
+      if (!image.contains(c)) continue;
+      cv::circle(ws.explained, c, r, cv::Scalar(255), cv::FILLED);
+      touched |= cv::Rect(c.x - r, c.y - r, 2 * r + 1, 2 * r + 1);
+    }
+    int n = 0, on = 0;
+    for (size_t i = 0; i < mine.size(); ++i) {
+      const cv::Point c(cvRound(mine[i].x), cvRound(mine[i].y));
+      if (!image.contains(c) || ws.explained(c) != 0) continue;
+      ++n;
+      const EdgeMatch m = index_.nearest(mine[i], angle[i], params_.lambda_px_per_rad, params_.score_gate_px);
+      on += m.found && m.cost <= params_.inlier_cost_px;
+    }
+    ws.explained(touched & image).setTo(0);
+    count = n;
+    found = n ? double(on) / n : 0;
+  };
+  Difference d;
+  only(ws.seen_a, ws.angle_a, ws.seen_b, d.only_a, d.found_a);
+  only(ws.seen_b, ws.angle_b, ws.seen_a, d.only_b, d.found_b);
+  return d;
 }
 
 }  // namespace mfcd::vision

@@ -62,6 +62,8 @@ class TemplatePoseFit {
     std::vector<float> angle;      // their template tangent angles
     std::vector<cv::Vec2d> offset; // detected edge pixel minus the model point's projection, template view
     std::vector<cv::Point> placed, hull;  // coverage: all the view's points at the pose, their hull
+    std::vector<cv::Point2d> seen_a, seen_b;  // compare(): the two poses' points in the image
+    std::vector<double> angle_a, angle_b;     // ... and their image tangent angles
     cv::Mat1b explained, inside;          // coverage masks, image size, kept zero outside use
   };
 
@@ -82,10 +84,26 @@ class TemplatePoseFit {
   // to (the same placed part). Continuous symmetry: the views' meridian.
   static int nearest_view(const TemplateDatabase& db, const PinholeCamera& camera, RigidPose& pose);
 
+  // Two fitted poses of one part at one place (e.g. a pose and its turn by 180 degrees about a
+  // near-symmetry axis) judged where they differ: only the points of each that have no point of
+  // the other within `apart_px` in the image, and the share of those that find an image edge
+  // (Eq. 21 cost <= inlier_cost_px). Where the poses agree, the edges cannot tell them apart.
+  struct Difference {
+    int only_a = 0, only_b = 0;         // points of each with no counterpart in the other
+    double found_a = 0, found_b = 0;    // share of those on image edges
+  };
+  Difference compare(const TemplateDatabase& db, const TemplateFitResult& a, const TemplateFitResult& b,
+                     const PinholeCamera& camera, Workspace& ws, double apart_px = 3.0) const;
+
   const TemplateFitParams& params() const { return params_; }
 
  private:
-  void load_view(const TemplateDatabase& db, int view, const PinholeCamera& camera, Workspace& ws) const;
+  // Loads the view's points, evenly subsampled to at most `max_points` (default: the params').
+  void load_view(const TemplateDatabase& db, int view, const PinholeCamera& camera, Workspace& ws,
+                 int max_points = 0) const;
+  // The loaded view's points at `pose` in the image (with the edge offset) and their angles.
+  void place_points(const TemplateDatabase& db, int view, const RigidPose& pose, const PinholeCamera& camera,
+                    const Workspace& ws, std::vector<cv::Point2d>& seen, std::vector<double>& angle) const;
   void score(const TemplateDatabase& db, int view, const PinholeCamera& camera, Workspace& ws,
              TemplateFitResult& r) const;
   double coverage(const TemplateDatabase& db, int view, const RigidPose& pose, const PinholeCamera& camera,

@@ -146,3 +146,59 @@ TEST_P(TemplatePoseFitOnRenders, MovesTheCoarsePoseTowardsTheTruth) {
 
 INSTANTIATE_TEST_SUITE_P(Parts, TemplatePoseFitOnRenders,
                          testing::Values("breaker", "diamond", "ellipse", "tnut", "knob", "wheel"));
+
+// compare(): the breaker is 2-fold symmetric but for its tilted toggle. Fitted at the truth and
+// turned by 180 degrees about z (both fit the outline equally), the edges where the two poses
+// differ favour the truth; a pose compared with itself differs nowhere.
+TEST(TemplatePoseFit, CompareFavoursTheTruthOverItsTurnedOverTwin) {
+  const fs::path tdb = fs::path(MFC_BINARY_DIR) / "templates" / "breaker.tdb";
+  if (!fs::exists(tdb)) GTEST_SKIP() << tdb << " not built (needs OpenSCAD)";
+  const TemplateDatabase db = load_template_database(tdb);
+  const CameraConfig cam = sim_camera();
+  MfcRenderer renderer(cam);
+  const int part_id = renderer.add_mesh(db.mesh);
+  const int floor_id = renderer.add_mesh(make_plane(600));
+  DepthEdgeExtractor extractor(cam.camera, cam.flashes, {});
+  TemplatePoseFit fitter;
+  TemplatePoseFit::Workspace ws;
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(-1, 1);
+  const cv::Matx33d half_turn_z(-1, 0, 0, 0, -1, 0, 0, 0, 1);
+  int favoured = 0;
+  const int trials = 5;
+  for (int trial = 0; trial < trials; ++trial) {
+    // Seen from above within 35 degrees (the toggle in view), turned at random in the image.
+    RigidPose truth;
+    cv::Matx33d tilt, spin;
+    cv::Rodrigues(cv::Vec3d(u(rng), u(rng), 0) * (25 * CV_PI / 180), tilt);
+    cv::Rodrigues(cv::Vec3d(0, 0, u(rng) * CV_PI), spin);
+    truth.R = cv::Matx33d(1, 0, 0, 0, -1, 0, 0, 0, -1) * tilt * spin;  // model z towards the camera
+    const cv::Vec3d centre(30 * u(rng), 20 * u(rng), 285);
+    truth.t_mm = centre - truth.R * db.center_mm;
+    const ScenePart parts[2] = {{part_id, truth.R, truth.t_mm, Material::matte(0.6f)},
+                                {floor_id, cv::Matx33d::eye(), {0, 0, centre[2] + db.diameter_mm / 2 + 10},
+                                 Material::matte(0.5f)}};
+    MfcRender render;
+    renderer.render(parts, render, 300 + trial);
+    DepthEdges edges;
+    extractor.extract(render.frames, edges);
+    fitter.prepare(edges);
+    auto fit_from = [&](RigidPose p) {
+      const int view = TemplatePoseFit::nearest_view(db, cam.camera, p);
+      return fitter.fit(db, view, p, cam.camera, ws);
+    };
+    RigidPose turned;
+    turned.R = truth.R * half_turn_z;
+    turned.t_mm = truth.t_mm + truth.R * (db.center_mm - half_turn_z * db.center_mm);
+    const TemplateFitResult right = fit_from(truth), wrong = fit_from(turned);
+    const auto same = fitter.compare(db, right, right, cam.camera, ws);
+    EXPECT_EQ(same.only_a, 0);
+    EXPECT_EQ(same.only_b, 0);
+    const auto d = fitter.compare(db, right, wrong, cam.camera, ws);
+    std::printf("trial %d: scores %.3f / %.3f, differing points %d / %d, on edges %.2f / %.2f\n", trial, right.score,
+                wrong.score, d.only_a, d.only_b, d.found_a, d.found_b);
+    EXPECT_GT(d.only_a, 5);
+    favoured += d.found_a > d.found_b + 0.2;
+  }
+  EXPECT_GE(favoured, trials - 1);
+}
