@@ -104,9 +104,9 @@ def main(bench_dir, docs_dir):
     # ---- Table 1 ----
     w("## Table 1: detection failure rate and time per detection\n")
     head = ("| method | " + " | ".join(p["name"] for p in parts) +
-            " | avg | pooled | avg, <= 25 % occluded | time per detection | setup |")
+            " | avg | pooled | avg, <= 40 % occluded | avg, <= 25 % occluded | time per detection | setup |")
     w(head)
-    w("|---|" + "---:|" * (len(parts) + 5))
+    w("|---|" + "---:|" * (len(parts) + 6))
     summary = {}
     for m in methods:
         trials = res["methods"][m]["trials"]
@@ -119,26 +119,30 @@ def main(bench_dir, docs_dir):
                 rates.append(rate)
             cells.append("%.2f (%d/%d)" % (rate, fails, len(t)) if t else "-")
         avg = sum(rates) / len(rates) if rates else float("nan")
-        # The same over the trials whose best-visible instance of the type is at most 25 % occluded
-        # (the occlusion the paper's Fig. 13 target is set at).
-        light = []
-        for p in parts:
-            t = [x for x in trials if x["obj_id"] == p["obj_id"] and x.get("best_visib_fract", 0) >= 0.75]
-            if t:
-                light.append(sum(1 for x in t if not x["correct"]) / len(t))
-        light_n = sum(1 for x in trials if x.get("best_visib_fract", 0) >= 0.75)
-        light_avg = sum(light) / len(light) if light else float("nan")
+        # The same over the trials whose best-visible instance of the type is at most 40 % occluded
+        # (the range of the paper's Fig. 13) and at most 25 % (where its Fig. 13 target is set).
+        def within(min_visib):
+            rates_v = []
+            for p in parts:
+                t = [x for x in trials if x["obj_id"] == p["obj_id"] and x.get("best_visib_fract", 0) >= min_visib]
+                if t:
+                    rates_v.append(sum(1 for x in t if not x["correct"]) / len(t))
+            n = sum(1 for x in trials if x.get("best_visib_fract", 0) >= min_visib)
+            return (sum(rates_v) / len(rates_v) if rates_v else float("nan")), n
+        light_avg, light_n = within(0.75)
+        mid_avg, mid_n = within(0.60)
         pooled_f = sum(1 for x in trials if not x["correct"])
         pooled = pooled_f / len(trials) if trials else float("nan")
         tmean = statistics.mean(x["times"]["total"] for x in trials) if trials else float("nan")
         summary[m] = (avg, tmean)
-        w("| %s | %s | **%.2f** | %.2f | %.2f (%d trials) | %.0f ms | %.1f s |" % (
-            METHOD_NAMES[m], " | ".join(cells), avg, pooled, light_avg, light_n, tmean, res["methods"][m]["setup_s"]))
+        w("| %s | %s | **%.2f** | %.2f | %.2f (%d trials) | %.2f (%d trials) | %.0f ms | %.1f s |" % (
+            METHOD_NAMES[m], " | ".join(cells), avg, pooled, mid_avg, mid_n, light_avg, light_n, tmean,
+            res["methods"][m]["setup_s"]))
     w("")
     w("Cells: failure rate (failures/trials); *avg* = mean of the per-part rates (as the paper), *pooled* = over all "
-      "trials; *<= 25 % occluded* = the per-part average over the trials whose best-visible instance of the type is "
-      "at least 75 % visible (the bins here are deeper than the paper's: many parts are more than 40 % hidden, "
-      "see Fig. 13's bins). Time = mean wall time of one detection (one image, one part type: depth edges, lines, distance "
+      "trials; *<= 40 % occluded* and *<= 25 % occluded* = the per-part average over the trials whose best-visible "
+      "instance of the type is at least 60 % and 75 % visible (the bins here are deeper than the paper's, whose "
+      "Fig. 13 spans 0-40 % occlusion: many parts here are more than 40 % hidden, see Fig. 13's bins). Time = mean wall time of one detection (one image, one part type: depth edges, lines, distance "
       "transforms, search, pose) on this machine. Paper (Table 1, its 2010 hardware): " +
       "; ".join("%s avg %.2f, %.2f s" % (name, PAPER[k][1], PAPER[k][2])
                 for k, name in [("fdcm", "FDCM"), ("ocm", "OCM"), ("cm", "CM")]) +
