@@ -128,6 +128,9 @@ constexpr double kUnexplainedPenaltyPx = 3.0;
 // Hypotheses fitted even past the deadline (the best few by search cost): a late cycle still
 // gives picks.
 constexpr int kAlwaysFitted = 4;
+// Views of each selected part searched even past the search's deadline (the first of the coarse
+// pass, spread over the sphere).
+constexpr size_t kAlwaysSearchedPerPart = 2;
 
 // Largest change of the part's distance a hypothesis fit may make (fraction of the distance).
 constexpr double kMaxFitDepthChange = 0.08;
@@ -173,7 +176,6 @@ struct BinPickingPipeline::Impl {
     int view = 0;
     double fit_score = -1, fit_rank = -1;
     bool skipped = false;  // not fitted: the deadline had passed
-    bool turned = false;   // the turned-over check replaced the fitted pose
   };
   TemplatePoseFit fitter;
   bool fitter_prepared = false;  // the fitter indexes this cycle's edges (score_pose reuses them)
@@ -429,8 +431,11 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
   auto search_jobs = [&](size_t first) {
 #pragma omp parallel for schedule(dynamic, 4) num_threads(threads)
     for (int j = static_cast<int>(first); j < static_cast<int>(m.jobs.size()); ++j) {
-      if (late.load(std::memory_order_relaxed)) continue;
-      if (Clock::now() > search_deadline) {
+      // The first few views of every part are searched even when late (the jobs interleave the
+      // parts), so that a late cycle still has hypotheses to give its best-so-far picks from.
+      const bool always = static_cast<size_t>(j) < kAlwaysSearchedPerPart * selected_parts;
+      if (!always && late.load(std::memory_order_relaxed)) continue;
+      if (!always && Clock::now() > search_deadline) {
         late = true;
         continue;
       }
@@ -614,7 +619,6 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
         v.view = f.view;
         v.fit_score = f.score;
         v.fit_rank = std::max(v.fit_rank, fitted_rank(f));
-        v.turned = true;
       }
     }
     std::stable_sort(m.verified.begin(), m.verified.end(), by_rank);

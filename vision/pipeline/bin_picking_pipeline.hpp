@@ -117,7 +117,8 @@ struct PipelineResult {
   int query_lines = 0;
   uint64_t hypotheses = 0;    // FDCM hypotheses evaluated by the search
   int views_searched = 0;     // template views searched (fewer than loaded when degraded)
-  std::vector<HypothesisTrace> trace;  // PipelineConfig::trace only: every fitted hypothesis, search order
+  std::vector<HypothesisTrace> trace;  // PipelineConfig::trace only: every fitted hypothesis, search order,
+                                       // before the turned-over check
 };
 
 // How the last processed image scores a given pose of a part, measured the way the search
