@@ -27,6 +27,32 @@ double symmetric_rotation_error_deg(const cv::Matx33d& a, const cv::Matx33d& b, 
   return best;
 }
 
+// A part's templates, the simulated MFC and a floor: show() renders the part at a pose over the
+// floor (10 mm below its bounding sphere) and prepares the fitter on the image's depth edges.
+struct FloorScene {
+  TemplateDatabase db;
+  CameraConfig cam = sim_camera();
+  MfcRenderer renderer{cam};
+  int part_id = renderer.add_mesh(db.mesh);
+  int floor_id = renderer.add_mesh(make_plane(600));
+  DepthEdgeExtractor extractor{cam.camera, cam.flashes, {}};
+  TemplatePoseFit fitter;
+  TemplatePoseFit::Workspace ws;
+
+  explicit FloorScene(const fs::path& tdb) : db(load_template_database(tdb)) {}
+  void show(const RigidPose& pose, uint64_t seed) {
+    const cv::Vec3d centre = pose.R * db.center_mm + pose.t_mm;
+    const ScenePart parts[2] = {{part_id, pose.R, pose.t_mm, Material::matte(0.6f)},
+                                {floor_id, cv::Matx33d::eye(), {0, 0, centre[2] + db.diameter_mm / 2 + 10},
+                                 Material::matte(0.5f)}};
+    MfcRender render;
+    renderer.render(parts, render, seed);
+    DepthEdges edges;
+    extractor.extract(render.frames, edges);
+    fitter.prepare(edges);
+  }
+};
+
 }  // namespace
 
 TEST(TemplatePoseFit, JacobianMatchesFiniteDifferences) {
@@ -92,14 +118,11 @@ class TemplatePoseFitOnRenders : public testing::TestWithParam<const char*> {};
 TEST_P(TemplatePoseFitOnRenders, MovesTheCoarsePoseTowardsTheTruth) {
   const fs::path tdb = fs::path(MFC_BINARY_DIR) / "templates" / (std::string(GetParam()) + ".tdb");
   if (!fs::exists(tdb)) GTEST_SKIP() << tdb << " not built (needs OpenSCAD)";
-  const TemplateDatabase db = load_template_database(tdb);
-  const CameraConfig cam = sim_camera();
-  MfcRenderer renderer(cam);
-  const int part_id = renderer.add_mesh(db.mesh);
-  const int floor_id = renderer.add_mesh(make_plane(600));
-  DepthEdgeExtractor extractor(cam.camera, cam.flashes, {});
-  TemplatePoseFit fitter;
-  TemplatePoseFit::Workspace ws;
+  FloorScene scene(tdb);
+  const TemplateDatabase& db = scene.db;
+  const CameraConfig& cam = scene.cam;
+  TemplatePoseFit& fitter = scene.fitter;
+  TemplatePoseFit::Workspace& ws = scene.ws;
   std::mt19937 rng(std::hash<std::string>{}(GetParam()) % 1000);
   std::uniform_real_distribution<double> u(-1, 1);
   double start_t = 0, end_t = 0, start_r = 0, end_r = 0;
@@ -112,14 +135,7 @@ TEST_P(TemplatePoseFitOnRenders, MovesTheCoarsePoseTowardsTheTruth) {
     while ((truth.R.t() * cv::Vec3d(0, 0, -1))[2] < 0.2);
     const cv::Vec3d centre(40 * u(rng), 30 * u(rng), 290 + 10 * u(rng));
     truth.t_mm = centre - truth.R * db.center_mm;
-    const ScenePart parts[2] = {{part_id, truth.R, truth.t_mm, Material::matte(0.6f)},
-                                {floor_id, cv::Matx33d::eye(), {0, 0, centre[2] + db.diameter_mm / 2 + 10},
-                                 Material::matte(0.5f)}};
-    MfcRender render;
-    renderer.render(parts, render, 200 + trial);
-    DepthEdges edges;
-    extractor.extract(render.frames, edges);
-    fitter.prepare(edges);
+    scene.show(truth, 200 + trial);
     // Start: the coarse pose of the nearest view, as the search would place it.
     RigidPose copy = truth;
     const int view = TemplatePoseFit::nearest_view(db, cam.camera, copy);
@@ -153,14 +169,11 @@ INSTANTIATE_TEST_SUITE_P(Parts, TemplatePoseFitOnRenders,
 TEST(TemplatePoseFit, CompareFavoursTheTruthOverItsTurnedOverTwin) {
   const fs::path tdb = fs::path(MFC_BINARY_DIR) / "templates" / "breaker.tdb";
   if (!fs::exists(tdb)) GTEST_SKIP() << tdb << " not built (needs OpenSCAD)";
-  const TemplateDatabase db = load_template_database(tdb);
-  const CameraConfig cam = sim_camera();
-  MfcRenderer renderer(cam);
-  const int part_id = renderer.add_mesh(db.mesh);
-  const int floor_id = renderer.add_mesh(make_plane(600));
-  DepthEdgeExtractor extractor(cam.camera, cam.flashes, {});
-  TemplatePoseFit fitter;
-  TemplatePoseFit::Workspace ws;
+  FloorScene scene(tdb);
+  const TemplateDatabase& db = scene.db;
+  const CameraConfig& cam = scene.cam;
+  TemplatePoseFit& fitter = scene.fitter;
+  TemplatePoseFit::Workspace& ws = scene.ws;
   std::mt19937 rng(5);
   std::uniform_real_distribution<double> u(-1, 1);
   const cv::Matx33d half_turn_z(-1, 0, 0, 0, -1, 0, 0, 0, 1);
@@ -175,14 +188,7 @@ TEST(TemplatePoseFit, CompareFavoursTheTruthOverItsTurnedOverTwin) {
     truth.R = cv::Matx33d(1, 0, 0, 0, -1, 0, 0, 0, -1) * tilt * spin;  // model z towards the camera
     const cv::Vec3d centre(30 * u(rng), 20 * u(rng), 285);
     truth.t_mm = centre - truth.R * db.center_mm;
-    const ScenePart parts[2] = {{part_id, truth.R, truth.t_mm, Material::matte(0.6f)},
-                                {floor_id, cv::Matx33d::eye(), {0, 0, centre[2] + db.diameter_mm / 2 + 10},
-                                 Material::matte(0.5f)}};
-    MfcRender render;
-    renderer.render(parts, render, 300 + trial);
-    DepthEdges edges;
-    extractor.extract(render.frames, edges);
-    fitter.prepare(edges);
+    scene.show(truth, 300 + trial);
     auto fit_from = [&](RigidPose p) {
       const int view = TemplatePoseFit::nearest_view(db, cam.camera, p);
       return fitter.fit(db, view, p, cam.camera, ws);
