@@ -1,6 +1,8 @@
 // FDCM, OCM and CM: the bin-picking pipeline with each matching cost.
 #include "tools/eval/detectors.hpp"
 
+#include "tools/common/cli_numbers.hpp"
+
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
@@ -75,22 +77,8 @@ void apply_pipeline_setting(vision::PipelineConfig& c, const std::string& settin
   const auto eq = setting.find('=');
   if (eq == std::string::npos) throw std::invalid_argument("'" + setting + "' is not key=value");
   const std::string key = setting.substr(0, eq), value = setting.substr(eq + 1);
-  auto number = [&]() {
-    size_t used = 0;
-    double v = 0;
-    try {
-      v = std::stod(value, &used);
-    } catch (const std::exception&) {
-      used = 0;
-    }
-    if (used != value.size() || value.empty()) throw std::invalid_argument(key + ": '" + value + "' is not a number");
-    return v;
-  };
-  auto integer = [&]() {
-    const double v = number();
-    if (v != std::floor(v)) throw std::invalid_argument(key + ": '" + value + "' is not an integer");
-    return static_cast<int>(v);
-  };
+  auto number = [&] { return mfcd::tools::parse_double(key, value); };
+  auto integer = [&] { return mfcd::tools::parse_int(key, value); };
   if (key == "max_cost_px") c.max_cost_px = number();
   else if (key == "template_guides") c.template_guides = integer();
   else if (key == "query_guides") c.query_guides = integer();

@@ -224,5 +224,17 @@ TEST_F(EvalFiles, CommandRefusesMalformedInput) {
   r = run("detect --templates " + dir_.string() + o);
   EXPECT_EQ(r.first, 2);
   EXPECT_NE(r.second.find("--dataset is required"), std::string::npos) << r.second;
+
+  // --set: refused before any dataset is read, naming the key or the value.
+  const std::string ds = " --dataset " + (dir_ / "ds").string() + " --templates " + dir_.string() + o;
+  r = run("detect" + ds + " --set view_stride");
+  EXPECT_EQ(r.first, 2);
+  EXPECT_NE(r.second.find("'view_stride' is not key=value"), std::string::npos) << r.second;
+  r = run("detect" + ds + " --set sharpness=3");
+  EXPECT_EQ(r.first, 2);
+  EXPECT_NE(r.second.find("unknown key 'sharpness'"), std::string::npos) << r.second;
+  r = run("detect" + ds + " --set view_stride=two");
+  EXPECT_EQ(r.first, 2);
+  EXPECT_NE(r.second.find("view_stride 'two' is not an integer"), std::string::npos) << r.second;
   EXPECT_FALSE(fs::exists(out));
 }
