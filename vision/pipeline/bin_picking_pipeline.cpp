@@ -64,12 +64,8 @@ double view_angle(const PartSymmetry& sym, const cv::Vec3d& a, const cv::Vec3d& 
   auto angle = [](const cv::Vec3d& u, const cv::Vec3d& v) { return std::acos(std::clamp(u.dot(v), -1.0, 1.0)); };
   if (sym.kind == PartSymmetry::Kind::continuous_z)
     return std::abs(std::acos(std::clamp(a[2], -1.0, 1.0)) - std::acos(std::clamp(b[2], -1.0, 1.0)));
-  double best = angle(a, b);
-  if (sym.kind == PartSymmetry::Kind::discrete_z)
-    for (int k = 1; k < sym.order; ++k) {
-      const double phi = 2 * CV_PI * k / sym.order, c = std::cos(phi), s = std::sin(phi);
-      best = std::min(best, angle(a, cv::Vec3d(c * b[0] - s * b[1], s * b[0] + c * b[1], b[2])));
-    }
+  double best = CV_PI;
+  for (const cv::Matx33d& S : sym.discrete_rotations()) best = std::min(best, angle(a, S * b));
   return best;
 }
 
@@ -134,6 +130,14 @@ constexpr size_t kAlwaysSearchedPerPart = 2;
 
 // Largest change of the part's distance a hypothesis fit may make (fraction of the distance).
 constexpr double kMaxFitDepthChange = 0.08;
+
+// One view constrains depth weakly; a fit that walks far along the line of sight from the
+// distance the image scale gave (fit_distance) has slid onto other edges.
+bool moved_too_far_in_depth(const TemplateDatabase& db, const RigidPose& coarse, const RigidPose& fitted) {
+  const double z0 = cv::norm(coarse.R * db.center_mm + coarse.t_mm);
+  const double z1 = cv::norm(fitted.R * db.center_mm + fitted.t_mm);
+  return std::abs(z1 - z0) > kMaxFitDepthChange * z0;
+}
 
 // Turned-over check: the turned pose is considered when its fit scores at least this share of
 // the pose's, and taken when at least kFlipMinPoints of its points differ from the pose's and a
@@ -545,11 +549,7 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
     if (fdcm && m.config.fit_hypotheses) {
       const TemplateFitResult f =
           m.fitter.fit(part.db, h.view, v.coarse, m.camera.camera, m.fit_workspaces[omp_get_thread_num()]);
-      // One view constrains depth weakly; a fit that walks far along the line of sight from the
-      // distance the image scale gave (fit_distance) has slid onto other edges.
-      const double z0 = cv::norm(v.coarse.R * part.db.center_mm + v.coarse.t_mm);
-      const double z1 = cv::norm(f.pose.R * part.db.center_mm + f.pose.t_mm);
-      if (std::abs(z1 - z0) > kMaxFitDepthChange * z0) {
+      if (moved_too_far_in_depth(part.db, v.coarse, f.pose)) {
         v.fitted = v.coarse;
         v.fit_score = 0;
         v.fit_rank = -1;
@@ -603,15 +603,14 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
       current.pose = v.fitted;
       current.view = v.view;
       current.score = v.fit_score;
-      const double z0 = cv::norm(v.coarse.R * part.db.center_mm + v.coarse.t_mm);
       for (const cv::Matx33d& S : part.flips) {
         RigidPose turned;
         turned.R = current.pose.R * S;
         turned.t_mm = current.pose.t_mm + current.pose.R * (part.db.center_mm - S * part.db.center_mm);
         const int view = TemplatePoseFit::nearest_view(part.db, m.camera.camera, turned);
         const TemplateFitResult f = m.fitter.fit(part.db, view, turned, m.camera.camera, ws);
-        const double z1 = cv::norm(f.pose.R * part.db.center_mm + f.pose.t_mm);
-        if (std::abs(z1 - z0) > kMaxFitDepthChange * z0 || f.score < kFlipMinScoreRatio * current.score) continue;
+        if (moved_too_far_in_depth(part.db, v.coarse, f.pose) || f.score < kFlipMinScoreRatio * current.score)
+          continue;
         const TemplatePoseFit::Difference d = m.fitter.compare(part.db, current, f, m.camera.camera, ws);
         if (d.only_b < kFlipMinPoints || d.found_b < d.found_a + kFlipMargin) continue;
         current = f;
