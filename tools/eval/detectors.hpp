@@ -47,6 +47,16 @@ class Detector {
   virtual std::optional<vision::PoseScore> score_pose(int /*obj_id*/, const cv::Matx33d& /*R*/, const cv::Vec3d& /*t_mm*/) {
     return std::nullopt;
   }
+  // The last detect()'s depth edges (dimmed) with the given poses of part obj_id drawn on them
+  // (mfc-eval --overlay); detectors without edge images return nothing.
+  struct DrawnPose {
+    cv::Matx33d R = cv::Matx33d::eye();
+    cv::Vec3d t_mm{0, 0, 0};
+    cv::Scalar colour;
+  };
+  virtual std::optional<cv::Mat3b> overlay(int /*obj_id*/, const std::vector<DrawnPose>& /*poses*/) const {
+    return std::nullopt;
+  }
   // Seconds spent preparing (loading templates, training).
   virtual double setup_seconds() const = 0;
 };

@@ -13,6 +13,7 @@
 #include "vision/dataset/bop_dataset.hpp"
 
 #include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
 
 #include <algorithm>
 #include <chrono>
@@ -59,6 +60,10 @@ detect: for every image and every part type present in it, runs each method for 
   --line2d-view-stride S LINE-2D: train every S-th template view (default 1)
   --max-position MM      criterion (default 5)
   --max-rotation DEG     criterion (default 10)
+  --overlay DIR          for every failed trial of a pipeline method, a PNG in DIR: the depth
+                         edges (grey) with the template points of every true instance of the
+                         type (green), the best estimate (red) and, with --set trace=1, the
+                         fitted hypothesis nearest the truth (yellow)
   --quiet                no per-image lines
 
 refine: each part alone in random poses (random orientation, centre within +-25, +-20 mm of the
@@ -107,7 +112,7 @@ std::string camera_key(const vision::CameraConfig& c) {
 }
 
 struct Options {
-  fs::path dataset, templates, parts = fs::path(MFC_SOURCE_DIR) / "config/parts/parts.csv", out;
+  fs::path dataset, templates, parts = fs::path(MFC_SOURCE_DIR) / "config/parts/parts.csv", out, overlay;
   std::string split = "test";
   std::vector<std::string> methods = {"fdcm", "ocm", "cm"};
   int max_images = 0, threads = 0, refine_candidates = -1;
@@ -167,6 +172,7 @@ Options parse(int argc, char** argv) {
     else if (a == "--line2d-view-stride") o.line2d.view_stride = to_int(a, value());
     else if (a == "--max-position") o.criterion.max_position_mm = to_double(a, value());
     else if (a == "--max-rotation") o.criterion.max_rotation_deg = to_double(a, value());
+    else if (a == "--overlay") o.overlay = value();
     else if (a == "--quiet") o.quiet = true;
     else throw Usage("unknown argument '" + a + "'");
   }
@@ -391,6 +397,22 @@ int run_detect(const Options& o) {
           trial["hypotheses"] = d.coarse_hypotheses.size();
           trial["nearest_coarse"] = nearest(d.coarse_hypotheses);
           trial["nearest_fitted"] = nearest(d.fitted_hypotheses);
+        }
+        if (!o.overlay.empty() && !correct) {
+          std::vector<Detector::DrawnPose> drawn;
+          for (size_t j : inst) drawn.push_back({g.gt[j].R, g.gt[j].t_mm, cv::Scalar(0, 220, 0)});
+          if (trial.contains("nearest_fitted") && !trial["nearest_fitted"].empty()) {
+            const Estimate& e = d.fitted_hypotheses[trial["nearest_fitted"]["index"].get<size_t>()];
+            drawn.push_back({e.R, e.t_mm, cv::Scalar(0, 230, 255)});
+          }
+          if (!d.estimates.empty()) drawn.push_back({d.estimates[0].R, d.estimates[0].t_mm, cv::Scalar(0, 0, 255)});
+          if (const auto img = det->overlay(obj_id, drawn)) {
+            fs::create_directories(o.overlay);
+            const fs::path file = o.overlay / (m + "_s" + std::to_string(ref.scene) + "_i" + std::to_string(ref.image) +
+                                               "_obj" + std::to_string(obj_id) + ".png");
+            if (!cv::imwrite(file.string(), *img)) throw std::runtime_error("cannot write " + file.string());
+            trial["overlay"] = file.string();
+          }
         }
         trial["correct"] = correct;
         trial["correct_xy"] = correct_xy;

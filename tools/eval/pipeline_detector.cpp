@@ -3,6 +3,8 @@
 
 #include "tools/common/cli_numbers.hpp"
 
+#include <opencv2/imgproc.hpp>
+
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
@@ -51,6 +53,15 @@ class PipelineDetector final : public Detector {
     if (cost_ != vision::PipelineConfig::Cost::fdcm) return std::nullopt;
     return pipeline_->score_pose(obj_id, R, t_mm);
   }
+  std::optional<cv::Mat3b> overlay(int obj_id, const std::vector<DrawnPose>& poses) const override {
+    const cv::Mat1b& edges = pipeline_->last_edges().edges;
+    if (edges.empty()) return std::nullopt;
+    cv::Mat1b dim = edges * (110.0 / 255.0);
+    cv::Mat3b out;
+    cv::cvtColor(dim, out, cv::COLOR_GRAY2BGR);
+    for (const DrawnPose& p : poses) pipeline_->draw_pose(out, obj_id, p.R, p.t_mm, p.colour);
+    return out;
+  }
   double setup_seconds() const override { return setup_s_; }
 
  private:
@@ -87,6 +98,7 @@ void apply_pipeline_setting(vision::PipelineConfig& c, const std::string& settin
   else if (key == "coarse_seeds") c.coarse_seeds = integer();
   else if (key == "keep_per_view") c.keep_per_view = integer();
   else if (key == "slide_step") c.slide_step = integer();
+  else if (key == "evidence_weight") c.evidence_weight = number();
   else if (key == "fit_candidates") c.fit_candidates = integer();
   else if (key == "max_candidates") c.max_candidates = integer();
   else if (key == "flip_checks") c.flip_checks = integer();

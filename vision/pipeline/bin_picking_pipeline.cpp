@@ -213,12 +213,14 @@ double explained_fraction(const TemplateView& view, const Warp& warp, int tx, in
 }
 
 // The rank of a fitted hypothesis: its fit score, less a penalty for the image edges inside its
-// outline it leaves unexplained.
+// outline it leaves unexplained, plus the evidence of its size (PipelineConfig::evidence_weight).
 // All of them unexplained costs 0.3, about the score a correct fit of a part in a full bin
 // reaches (measured on mfc-sim bins: correct picks score 0.1-0.5).
-double fitted_rank(const TemplateFitResult& f) {
+double fitted_rank(const TemplateFitResult& f, const TemplateDatabase& db, double evidence_weight) {
   constexpr double kUnexplainedWeight = 0.3;
-  return f.score - kUnexplainedWeight * (1.0 - f.coverage);
+  const double z = cv::norm(f.pose.R * db.center_mm + f.pose.t_mm);
+  const double n = static_cast<double>(db.views[static_cast<size_t>(f.view)].points.size()) * db.distance_mm / z;
+  return f.score - kUnexplainedWeight * (1.0 - f.coverage) + evidence_weight * std::log(std::max(n, 1.0) / 300.0);
 }
 
 // The search ran at the templates' own distance, but parts in a bin lie nearer (stacked, or
@@ -558,7 +560,7 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
       v.fitted = f.pose;
       v.view = f.view;
       v.fit_score = f.score;
-      v.fit_rank = fitted_rank(f);
+      v.fit_rank = fitted_rank(f, part.db, m.config.evidence_weight);
     } else {
       v.fitted = v.coarse;
     }
@@ -617,7 +619,7 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
         v.fitted = f.pose;
         v.view = f.view;
         v.fit_score = f.score;
-        v.fit_rank = std::max(v.fit_rank, fitted_rank(f));
+        v.fit_rank = std::max(v.fit_rank, fitted_rank(f, part.db, m.config.evidence_weight));
       }
     }
     std::stable_sort(m.verified.begin(), m.verified.end(), by_rank);
@@ -735,8 +737,28 @@ PoseScore BinPickingPipeline::score_pose(int obj_id, const cv::Matx33d& R_m2c, c
   }
   const RigidPose start = coarse_pose(part->db, placement, m.camera.camera);
   const TemplateFitResult f = m.fitter.fit(part->db, out.view, start, m.camera.camera, m.fit_workspaces[0]);
-  out.fit_score = fitted_rank(f);
+  out.fit_score = fitted_rank(f, part->db, m.config.evidence_weight);
   return out;
+}
+
+void BinPickingPipeline::draw_pose(cv::Mat3b& image, int obj_id, const cv::Matx33d& R_m2c, const cv::Vec3d& t_m2c_mm,
+                                   const cv::Scalar& colour) const {
+  const Impl& m = *impl_;
+  const PartModel* part = nullptr;
+  for (const auto& p : m.parts)
+    if (p.db.obj_id == obj_id) part = &p;
+  if (!part) throw std::invalid_argument("pipeline: no templates loaded for obj_id " + std::to_string(obj_id));
+  RigidPose pose{R_m2c, t_m2c_mm};
+  const int view = TemplatePoseFit::nearest_view(part->db, m.camera.camera, pose);
+  const cv::Vec3b c(cv::saturate_cast<uchar>(colour[0]), cv::saturate_cast<uchar>(colour[1]),
+                    cv::saturate_cast<uchar>(colour[2]));
+  for (const TemplateEdgePoint& p : part->db.views[static_cast<size_t>(view)].points) {
+    const cv::Vec3d cam = pose.R * cv::Vec3d(p.model_mm[0], p.model_mm[1], p.model_mm[2]) + pose.t_mm;
+    if (cam[2] <= 0) continue;
+    const cv::Point2d q = m.camera.camera.project(cam);
+    const cv::Point px(static_cast<int>(std::lround(q.x)), static_cast<int>(std::lround(q.y)));
+    if (px.x >= 0 && px.y >= 0 && px.x < image.cols && px.y < image.rows) image(px) = c;
+  }
 }
 
 cv::Mat3b draw_candidates(const cv::Mat1b& image, const PipelineResult& result, const CameraConfig& camera) {

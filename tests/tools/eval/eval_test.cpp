@@ -1,7 +1,9 @@
 #include "tools/eval/pose_error.hpp"
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 #include <opencv2/calib3d.hpp>
+#include <opencv2/imgcodecs.hpp>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -238,3 +240,40 @@ TEST_F(EvalFiles, CommandRefusesMalformedInput) {
   EXPECT_NE(r.second.find("view_stride 'two' is not an integer"), std::string::npos) << r.second;
   EXPECT_FALSE(fs::exists(out));
 }
+
+// ---- --overlay: what a failed trial looked like ----
+
+#ifdef MFC_SIM_BIN
+// A strict criterion makes every trial fail, so every trial gets its picture: the depth edges
+// with the true instances (green) and the best estimate (red) drawn as template points.
+TEST_F(EvalFiles, OverlayDrawsTheTruthAndTheEstimateOfEveryFailedTrial) {
+  const fs::path data = dir_ / "data", overlays = dir_ / "overlays", out = dir_ / "out.json";
+  const std::string sim = std::string(MFC_SIM_BIN) + " --camera " + MFC_SOURCE_DIR + "/config/camera-sim.yaml --parts " +
+                          MFC_BINARY_DIR + "/parts --out " + data.string() +
+                          " --scenes 1 --images-per-scene 1 --parts-per-image 2 --no-corrupt --seed 5 >/dev/null 2>&1";
+  ASSERT_EQ(std::system(sim.c_str()), 0) << sim;
+  const auto r = run("detect --dataset " + data.string() + " --templates " + MFC_BINARY_DIR + "/templates --out " +
+                     out.string() + " --methods fdcm --max-position 0.001 --max-rotation 0.001 --quiet --overlay " +
+                     overlays.string());
+  ASSERT_EQ(r.first, 0) << r.second;
+  std::ifstream in(out);
+  const nlohmann::json j = nlohmann::json::parse(in);
+  const auto& trials = j["methods"]["fdcm"]["trials"];
+  ASSERT_FALSE(trials.empty());
+  for (const auto& t : trials) {
+    ASSERT_FALSE(t["correct"].get<bool>());
+    ASSERT_TRUE(t.contains("overlay")) << t.dump();
+    const cv::Mat3b img = cv::imread(t["overlay"].get<std::string>(), cv::IMREAD_COLOR);
+    ASSERT_FALSE(img.empty()) << t["overlay"];
+    int green = 0, red = 0, grey = 0;
+    for (const cv::Vec3b& p : img) {
+      green += p == cv::Vec3b(0, 220, 0);
+      red += p == cv::Vec3b(0, 0, 255);
+      grey += p[0] > 0 && p[0] == p[1] && p[1] == p[2];
+    }
+    EXPECT_GT(green, 100) << t["overlay"];
+    EXPECT_GT(red, 100) << t["overlay"];
+    EXPECT_GT(grey, 500) << t["overlay"];  // the depth edges under them
+  }
+}
+#endif
