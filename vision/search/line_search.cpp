@@ -16,6 +16,8 @@ struct FdcmAt {
   uint32_t operator()(const OrientedTemplate& t, int tx, int ty, uint32_t stop, uint64_t& segs) const {
     return m.evaluateAt(t, tx, ty, stop, segs);
   }
+  void prefetch(const OrientedTemplate& t, int tx, int ty) const { m.prefetchAt(t, tx, ty, kPrefetchSegments); }
+  static constexpr size_t kPrefetchSegments = 16;  // measured: 16 beats 8 (an evaluation reads ~15)
 };
 struct ChamferAt {
   const ChamferMatcher& m;
@@ -25,6 +27,7 @@ struct ChamferAt {
     m.beginRow(state, ty);
     return m.evaluate(state, tx, stop, segs);
   }
+  void prefetch(const OrientedTemplate&, int, int) const {}
 };
 
 // Offers c to the kept list (sorted best first, at most `keep`, pairwise more than `sep` px
@@ -98,18 +101,32 @@ SearchResult lineSearchWith(const Matcher& matcher, At at, const std::vector<Ori
         slides.push_back(Slide{cv::Point2d(ql.a) - ta + d * (k0 - tlen), d, k1 - k0});
       }
     }
-    auto visit = [&](const cv::Point2d& tr) {
-      const int tx = static_cast<int>(std::lround(tr.x)), ty = static_cast<int>(std::lround(tr.y));
-      if (tx < txMin || tx > txMax || ty < tyMin || ty > tyMax) return false;
-      ++result.stats.hypotheses;
-      uint32_t thr = tauSum;
+    // The bounds change rarely (a better kept hit, another thread's hit), while a view is visited
+    // tens of thousands of times: each is turned into a sum limit for this template's n pixels
+    // only when it changes (the divisions cost as much as a segment read).
+    uint32_t keptLimit = std::numeric_limits<uint32_t>::max();
+    uint64_t sharedSeen = SharedCostBound::kNone;
+    uint32_t sharedLimit = std::numeric_limits<uint32_t>::max();
+    auto updateKeptLimit = [&] {
       if (!detect && kept.size() == keep) {
         // The bound: the worst kept hypothesis (the only one when keep = 1).
         const Candidate& worst = kept.back();
-        thr = std::min<uint64_t>(thr, uint64_t(worst.sum) * n / worst.pixels);
+        keptLimit = static_cast<uint32_t>(std::min<uint64_t>(tauSum, uint64_t(worst.sum) * n / worst.pixels));
       }
-      if (!detect && params.sharedBound)
-        thr = std::min(thr, SharedCostBound::sumLimit(params.sharedBound->load(std::memory_order_relaxed), n));
+    };
+    updateKeptLimit();
+    // Round half away from zero, as std::lround, without the library call.
+    auto roundToInt = [](double x) { return static_cast<int>(x >= 0 ? x + 0.5 : x - 0.5); };
+    auto visit = [&](const cv::Point2d& tr) {
+      const int tx = roundToInt(tr.x), ty = roundToInt(tr.y);
+      if (tx < txMin || tx > txMax || ty < tyMin || ty > tyMax) return false;
+      ++result.stats.hypotheses;
+      uint32_t thr = std::min(tauSum, keptLimit);
+      if (!detect && params.sharedBound) {
+        const uint64_t shared = params.sharedBound->load(std::memory_order_relaxed);
+        if (shared != sharedSeen) sharedSeen = shared, sharedLimit = SharedCostBound::sumLimit(shared, n);
+        thr = std::min(thr, sharedLimit);
+      }
       const uint32_t stop = params.hypothesisBound ? thr : std::numeric_limits<uint32_t>::max();
       const uint32_t sum = at(t, tx, ty, stop, result.stats.segments);
       ++result.stats.evaluated;
@@ -119,7 +136,9 @@ SearchResult lineSearchWith(const Matcher& matcher, At at, const std::vector<Ori
         found.push_back(c);
         return false;
       }
-      return keepBest(kept, keep, sep, c);
+      const bool keptIt = keepBest(kept, keep, sep, c);
+      if (keptIt) updateKeptLimit();
+      return keptIt;
     };
     const int step = std::max(1, params.slideStep);
     for (const Slide& sl : slides) {
@@ -128,8 +147,14 @@ SearchResult lineSearchWith(const Matcher& matcher, At at, const std::vector<Ori
       // NMS merges duplicates). With a coarser step, the best position of the slide is then
       // refined by visiting its skipped neighbours.
       int improvedAt = -1;
-      for (int k = 0; k <= sl.steps; k += step)
+      for (int k = 0; k <= sl.steps; k += step) {
+        if (k + step <= sl.steps) {
+          const cv::Point2d next = sl.start + sl.d * (k + step);
+          const int nx = roundToInt(next.x), ny = roundToInt(next.y);
+          if (nx >= txMin && nx <= txMax && ny >= tyMin && ny <= tyMax) at.prefetch(t, nx, ny);
+        }
         if (visit(sl.start + sl.d * k)) improvedAt = k;
+      }
       if (improvedAt >= 0 && step > 1)
         for (int dk = 1; dk < step; ++dk) {
           if (improvedAt - dk >= 0) visit(sl.start + sl.d * (improvedAt - dk));
