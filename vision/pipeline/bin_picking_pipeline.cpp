@@ -220,7 +220,9 @@ double fitted_rank(const TemplateFitResult& f, const TemplateDatabase& db, doubl
   constexpr double kUnexplainedWeight = 0.3;
   const double z = cv::norm(f.pose.R * db.center_mm + f.pose.t_mm);
   const double n = static_cast<double>(db.views[static_cast<size_t>(f.view)].points.size()) * db.distance_mm / z;
-  return f.score - kUnexplainedWeight * (1.0 - f.coverage) + evidence_weight * std::log(std::max(n, 1.0) / 300.0);
+  // n x inlier fraction: the points found, not those the view has (PipelineConfig::evidence_weight).
+  return f.score - kUnexplainedWeight * (1.0 - f.coverage) +
+         evidence_weight * std::log(std::max(n * f.inlier_fraction, 1.0) / 300.0);
 }
 
 // The search ran at the templates' own distance, but parts in a bin lie nearer (stacked, or
