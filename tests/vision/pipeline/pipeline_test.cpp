@@ -139,6 +139,13 @@ TEST(Pipeline, RefusesBadConfiguration) {
   other.camera.K(0, 0) = 900;
   pc.template_files = {kTemplates / "tnut.tdb"};
   EXPECT_THROW(BinPickingPipeline(other, pc), std::runtime_error);
+  pc.evidence_weight = -0.1;
+  try {
+    BinPickingPipeline p(cam, pc);
+    ADD_FAILURE() << "negative evidence_weight accepted";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("evidence_weight"), std::string::npos) << e.what();
+  }
 }
 
 // The render-based refinement stage (off by default with one view, see PipelineConfig) still runs
