@@ -6,6 +6,7 @@
 #include "vision/pose/coarse_pose.hpp"
 #include "vision/render/mfc_renderer.hpp"
 #include "vision/templates/template_database.hpp"
+#include "tests/vision/support/floor_scene.hpp"
 
 #include <gtest/gtest.h>
 
@@ -39,17 +40,7 @@ double rotation_error_deg(const cv::Matx33d& a, const cv::Matx33d& b, const Part
   return best;
 }
 
-// The part at `truth` on a floor 10 mm below its bounding sphere, seen by the simulated MFC.
-MfcRender render_on_floor(MfcRenderer& renderer, int part_id, int floor_id, const TemplateDatabase& db,
-                          const RigidPose& truth, int seed) {
-  const cv::Vec3d centre = truth.R * db.center_mm + truth.t_mm;
-  const ScenePart parts[2] = {{part_id, truth.R, truth.t_mm, Material::matte(0.6f)},
-                              {floor_id, cv::Matx33d::eye(), {0, 0, centre[2] + db.diameter_mm / 2 + 10},
-                               Material::matte(0.5f)}};
-  MfcRender render;
-  renderer.render(parts, render, seed);
-  return render;
-}
+using mfcd::vision::testing::render_on_floor;
 
 // The coarse pose of the first template view that sees the part from well above, placed at
 // `origin` turned by `angle` in the image.
@@ -63,7 +54,7 @@ struct SceneCase {
   const char* part;
 };
 
-class PipelineOnRenderedPart : public testing::TestWithParam<const char*> {};
+class PipelineOnRenderedPart : public ::testing::TestWithParam<const char*> {};
 
 }  // namespace
 
@@ -120,7 +111,7 @@ TEST_P(PipelineOnRenderedPart, FindsThePartWithinFiveMillimetresAndTenDegrees) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Parts, PipelineOnRenderedPart,
-                         testing::Values("breaker", "diamond", "ellipse", "tnut", "knob", "wheel"));
+                         ::testing::Values("breaker", "diamond", "ellipse", "tnut", "knob", "wheel"));
 
 TEST(Pipeline, RefusesBadConfiguration) {
   const CameraConfig cam = sim_camera();

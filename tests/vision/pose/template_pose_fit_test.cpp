@@ -6,6 +6,7 @@
 
 #include "vision/pose/rigid_transform.hpp"
 #include "vision/render/mfc_renderer.hpp"
+#include "tests/vision/support/floor_scene.hpp"
 
 #include <gtest/gtest.h>
 
@@ -41,12 +42,7 @@ struct FloorScene {
 
   explicit FloorScene(const fs::path& tdb) : db(load_template_database(tdb)) {}
   void show(const RigidPose& pose, uint64_t seed) {
-    const cv::Vec3d centre = pose.R * db.center_mm + pose.t_mm;
-    const ScenePart parts[2] = {{part_id, pose.R, pose.t_mm, Material::matte(0.6f)},
-                                {floor_id, cv::Matx33d::eye(), {0, 0, centre[2] + db.diameter_mm / 2 + 10},
-                                 Material::matte(0.5f)}};
-    MfcRender render;
-    renderer.render(parts, render, seed);
+    const MfcRender render = mfcd::vision::testing::render_on_floor(renderer, part_id, floor_id, db, pose, seed);
     DepthEdges edges;
     extractor.extract(render.frames, edges);
     fitter.prepare(edges);
@@ -113,7 +109,7 @@ TEST(TemplatePoseFit, NearestViewKeepsThePlacedPart) {
   }
 }
 
-class TemplatePoseFitOnRenders : public testing::TestWithParam<const char*> {};
+class TemplatePoseFitOnRenders : public ::testing::TestWithParam<const char*> {};
 
 TEST_P(TemplatePoseFitOnRenders, MovesTheCoarsePoseTowardsTheTruth) {
   const fs::path tdb = fs::path(MFC_BINARY_DIR) / "templates" / (std::string(GetParam()) + ".tdb");
@@ -161,7 +157,7 @@ TEST_P(TemplatePoseFitOnRenders, MovesTheCoarsePoseTowardsTheTruth) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Parts, TemplatePoseFitOnRenders,
-                         testing::Values("breaker", "diamond", "ellipse", "tnut", "knob", "wheel"));
+                         ::testing::Values("breaker", "diamond", "ellipse", "tnut", "knob", "wheel"));
 
 // compare(): the breaker is 2-fold symmetric but for its tilted toggle. Fitted at the truth and
 // turned by 180 degrees about z (both fit the outline equally), the edges where the two poses
