@@ -105,6 +105,10 @@ int TemplatePoseFit::nearest_view(const TemplateDatabase& db, const PinholeCamer
 
 void TemplatePoseFit::load_view(const TemplateDatabase& db, int view, const PinholeCamera& camera, Workspace& ws,
                                 int max_points) const {
+  // The one range check of fit(), evaluate() and compare(): each loads its views through here
+  // before reading anything else of them.
+  if (view < 0 || view >= static_cast<int>(db.views.size()))
+    throw std::invalid_argument("template fit: view " + std::to_string(view) + " out of range");
   const TemplateView& tv = db.views[static_cast<size_t>(view)];
   const auto& pts = tv.points;
   ws.model.clear();
@@ -232,8 +236,6 @@ double explained_edge_fraction(const cv::Mat1b& edges, const std::vector<cv::Poi
 
 TemplateFitResult TemplatePoseFit::evaluate(const TemplateDatabase& db, int view, const RigidPose& pose,
                                             const PinholeCamera& camera, Workspace& ws) const {
-  if (view < 0 || view >= static_cast<int>(db.views.size()))
-    throw std::invalid_argument("template fit: view " + std::to_string(view) + " out of range");
   TemplateFitResult r;
   r.pose = pose;
   r.view = view;
@@ -244,8 +246,6 @@ TemplateFitResult TemplatePoseFit::evaluate(const TemplateDatabase& db, int view
 
 TemplateFitResult TemplatePoseFit::fit(const TemplateDatabase& db, int view, const RigidPose& initial,
                                        const PinholeCamera& camera, Workspace& ws) const {
-  if (view < 0 || view >= static_cast<int>(db.views.size()))
-    throw std::invalid_argument("template fit: view " + std::to_string(view) + " out of range");
   TemplateFitResult r;
   r.pose = initial;
   r.view = view;
@@ -318,9 +318,6 @@ void TemplatePoseFit::place_points(const TemplateDatabase& db, int view, const R
 TemplatePoseFit::Difference TemplatePoseFit::compare(const TemplateDatabase& db, const TemplateFitResult& a,
                                                      const TemplateFitResult& b, const PinholeCamera& camera,
                                                      Workspace& ws, double apart_px) const {
-  for (const auto* r : {&a, &b})
-    if (r->view < 0 || r->view >= static_cast<int>(db.views.size()))
-      throw std::invalid_argument("template fit: view " + std::to_string(r->view) + " out of range");
   // Every point of both views (the fit's subsample is too sparse to say which points coincide).
   constexpr int kAll = std::numeric_limits<int>::max();
   load_view(db, a.view, camera, ws, kAll);

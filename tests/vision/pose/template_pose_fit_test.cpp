@@ -82,6 +82,24 @@ TEST(TemplatePoseFit, JacobianMatchesFiniteDifferences) {
   }
 }
 
+TEST(TemplatePoseFit, RefusesAViewOutOfRange) {
+  const fs::path tdb = fs::path(MFC_BINARY_DIR) / "templates/wheel.tdb";
+  if (!fs::exists(tdb)) GTEST_SKIP() << tdb << " not built (needs OpenSCAD)";
+  FloorScene scene(tdb);
+  const RigidPose pose = coarse_pose(scene.db, TemplatePlacement{0, 0.0, 1.0, {320, 240}}, scene.cam.camera);
+  scene.show(pose, 1);
+  const int n = static_cast<int>(scene.db.views.size());
+  TemplateFitResult good = scene.fitter.evaluate(scene.db, 0, pose, scene.cam.camera, scene.ws);
+  for (int bad : {-1, n}) {
+    EXPECT_THROW(scene.fitter.evaluate(scene.db, bad, pose, scene.cam.camera, scene.ws), std::invalid_argument);
+    EXPECT_THROW(scene.fitter.fit(scene.db, bad, pose, scene.cam.camera, scene.ws), std::invalid_argument);
+    TemplateFitResult wrong = good;
+    wrong.view = bad;
+    EXPECT_THROW(scene.fitter.compare(scene.db, good, wrong, scene.cam.camera, scene.ws), std::invalid_argument);
+    EXPECT_THROW(scene.fitter.compare(scene.db, wrong, good, scene.cam.camera, scene.ws), std::invalid_argument);
+  }
+}
+
 TEST(TemplatePoseFit, NearestViewKeepsThePlacedPart) {
   const fs::path tdb = fs::path(MFC_BINARY_DIR) / "templates/wheel.tdb";
   if (!fs::exists(tdb)) GTEST_SKIP() << tdb << " not built (needs OpenSCAD)";
