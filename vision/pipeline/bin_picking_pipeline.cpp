@@ -478,15 +478,19 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
       }
     }
   };
+  // Every thread's hits so far in one list, best first (hit_order: independent of the threads).
+  auto gather_hits = [&] {
+    m.hits.clear();
+    for (const auto& h : m.thread_hits) m.hits.insert(m.hits.end(), h.begin(), h.end());
+    std::sort(m.hits.begin(), m.hits.end(), hit_order);
+  };
   search_jobs(0);
   // The fine stage: the views around the best coarse_seeds x (parts searched) coarse hits, the
   // best hit's first, so that a deadline cuts the least promising. (These seeds are always among
   // the hits the shared bound keeps: it keeps at least that many.)
   if (stride > 1 && m.config.coarse_seeds > 0 && !late.load()) {
     const size_t coarse_jobs = m.jobs.size();
-    m.hits.clear();
-    for (const auto& h : m.thread_hits) m.hits.insert(m.hits.end(), h.begin(), h.end());
-    std::sort(m.hits.begin(), m.hits.end(), hit_order);
+    gather_hits();
     const size_t seeds = std::min(m.hits.size(), static_cast<size_t>(m.config.coarse_seeds) * selected_parts);
     for (size_t i = 0; i < seeds; ++i) {
       const Hit& h = m.hits[i];
@@ -500,9 +504,7 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
   out.hypotheses = 0;
   out.views_searched = 0;
   for (int k = 0; k < threads; ++k) out.hypotheses += m.thread_hypotheses[k], out.views_searched += m.thread_views[k];
-  m.hits.clear();
-  for (const auto& h : m.thread_hits) m.hits.insert(m.hits.end(), h.begin(), h.end());
-  std::sort(m.hits.begin(), m.hits.end(), hit_order);
+  gather_hits();
   t1 = Clock::now();
   out.times.search_ms = ms_between(t, t1);
 
