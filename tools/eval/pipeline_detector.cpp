@@ -98,6 +98,7 @@ void apply_pipeline_setting(vision::PipelineConfig& c, const std::string& settin
   else if (key == "coarse_seeds") c.coarse_seeds = integer();
   else if (key == "keep_per_view") c.keep_per_view = integer();
   else if (key == "slide_step") c.slide_step = integer();
+  else if (key == "search_downsample") c.search_downsample = integer();
   else if (key == "evidence_weight") c.evidence_weight = number();
   else if (key == "fit_candidates") c.fit_candidates = integer();
   else if (key == "max_candidates") c.max_candidates = integer();

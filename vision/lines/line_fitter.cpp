@@ -217,4 +217,31 @@ LineFitResult fitLines(const cv::Mat1b& edges, const LineFitParams& params, cons
   return result;
 }
 
+void reduceQuery(const LineSet& lines, const cv::Mat1b& channelMap, int factor, LineSet& reducedLines,
+                 cv::Mat1b& reducedMap) {
+  if (factor < 1) throw std::invalid_argument("reduceQuery: factor must be >= 1");
+  const cv::Size small(channelMap.cols / factor, channelMap.rows / factor);
+  if (small.width < 1 || small.height < 1) throw std::invalid_argument("reduceQuery: channel map smaller than the factor");
+  reducedMap.create(small);
+  for (int y = 0; y < small.height; ++y)
+    for (int x = 0; x < small.width; ++x) {
+      uchar c = kNoChannel;
+      for (int dy = 0; dy < factor && c == kNoChannel; ++dy) {
+        const uchar* row = channelMap.ptr<uchar>(y * factor + dy) + x * factor;
+        for (int dx = 0; dx < factor && c == kNoChannel; ++dx) c = row[dx];
+      }
+      reducedMap(y, x) = c;
+    }
+  const float s = 1.0f / static_cast<float>(factor);
+  reducedLines.q = lines.q;
+  reducedLines.size = small;
+  reducedLines.origin = lines.origin * s;
+  reducedLines.lines.clear();
+  for (LineSegment l : lines.lines) {
+    l.a *= s;
+    l.b *= s;
+    reducedLines.lines.push_back(l);
+  }
+}
+
 }  // namespace mfcd::vision

@@ -156,6 +156,10 @@ struct BinPickingPipeline::Impl {
   std::vector<PartModel> parts;
   DepthEdgeExtractor extractor;
   DepthEdges edges;
+  int down = 1;             // PipelineConfig::search_downsample
+  Dt3Params search_dt3;      // dt3_params in reduced pixels
+  cv::Mat1b search_channels;  // the line fitter's channel map, reduced
+  LineSet search_lines;      // the query lines, reduced
   DirectionalDistanceTransform dt3;
   IntegralDistanceTransform idt;
   ChamferCosts chamfer;  // baselines only
@@ -229,8 +233,11 @@ double fitted_rank(const TemplateFitResult& f, const TemplateDatabase& db, doubl
 // their centre above the floor): their images are larger by distance / actual distance. Around
 // a match, scale (the distance), in-plane angle (one channel step either way) and translation
 // (3 px) are searched locally with FDCM, so the coarse pose gets its depth from the image.
-double fit_distance(const LineSet& lines, const IntegralDistanceTransform& idt, TemplatePlacement& pl) {
+double fit_distance(const LineSet& lines, const IntegralDistanceTransform& idt, int down, TemplatePlacement& full) {
   const FdcmMatcher matcher(idt);
+  TemplatePlacement pl = full;
+  pl.scale /= down;
+  pl.origin_px *= 1.0 / down;
   const double step = CV_PI / lines.q;
   double best_cost = std::numeric_limits<double>::infinity();
   TemplatePlacement best = pl;
@@ -266,8 +273,10 @@ double fit_distance(const LineSet& lines, const IntegralDistanceTransform& idt, 
   const int centre = best_si;
   if (centre > -8) try_scale(centre - 1);
   if (centre < 14) try_scale(centre + 1);
-  pl = best;
-  return best_cost;
+  full = best;
+  full.scale *= down;
+  full.origin_px *= double(down);
+  return best_cost * down;
 }
 
 }  // namespace
@@ -280,6 +289,8 @@ BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfi
   if (!(m.config.max_cost_px > 0)) throw std::runtime_error("pipeline: max_cost_px must be positive");
   if (m.config.refine_candidates < 0 || m.config.refine_iterations < 1)
     throw std::runtime_error("pipeline: refine_candidates must be >= 0 and refine_iterations >= 1");
+  if (m.config.search_downsample < 1 || m.config.search_downsample > 4)
+    throw std::runtime_error("pipeline: search_downsample must be 1..4");
   if (m.config.view_stride < 1 || m.config.keep_per_view < 1 || m.config.slide_step < 1)
     throw std::runtime_error("pipeline: view_stride, keep_per_view and slide_step must be >= 1");
   if (m.config.template_guides < 1 || m.config.query_guides < 1)
@@ -309,7 +320,8 @@ BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfi
       auto& list = part.oriented[v];
       list.reserve(part.warps.size());
       for (const Warp& w : part.warps) {
-        OrientedTemplate t = orientTemplate(part.db.views[v].lines, static_cast<int>(v), w);
+        OrientedTemplate t = orientTemplate(part.db.views[v].lines, static_cast<int>(v),
+                                            Warp{w.angle, w.scale / m.config.search_downsample, w.aspect});
         // The line search only needs the longest lines as guides.
         if (t.lines.size() > 8) {
           sortLongestFirst(t.lines);
@@ -325,6 +337,10 @@ BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfi
   }
   if (m.config.coarse_seeds < 0) throw std::runtime_error("pipeline: coarse_seeds must be >= 0");
   if (!(m.config.evidence_weight >= 0)) throw std::runtime_error("pipeline: evidence_weight must be >= 0");
+  m.down = m.config.search_downsample;
+  m.search_dt3 = m.dt3_params;
+  m.search_dt3.lambda /= m.down;
+  m.search_dt3.maxCost /= m.down;
   const int threads = m.config.threads > 0 ? m.config.threads : omp_get_max_threads();
   m.thread_hits.resize(static_cast<size_t>(threads));
   m.thread_hypotheses.resize(static_cast<size_t>(threads));
@@ -379,11 +395,16 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
   out.times.lines_ms = ms_between(t, t1);
 
   const bool fdcm = m.config.cost == PipelineConfig::Cost::fdcm;
+  // The search's resolution (PipelineConfig::search_downsample).
+  const int down = m.down;
+  if (down > 1) reduceQuery(fit.set, fit.channelMap, down, m.search_lines, m.search_channels);
+  const cv::Mat1b& search_map = down > 1 ? m.search_channels : fit.channelMap;
+  const LineSet& query = down > 1 ? m.search_lines : fit.set;
   if (fdcm) {
-    m.dt3.compute(fit.channelMap, m.dt3_params);
+    m.dt3.compute(search_map, m.search_dt3);
     m.idt.compute(m.dt3);
   } else {
-    m.chamfer.compute(fit.channelMap, m.dt3_params);
+    m.chamfer.compute(search_map, m.search_dt3);
   }
   t = Clock::now();
   out.times.distance_ms = ms_between(t1, t);
@@ -426,13 +447,13 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
   // improves, far cheaper than collecting every placement under the threshold. Several instances
   // of a part still come out, through different (neighbouring) views, after NMS.
   lp.mode = SearchMode::Best;
-  lp.threshold = m.config.max_cost_px;
+  lp.threshold = m.config.max_cost_px / down;
   lp.templateLines = m.config.template_guides;
   lp.queryLines = m.config.query_guides;
   lp.minOverlap = m.config.min_guide_overlap;
   lp.slideStep = m.config.slide_step;
   lp.keep = m.config.keep_per_view;
-  lp.separationPx = m.config.keep_separation_px;
+  lp.separationPx = std::max(1, m.config.keep_separation_px / down);
   m.shared_bound.store(SharedCostBound::kNone);
   if (m.config.share_search_bound) lp.sharedBound = &m.shared_bound;
   size_t selected_parts = 0;
@@ -459,14 +480,15 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
       const auto [p, v] = m.jobs[j];
       const auto& list = m.parts[p].oriented[v];
       const SearchResult r =
-          fdcm ? lineSearch(matcher, list, fit.set.lines, lp) : lineSearch(*baseline, list, fit.set.lines, lp);
+          fdcm ? lineSearch(matcher, list, query.lines, lp) : lineSearch(*baseline, list, query.lines, lp);
       const int me = omp_get_thread_num();
       auto& mine = m.thread_hits[me];
       m.thread_hypotheses[me] += r.stats.evaluated;
       ++m.thread_views[me];
       auto& best = m.thread_best[me];
       for (const Candidate& c : r.candidates) {
-        mine.push_back({p, v, c.oriented, c, placedBox(list[c.oriented], c)});
+        const cv::Rect2d box = placedBox(list[c.oriented], c);
+        mine.push_back({p, v, c.oriented, c, cv::Rect2d(box.x * down, box.y * down, box.width * down, box.height * down)});
         best.push_back(c);
         std::push_heap(best.begin(), best.end(), better);  // worst on top
         if (best.size() > useful) {
@@ -521,11 +543,12 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
                                                                k.hit.view == h.view);
     if (duplicate) continue;
     const PartModel& part = m.parts[h.part];
-    const double coverage = explained_fraction(part.db.views[h.view], part.warps[h.warp], h.c.tx, h.c.ty, m);
+    const double coverage =
+        explained_fraction(part.db.views[h.view], part.warps[h.warp], h.c.tx * down, h.c.ty * down, m);
     Impl::Verified v;
     v.hit = h;
     v.coverage = coverage;
-    v.combined = h.c.cost() + kUnexplainedPenaltyPx * (1.0 - coverage);
+    v.combined = h.c.cost() * down + kUnexplainedPenaltyPx * (1.0 - coverage);
     m.verified.push_back(v);
   }
 
@@ -557,8 +580,8 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
     pl.view = h.view;
     pl.angle_rad = w.angle;
     pl.scale = w.scale;
-    pl.origin_px = cv::Point2d(h.c.tx, h.c.ty);
-    if (fdcm) fit_distance(part.db.views[h.view].lines, m.idt, pl);
+    pl.origin_px = cv::Point2d(h.c.tx * down, h.c.ty * down);
+    if (fdcm) fit_distance(part.db.views[h.view].lines, m.idt, down, pl);
     v.coarse = coarse_pose(part.db, pl, m.camera.camera);
     v.view = h.view;
     if (fdcm && m.config.fit_hypotheses) {
@@ -592,7 +615,7 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
       h.obj_id = m.parts[v.hit.part].db.obj_id;
       h.search_view = v.hit.view;
       h.fitted_view = v.view;
-      h.search_cost_px = v.hit.c.cost();
+      h.search_cost_px = v.hit.c.cost() * down;
       h.coverage = v.coverage;
       h.R_coarse = v.coarse.R;
       h.t_coarse_mm = v.coarse.t_mm;
@@ -654,7 +677,7 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
     c.view = v.view;
     c.R_m2c = v.fitted.R;
     c.t_m2c_mm = v.fitted.t_mm;
-    c.cost_px = h.c.cost();
+    c.cost_px = h.c.cost() * down;
     c.coverage = v.coverage;
     c.rank_px = v.combined;
     c.fit_rank = v.fit_rank;
@@ -738,7 +761,7 @@ PoseScore BinPickingPipeline::score_pose(int obj_id, const cv::Matx33d& R_m2c, c
   const double best = rotation_angle(coarse_pose(part->db, placement, m.camera.camera).R.t() * pose.R);
   out.view_angle_deg = best * 180.0 / CV_PI;
   const TemplateView& view = part->db.views[static_cast<size_t>(out.view)];
-  out.cost_px = fit_distance(view.lines, m.idt, placement);
+  out.cost_px = fit_distance(view.lines, m.idt, m.down, placement);
   if (!std::isfinite(out.cost_px)) out.cost_px = m.dt3_params.maxCost;
   const Warp w{placement.angle_rad, placement.scale, 1.0};
   out.coverage = explained_fraction(view, w, static_cast<int>(placement.origin_px.x),

@@ -1,7 +1,9 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
+#include <vector>
 
 #include <opencv2/imgproc.hpp>
 
@@ -140,4 +142,81 @@ TEST(LineFitter, BadInputIsRefused) {
   cv::Mat1f wrong(5, 5, 0.f);
   EXPECT_THROW(fitLines(cv::Mat1b(10, 10, uchar(0)), {}, &wrong), std::invalid_argument);
   EXPECT_TRUE(fitLines(cv::Mat1b(10, 10, uchar(0))).set.lines.empty()) << "no edges: no lines, no error";
+}
+
+// reduceQuery against the definition, pixel by pixel: a reduced pixel carries the channel of the
+// first pixel of its block (row by row) that has one, on random sparse channel maps of sizes
+// that are and are not multiples of the factor.
+TEST(ReduceQuery, EveryBlockKeepsItsFirstChannel) {
+  std::mt19937 rng(5);
+  for (int trial = 0; trial < 24; ++trial) {
+    const int factor = 1 + trial % 4;
+    cv::Mat1b map(37 + trial, 50 + 3 * trial, kNoChannel);
+    for (auto& v : map)
+      if (rng() % 5 == 0) v = static_cast<uchar>(rng() % 60);
+    LineSet lines, reduced;
+    cv::Mat1b small;
+    reduceQuery(lines, map, factor, reduced, small);
+    ASSERT_EQ(small.cols, map.cols / factor);
+    ASSERT_EQ(small.rows, map.rows / factor);
+    for (int y = 0; y < small.rows; ++y)
+      for (int x = 0; x < small.cols; ++x) {
+        std::vector<uchar> block;
+        for (int dy = 0; dy < factor; ++dy)
+          for (int dx = 0; dx < factor; ++dx) block.push_back(map(y * factor + dy, x * factor + dx));
+        const auto first = std::find_if(block.begin(), block.end(), [](uchar c) { return c != kNoChannel; });
+        ASSERT_EQ(small(y, x), first == block.end() ? kNoChannel : *first) << "factor " << factor << " at " << x << "," << y;
+      }
+  }
+}
+
+// The reduced lines are the fitted lines scaled (channels and support kept), and each lies on the
+// reduced channel map: every reduced line's pixels, sampled along it, are within one reduced pixel
+// of a pixel carrying its channel.
+TEST(ReduceQuery, LinesScaleOntoTheReducedMap) {
+  std::mt19937 rng(23);
+  cv::Mat1b img(300, 300, uchar(0));
+  const auto poly = randomPolygon(rng, {150, 150}, 120, 6);
+  std::vector<cv::Point> ipoly;
+  for (const auto& p : poly) ipoly.emplace_back(cvRound(p.x), cvRound(p.y));
+  cv::polylines(img, ipoly, true, 255);
+  const LineFitResult fit = fitLines(img);
+  ASSERT_FALSE(fit.set.lines.empty());
+  for (int factor : {1, 2, 3}) {
+    LineSet reduced;
+    cv::Mat1b small;
+    reduceQuery(fit.set, fit.channelMap, factor, reduced, small);
+    if (factor == 1) {
+      EXPECT_EQ(cv::countNonZero(small != fit.channelMap), 0) << "factor 1 is the identity";
+    }
+    ASSERT_EQ(reduced.lines.size(), fit.set.lines.size());
+    EXPECT_EQ(reduced.size, cv::Size(300 / factor, 300 / factor));
+    for (size_t i = 0; i < reduced.lines.size(); ++i) {
+      const LineSegment& full = fit.set.lines[i];
+      const LineSegment& l = reduced.lines[i];
+      EXPECT_EQ(l.channel, full.channel);
+      EXPECT_EQ(l.support, full.support);
+      EXPECT_NEAR(l.a.x * factor, full.a.x, 1e-3);
+      EXPECT_NEAR(l.b.y * factor, full.b.y, 1e-3);
+      const int samples = std::max(2, static_cast<int>(l.length()));
+      for (int k = 0; k <= samples; ++k) {
+        const cv::Point2f p = l.a + (l.b - l.a) * (float(k) / samples);
+        bool near = false;
+        for (int dy = -1; dy <= 1 && !near; ++dy)
+          for (int dx = -1; dx <= 1 && !near; ++dx) {
+            const int x = cvRound(p.x) + dx, y = cvRound(p.y) + dy;
+            near = x >= 0 && y >= 0 && x < small.cols && y < small.rows && small(y, x) != kNoChannel &&
+                   std::abs(int(small(y, x)) - l.channel) <= 1;
+          }
+        EXPECT_TRUE(near) << "factor " << factor << " line " << i << " sample " << k;
+      }
+    }
+  }
+}
+
+TEST(ReduceQuery, BadFactorIsRefused) {
+  LineSet lines, reduced;
+  cv::Mat1b small;
+  EXPECT_THROW(reduceQuery(lines, cv::Mat1b(10, 10, kNoChannel), 0, reduced, small), std::invalid_argument);
+  EXPECT_THROW(reduceQuery(lines, cv::Mat1b(2, 10, kNoChannel), 3, reduced, small), std::invalid_argument);
 }
