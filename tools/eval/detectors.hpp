@@ -24,6 +24,8 @@ struct Estimate {
   double score = 0;
   double rank_px = 0;  // pipeline detectors: the search's ranking measure (PoseCandidate::rank_px)
   double rank = 0;     // pipeline detectors: the fitted hypothesis' rank (PoseCandidate::fit_rank)
+  // Traced hypotheses (--set trace=1): the measures the rank is made of, by name (HypothesisTrace).
+  std::vector<std::pair<std::string, double>> measures;
 };
 
 struct Detection {

@@ -128,7 +128,7 @@ class Line2dDetector final : public Detector {
       pl.scale = meta.scale;
       pl.origin_px = origin;
       const vision::RigidPose pose = vision::coarse_pose(part.db, pl, camera_.camera);
-      out.estimates.push_back({part.db.obj_id, pose.R, pose.t_mm, m.similarity / 100.0});
+      out.estimates.push_back({part.db.obj_id, pose.R, pose.t_mm, m.similarity / 100.0, 0, 0, {}});
     }
     out.times.pose_ms = ms_since(t2);
     out.times.total_ms = ms_since(t0);

@@ -397,6 +397,28 @@ int run_detect(const Options& o) {
           trial["hypotheses"] = d.coarse_hypotheses.size();
           trial["nearest_coarse"] = nearest(d.coarse_hypotheses);
           trial["nearest_fitted"] = nearest(d.fitted_hypotheses);
+          // Every fitted hypothesis with its measures and its error against the nearest
+          // instance: the data to weigh the rank's terms by.
+          json fitted = json::array();
+          for (const Estimate& e : d.fitted_hypotheses) {
+            json h;
+            for (const auto& [name, value] : e.measures) h[name] = value;
+            h["rank"] = e.rank;
+            PoseError nearest_error{1e9, 1e9};
+            bool ok = false;
+            for (size_t j : inst) {
+              if (e.obj_id != obj_id) break;
+              const PoseError err = score(e, g.gt[j]);
+              ok = ok || o.criterion.accepts(err);
+              if (err.position_mm + err.rotation_deg < nearest_error.position_mm + nearest_error.rotation_deg)
+                nearest_error = err;
+            }
+            h["correct"] = ok;
+            h["position_mm"] = nearest_error.position_mm;
+            h["rotation_deg"] = nearest_error.rotation_deg;
+            fitted.push_back(h);
+          }
+          trial["fitted"] = fitted;
         }
         if (!o.overlay.empty() && !correct) {
           std::vector<Detector::DrawnPose> drawn;

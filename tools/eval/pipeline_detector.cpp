@@ -38,15 +38,22 @@ class PipelineDetector final : public Detector {
     // No deadline: the evaluation measures the full search of every method.
     pipeline_->process(frames, obj_id, std::chrono::steady_clock::now() + std::chrono::hours(1), result_);
     out.estimates.clear();
-    for (const auto& c : result_.candidates) out.estimates.push_back({c.obj_id, c.R_m2c, c.t_m2c_mm, c.score, c.rank_px, c.fit_rank});
+    for (const auto& c : result_.candidates) out.estimates.push_back({c.obj_id, c.R_m2c, c.t_m2c_mm, c.score, c.rank_px, c.fit_rank, {}});
     out.times = result_.times;
     out.views_searched = result_.views_searched;
     out.evaluated = result_.hypotheses;
     out.coarse_hypotheses.clear();
     out.fitted_hypotheses.clear();
     for (const auto& h : result_.trace) {
-      out.coarse_hypotheses.push_back({h.obj_id, h.R_coarse, h.t_coarse_mm, 0, h.search_cost_px, h.fit_rank});
-      out.fitted_hypotheses.push_back({h.obj_id, h.R_fitted, h.t_fitted_mm, 0, h.search_cost_px, h.fit_rank});
+      out.coarse_hypotheses.push_back({h.obj_id, h.R_coarse, h.t_coarse_mm, 0, h.search_cost_px, h.fit_rank, {}});
+      out.fitted_hypotheses.push_back({h.obj_id, h.R_fitted, h.t_fitted_mm, 0, h.search_cost_px, h.fit_rank,
+                                       {{"search_cost_px", h.search_cost_px},
+                                        {"search_coverage", h.coverage},
+                                        {"fit_score", h.fit_score},
+                                        {"fit_coverage", h.fit_coverage},
+                                        {"inlier_fraction", h.inlier_fraction},
+                                        {"mean_cost_px", h.mean_cost_px},
+                                        {"view_points", h.view_points}}});
     }
   }
   std::optional<vision::PoseScore> score_pose(int obj_id, const cv::Matx33d& R, const cv::Vec3d& t_mm) override {

@@ -183,6 +183,7 @@ struct BinPickingPipeline::Impl {
     RigidPose coarse, fitted;
     int view = 0;
     double fit_score = -1, fit_rank = -1;
+    TemplateFitResult fit;  // the fit's measures at `fitted` (trace)
     bool skipped = false;  // not fitted: the deadline had passed
   };
   TemplatePoseFit fitter;
@@ -220,10 +221,15 @@ double explained_fraction(const TemplateView& view, const Warp& warp, int tx, in
 // outline it leaves unexplained, plus the evidence of the edge points it found (PipelineConfig::evidence_weight).
 // All of them unexplained costs 0.3, about the score a correct fit of a part in a full bin
 // reaches (measured on mfc-sim bins: correct picks score 0.1-0.5).
+// The fitted view's edge points at the fitted distance (a view's point count scales with 1 / distance).
+double view_points(const TemplateFitResult& f, const TemplateDatabase& db) {
+  const double z = cv::norm(f.pose.R * db.center_mm + f.pose.t_mm);
+  return static_cast<double>(db.views[static_cast<size_t>(f.view)].points.size()) * db.distance_mm / z;
+}
+
 double fitted_rank(const TemplateFitResult& f, const TemplateDatabase& db, double evidence_weight) {
   constexpr double kUnexplainedWeight = 0.3;
-  const double z = cv::norm(f.pose.R * db.center_mm + f.pose.t_mm);
-  const double n = static_cast<double>(db.views[static_cast<size_t>(f.view)].points.size()) * db.distance_mm / z;
+  const double n = view_points(f, db);
   // n x inlier fraction: the points found, not those the view has (PipelineConfig::evidence_weight).
   return f.score - kUnexplainedWeight * (1.0 - f.coverage) +
          evidence_weight * std::log(std::max(n * f.inlier_fraction, 1.0) / 300.0);
@@ -596,6 +602,7 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
       v.fitted = f.pose;
       v.view = f.view;
       v.fit_score = f.score;
+      v.fit = f;
       v.fit_rank = fitted_rank(f, part.db, m.config.evidence_weight);
     } else {
       v.fitted = v.coarse;
@@ -622,6 +629,11 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
       h.R_fitted = v.fitted.R;
       h.t_fitted_mm = v.fitted.t_mm;
       h.fit_rank = v.fit_rank;
+      h.fit_score = v.fit.score;
+      h.fit_coverage = v.fit.coverage;
+      h.inlier_fraction = v.fit.inlier_fraction;
+      h.mean_cost_px = v.fit.mean_cost_px;
+      if (v.fit.view >= 0) h.view_points = view_points(v.fit, m.parts[v.hit.part].db);
       out.trace.push_back(h);
     }
   if (fdcm && m.config.fit_hypotheses) {

@@ -123,6 +123,9 @@ struct HypothesisTrace {
   cv::Matx33d R_coarse = cv::Matx33d::eye(), R_fitted = cv::Matx33d::eye();  // model -> camera
   cv::Vec3d t_coarse_mm{0, 0, 0}, t_fitted_mm{0, 0, 0};
   double fit_rank = -1;       // as PoseCandidate::fit_rank; -1 = fit refused
+  // The fit's measures at the fitted pose (TemplateFitResult), what fit_rank is made of.
+  double fit_score = 0, fit_coverage = 0, inlier_fraction = 0, mean_cost_px = 0;
+  double view_points = 0;     // the fitted view's edge points at the fitted distance
 };
 
 struct PipelineResult {

@@ -246,12 +246,17 @@ TEST_F(EvalFiles, CommandRefusesMalformedInput) {
 #ifdef MFC_SIM_BIN
 // A strict criterion makes every trial fail, so every trial gets its picture: the depth edges
 // with the true instances (green) and the best estimate (red) drawn as template points.
-TEST_F(EvalFiles, OverlayDrawsTheTruthAndTheEstimateOfEveryFailedTrial) {
-  const fs::path data = dir_ / "data", overlays = dir_ / "overlays", out = dir_ / "out.json";
+// One image of two parts, no corruption, made by the real mfc-sim.
+void make_two_part_image(const fs::path& data) {
   const std::string sim = std::string(MFC_SIM_BIN) + " --camera " + MFC_SOURCE_DIR + "/config/camera-sim.yaml --parts " +
                           MFC_BINARY_DIR + "/parts --out " + data.string() +
                           " --scenes 1 --images-per-scene 1 --parts-per-image 2 --no-corrupt --seed 5 >/dev/null 2>&1";
   ASSERT_EQ(std::system(sim.c_str()), 0) << sim;
+}
+
+TEST_F(EvalFiles, OverlayDrawsTheTruthAndTheEstimateOfEveryFailedTrial) {
+  const fs::path data = dir_ / "data", overlays = dir_ / "overlays", out = dir_ / "out.json";
+  ASSERT_NO_FATAL_FAILURE(make_two_part_image(data));
   const auto r = run("detect --dataset " + data.string() + " --templates " + MFC_BINARY_DIR + "/templates --out " +
                      out.string() + " --methods fdcm --max-position 0.001 --max-rotation 0.001 --quiet --overlay " +
                      overlays.string());
@@ -274,6 +279,45 @@ TEST_F(EvalFiles, OverlayDrawsTheTruthAndTheEstimateOfEveryFailedTrial) {
     EXPECT_GT(green, 100) << t["overlay"];
     EXPECT_GT(red, 100) << t["overlay"];
     EXPECT_GT(grey, 500) << t["overlay"];  // the depth edges under them
+  }
+}
+
+// --set trace=1: every fitted hypothesis is written with the measures its rank is made of (the
+// rank recomputed from them must be the pipeline's) and its error against the nearest instance,
+// judged as the trial's nearest_fitted is.
+TEST_F(EvalFiles, TraceWritesEveryFittedHypothesisWithTheMeasuresOfItsRank) {
+  const fs::path data = dir_ / "data", out = dir_ / "out.json";
+  ASSERT_NO_FATAL_FAILURE(make_two_part_image(data));
+  const auto r = run("detect --dataset " + data.string() + " --templates " + MFC_BINARY_DIR + "/templates --out " +
+                     out.string() + " --methods fdcm --quiet --set trace=1");
+  ASSERT_EQ(r.first, 0) << r.second;
+  std::ifstream in(out);
+  const nlohmann::json j = nlohmann::json::parse(in);
+  const auto& trials = j["methods"]["fdcm"]["trials"];
+  ASSERT_FALSE(trials.empty());
+  for (const auto& t : trials) {
+    ASSERT_TRUE(t.contains("fitted")) << t.dump();
+    const auto& fitted = t["fitted"];
+    ASSERT_EQ(fitted.size(), t["hypotheses"].get<size_t>());
+    bool any_correct = false;
+    int ranked = 0;
+    for (const auto& h : fitted) {
+      any_correct = any_correct || h["correct"].get<bool>();
+      EXPECT_GE(h["position_mm"].get<double>(), 0);
+      if (h["rank"].get<double>() <= -1) continue;  // fit refused: no measures to check
+      ++ranked;
+      const double score = h["fit_score"], coverage = h["fit_coverage"], inliers = h["inlier_fraction"],
+                   points = h["view_points"];
+      EXPECT_GE(score, 0);
+      EXPECT_LE(score, 1);
+      EXPECT_GE(coverage, 0);
+      EXPECT_LE(coverage, 1);
+      EXPECT_GT(points, 0);
+      const double rank = score - 0.3 * (1 - coverage) + 0.06 * std::log(std::max(points * inliers, 1.0) / 300.0);
+      EXPECT_NEAR(h["rank"].get<double>(), rank, 1e-9) << h.dump();
+    }
+    EXPECT_GT(ranked, 0);
+    EXPECT_EQ(any_correct, t["nearest_fitted"]["correct"].get<bool>()) << t.dump();
   }
 }
 #endif
