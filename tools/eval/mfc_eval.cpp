@@ -328,8 +328,18 @@ int run_detect(const Options& o) {
         double best_visib = 0;
         int n_inst = 0;
         std::vector<size_t> inst;
+        // How the best-visible instance lies: the angle between its model z axis and the optical
+        // axis (0 = lying flat, facing the camera or away; 90 = standing on edge, for the flat parts).
+        double best_tilt_deg = 0;
         for (size_t j = 0; j < g.gt.size(); ++j)
-          if (g.gt[j].obj_id == obj_id) inst.push_back(j), ++n_inst, best_visib = std::max(best_visib, g.info[j].visib_fract);
+          if (g.gt[j].obj_id == obj_id) {
+            inst.push_back(j);
+            ++n_inst;
+            if (n_inst == 1 || g.info[j].visib_fract > best_visib) {
+              best_visib = g.info[j].visib_fract;
+              best_tilt_deg = std::acos(std::min(1.0, std::abs(g.gt[j].R(2, 2)))) * 180.0 / CV_PI;
+            }
+          }
         if (!d.estimates.empty()) {
           double best_key = 1e18;
           for (size_t j : inst) {
@@ -440,6 +450,7 @@ int run_detect(const Options& o) {
         trial["correct_xy"] = correct_xy;
         trial["instances"] = n_inst;
         trial["best_visib_fract"] = best_visib;
+        trial["best_tilt_deg"] = best_tilt_deg;
         trials.push_back(trial);
         // Per instance (Fig. 13): found by the best estimate, or by any of the top-k estimates
         // where k = the number of instances of its type in the image.

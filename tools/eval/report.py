@@ -178,6 +178,29 @@ def main(bench_dir, docs_dir):
         w("| %s | %d | %d | %d | %d | %d | %d | %+.1f mm |" % (METHOD_NAMES[m], len(failed), c["none"], c["depth"], c["flip"],
                                                              c["turn"], c["place"], statistics.mean(dz) if dz else 0))
     w("")
+    fd = res["methods"].get("fdcm", {}).get("trials", [])
+    if fd and all("best_tilt_deg" in x for x in fd):
+        w("Where the FDCM failures are, by how the best-visible instance of the type lies (its model z axis against the "
+          "optical axis: *flat* < 10 degrees, *on edge* > 80 degrees, *tilted* between; the flat parts, diamond, "
+          "ellipse, knob and wheel, have z as their plate normal, so *on edge* is a plate standing on its rim, seen as "
+          "two long lines) and whether it is at least 60 % visible.\n")
+        w("| part | flat, >= 60 % visible | tilted, >= 60 % | on edge, >= 60 % | < 60 % visible |")
+        w("|---|---:|---:|---:|---:|")
+
+        def cell(ts):
+            return "%d/%d" % (sum(1 for x in ts if not x["correct"]), len(ts)) if ts else "-"
+
+        def lies(x):
+            return "flat" if x["best_tilt_deg"] < 10 else ("edge" if x["best_tilt_deg"] > 80 else "tilted")
+
+        rows = [(p["name"], [x for x in fd if x["obj_id"] == p["obj_id"]]) for p in parts] + [("all", fd)]
+        for name, ts in rows:
+            vis = [x for x in ts if x.get("best_visib_fract", 0) >= 0.6]
+            w("| %s | %s | %s | %s | %s |" % (name, cell([x for x in vis if lies(x) == "flat"]),
+                                             cell([x for x in vis if lies(x) == "tilted"]),
+                                             cell([x for x in vis if lies(x) == "edge"]),
+                                             cell([x for x in ts if x.get("best_visib_fract", 0) < 0.6])))
+        w("\nCells: failures/trials.\n")
     ctl_path = os.path.join(bench_dir, "paper-control.json")
     if os.path.exists(ctl_path) and meta.get("control_images"):
         with open(ctl_path) as f:

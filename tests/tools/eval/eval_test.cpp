@@ -297,6 +297,8 @@ TEST_F(EvalFiles, TraceWritesEveryFittedHypothesisWithTheMeasuresOfItsRank) {
   ASSERT_FALSE(trials.empty());
   for (const auto& t : trials) {
     ASSERT_TRUE(t.contains("fitted")) << t.dump();
+    EXPECT_GE(t["best_tilt_deg"].get<double>(), 0);
+    EXPECT_LE(t["best_tilt_deg"].get<double>(), 90);
     const auto& fitted = t["fitted"];
     ASSERT_EQ(fitted.size(), t["hypotheses"].get<size_t>());
     bool any_correct = false;
