@@ -217,16 +217,16 @@ double explained_fraction(const TemplateView& view, const Warp& warp, int tx, in
   return explained_edge_fraction(m.edges.edges, m.placed, m.hull, m.explained, m.inside);
 }
 
-// The rank of a fitted hypothesis: its fit score, less a penalty for the image edges inside its
-// outline it leaves unexplained, plus the evidence of the edge points it found (PipelineConfig::evidence_weight).
-// All of them unexplained costs 0.3, about the score a correct fit of a part in a full bin
-// reaches (measured on mfc-sim bins: correct picks score 0.1-0.5).
 // The fitted view's edge points at the fitted distance (a view's point count scales with 1 / distance).
 double view_points(const TemplateFitResult& f, const TemplateDatabase& db) {
   const double z = cv::norm(f.pose.R * db.center_mm + f.pose.t_mm);
   return static_cast<double>(db.views[static_cast<size_t>(f.view)].points.size()) * db.distance_mm / z;
 }
 
+// The rank of a fitted hypothesis: its fit score, less a penalty for the image edges inside its
+// outline it leaves unexplained, plus the evidence of the edge points it found (PipelineConfig::evidence_weight).
+// All of them unexplained costs 0.3, about the score a correct fit of a part in a full bin
+// reaches (measured on mfc-sim bins: correct picks score 0.1-0.5).
 double fitted_rank(const TemplateFitResult& f, const TemplateDatabase& db, double evidence_weight) {
   constexpr double kUnexplainedWeight = 0.3;
   const double n = view_points(f, db);
@@ -239,6 +239,9 @@ double fitted_rank(const TemplateFitResult& f, const TemplateDatabase& db, doubl
 // their centre above the floor): their images are larger by distance / actual distance. Around
 // a match, scale (the distance), in-plane angle (one channel step either way) and translation
 // (3 px) are searched locally with FDCM, so the coarse pose gets its depth from the image.
+// `idt` is the search's, at 1/down of the image's resolution (PipelineConfig::search_downsample:
+// the 3 px are the search's pixels, measured better than a full-resolution IDT3 here); `full`
+// and the returned cost are in full-resolution pixels.
 double fit_distance(const LineSet& lines, const IntegralDistanceTransform& idt, int down, TemplatePlacement& full) {
   const FdcmMatcher matcher(idt);
   TemplatePlacement pl = full;

@@ -15,6 +15,7 @@
 
 #include <filesystem>
 #include <random>
+#include <tuple>
 
 using namespace mfcd::vision;
 namespace fs = std::filesystem;
@@ -54,23 +55,29 @@ struct SceneCase {
   const char* part;
 };
 
-class PipelineOnRenderedPart : public ::testing::TestWithParam<const char*> {};
+// (part, PipelineConfig::search_downsample): the default reduced search and the full-resolution one.
+class PipelineOnRenderedPart : public ::testing::TestWithParam<std::tuple<const char*, int>> {
+ protected:
+  const char* part() const { return std::get<0>(GetParam()); }
+  int downsample() const { return std::get<1>(GetParam()); }
+};
 
 }  // namespace
 
 TEST_P(PipelineOnRenderedPart, FindsThePartWithinFiveMillimetresAndTenDegrees) {
-  const fs::path tdb = kTemplates / (std::string(GetParam()) + ".tdb");
+  const fs::path tdb = kTemplates / (std::string(part()) + ".tdb");
   ASSERT_TRUE(fs::exists(tdb)) << tdb;
   const TemplateDatabase db = load_template_database(tdb);
   const CameraConfig cam = sim_camera();
   PipelineConfig pc;
   pc.template_files = {tdb};
+  pc.search_downsample = downsample();
   BinPickingPipeline pipeline(cam, pc);
 
   MfcRenderer renderer(cam);
   const int part_id = renderer.add_mesh(db.mesh);
   const int floor_id = renderer.add_mesh(make_plane(600));
-  std::mt19937 rng(std::hash<std::string>{}(GetParam()) % 1000);
+  std::mt19937 rng(std::hash<std::string>{}(part()) % 1000);
   std::uniform_real_distribution<double> u(-1, 1);
   int found = 0, trials = 3;
   for (int trial = 0; trial < trials; ++trial) {
@@ -93,7 +100,7 @@ TEST_P(PipelineOnRenderedPart, FindsThePartWithinFiveMillimetresAndTenDegrees) {
     PipelineResult result;
     pipeline.process(render.frames, 0, std::chrono::steady_clock::now() + std::chrono::seconds(30), result);
     if (const char* dir = std::getenv("MFC_TEST_DUMP"))
-      cv::imwrite(std::string(dir) + "/" + GetParam() + "-" + std::to_string(trial) + "-edges.png",
+      cv::imwrite(std::string(dir) + "/" + part() + "-" + std::to_string(trial) + "-edges.png",
                   pipeline.last_edges().edges);
     ASSERT_FALSE(result.candidates.empty()) << result.edge_pixels << " edge pixels, " << result.query_lines
                                             << " query lines, " << result.hypotheses << " hypotheses; true view " << view;
@@ -103,7 +110,7 @@ TEST_P(PipelineOnRenderedPart, FindsThePartWithinFiveMillimetresAndTenDegrees) {
     const double dr = rotation_error_deg(best.R_m2c, truth.R, db.symmetry);
     std::printf("%s trial %d: view %d -> %d, cost %.2f px, centre error %.2f mm, rotation error %.2f deg, %.1f ms "
                 "(edges %.1f lines %.1f dt %.1f search %.1f refine %.1f, %.2f M hypotheses)\n",
-                GetParam(), trial, view, best.view, best.cost_px, dt, dr, result.times.total_ms,
+                part(), trial, view, best.view, best.cost_px, dt, dr, result.times.total_ms,
                 result.times.edges_ms, result.times.lines_ms, result.times.distance_ms, result.times.search_ms, result.times.refine_ms, result.hypotheses * 1e-6);
     found += dt <= 5 && dr <= 10;
   }
@@ -111,7 +118,8 @@ TEST_P(PipelineOnRenderedPart, FindsThePartWithinFiveMillimetresAndTenDegrees) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Parts, PipelineOnRenderedPart,
-                         ::testing::Values("breaker", "diamond", "ellipse", "tnut", "knob", "wheel"));
+                         ::testing::Combine(::testing::Values("breaker", "diamond", "ellipse", "tnut", "knob", "wheel"),
+                                            ::testing::Values(3, 1)));
 
 TEST(Pipeline, RefusesBadConfiguration) {
   const CameraConfig cam = sim_camera();
@@ -136,6 +144,16 @@ TEST(Pipeline, RefusesBadConfiguration) {
     ADD_FAILURE() << "negative evidence_weight accepted";
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("evidence_weight"), std::string::npos) << e.what();
+  }
+  pc.evidence_weight = 0.06;
+  for (int bad : {0, 5}) {
+    pc.search_downsample = bad;
+    try {
+      BinPickingPipeline p(cam, pc);
+      ADD_FAILURE() << "search_downsample " << bad << " accepted";
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find("search_downsample"), std::string::npos) << e.what();
+    }
   }
 }
 
