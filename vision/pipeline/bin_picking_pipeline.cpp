@@ -240,7 +240,7 @@ double fitted_rank(const TemplateFitResult& f, const TemplateDatabase& db, doubl
 // a match, scale (the distance), in-plane angle (one channel step either way) and translation
 // (3 px) are searched locally with FDCM, so the coarse pose gets its depth from the image.
 // `idt` is the search's, at 1/down of the image's resolution (PipelineConfig::search_downsample:
-// the 3 px are the search's pixels, measured better than a full-resolution IDT3 here); `full`
+// the 3 px are the search's pixels; a full-resolution IDT3 here measured worse, docs/fdcm.md); `full`
 // and the returned cost are in full-resolution pixels.
 double fit_distance(const LineSet& lines, const IntegralDistanceTransform& idt, int down, TemplatePlacement& full) {
   const FdcmMatcher matcher(idt);
