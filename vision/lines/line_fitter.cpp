@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <queue>
 #include <stdexcept>
 #include <vector>
 
@@ -22,15 +21,6 @@ void LineFitParams::validate() const {
 }
 
 namespace {
-
-struct Hypothesis {
-  int score;
-  int seed;     // index into the edge pixel list
-  int channel;  // hypothesised direction
-  bool operator<(const Hypothesis& o) const {
-    return score != o.score ? score < o.score : seed != o.seed ? seed > o.seed : channel > o.channel;
-  }
-};
 
 class Tracer {
 public:
@@ -109,20 +99,38 @@ std::vector<float> localDirections(const std::vector<cv::Point>& pts, const cv::
 }  // namespace
 
 LineFitResult fitLines(const cv::Mat1b& edges, const LineFitParams& params, const cv::Mat1f* direction) {
-  params.validate();
+  LineFitter fitter(params);
+  LineFitResult result;
+  fitter.fit(edges, direction, result);
+  return result;
+}
+
+LineFitter::LineFitter(const LineFitParams& params) : params_(params) { params_.validate(); }
+
+void LineFitter::fit(const cv::Mat1b& edges, const cv::Mat1f* direction, LineFitResult& result) {
+  const LineFitParams& params = params_;
   if (edges.empty()) throw std::invalid_argument("line fitting: empty edge image");
   if (direction && direction->size() != edges.size())
     throw std::invalid_argument("line fitting: direction map size differs from the edge map");
   const OrientationChannels ch(params.q);
 
-  LineFitResult result;
   result.set.q = params.q;
   result.set.size = edges.size();
   result.set.origin = cv::Point2f(edges.cols / 2.0f, edges.rows / 2.0f);
-  result.channelMap = cv::Mat1b(edges.size(), kNoChannel);
+  result.set.lines.clear();
+  result.inputEdgePixels = 0;
+  result.explainedEdgePixels = 0;
+  // Filled by hand: Mat::setTo allocates (OpenCV's scalar conversion) and this runs every cycle.
+  // create() keeps the storage of a map of this size, which is continuous.
+  if (!result.channelMap.isContinuous()) result.channelMap.release();
+  result.channelMap.create(edges.size());
+  std::fill_n(result.channelMap.ptr<uchar>(), result.channelMap.total(), kNoChannel);
 
-  std::vector<cv::Point> pts;
-  cv::Mat1b alive(edges.size(), uchar(0));
+  std::vector<cv::Point>& pts = pts_;
+  pts.clear();
+  alive_.create(edges.size());
+  std::fill_n(alive_.ptr<uchar>(), alive_.total(), uchar(0));
+  cv::Mat1b& alive = alive_;
   for (int y = 0; y < edges.rows; ++y)
     for (int x = 0; x < edges.cols; ++x)
       if (edges(y, x)) {
@@ -130,9 +138,9 @@ LineFitResult fitLines(const cv::Mat1b& edges, const LineFitParams& params, cons
         alive(y, x) = 1;
       }
   result.inputEdgePixels = static_cast<int>(pts.size());
-  if (pts.empty()) return result;
+  if (pts.empty()) return;
 
-  std::vector<float> dir;
+  std::vector<float>& dir = dir_;
   if (direction) {
     dir.resize(pts.size());
     for (size_t i = 0; i < pts.size(); ++i) dir[i] = (*direction)(pts[i]);
@@ -141,26 +149,33 @@ LineFitResult fitLines(const cv::Mat1b& edges, const LineFitParams& params, cons
   }
 
   const Tracer tracer(alive, params);
-  std::priority_queue<Hypothesis> queue;
+  // A max-heap by score (std::push_heap/pop_heap with Hypothesis::operator<) in a kept vector.
+  std::vector<Hypothesis>& queue = heap_;
+  queue.clear();
+  auto push = [&](const Hypothesis& h) {
+    queue.push_back(h);
+    std::push_heap(queue.begin(), queue.end());
+  };
   for (size_t i = 0; i < pts.size(); ++i) {
     const int c0 = ch.channelOf(dir[i]);
     for (int s = -params.channelSpread; s <= params.channelSpread; ++s) {
       const int c = ch.wrap(c0 + s);
       const int score = tracer.trace(cv::Point2d(pts[i]), ch.angleOf(c), nullptr);
-      if (score >= params.minSupport) queue.push({score, static_cast<int>(i), c});
+      if (score >= params.minSupport) push({score, static_cast<int>(i), c});
     }
   }
 
-  std::vector<cv::Point> support;
+  std::vector<cv::Point>& support = support_;
   while (!queue.empty()) {
-    Hypothesis h = queue.top();
-    queue.pop();
+    std::pop_heap(queue.begin(), queue.end());
+    Hypothesis h = queue.back();
+    queue.pop_back();
     // Lazy greedy: supports only shrink as points are claimed, so a re-scored hypothesis that
     // still beats every stored (optimistic) score is the true best.
     h.score = tracer.trace(cv::Point2d(pts[h.seed]), ch.angleOf(h.channel), nullptr);
     if (h.score < params.minSupport) continue;
-    if (!queue.empty() && h.score < queue.top().score) {
-      queue.push(h);
+    if (!queue.empty() && h.score < queue.front().score) {
+      push(h);
       continue;
     }
     // Accept, then refine: the channel direction only found the group of points; the segment
@@ -183,7 +198,8 @@ LineFitResult fitLines(const cv::Mat1b& edges, const LineFitParams& params, cons
       // Keep the hypothesis direction if the support is too short to define one.
       if (std::abs(std::remainder(fitted - phi, CV_PI)) <= ch.step()) phi = fitted;
       p0 = mean;
-      std::vector<cv::Point> next;
+      std::vector<cv::Point>& next = next_;
+      next.clear();
       tracer.trace(p0, phi, &next);
       if (next.size() < support.size()) break;  // refinement must not lose support
       support.swap(next);
@@ -213,8 +229,17 @@ LineFitResult fitLines(const cv::Mat1b& edges, const LineFitParams& params, cons
     result.explainedEdgePixels += seg.support;
     result.set.lines.push_back(seg);
   }
-  sortLongestFirst(result.set.lines);
-  return result;
+  // sortLongestFirst's order (stable: equal lengths keep their order) without std::stable_sort's
+  // temporary buffer: std::sort by (length descending, index).
+  order_.clear();
+  for (size_t i = 0; i < result.set.lines.size(); ++i)
+    order_.emplace_back(result.set.lines[i].length(), static_cast<int>(i));
+  std::sort(order_.begin(), order_.end(), [](const std::pair<float, int>& a, const std::pair<float, int>& b) {
+    return a.first != b.first ? a.first > b.first : a.second < b.second;
+  });
+  sorted_.clear();
+  for (const auto& [length, i] : order_) sorted_.push_back(result.set.lines[static_cast<size_t>(i)]);
+  result.set.lines.assign(sorted_.begin(), sorted_.end());
 }
 
 void reduceQuery(const LineSet& lines, const cv::Mat1b& channelMap, int factor, LineSet& reducedLines,

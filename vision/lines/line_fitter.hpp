@@ -10,6 +10,9 @@
 // segment whose true direction is between channels into pieces that stay within half a pixel.
 #include <opencv2/core/mat.hpp>
 
+#include <utility>
+#include <vector>
+
 #include "vision/common/segment.hpp"
 
 namespace mfcd::vision {
@@ -40,6 +43,36 @@ struct LineFitResult {
 // neighbourhood's principal axis. Throws std::invalid_argument on an empty image.
 LineFitResult fitLines(const cv::Mat1b& edges, const LineFitParams& params = {},
                        const cv::Mat1f* direction = nullptr);
+
+// fitLines with its buffers kept between calls, for the pick cycle: once they (and `out`'s)
+// have grown to an image's needs, fitting an image of that size and no more edges allocates
+// nothing (with a direction map; without one the local directions are computed into a new
+// vector). Same result as fitLines.
+class LineFitter {
+ public:
+  explicit LineFitter(const LineFitParams& params = {});  // throws std::invalid_argument (validate)
+  void fit(const cv::Mat1b& edges, const cv::Mat1f* direction, LineFitResult& out);
+
+  struct Hypothesis {
+    int score;
+    int seed;     // index into the edge pixel list
+    int channel;  // hypothesised direction
+    // Heap order: higher score first, then lower seed, then lower channel.
+    bool operator<(const Hypothesis& o) const {
+      return score != o.score ? score < o.score : seed != o.seed ? seed > o.seed : channel > o.channel;
+    }
+  };
+
+ private:
+  LineFitParams params_;
+  std::vector<cv::Point> pts_;
+  cv::Mat1b alive_;
+  std::vector<float> dir_;
+  std::vector<Hypothesis> heap_;
+  std::vector<cv::Point> support_, next_;
+  std::vector<std::pair<float, int>> order_;  // (length, index): the longest-first sort
+  std::vector<LineSegment> sorted_;
+};
 
 // The query at 1/factor of its resolution, for a coarse search (PipelineConfig::search_downsample):
 // every line scaled by 1/factor (channels unchanged), and the channel map reduced so that a pixel

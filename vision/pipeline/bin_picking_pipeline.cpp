@@ -152,6 +152,8 @@ struct BinPickingPipeline::Impl {
   CameraConfig camera;
   PipelineConfig config;
   LineFitParams line_params;
+  LineFitter line_fitter{line_params};
+  LineFitResult lines;  // this cycle's query lines (buffers reused)
   Dt3Params dt3_params;
   std::vector<PartModel> parts;
   DepthEdgeExtractor extractor;
@@ -397,7 +399,8 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
   auto t = Clock::now();
   out.times.edges_ms = ms_between(t0, t);
 
-  const LineFitResult fit = fitLines(m.edges.edges, m.line_params, &m.edges.direction);
+  m.line_fitter.fit(m.edges.edges, &m.edges.direction, m.lines);
+  const LineFitResult& fit = m.lines;
   out.edge_pixels = fit.inputEdgePixels;
   out.query_lines = static_cast<int>(fit.set.lines.size());
   auto t1 = Clock::now();

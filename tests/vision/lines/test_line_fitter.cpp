@@ -7,6 +7,7 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "tests/hal/alloc_counter.hpp"
 #include "tests/vision/support/synthetic.hpp"
 #include "vision/lines/line_fitter.hpp"
 
@@ -219,4 +220,54 @@ TEST(ReduceQuery, BadFactorIsRefused) {
   cv::Mat1b small;
   EXPECT_THROW(reduceQuery(lines, cv::Mat1b(10, 10, kNoChannel), 0, reduced, small), std::invalid_argument);
   EXPECT_THROW(reduceQuery(lines, cv::Mat1b(2, 10, kNoChannel), 3, reduced, small), std::invalid_argument);
+}
+
+// LineFitter kept across calls (the pipeline's use) gives exactly fitLines' result, image after
+// image, and once its buffers have grown to the largest image's needs it allocates nothing: no
+// operator new (counted) and the same channel map storage.
+TEST(LineFitter, ReusedGivesFitLinesResultWithoutAllocating) {
+  std::mt19937 rng(31);
+  std::vector<cv::Mat1b> images;
+  std::vector<cv::Mat1f> directions;
+  for (int k = 0; k < 8; ++k) {
+    cv::Mat1b img(240, 320, uchar(0));
+    cv::Mat1f dir(img.size(), 0.f);
+    for (int p = 0; p < 1 + k % 3; ++p) {
+      const auto poly = randomPolygon(rng, {80.0 + 80 * p, 120}, 60, 3 + (k + p) % 5);
+      for (size_t i = 0; i < poly.size(); ++i) {
+        const cv::Point a(cvRound(poly[i].x), cvRound(poly[i].y));
+        const cv::Point b(cvRound(poly[(i + 1) % poly.size()].x), cvRound(poly[(i + 1) % poly.size()].y));
+        double angle = std::atan2(double(b.y - a.y), double(b.x - a.x));
+        if (angle < 0) angle += CV_PI;
+        if (angle >= CV_PI) angle -= CV_PI;
+        cv::line(img, a, b, 255);
+        cv::line(dir, a, b, angle);
+      }
+    }
+    images.push_back(img);
+    directions.push_back(dir);
+  }
+  LineFitter fitter;
+  LineFitResult out;
+  auto same = [](const LineFitResult& a, const LineFitResult& b) {
+    if (a.set.lines.size() != b.set.lines.size() || a.inputEdgePixels != b.inputEdgePixels ||
+        a.explainedEdgePixels != b.explainedEdgePixels || cv::countNonZero(a.channelMap != b.channelMap) != 0)
+      return false;
+    for (size_t i = 0; i < a.set.lines.size(); ++i) {
+      const LineSegment &p = a.set.lines[i], &q = b.set.lines[i];
+      if (p.a != q.a || p.b != q.b || p.channel != q.channel || p.support != q.support) return false;
+    }
+    return true;
+  };
+  for (size_t k = 0; k < images.size(); ++k) {
+    fitter.fit(images[k], &directions[k], out);
+    EXPECT_TRUE(same(out, fitLines(images[k], {}, &directions[k]))) << "image " << k;
+    EXPECT_FALSE(out.set.lines.empty());
+  }
+  const uchar* storage = out.channelMap.data;
+  const auto before = mfcd::hal::test::allocationCount();
+  for (size_t k = 0; k < images.size(); ++k) fitter.fit(images[k], &directions[k], out);
+  EXPECT_EQ(mfcd::hal::test::allocationCount() - before, 0u);
+  EXPECT_EQ(out.channelMap.data, storage);
+  EXPECT_TRUE(same(out, fitLines(images.back(), {}, &directions.back())));
 }
