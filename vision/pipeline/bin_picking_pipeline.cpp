@@ -146,6 +146,12 @@ constexpr double kFlipMinScoreRatio = 0.6;
 constexpr int kFlipMinPoints = 6;
 constexpr double kFlipMargin = 0.2;
 
+// Per-thread buffers of fit_distance: the warped template it scores, kept between warps and cycles.
+struct DistanceFitWorkspace {
+  OrientedTemplate warped;
+  std::vector<DigitalSegment> scratch;
+};
+
 }  // namespace
 
 struct BinPickingPipeline::Impl {
@@ -191,6 +197,7 @@ struct BinPickingPipeline::Impl {
   TemplatePoseFit fitter;
   bool fitter_prepared = false;  // the fitter indexes this cycle's edges (score_pose reuses them)
   std::vector<TemplatePoseFit::Workspace> fit_workspaces;  // per search thread
+  std::vector<DistanceFitWorkspace> distance_workspaces;  // per search thread
   // What fitting all hypotheses took last cycle (scaled up when the deadline cut it short): the
   // search leaves the fit that much, with a margin. Before the first cycle, 2 ms per hypothesis.
   double fit_ms_estimate = 0;
@@ -244,7 +251,8 @@ double fitted_rank(const TemplateFitResult& f, const TemplateDatabase& db, doubl
 // `idt` is the search's, at 1/down of the image's resolution (PipelineConfig::search_downsample:
 // the 3 px are the search's pixels; a full-resolution IDT3 here measured worse, docs/fdcm.md); `full`
 // and the returned cost are in full-resolution pixels.
-double fit_distance(const LineSet& lines, const IntegralDistanceTransform& idt, int down, TemplatePlacement& full) {
+double fit_distance(const LineSet& lines, const IntegralDistanceTransform& idt, int down, TemplatePlacement& full,
+                    DistanceFitWorkspace& ws) {
   const FdcmMatcher matcher(idt);
   TemplatePlacement pl = full;
   pl.scale /= down;
@@ -259,7 +267,8 @@ double fit_distance(const LineSet& lines, const IntegralDistanceTransform& idt, 
   auto try_scale = [&](int si) {
     const double scale = pl.scale * std::pow(1.01, si);
     for (int ai = -1; ai <= 1; ++ai) {
-      const OrientedTemplate t = orientTemplate(lines, 0, Warp{pl.angle_rad + ai * step, scale, 1.0});
+      orientTemplate(lines, 0, Warp{pl.angle_rad + ai * step, scale, 1.0}, ws.warped, ws.scratch);
+      const OrientedTemplate& t = ws.warped;
       if (t.pixels <= 0) continue;
       for (int dy = -3; dy <= 3; ++dy)
         for (int dx = -3; dx <= 3; ++dx) {
@@ -364,6 +373,7 @@ BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfi
   if (m.config.fit_candidates < 1) throw std::runtime_error("pipeline: fit_candidates must be >= 1");
   m.verified.reserve(static_cast<size_t>(m.config.fit_candidates));
   m.fit_workspaces.resize(static_cast<size_t>(threads));
+  m.distance_workspaces.resize(static_cast<size_t>(threads));
   size_t views = 0;
   for (const auto& part : m.parts) views += part.db.views.size();
   m.jobs.reserve(views);
@@ -593,7 +603,7 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
     pl.angle_rad = w.angle;
     pl.scale = w.scale;
     pl.origin_px = cv::Point2d(h.c.tx * down, h.c.ty * down);
-    if (fdcm) fit_distance(part.db.views[h.view].lines, m.idt, down, pl);
+    if (fdcm) fit_distance(part.db.views[h.view].lines, m.idt, down, pl, m.distance_workspaces[omp_get_thread_num()]);
     v.coarse = coarse_pose(part.db, pl, m.camera.camera);
     v.view = h.view;
     if (fdcm && m.config.fit_hypotheses) {
@@ -779,7 +789,7 @@ PoseScore BinPickingPipeline::score_pose(int obj_id, const cv::Matx33d& R_m2c, c
   const double best = rotation_angle(coarse_pose(part->db, placement, m.camera.camera).R.t() * pose.R);
   out.view_angle_deg = best * 180.0 / CV_PI;
   const TemplateView& view = part->db.views[static_cast<size_t>(out.view)];
-  out.cost_px = fit_distance(view.lines, m.idt, m.down, placement);
+  out.cost_px = fit_distance(view.lines, m.idt, m.down, placement, m.distance_workspaces[0]);
   if (!std::isfinite(out.cost_px)) out.cost_px = m.dt3_params.maxCost;
   const Warp w{placement.angle_rad, placement.scale, 1.0};
   out.coverage = explained_fraction(view, w, static_cast<int>(placement.origin_px.x),

@@ -1,6 +1,6 @@
 #include "vision/pose/coarse_pose.hpp"
+#include "vision/pose/rigid_transform.hpp"
 
-#include <opencv2/calib3d.hpp>
 
 #include <cmath>
 #include <stdexcept>
@@ -22,10 +22,8 @@ cv::Matx33d ray_alignment(const PinholeCamera& camera, const cv::Point2d& pixel)
   const cv::Vec3d axis = z.cross(r);
   const double s = cv::norm(axis), c = z.dot(r);
   if (s < 1e-12) return cv::Matx33d::eye();
-  cv::Vec3d rv = axis * (std::atan2(s, c) / s);
-  cv::Matx33d R;
-  cv::Rodrigues(rv, R);
-  return R;
+  // Rodrigues' formula by hand: cv::Rodrigues allocates, and this runs for every hypothesis fit.
+  return rotation_from_angle_axis(axis * (std::atan2(s, c) / s));
 }
 
 RigidPose coarse_pose(const TemplateDatabase& db, const TemplatePlacement& placement, const PinholeCamera& camera) {

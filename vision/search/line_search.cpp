@@ -71,12 +71,19 @@ SearchResult lineSearchWith(const Matcher& matcher, At at, const std::vector<Ori
     if (txMin > txMax || tyMin > tyMax) continue;
     const int n = t.pixels;
     const uint32_t tauSum = detail::thresholdSum(params.threshold, n);
-    // The template's guide segments: its longest transformed source lines.
+    // The template's guide segments: its `templateLines` longest transformed source lines, equal
+    // lengths in their order (what a stable sort by length then a cut gives, without the sort's
+    // temporary buffer: this runs for every warp of every view of every cycle).
     guides.clear();
-    for (const auto& l : t.lines) guides.push_back(&l);
-    std::stable_sort(guides.begin(), guides.end(),
-                     [](const LineSegment* a, const LineSegment* b) { return a->length() > b->length(); });
-    if (guides.size() > static_cast<size_t>(params.templateLines)) guides.resize(params.templateLines);
+    const size_t wanted = static_cast<size_t>(std::max(0, params.templateLines));
+    for (const auto& l : t.lines) {
+      const float len = l.length();
+      size_t pos = guides.size();
+      while (pos > 0 && guides[pos - 1]->length() < len) --pos;
+      if (pos >= wanted) continue;
+      guides.insert(guides.begin() + static_cast<std::ptrdiff_t>(pos), &l);
+      if (guides.size() > wanted) guides.pop_back();
+    }
     at.prepare(t);
     // The slides: the guide laid on a query segment of the same channel.
     slides.clear();

@@ -1,5 +1,7 @@
 #include "vision/search/oriented_template.hpp"
 
+#include <array>
+
 #include <algorithm>
 #include <cmath>
 #include <numbers>
@@ -13,11 +15,22 @@ cv::Matx22d Warp::matrix() const {
 }
 
 OrientedTemplate orientTemplate(const LineSet& set, int templateIndex, const Warp& warp) {
+  OrientedTemplate t;
+  std::vector<DigitalSegment> scratch;
+  orientTemplate(set, templateIndex, warp, t, scratch);
+  return t;
+}
+
+void orientTemplate(const LineSet& set, int templateIndex, const Warp& warp, OrientedTemplate& t,
+                    std::vector<DigitalSegment>& scratch) {
   const OrientationChannels ch(set.q);
   const cv::Matx22d A = warp.matrix();
-  OrientedTemplate t;
   t.templateIndex = templateIndex;
   t.warp = warp;
+  t.segments.clear();
+  t.lines.clear();
+  t.pixels = 0;
+  t.x0 = t.y0 = t.x1 = t.y1 = 0;
   bool first = true;
   for (const auto& l : set.lines) {
     const cv::Vec2d a = A * cv::Vec2d(l.a.x - set.origin.x, l.a.y - set.origin.y);
@@ -84,9 +97,14 @@ OrientedTemplate orientTemplate(const LineSet& set, int templateIndex, const War
       }
     }
   }
-  std::stable_sort(t.segments.begin(), t.segments.end(),
-                   [](const DigitalSegment& p, const DigitalSegment& r) { return p.span > r.span; });
-  return t;
+  // Most pixels first, equal spans in digitising order (a stable sort): a counting sort by span,
+  // which needs no buffer beyond `scratch` (std::stable_sort allocates one).
+  std::array<int, 257> start{};
+  for (const DigitalSegment& seg : t.segments) ++start[255 - seg.span + 1];
+  for (size_t k = 1; k < start.size(); ++k) start[k] += start[k - 1];
+  scratch.resize(t.segments.size());
+  for (const DigitalSegment& seg : t.segments) scratch[static_cast<size_t>(start[255 - seg.span]++)] = seg;
+  t.segments.assign(scratch.begin(), scratch.end());
 }
 
 std::vector<double> WarpGrid::series(double centre, double ratio, int count) {

@@ -39,6 +39,10 @@ struct OrientedTemplate {
 // Digitises `set` (coordinates relative to set.origin) under `warp`. Segments longer than
 // kMaxSegmentSpan+1 pixels are split. Segments shorter than one pixel after warping are dropped.
 OrientedTemplate orientTemplate(const LineSet& set, int templateIndex, const Warp& warp);
+// The same into `out`, whose vectors and `scratch` keep their storage between calls: no
+// allocation once they have grown (the pick cycle's local fits digitise thousands of warps).
+void orientTemplate(const LineSet& set, int templateIndex, const Warp& warp, OrientedTemplate& out,
+                    std::vector<DigitalSegment>& scratch);
 
 // The hypothesis grid of the search: rotations, scales, aspects.
 struct WarpGrid {

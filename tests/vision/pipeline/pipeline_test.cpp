@@ -6,6 +6,7 @@
 #include "vision/pose/coarse_pose.hpp"
 #include "vision/render/mfc_renderer.hpp"
 #include "vision/templates/template_database.hpp"
+#include "tests/hal/alloc_counter.hpp"
 #include "tests/vision/support/floor_scene.hpp"
 
 #include <gtest/gtest.h>
@@ -13,6 +14,7 @@
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include <cstdio>
 #include <filesystem>
 #include <random>
 #include <tuple>
@@ -257,4 +259,33 @@ TEST(Pipeline, CoarseToFineViewsAndSharedBoundAgainstTheFullSearch) {
     EXPECT_EQ(staged.candidates[i].t_m2c_mm, staged_free.candidates[i].t_m2c_mm);
   }
   EXPECT_EQ(staged.views_searched, staged_free.views_searched);
+}
+// Heap allocations of one pick cycle in steady state (operator new counted over 3 cycles after 3
+// of warm-up). The real-time rule is none; the vision path is not there yet (docs/operations.md
+// lists what still allocates). This holds the measured level: 36 000 per cycle before the line
+// fitter, the local distance fit's warps and the search's guide selection kept their buffers,
+// 1 172 after (this part, this scene). A change that brings per-warp allocations back fails here.
+TEST(Pipeline, FramePathAllocationsStayUnderTheMeasuredCeiling) {
+  const fs::path tdb = kTemplates / "tnut.tdb";
+  const TemplateDatabase db = load_template_database(tdb);
+  const CameraConfig cam = sim_camera();
+  PipelineConfig pc;
+  pc.template_files = {tdb};
+  BinPickingPipeline pipeline(cam, pc);
+  MfcRenderer renderer(cam);
+  const int part_id = renderer.add_mesh(db.mesh);
+  const int floor_id = renderer.add_mesh(make_plane(600));
+  const RigidPose truth = coarse_pose(db, TemplatePlacement{3, 0.3, 1.0, {320, 240}}, cam.camera);
+  const MfcRender render = render_on_floor(renderer, part_id, floor_id, db, truth, 100);
+  PipelineResult result;
+  auto cycle = [&] {
+    pipeline.process(render.frames, 0, std::chrono::steady_clock::now() + std::chrono::seconds(30), result);
+  };
+  for (int i = 0; i < 3; ++i) cycle();
+  const auto before = mfcd::hal::test::allocationCount();
+  for (int i = 0; i < 3; ++i) cycle();
+  const double per_cycle = static_cast<double>(mfcd::hal::test::allocationCount() - before) / 3.0;
+  std::printf("heap allocations per cycle: %.0f\n", per_cycle);
+  EXPECT_LE(per_cycle, 2000);
+  ASSERT_FALSE(result.candidates.empty());
 }

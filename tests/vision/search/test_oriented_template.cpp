@@ -67,3 +67,31 @@ TEST(WarpGrid, FullTurnInChannelStepsAndSeries) {
   g.angleStepChannels = 0;
   EXPECT_THROW(g.warps(60), std::invalid_argument);
 }
+
+// The reusing form (the pick cycle's local fits) gives exactly the returning form's template,
+// whatever larger or smaller template was in `out` before, with most pixels first.
+TEST(OrientedTemplate, ReusedOutputEqualsAFreshOne) {
+  std::mt19937 rng(29);
+  std::uniform_real_distribution<double> ua(-7, 7), us(0.3, 3.0);
+  OrientedTemplate out;
+  std::vector<DigitalSegment> scratch;
+  for (int trial = 0; trial < 100; ++trial) {
+    const LineSet set = randomLineSet(rng, 60, 1 + trial % 12, 2, 150, 80);
+    const Warp w{ua(rng), us(rng), 1.0};
+    const OrientedTemplate fresh = orientTemplate(set, trial, w);
+    orientTemplate(set, trial, w, out, scratch);
+    ASSERT_EQ(out.segments.size(), fresh.segments.size()) << "trial " << trial;
+    for (size_t i = 0; i < out.segments.size(); ++i) {
+      const DigitalSegment &a = out.segments[i], &b = fresh.segments[i];
+      EXPECT_TRUE(a.x == b.x && a.y == b.y && a.channel == b.channel && a.span == b.span) << "trial " << trial << " segment " << i;
+      if (i > 0) {
+        EXPECT_GE(out.segments[i - 1].span, a.span);
+      }
+    }
+    ASSERT_EQ(out.lines.size(), fresh.lines.size());
+    for (size_t i = 0; i < out.lines.size(); ++i) EXPECT_EQ(out.lines[i].a, fresh.lines[i].a);
+    EXPECT_EQ(out.pixels, fresh.pixels);
+    EXPECT_EQ(out.templateIndex, trial);
+    EXPECT_TRUE(out.x0 == fresh.x0 && out.x1 == fresh.x1 && out.y0 == fresh.y0 && out.y1 == fresh.y1);
+  }
+}
