@@ -262,9 +262,9 @@ TEST(Pipeline, CoarseToFineViewsAndSharedBoundAgainstTheFullSearch) {
 }
 // Heap allocations of one pick cycle in steady state (operator new counted over 3 cycles after 3
 // of warm-up). The real-time rule is none; the vision path is not there yet (docs/operations.md
-// lists what still allocates). This holds the measured level: 36 000 per cycle before the line
-// fitter, the local distance fit's warps and the search's guide selection kept their buffers,
-// 1 172 after (this part, this scene). A change that brings per-warp allocations back fails here.
+// lists what still allocates). This holds the measured level: 36 161 per cycle before the local
+// distance fit's warps and the search's guide selection kept their buffers, 1 172 after (this
+// part, this scene). A change that brings per-warp allocations back fails here.
 TEST(Pipeline, FramePathAllocationsStayUnderTheMeasuredCeiling) {
   const fs::path tdb = kTemplates / "tnut.tdb";
   const TemplateDatabase db = load_template_database(tdb);
