@@ -198,6 +198,8 @@ struct BinPickingPipeline::Impl {
   bool fitter_prepared = false;  // the fitter indexes this cycle's edges (score_pose reuses them)
   std::vector<TemplatePoseFit::Workspace> fit_workspaces;  // per search thread
   std::vector<DistanceFitWorkspace> distance_workspaces;  // per search thread
+  std::vector<LineSearchWorkspace> search_workspaces;     // per search thread
+  std::vector<SearchResult> thread_results;               // per search thread, the last view's
   // What fitting all hypotheses took last cycle (scaled up when the deadline cut it short): the
   // search leaves the fit that much, with a margin. Before the first cycle, 2 ms per hypothesis.
   double fit_ms_estimate = 0;
@@ -374,6 +376,8 @@ BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfi
   m.verified.reserve(static_cast<size_t>(m.config.fit_candidates));
   m.fit_workspaces.resize(static_cast<size_t>(threads));
   m.distance_workspaces.resize(static_cast<size_t>(threads));
+  m.search_workspaces.resize(static_cast<size_t>(threads));
+  m.thread_results.resize(static_cast<size_t>(threads));
   size_t views = 0;
   for (const auto& part : m.parts) views += part.db.views.size();
   m.jobs.reserve(views);
@@ -501,9 +505,12 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
       }
       const auto [p, v] = m.jobs[j];
       const auto& list = m.parts[p].oriented[v];
-      const SearchResult r =
-          fdcm ? lineSearch(matcher, list, query.lines, lp) : lineSearch(*baseline, list, query.lines, lp);
       const int me = omp_get_thread_num();
+      SearchResult& r = m.thread_results[me];
+      if (fdcm)
+        lineSearch(matcher, list, query.lines, lp, m.search_workspaces[me], r);
+      else
+        r = lineSearch(*baseline, list, query.lines, lp);  // the baselines are evaluation tools
       auto& mine = m.thread_hits[me];
       m.thread_hypotheses[me] += r.stats.evaluated;
       ++m.thread_views[me];

@@ -47,23 +47,25 @@ bool keepBest(std::vector<Candidate>& kept, size_t keep, int sep, const Candidat
 }
 
 template <class Matcher, class At>
-SearchResult lineSearchWith(const Matcher& matcher, At at, const std::vector<OrientedTemplate>& templates,
-                            const std::vector<LineSegment>& queryLines, const LineSearchParams& params) {
+void lineSearchWith(const Matcher& matcher, At at, const std::vector<OrientedTemplate>& templates,
+                    const std::vector<LineSegment>& queryLines, const LineSearchParams& params,
+                    LineSearchWorkspace& ws, SearchResult& result) {
   const int W = matcher.width(), H = matcher.height();
   const bool detect = params.mode == SearchMode::Detect;
-  SearchResult result;
+  result.candidates.clear();
+  result.stats = {};
+  result.truncated = false;
   const size_t nq = std::min<size_t>(queryLines.size(), std::max(0, params.queryLines));
   const size_t keep = static_cast<size_t>(std::max(1, params.keep));
   const int sep = std::max(0, params.separationPx);
-  std::vector<Candidate> kept;  // Best mode: at most `keep`, pairwise more than `sep` apart
+  std::vector<Candidate>& kept = ws.kept;  // Best mode: at most `keep`, pairwise more than `sep` apart
+  kept.clear();
   kept.reserve(keep);
-  std::vector<Candidate> found;
-  struct Slide {
-    cv::Point2d start, d;  // translation at k = 0 and its step
-    int steps;
-  };
-  std::vector<Slide> slides;
-  std::vector<const LineSegment*> guides;
+  std::vector<Candidate>& found = ws.found;
+  found.clear();
+  using Slide = LineSearchWorkspace::Slide;
+  std::vector<Slide>& slides = ws.slides;
+  std::vector<const LineSegment*>& guides = ws.guides;
   for (int o = 0; o < static_cast<int>(templates.size()); ++o) {
     const OrientedTemplate& t = templates[o];
     if (t.pixels <= 0 || t.lines.empty()) continue;
@@ -175,23 +177,34 @@ SearchResult lineSearchWith(const Matcher& matcher, At at, const std::vector<Ori
       found.resize(params.maxCandidates);
       result.truncated = true;
     }
-    result.candidates = std::move(found);
+    result.candidates.assign(found.begin(), found.end());
   } else {
-    result.candidates = std::move(kept);
+    result.candidates.assign(kept.begin(), kept.end());
   }
-  return result;
 }
 
 }  // namespace
 
 SearchResult lineSearch(const FdcmMatcher& matcher, const std::vector<OrientedTemplate>& templates,
                         const std::vector<LineSegment>& queryLines, const LineSearchParams& params) {
-  return lineSearchWith(matcher, FdcmAt{matcher}, templates, queryLines, params);
+  LineSearchWorkspace ws;
+  SearchResult result;
+  lineSearchWith(matcher, FdcmAt{matcher}, templates, queryLines, params, ws, result);
+  return result;
+}
+
+void lineSearch(const FdcmMatcher& matcher, const std::vector<OrientedTemplate>& templates,
+                const std::vector<LineSegment>& queryLines, const LineSearchParams& params, LineSearchWorkspace& ws,
+                SearchResult& out) {
+  lineSearchWith(matcher, FdcmAt{matcher}, templates, queryLines, params, ws, out);
 }
 
 SearchResult lineSearch(const ChamferMatcher& matcher, const std::vector<OrientedTemplate>& templates,
                         const std::vector<LineSegment>& queryLines, const LineSearchParams& params) {
-  return lineSearchWith(matcher, ChamferAt{matcher, {}}, templates, queryLines, params);
+  LineSearchWorkspace ws;
+  SearchResult result;
+  lineSearchWith(matcher, ChamferAt{matcher, {}}, templates, queryLines, params, ws, result);
+  return result;
 }
 
 }  // namespace mfcd::vision

@@ -67,6 +67,21 @@ struct SharedCostBound {
 // `queryLines`: the query's fitted segments, longest first (LineFitResult::set.lines).
 SearchResult lineSearch(const FdcmMatcher& matcher, const std::vector<OrientedTemplate>& templates,
                         const std::vector<LineSegment>& queryLines, const LineSearchParams& params);
+// A search's buffers, kept between calls (one per thread, the pick cycle's use).
+struct LineSearchWorkspace {
+  struct Slide {
+    cv::Point2d start, d;  // translation at k = 0 and its step
+    int steps;
+  };
+  std::vector<Candidate> kept, found;
+  std::vector<Slide> slides;
+  std::vector<const LineSegment*> guides;
+};
+// The same search into `out` (replaced), with `ws`: no allocation once both have grown (FDCM;
+// the result is the returning form's).
+void lineSearch(const FdcmMatcher& matcher, const std::vector<OrientedTemplate>& templates,
+                const std::vector<LineSegment>& queryLines, const LineSearchParams& params, LineSearchWorkspace& ws,
+                SearchResult& out);
 // The same hypotheses scored with CM or OCM (the baselines of the paper's Table 1).
 SearchResult lineSearch(const ChamferMatcher& matcher, const std::vector<OrientedTemplate>& templates,
                         const std::vector<LineSegment>& queryLines, const LineSearchParams& params);

@@ -187,3 +187,36 @@ TEST(LineSearch, SharedBoundKeepsEverythingNotAboveIt) {
       EXPECT_TRUE(better(c, best)) << "a hypothesis costing more than the bound was kept";
   }
 }
+
+// The reusing form (one workspace and result per search thread of the pipeline) returns exactly
+// the returning form's result, scene after scene and mode after mode, whatever the workspace held.
+TEST(LineSearch, ReusedWorkspaceGivesTheSameResult) {
+  std::mt19937 rng(77);
+  LineSearchWorkspace ws;
+  SearchResult out;
+  size_t detected = 0;
+  for (int trial = 0; trial < 6; ++trial) {
+    const PlantedScene scene = plantedScene(rng);
+    const FdcmMatcher matcher(scene.idt);
+    for (int variant = 0; variant < 3; ++variant) {
+      LineSearchParams lp;
+      lp.threshold = 6;
+      lp.slideStep = 1 + variant;
+      lp.mode = variant == 2 ? SearchMode::Detect : SearchMode::Best;
+      lp.keep = variant == 1 ? 3 : 1;
+      const SearchResult fresh = lineSearch(matcher, scene.templates, scene.fit.set.lines, lp);
+      lineSearch(matcher, scene.templates, scene.fit.set.lines, lp, ws, out);
+      ASSERT_EQ(out.candidates.size(), fresh.candidates.size()) << "trial " << trial << " variant " << variant;
+      for (size_t i = 0; i < out.candidates.size(); ++i) {
+        const Candidate &a = out.candidates[i], &b = fresh.candidates[i];
+        EXPECT_TRUE(a.oriented == b.oriented && a.tx == b.tx && a.ty == b.ty && a.sum == b.sum && a.pixels == b.pixels)
+            << "trial " << trial << " variant " << variant << " candidate " << i;
+      }
+      EXPECT_EQ(out.stats.evaluated, fresh.stats.evaluated);
+      EXPECT_EQ(out.stats.hypotheses, fresh.stats.hypotheses);
+      EXPECT_EQ(out.truncated, fresh.truncated);
+      if (variant == 2) detected += out.candidates.size();
+    }
+  }
+  EXPECT_GT(detected, 6u) << "Detect mode found (almost) nothing: the comparison would be empty";
+}
