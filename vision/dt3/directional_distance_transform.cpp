@@ -5,6 +5,8 @@
 #include <cstring>
 #include <stdexcept>
 
+#include <omp.h>
+
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
@@ -37,7 +39,10 @@ void DirectionalDistanceTransform::compute(const cv::Mat1b& channelMap, const Dt
     sqrtTable_[d2] = static_cast<uint8_t>(std::min<long>(cap, std::lround(kCostScale * std::sqrt(double(d2)))));
 
   // Bucket the edge pixels by channel.
-  std::vector<std::vector<int>> byChannel(q_);
+  if (byChannel_.size() < static_cast<size_t>(q_)) byChannel_.resize(static_cast<size_t>(q_));
+  for (auto& pixels : byChannel_) pixels.clear();
+  std::vector<std::vector<int>>& byChannel = byChannel_;
+  if (scratch_.size() < static_cast<size_t>(omp_get_max_threads())) scratch_.resize(static_cast<size_t>(omp_get_max_threads()));
   for (int y = 0; y < height_; ++y) {
     const uint8_t* r = channelMap.ptr<uint8_t>(y);
     for (int x = 0; x < width_; ++x) {
@@ -50,7 +55,7 @@ void DirectionalDistanceTransform::compute(const cv::Mat1b& channelMap, const Dt
 
 #pragma omp parallel
   {
-    std::vector<uint8_t> scratch;
+    Scratch& scratch = scratch_[static_cast<size_t>(omp_get_thread_num())];
 #pragma omp for schedule(dynamic, 1)
     for (int c = 0; c < q_; ++c) channelDistance(c, byChannel[c], scratch);
 #pragma omp for schedule(static)
@@ -61,8 +66,8 @@ void DirectionalDistanceTransform::compute(const cv::Mat1b& channelMap, const Dt
 // Exact Euclidean distance to the channel's pixels, truncated: a column pass of vertical
 // distances followed by Felzenszwalb's lower envelope per row, restricted to the rows and columns
 // that can be within `far` of a pixel of this channel.
-void DirectionalDistanceTransform::channelDistance(int channel, const std::vector<int>& pixels,
-                                                   std::vector<uint8_t>& g) {
+void DirectionalDistanceTransform::channelDistance(int channel, const std::vector<int>& pixels, Scratch& scratch) {
+  std::vector<uint8_t>& g = scratch.g;
   uint8_t* out = data_.data() + static_cast<size_t>(channel) * width_ * height_;
   const int cap = params_.capUnits();
   const int far = static_cast<int>(std::floor(params_.maxCost)) + 1;
@@ -91,8 +96,10 @@ void DirectionalDistanceTransform::channelDistance(int channel, const std::vecto
   }
 
   // Row pass: lower envelope of the parabolas g(p)^2 + (x - p)^2 over sites with g(p) < far.
-  std::vector<int> v(width_);
-  std::vector<float> z(width_ + 1);
+  std::vector<int>& v = scratch.v;
+  std::vector<float>& z = scratch.z;
+  v.resize(static_cast<size_t>(width_));
+  z.resize(static_cast<size_t>(width_) + 1);
   const int far2 = far * far;
   for (int y = y0; y <= y1; ++y) {
     const uint8_t* gr = g.data() + static_cast<size_t>(y) * width_;

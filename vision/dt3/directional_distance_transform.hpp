@@ -40,13 +40,22 @@ public:
   size_t bytes() const { return data_.size(); }
 
 private:
-  void channelDistance(int channel, const std::vector<int>& pixels, std::vector<uint8_t>& scratch);
+  // One thread's buffers of the per-channel distance, kept between computes.
+  struct Scratch {
+    std::vector<uint8_t> g;  // vertical distances
+    std::vector<int> v;      // lower envelope: parabola sites ...
+    std::vector<float> z;    // ... and their boundaries
+  };
+  void channelDistance(int channel, const std::vector<int>& pixels, Scratch& scratch);
   void orientationRecursion(int row);
 
   Dt3Params params_;
   int width_ = 0, height_ = 0, q_ = 0;
   std::vector<uint8_t> data_;
   std::vector<uint8_t> sqrtTable_;  // squared distance -> fixed-point distance, capped
+  // Kept between computes so that a compute of the same size allocates nothing once grown.
+  std::vector<std::vector<int>> byChannel_;  // edge pixels per channel
+  std::vector<Scratch> scratch_;             // per thread
 };
 
 }  // namespace mfcd::vision

@@ -16,6 +16,13 @@ void IntegralDistanceTransform::compute(const DirectionalDistanceTransform& dt3)
   if (resized) {
     data_.assign(planeSize * q_, 0);  // guards stay zero from here on
     lines_ = DigitalLineTable(OrientationChannels(q_), s, rows);
+    hops_.assign(static_cast<size_t>(q_), {});
+    for (int c = 0; c < q_; ++c) {
+      if (!lines_.xMajor(c)) continue;
+      const int16_t* m = lines_.minor(c);
+      hops_[c].assign(static_cast<size_t>(width_) + 1, 0);
+      for (int X = 1; X <= width_; ++X) hops_[c][X] = m[X] != m[X - 1];
+    }
   }
 
 #pragma omp parallel for schedule(dynamic, 1)
@@ -29,8 +36,7 @@ void IntegralDistanceTransform::compute(const DirectionalDistanceTransform& dt3)
       // predecessor row available, columns left to right.
       const bool rising = m[2] >= m[1] && m[s - 1] >= m[1];
       // Whether the predecessor is on the neighbouring row, per column (the same for all rows).
-      std::vector<uint8_t> hop(width_ + 1);
-      for (int X = 1; X <= width_; ++X) hop[X] = m[X] != m[X - 1];
+      const std::vector<uint8_t>& hop = hops_[c];
       for (int i = 0; i < height_; ++i) {
         const int Y = rising ? 1 + i : height_ - i;
         uint16_t* row = I + static_cast<size_t>(Y) * s;

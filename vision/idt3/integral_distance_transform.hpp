@@ -58,6 +58,9 @@ private:
   int width_ = 0, height_ = 0, q_ = 0;
   std::vector<uint16_t> data_;
   DigitalLineTable lines_;
+  // x-major channels: per column X, whether the predecessor is on the neighbouring row (depends
+  // only on the channel's pattern and the width: made on a resize).
+  std::vector<std::vector<uint8_t>> hops_;
 };
 
 }  // namespace mfcd::vision

@@ -15,6 +15,9 @@ using namespace mfcd::vision::testing;
 TEST(Dt3, EqualsBruteForceMinimumOverEdgePixels) {
   std::mt19937 rng(2024);
   const int qs[] = {1, 2, 7, 16, 60};
+  // One transform for every trial, as the pipeline keeps one: its kept buffers (edge pixels per
+  // channel, per-thread scratch) must not carry anything from the previous size, q or map.
+  DirectionalDistanceTransform dt3;
   for (int trial = 0; trial < 25; ++trial) {
     Dt3Params p;
     p.q = qs[trial % 5];
@@ -22,7 +25,6 @@ TEST(Dt3, EqualsBruteForceMinimumOverEdgePixels) {
     p.maxCost = std::array<double, 3>{30.0, 8.0, 15.5}[trial % 3];
     const cv::Size size(20 + static_cast<int>(rng() % 50), 15 + static_cast<int>(rng() % 40));
     const cv::Mat1b map = randomChannelMap(rng, size, p.q, static_cast<int>(rng() % 6), static_cast<int>(rng() % 10));
-    DirectionalDistanceTransform dt3;
     dt3.compute(map, p);
     const auto edges = labelledPixels(map);
     const OrientationChannels ch(p.q);
