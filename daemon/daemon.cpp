@@ -219,8 +219,9 @@ void Daemon::acceptControlClient() {
     if (fd < 0) return;
     uid_t uid = 0;
     if (!peerAllowed(fd, uid)) {
-      reply(fd, {{"ok", false}, {"error", "permission denied: only root, the daemon's user or members of its group may control mfcd"}});
+      // Logged before the answer: when the client sees the refusal, the record of it exists.
       logf(LogLevel::Notice, "control socket: refused a client with uid %u", static_cast<unsigned>(uid));
+      reply(fd, {{"ok", false}, {"error", "permission denied: only root, the daemon's user or members of its group may control mfcd"}});
       ::close(fd);
       continue;
     }
