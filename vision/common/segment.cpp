@@ -18,8 +18,22 @@ size_t LineSet::totalPixels() const {
 }
 
 void sortLongestFirst(std::vector<LineSegment>& lines) {
-  std::stable_sort(lines.begin(), lines.end(),
-                   [](const LineSegment& p, const LineSegment& r) { return p.length() > r.length(); });
+  std::vector<std::pair<float, int>> order;
+  std::vector<LineSegment> scratch;
+  sortLongestFirst(lines, order, scratch);
+}
+
+void sortLongestFirst(std::vector<LineSegment>& lines, std::vector<std::pair<float, int>>& order,
+                      std::vector<LineSegment>& scratch) {
+  // A stable sort by length: std::sort on (length descending, position).
+  order.clear();
+  for (size_t i = 0; i < lines.size(); ++i) order.emplace_back(lines[i].length(), static_cast<int>(i));
+  std::sort(order.begin(), order.end(), [](const std::pair<float, int>& a, const std::pair<float, int>& b) {
+    return a.first != b.first ? a.first > b.first : a.second < b.second;
+  });
+  scratch.clear();
+  for (const auto& [length, i] : order) scratch.push_back(lines[static_cast<size_t>(i)]);
+  lines.assign(scratch.begin(), scratch.end());
 }
 
 namespace {

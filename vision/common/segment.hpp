@@ -2,6 +2,7 @@
 // Line segments: the line-based representation of an edge map (paper Sec. 3.3).
 #include <filesystem>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <opencv2/core/types.hpp>
@@ -31,6 +32,10 @@ struct LineSet {
 };
 
 void sortLongestFirst(std::vector<LineSegment>& lines);
+// The same order (longest first, equal lengths in their order) through kept buffers: no
+// allocation once they have grown (std::stable_sort allocates a temporary buffer each call).
+void sortLongestFirst(std::vector<LineSegment>& lines, std::vector<std::pair<float, int>>& order,
+                      std::vector<LineSegment>& scratch);
 
 // Text line files (format in docs/line-file.md):
 //   mfcd-lines 1

@@ -229,17 +229,7 @@ void LineFitter::fit(const cv::Mat1b& edges, const cv::Mat1f* direction, LineFit
     result.explainedEdgePixels += seg.support;
     result.set.lines.push_back(seg);
   }
-  // sortLongestFirst's order (stable: equal lengths keep their order) without std::stable_sort's
-  // temporary buffer: std::sort by (length descending, index).
-  order_.clear();
-  for (size_t i = 0; i < result.set.lines.size(); ++i)
-    order_.emplace_back(result.set.lines[i].length(), static_cast<int>(i));
-  std::sort(order_.begin(), order_.end(), [](const std::pair<float, int>& a, const std::pair<float, int>& b) {
-    return a.first != b.first ? a.first > b.first : a.second < b.second;
-  });
-  sorted_.clear();
-  for (const auto& [length, i] : order_) sorted_.push_back(result.set.lines[static_cast<size_t>(i)]);
-  result.set.lines.assign(sorted_.begin(), sorted_.end());
+  sortLongestFirst(result.set.lines, order_, sorted_);
 }
 
 void reduceQuery(const LineSet& lines, const cv::Mat1b& channelMap, int factor, LineSet& reducedLines,

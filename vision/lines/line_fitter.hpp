@@ -70,7 +70,7 @@ class LineFitter {
   std::vector<float> dir_;
   std::vector<Hypothesis> heap_;
   std::vector<cv::Point> support_, next_;
-  std::vector<std::pair<float, int>> order_;  // (length, index): the longest-first sort
+  std::vector<std::pair<float, int>> order_;  // sortLongestFirst's buffers
   std::vector<LineSegment> sorted_;
 };
 

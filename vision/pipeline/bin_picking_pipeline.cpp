@@ -157,14 +157,12 @@ struct DistanceFitWorkspace {
 struct BinPickingPipeline::Impl {
   CameraConfig camera;
   PipelineConfig config;
-  LineFitParams line_params;
-  LineFitter line_fitter{line_params};
+  LineFitter line_fitter;  // default LineFitParams
   LineFitResult lines;  // this cycle's query lines (buffers reused)
   Dt3Params dt3_params;
   std::vector<PartModel> parts;
   DepthEdgeExtractor extractor;
   DepthEdges edges;
-  int down = 1;             // PipelineConfig::search_downsample
   Dt3Params search_dt3;      // dt3_params in reduced pixels
   cv::Mat1b search_channels;  // the line fitter's channel map, reduced
   LineSet search_lines;      // the query lines, reduced
@@ -359,10 +357,9 @@ BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfi
   }
   if (m.config.coarse_seeds < 0) throw std::runtime_error("pipeline: coarse_seeds must be >= 0");
   if (!(m.config.evidence_weight >= 0)) throw std::runtime_error("pipeline: evidence_weight must be >= 0");
-  m.down = m.config.search_downsample;
   m.search_dt3 = m.dt3_params;
-  m.search_dt3.lambda /= m.down;
-  m.search_dt3.maxCost /= m.down;
+  m.search_dt3.lambda /= m.config.search_downsample;
+  m.search_dt3.maxCost /= m.config.search_downsample;
   const int threads = m.config.threads > 0 ? m.config.threads : omp_get_max_threads();
   m.thread_hits.resize(static_cast<size_t>(threads));
   m.thread_hypotheses.resize(static_cast<size_t>(threads));
@@ -422,7 +419,7 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
 
   const bool fdcm = m.config.cost == PipelineConfig::Cost::fdcm;
   // The search's resolution (PipelineConfig::search_downsample).
-  const int down = m.down;
+  const int down = m.config.search_downsample;
   if (down > 1) reduceQuery(fit.set, fit.channelMap, down, m.search_lines, m.search_channels);
   const cv::Mat1b& search_map = down > 1 ? m.search_channels : fit.channelMap;
   const LineSet& query = down > 1 ? m.search_lines : fit.set;
@@ -796,7 +793,7 @@ PoseScore BinPickingPipeline::score_pose(int obj_id, const cv::Matx33d& R_m2c, c
   const double best = rotation_angle(coarse_pose(part->db, placement, m.camera.camera).R.t() * pose.R);
   out.view_angle_deg = best * 180.0 / CV_PI;
   const TemplateView& view = part->db.views[static_cast<size_t>(out.view)];
-  out.cost_px = fit_distance(view.lines, m.idt, m.down, placement, m.distance_workspaces[0]);
+  out.cost_px = fit_distance(view.lines, m.idt, m.config.search_downsample, placement, m.distance_workspaces[0]);
   if (!std::isfinite(out.cost_px)) out.cost_px = m.dt3_params.maxCost;
   const Warp w{placement.angle_rad, placement.scale, 1.0};
   out.coverage = explained_fraction(view, w, static_cast<int>(placement.origin_px.x),

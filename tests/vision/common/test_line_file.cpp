@@ -2,6 +2,8 @@
 
 #include <filesystem>
 #include <fstream>
+#include <random>
+#include <algorithm>
 
 #include "vision/common/segment.hpp"
 
@@ -62,5 +64,34 @@ TEST(LineFile, MissingFileIsReported) {
     FAIL();
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("/nonexistent/dir/x.lines: cannot open"), std::string::npos);
+  }
+}
+
+// sortLongestFirst against its definition, std::stable_sort by length, on sets with many equal
+// lengths (axis-aligned segments of integer length); the buffered form with buffers kept from a
+// previous, larger call gives the same order.
+TEST(SortLongestFirst, IsTheStableSortByLength) {
+  std::mt19937 rng(12);
+  std::vector<std::pair<float, int>> order;
+  std::vector<LineSegment> scratch;
+  for (int trial = 0; trial < 50; ++trial) {
+    std::vector<LineSegment> lines(static_cast<size_t>(1 + rng() % (trial < 25 ? 60 : 8)));
+    for (size_t i = 0; i < lines.size(); ++i) {
+      const float x = static_cast<float>(rng() % 100), y = static_cast<float>(rng() % 100), len = static_cast<float>(1 + rng() % 6);
+      lines[i].a = {x, y};
+      lines[i].b = rng() % 2 ? cv::Point2f(x + len, y) : cv::Point2f(x, y + len);
+      lines[i].support = static_cast<int>(i);  // identifies the original position
+    }
+    std::vector<LineSegment> expected = lines;
+    std::stable_sort(expected.begin(), expected.end(),
+                     [](const LineSegment& p, const LineSegment& r) { return p.length() > r.length(); });
+    std::vector<LineSegment> plain = lines, buffered = lines;
+    sortLongestFirst(plain);
+    sortLongestFirst(buffered, order, scratch);
+    ASSERT_EQ(plain.size(), expected.size());
+    for (size_t i = 0; i < expected.size(); ++i) {
+      EXPECT_EQ(plain[i].support, expected[i].support) << "trial " << trial << " position " << i;
+      EXPECT_EQ(buffered[i].support, expected[i].support) << "trial " << trial << " position " << i;
+    }
   }
 }
