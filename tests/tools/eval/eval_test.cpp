@@ -130,6 +130,18 @@ TEST(EvalPoseError, RotationAngleAccurateNearZeroAndHalfTurn) {
 // ---- the parts table ----
 
 class EvalFiles : public ::testing::Test {
+ public:
+  // Runs mfc-eval; returns the exit code and the combined output.
+  std::pair<int, std::string> run(const std::string& args) {
+    const std::string cmd = std::string(MFC_EVAL_BIN) + " " + args + " 2>&1";
+    FILE* p = popen(cmd.c_str(), "r");
+    std::string out;
+    char buf[512];
+    while (p && fgets(buf, sizeof buf, p)) out += buf;
+    const int status = p ? pclose(p) : -1;
+    return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
+  }
+
  protected:
   void SetUp() override {
     dir_ = fs::temp_directory_path() / ("mfc_eval_test_" + std::to_string(::getpid()) + "_" +
@@ -142,16 +154,6 @@ class EvalFiles : public ::testing::Test {
     fs::create_directories(p.parent_path());
     std::ofstream(p) << text;
     return p;
-  }
-  // Runs mfc-eval; returns the exit code and the combined output.
-  std::pair<int, std::string> run(const std::string& args) {
-    const std::string cmd = std::string(MFC_EVAL_BIN) + " " + args + " 2>&1";
-    FILE* p = popen(cmd.c_str(), "r");
-    std::string out;
-    char buf[512];
-    while (p && fgets(buf, sizeof buf, p)) out += buf;
-    const int status = p ? pclose(p) : -1;
-    return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
   }
   fs::path dir_;
 };
@@ -244,27 +246,28 @@ TEST_F(EvalFiles, CommandRefusesMalformedInput) {
 // ---- --overlay: what a failed trial looked like ----
 
 #ifdef MFC_SIM_BIN
-// A strict criterion makes every trial fail, so every trial gets its picture: the depth edges
-// with the true instances (green) and the best estimate (red) drawn as template points.
-// One image of two parts, no corruption, made by the real mfc-sim.
-void make_two_part_image(const fs::path& data) {
+// mfc-eval detect (FDCM) with `options` on one image of two parts, no corruption, made by the real
+// mfc-sim; `trials` = the trials of its JSON (not empty).
+void detect_on_two_parts(EvalFiles& files, const fs::path& dir, const std::string& options, nlohmann::json& trials) {
+  const fs::path data = dir / "data", out = dir / "out.json";
   const std::string sim = std::string(MFC_SIM_BIN) + " --camera " + MFC_SOURCE_DIR + "/config/camera-sim.yaml --parts " +
                           MFC_BINARY_DIR + "/parts --out " + data.string() +
                           " --scenes 1 --images-per-scene 1 --parts-per-image 2 --no-corrupt --seed 5 >/dev/null 2>&1";
   ASSERT_EQ(std::system(sim.c_str()), 0) << sim;
-}
-
-TEST_F(EvalFiles, OverlayDrawsTheTruthAndTheEstimateOfEveryFailedTrial) {
-  const fs::path data = dir_ / "data", overlays = dir_ / "overlays", out = dir_ / "out.json";
-  ASSERT_NO_FATAL_FAILURE(make_two_part_image(data));
-  const auto r = run("detect --dataset " + data.string() + " --templates " + MFC_BINARY_DIR + "/templates --out " +
-                     out.string() + " --methods fdcm --max-position 0.001 --max-rotation 0.001 --quiet --overlay " +
-                     overlays.string());
+  const auto r = files.run("detect --dataset " + data.string() + " --templates " + MFC_BINARY_DIR + "/templates --out " +
+                           out.string() + " --methods fdcm --quiet " + options);
   ASSERT_EQ(r.first, 0) << r.second;
   std::ifstream in(out);
-  const nlohmann::json j = nlohmann::json::parse(in);
-  const auto& trials = j["methods"]["fdcm"]["trials"];
+  trials = nlohmann::json::parse(in)["methods"]["fdcm"]["trials"];
   ASSERT_FALSE(trials.empty());
+}
+
+// A strict criterion makes every trial fail, so every trial gets its picture: the depth edges
+// with the true instances (green) and the best estimate (red) drawn as template points.
+TEST_F(EvalFiles, OverlayDrawsTheTruthAndTheEstimateOfEveryFailedTrial) {
+  nlohmann::json trials;
+  ASSERT_NO_FATAL_FAILURE(detect_on_two_parts(
+      *this, dir_, "--max-position 0.001 --max-rotation 0.001 --overlay " + (dir_ / "overlays").string(), trials));
   for (const auto& t : trials) {
     ASSERT_FALSE(t["correct"].get<bool>());
     ASSERT_TRUE(t.contains("overlay")) << t.dump();
@@ -286,15 +289,8 @@ TEST_F(EvalFiles, OverlayDrawsTheTruthAndTheEstimateOfEveryFailedTrial) {
 // rank recomputed from them must be the pipeline's) and its error against the nearest instance,
 // judged as the trial's nearest_fitted is.
 TEST_F(EvalFiles, TraceWritesEveryFittedHypothesisWithTheMeasuresOfItsRank) {
-  const fs::path data = dir_ / "data", out = dir_ / "out.json";
-  ASSERT_NO_FATAL_FAILURE(make_two_part_image(data));
-  const auto r = run("detect --dataset " + data.string() + " --templates " + MFC_BINARY_DIR + "/templates --out " +
-                     out.string() + " --methods fdcm --quiet --set trace=1");
-  ASSERT_EQ(r.first, 0) << r.second;
-  std::ifstream in(out);
-  const nlohmann::json j = nlohmann::json::parse(in);
-  const auto& trials = j["methods"]["fdcm"]["trials"];
-  ASSERT_FALSE(trials.empty());
+  nlohmann::json trials;
+  ASSERT_NO_FATAL_FAILURE(detect_on_two_parts(*this, dir_, "--set trace=1", trials));
   for (const auto& t : trials) {
     ASSERT_TRUE(t.contains("fitted")) << t.dump();
     EXPECT_GE(t["best_tilt_deg"].get<double>(), 0);
