@@ -43,6 +43,13 @@ void DirectionalDistanceTransform::compute(const cv::Mat1b& channelMap, const Dt
   for (auto& pixels : byChannel_) pixels.clear();
   std::vector<std::vector<int>>& byChannel = byChannel_;
   if (scratch_.size() < static_cast<size_t>(omp_get_max_threads())) scratch_.resize(static_cast<size_t>(omp_get_max_threads()));
+  // Every thread's scratch at its full size now: which thread meets which channel is decided at
+  // run time, so growing them on first use would allocate in any later cycle.
+  for (Scratch& s : scratch_) {
+    s.g.resize(static_cast<size_t>(width_) * height_);
+    s.v.resize(static_cast<size_t>(width_));
+    s.z.resize(static_cast<size_t>(width_) + 1);
+  }
   for (int y = 0; y < height_; ++y) {
     const uint8_t* r = channelMap.ptr<uint8_t>(y);
     for (int x = 0; x < width_; ++x) {

@@ -95,9 +95,10 @@ void DepthEdgeExtractor::extract(const MfcFrames& frames, DepthEdges& out) {
   //    each pixel (away from the LED's epipole). A depth edge is a lit-to-shadow step
   //    along that direction: a negative derivative. Responses of all flashes are summed,
   //    and so are their gradients (weighted by the response), whose direction is the edge normal.
-  response_.setTo(0);
-  normal_x_.setTo(0);
-  normal_y_.setTo(0);
+  // Cleared by hand: Mat::setTo allocates on every call (the maps are continuous, made by create()).
+  std::fill_n(response_.ptr<float>(), response_.total(), 0.f);
+  std::fill_n(normal_x_.ptr<float>(), normal_x_.total(), 0.f);
+  std::fill_n(normal_y_.ptr<float>(), normal_y_.total(), 0.f);
   const float dim2 = params_.dim_flash_dn * params_.dim_flash_dn;
 #pragma omp parallel for schedule(static)
   for (int y = 1; y < H - 1; ++y) {
@@ -137,7 +138,7 @@ void DepthEdgeExtractor::extract(const MfcFrames& frames, DepthEdges& out) {
   //    normal, quantised to 45 degrees). Of two equal neighbours the one on the occluding
   //    side (against the normal, which points into the shadow) is kept.
   const float lo = params_.low_threshold, hi = params_.high_threshold;
-  state_.setTo(0);
+  std::fill_n(state_.ptr<uint8_t>(), state_.total(), uint8_t(0));
   stack_.clear();
   for (int y = 2; y + 2 < H; ++y) {
     const float* s = response_.ptr<float>(y);

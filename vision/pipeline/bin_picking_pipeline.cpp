@@ -202,8 +202,9 @@ struct BinPickingPipeline::Impl {
   // search leaves the fit that much, with a margin. Before the first cycle, 2 ms per hypothesis.
   double fit_ms_estimate = 0;
   std::vector<Verified> verified;
-  cv::Mat1b explained, inside;  // verification scratch, image size, kept zero outside use
-  std::vector<cv::Point> placed, hull;
+  cv::Mat1b explained;  // verification scratch, image size, kept zero outside use
+  std::vector<cv::Point> placed;
+  ConvexRegion region;
 
   Impl(const CameraConfig& cam, PipelineConfig cfg)
       : camera(cam), config(std::move(cfg)), extractor(cam.camera, cam.flashes, config.depth_edges) {}
@@ -223,7 +224,15 @@ double explained_fraction(const TemplateView& view, const Warp& warp, int tx, in
     const cv::Point r(cvRound(q[0] + tx), cvRound(q[1] + ty));
     if (image.contains(r)) m.placed.push_back(r);
   }
-  return explained_edge_fraction(m.edges.edges, m.placed, m.hull, m.explained, m.inside);
+  return explained_edge_fraction(m.edges.edges, m.placed, m.region, m.explained);
+}
+
+// The order of std::stable_sort without its temporary buffer (allocated on every call): insertion
+// sort, for the cycle's few dozen hypotheses.
+template <class T, class Less>
+void stable_sort_in_place(std::vector<T>& v, Less less) {
+  for (size_t i = 1; i < v.size(); ++i)
+    for (size_t j = i; j > 0 && less(v[j], v[j - 1]); --j) std::swap(v[j], v[j - 1]);
 }
 
 // The fitted view's edge points at the fitted distance (a view's point count scales with 1 / distance).
@@ -372,7 +381,24 @@ BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfi
   if (m.config.fit_candidates < 1) throw std::runtime_error("pipeline: fit_candidates must be >= 1");
   m.verified.reserve(static_cast<size_t>(m.config.fit_candidates));
   m.fit_workspaces.resize(static_cast<size_t>(threads));
+  size_t most_points = 0;
+  for (const auto& part : m.parts) {
+    for (auto& ws : m.fit_workspaces) m.fitter.reserve(part.db, camera.camera.image_size, ws);
+    for (const auto& v : part.db.views) most_points = std::max(most_points, v.points.size());
+  }
+  m.placed.reserve(most_points);
+  m.region.reserve(most_points, camera.camera.image_size.height);
   m.distance_workspaces.resize(static_cast<size_t>(threads));
+  // fit_distance digitises a hit's view at up to 1.01^14 its scale, at the search's reduction;
+  // with its buffers grown here the frame path never grows them.
+  constexpr double kFitStretch = 1.2;
+  for (auto& ws : m.distance_workspaces)
+    for (const auto& part : m.parts) {
+      double stretch = 0;
+      for (const Warp& w : part.warps) stretch = std::max(stretch, w.scale * std::max(1.0, w.aspect));
+      for (const auto& view : part.db.views)
+        reserveOrientedTemplate(view.lines, stretch * kFitStretch / m.config.search_downsample, ws.warped, ws.scratch);
+    }
   m.search_workspaces.resize(static_cast<size_t>(threads));
   m.thread_results.resize(static_cast<size_t>(threads));
   size_t views = 0;
@@ -380,7 +406,6 @@ BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfi
   m.jobs.reserve(views);
   m.fit_ms_estimate = 2.0 * m.config.fit_candidates / threads;
   m.explained = cv::Mat1b::zeros(camera.camera.image_size);
-  m.inside = cv::Mat1b::zeros(camera.camera.image_size);
 }
 
 BinPickingPipeline::~BinPickingPipeline() = default;
@@ -658,7 +683,7 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
     }
   if (fdcm && m.config.fit_hypotheses) {
     auto by_rank = [](const Impl::Verified& a, const Impl::Verified& b) { return a.fit_rank > b.fit_rank; };
-    std::stable_sort(m.verified.begin(), m.verified.end(), by_rank);
+    stable_sort_in_place(m.verified, by_rank);
     // Turned-over check of the best few: a part that is symmetric but for a small feature (the
     // breaker's toggle) fits as well turned by 180 degrees about an axis; the edges can only tell
     // the two apart where they differ (TemplatePoseFit::compare).
@@ -690,10 +715,10 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
         v.fit_rank = std::max(v.fit_rank, fitted_rank(f, part.db, m.config.evidence_weight));
       }
     }
-    std::stable_sort(m.verified.begin(), m.verified.end(), by_rank);
+    stable_sort_in_place(m.verified, by_rank);
   } else
-    std::stable_sort(m.verified.begin(), m.verified.end(),
-                     [](const Impl::Verified& a, const Impl::Verified& b) { return a.combined < b.combined; });
+    stable_sort_in_place(m.verified,
+                         [](const Impl::Verified& a, const Impl::Verified& b) { return a.combined < b.combined; });
 
   // Non-maximum suppression across views and part types: one part per place in the bin.
   for (const Impl::Verified& v : m.verified) {

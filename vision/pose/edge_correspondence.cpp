@@ -17,11 +17,12 @@ DirectionalEdgeIndex::DirectionalEdgeIndex(int cell_px) : cell_(cell_px) {
 }
 
 void DirectionalEdgeIndex::build(const DepthEdges& edges, const char* source) {
-  const std::string name = source;
-  if (edges.edges.empty()) throw std::invalid_argument(name + ": the edge image is empty");
-  if (edges.edges.type() != CV_8UC1) throw std::invalid_argument(name + ": edges must be 8-bit single channel");
+  // The source's name goes into a string only on the way out (build() runs every cycle).
+  auto name = [source] { return std::string(source); };
+  if (edges.edges.empty()) throw std::invalid_argument(name() + ": the edge image is empty");
+  if (edges.edges.type() != CV_8UC1) throw std::invalid_argument(name() + ": edges must be 8-bit single channel");
   if (edges.direction.size() != edges.edges.size() || edges.direction.type() != CV_32FC1)
-    throw std::invalid_argument(name + ": direction must be a float image of the edges' size (" +
+    throw std::invalid_argument(name() + ": direction must be a float image of the edges' size (" +
                                 std::to_string(edges.edges.cols) + "x" + std::to_string(edges.edges.rows) + "), got " +
                                 std::to_string(edges.direction.cols) + "x" + std::to_string(edges.direction.rows));
   size_ = edges.edges.size();

@@ -103,6 +103,20 @@ int TemplatePoseFit::nearest_view(const TemplateDatabase& db, const PinholeCamer
   return best_view;
 }
 
+void TemplatePoseFit::reserve(const TemplateDatabase& db, cv::Size image, Workspace& ws) const {
+  size_t points = 0;
+  for (const auto& v : db.views) points = std::max(points, v.points.size());
+  // compare() loads every point of a view; fit() and score() at most params_.max_points.
+  for (auto* v : {&ws.seen_a, &ws.seen_b}) v->reserve(points);
+  for (auto* v : {&ws.angle_a, &ws.angle_b}) v->reserve(points);
+  ws.model.reserve(points);
+  ws.angle.reserve(points);
+  ws.offset.reserve(points);
+  ws.placed.reserve(points);
+  ws.region.reserve(points, image.height);
+  if (ws.explained.size() != image) ws.explained = cv::Mat1b::zeros(image);
+}
+
 void TemplatePoseFit::load_view(const TemplateDatabase& db, int view, const PinholeCamera& camera, Workspace& ws,
                                 int max_points) const {
   // The one range check of fit(), evaluate() and compare(): each loads its views through here
@@ -189,10 +203,7 @@ void TemplatePoseFit::score(const TemplateDatabase& db, int view, const PinholeC
 double TemplatePoseFit::coverage(const TemplateDatabase& db, int view, const RigidPose& pose,
                                  const PinholeCamera& camera, Workspace& ws) const {
   const cv::Size size = edges_.size();
-  if (ws.explained.size() != size) {
-    ws.explained = cv::Mat1b::zeros(size);
-    ws.inside = cv::Mat1b::zeros(size);
-  }
+  if (ws.explained.size() != size) ws.explained = cv::Mat1b::zeros(size);
   const TemplateView& tv = db.views[static_cast<size_t>(view)];
   const double turn = in_plane_angle(db, view, pose, camera);
   const double ct = std::cos(turn), st = std::sin(turn);
@@ -210,27 +221,28 @@ double TemplatePoseFit::coverage(const TemplateDatabase& db, int view, const Rig
     const cv::Point r(cvRound(q.x), cvRound(q.y));
     if (image.contains(r)) ws.placed.push_back(r);
   }
-  return explained_edge_fraction(edges_, ws.placed, ws.hull, ws.explained, ws.inside);
+  return explained_edge_fraction(edges_, ws.placed, ws.region, ws.explained);
 }
 
-double explained_edge_fraction(const cv::Mat1b& edges, const std::vector<cv::Point>& placed,
-                               std::vector<cv::Point>& hull, cv::Mat1b& explained, cv::Mat1b& inside) {
+double explained_edge_fraction(const cv::Mat1b& edges, const std::vector<cv::Point>& placed, ConvexRegion& region,
+                               cv::Mat1b& explained) {
   if (placed.size() < 3) return 0;
-  const cv::Rect image(cv::Point(0, 0), edges.size());
-  cv::convexHull(placed, hull);
-  const cv::Rect box = (cv::boundingRect(hull) + cv::Size(5, 5) - cv::Point(2, 2)) & image;
+  region.build(placed);
   for (const auto& r : placed) cv::circle(explained, r, 2, cv::Scalar(255), cv::FILLED);
-  cv::fillConvexPoly(inside, hull, cv::Scalar(255));
   int total = 0, covered = 0;
-  for (int y = box.y; y < box.y + box.height; ++y) {
+  for (int y = std::max(region.top(), 0); y <= std::min(region.bottom(), edges.rows - 1); ++y) {
     const uint8_t* e = edges.ptr<uint8_t>(y);
-    const uint8_t* in = inside.ptr<uint8_t>(y);
     const uint8_t* ex = explained.ptr<uint8_t>(y);
-    for (int x = box.x; x < box.x + box.width; ++x)
-      if (e[x] && in[x]) ++total, covered += ex[x] != 0;
+    for (int x = std::max(region.first(y), 0); x <= std::min(region.last(y), edges.cols - 1); ++x)
+      if (e[x]) ++total, covered += ex[x] != 0;
   }
-  explained(box).setTo(0);
-  inside(box).setTo(0);
+  // Clear the discs again: they lie within 2 px of the hull's bounding box (set by hand,
+  // Mat::setTo allocates).
+  int x0 = region.hull()[0].x, x1 = x0;
+  for (const auto& p : region.hull()) x0 = std::min(x0, p.x), x1 = std::max(x1, p.x);
+  const cv::Rect box = cv::Rect(cv::Point(x0 - 2, region.top() - 2), cv::Point(x1 + 3, region.bottom() + 3)) &
+                       cv::Rect(cv::Point(0, 0), explained.size());
+  for (int y = box.y; y < box.y + box.height; ++y) std::fill_n(explained.ptr<uint8_t>(y) + box.x, box.width, 0);
   return total > 0 ? double(covered) / total : 0;
 }
 
@@ -325,10 +337,7 @@ TemplatePoseFit::Difference TemplatePoseFit::compare(const TemplateDatabase& db,
   load_view(db, b.view, camera, ws, kAll);
   place_points(db, b.view, b.pose, camera, ws, ws.seen_b, ws.angle_b);
   const cv::Size size = edges_.size();
-  if (ws.explained.size() != size) {
-    ws.explained = cv::Mat1b::zeros(size);
-    ws.inside = cv::Mat1b::zeros(size);
-  }
+  if (ws.explained.size() != size) ws.explained = cv::Mat1b::zeros(size);
   const cv::Rect image(cv::Point(0, 0), size);
   const int r = std::max(0, static_cast<int>(std::lround(apart_px)));
   // The other pose's points, widened by apart_px, as a mask (ws.explained, cleared again after).

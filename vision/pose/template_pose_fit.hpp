@@ -16,6 +16,7 @@
 // several threads at once, each with its own Workspace.
 
 #include "vision/camera/camera.hpp"
+#include "vision/common/convex_region.hpp"
 #include "vision/edges/depth_edges.hpp"
 #include "vision/pose/coarse_pose.hpp"
 #include "vision/pose/edge_correspondence.hpp"
@@ -61,13 +62,18 @@ class TemplatePoseFit {
     std::vector<cv::Vec3d> model;  // the view's points in use, model frame
     std::vector<float> angle;      // their template tangent angles
     std::vector<cv::Vec2d> offset; // detected edge pixel minus the model point's projection, template view
-    std::vector<cv::Point> placed, hull;  // coverage: all the view's points at the pose, their hull
+    std::vector<cv::Point> placed;        // coverage: all the view's points at the pose
+    ConvexRegion region;                  // ... their hull and the pixels inside it
     std::vector<cv::Point2d> seen_a, seen_b;  // compare(): the two poses' points in the image
     std::vector<double> angle_a, angle_b;     // ... and their image tangent angles
-    cv::Mat1b explained, inside;          // coverage masks, image size, kept zero outside use
+    cv::Mat1b explained;                  // coverage mask, image size, kept zero outside use
   };
 
   explicit TemplatePoseFit(const TemplateFitParams& params = {});
+
+  // Grows `ws` for every view of `db` on images of `image` size: fits, scores and comparisons of
+  // them then allocate nothing, not even the first time (a search thread meets views in any order).
+  void reserve(const TemplateDatabase& db, cv::Size image, Workspace& ws) const;
 
   // Indexes the image's edge pixels with tangent directions from their pixel chains (the
   // estimator the templates' directions come from). Throws std::invalid_argument on an empty map.
@@ -115,11 +121,12 @@ class TemplatePoseFit {
   DirectionalEdgeIndex index_;
 };
 
-// The share of the edge pixels of `edges` inside the convex hull of `placed` (image pixels) that
-// lie within 2 px of one of them: the converse of a chamfer cost. `hull`, `explained` and
-// `inside` are scratch (the masks image-sized and zero, and left zero).
-double explained_edge_fraction(const cv::Mat1b& edges, const std::vector<cv::Point>& placed,
-                               std::vector<cv::Point>& hull, cv::Mat1b& explained, cv::Mat1b& inside);
+// The share of the edge pixels of `edges` inside the convex hull of `placed` (image pixels; the
+// pixels ConvexRegion covers) that lie within 2 px of one of them: the converse of a chamfer
+// cost. `region` and `explained` are scratch (the mask image-sized and zero, and left zero); no
+// allocation once they have grown.
+double explained_edge_fraction(const cv::Mat1b& edges, const std::vector<cv::Point>& placed, ConvexRegion& region,
+                               cv::Mat1b& explained);
 
 // The point-to-line residual of one template point and its 1x6 Jacobian with respect to the
 // update (rotation w about the part centre, then translation of the centre), both in camera

@@ -107,6 +107,17 @@ void orientTemplate(const LineSet& set, int templateIndex, const Warp& warp, Ori
   t.segments.assign(scratch.begin(), scratch.end());
 }
 
+void reserveOrientedTemplate(const LineSet& set, double max_stretch, OrientedTemplate& out,
+                             std::vector<DigitalSegment>& scratch) {
+  // A line's major extent is at most its warped length, so it gives at most span + 1 pieces of
+  // one pixel or more.
+  size_t segments = 0;
+  for (const auto& l : set.lines) segments += static_cast<size_t>(std::lround(l.length() * max_stretch)) + 1;
+  out.lines.reserve(set.lines.size());
+  out.segments.reserve(segments);
+  scratch.reserve(segments);
+}
+
 std::vector<double> WarpGrid::series(double centre, double ratio, int count) {
   if (count <= 0 || ratio <= 0) throw std::invalid_argument("warp grid: series needs count >= 1 and ratio > 0");
   std::vector<double> v;

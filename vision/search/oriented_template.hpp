@@ -43,6 +43,11 @@ OrientedTemplate orientTemplate(const LineSet& set, int templateIndex, const War
 // allocation once they have grown (the pick cycle's local fits digitise thousands of warps).
 void orientTemplate(const LineSet& set, int templateIndex, const Warp& warp, OrientedTemplate& out,
                     std::vector<DigitalSegment>& scratch);
+// Grows `out` and `scratch` to hold `set` digitised under any warp that lengthens no line by more
+// than `max_stretch` (the warp matrix's largest singular value): orientTemplate into them then
+// allocates nothing for such warps, not even the first time.
+void reserveOrientedTemplate(const LineSet& set, double max_stretch, OrientedTemplate& out,
+                             std::vector<DigitalSegment>& scratch);
 
 // The hypothesis grid of the search: rotations, scales, aspects.
 struct WarpGrid {

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <random>
 
+#include "tests/hal/alloc_counter.hpp"
 #include "tests/vision/support/synthetic.hpp"
 #include "vision/search/oriented_template.hpp"
 
@@ -93,5 +94,26 @@ TEST(OrientedTemplate, ReusedOutputEqualsAFreshOne) {
     EXPECT_EQ(out.pixels, fresh.pixels);
     EXPECT_EQ(out.templateIndex, trial);
     EXPECT_TRUE(out.x0 == fresh.x0 && out.x1 == fresh.x1 && out.y0 == fresh.y0 && out.y1 == fresh.y1);
+  }
+}
+
+// After reserveOrientedTemplate for a stretch, digitising under any warp up to it allocates
+// nothing, however long and however turned the lines (many one-pixel pieces at steep drifts).
+TEST(OrientedTemplate, ReservedForAStretchNeverGrows) {
+  std::mt19937 rng(31);
+  std::uniform_real_distribution<double> ua(-7, 7), us(0.2, 1.0), uaspect(0.5, 2.0);
+  for (int trial = 0; trial < 60; ++trial) {
+    const LineSet set = randomLineSet(rng, 60, 1 + trial % 12, 2, 150, 80);
+    const double max_stretch = 3.0;
+    OrientedTemplate out;
+    std::vector<DigitalSegment> scratch;
+    reserveOrientedTemplate(set, max_stretch, out, scratch);
+    const auto before = mfcd::hal::test::allocationCount();
+    for (int k = 0; k < 20; ++k) {
+      // scale * max(aspect, 1) <= max_stretch: the warp's largest singular value
+      const double aspect = uaspect(rng), scale = max_stretch * us(rng) / std::max(1.0, aspect);
+      orientTemplate(set, trial, Warp{ua(rng), scale, aspect}, out, scratch);
+    }
+    EXPECT_EQ(mfcd::hal::test::allocationCount() - before, 0u) << "trial " << trial;
   }
 }
