@@ -38,10 +38,11 @@ void DirectionalDistanceTransform::compute(const cv::Mat1b& channelMap, const Dt
   for (size_t d2 = 0; d2 < sqrtTable_.size(); ++d2)
     sqrtTable_[d2] = static_cast<uint8_t>(std::min<long>(cap, std::lround(kCostScale * std::sqrt(double(d2)))));
 
-  // Bucket the edge pixels by channel.
-  if (byChannel_.size() < static_cast<size_t>(q_)) byChannel_.resize(static_cast<size_t>(q_));
-  for (auto& pixels : byChannel_) pixels.clear();
-  std::vector<std::vector<int>>& byChannel = byChannel_;
+  // Bucket the edge pixels by channel: a counting sort into one buffer of image size (in scan
+  // order within a channel). Per-channel lists would grow whenever a frame brought a channel
+  // more pixels than any before it.
+  channelStart_.assign(static_cast<size_t>(q_) + 1, 0);
+  channelPixels_.resize(static_cast<size_t>(width_) * height_);
   if (scratch_.size() < static_cast<size_t>(omp_get_max_threads())) scratch_.resize(static_cast<size_t>(omp_get_max_threads()));
   // Every thread's scratch at its full size now: which thread meets which channel is decided at
   // run time, so growing them on first use would allocate in any later cycle.
@@ -56,15 +57,29 @@ void DirectionalDistanceTransform::compute(const cv::Mat1b& channelMap, const Dt
       if (r[x] == kNoChannel) continue;
       if (r[x] >= q_) throw std::invalid_argument("DT3: channel map holds channel " + std::to_string(r[x]) +
                                                   " but q = " + std::to_string(q_));
-      byChannel[r[x]].push_back(y * width_ + x);
+      ++channelStart_[r[x] + 1u];
     }
+  }
+  for (int c = 0; c < q_; ++c) channelStart_[c + 1u] += channelStart_[static_cast<size_t>(c)];
+  {
+    size_t* next = channelStart_.data();  // advanced per placed pixel, restored below
+    for (int y = 0; y < height_; ++y) {
+      const uint8_t* r = channelMap.ptr<uint8_t>(y);
+      for (int x = 0; x < width_; ++x)
+        if (r[x] != kNoChannel) channelPixels_[next[r[x]]++] = y * width_ + x;
+    }
+    for (int c = q_; c > 0; --c) channelStart_[static_cast<size_t>(c)] = channelStart_[static_cast<size_t>(c) - 1];
+    channelStart_[0] = 0;
   }
 
 #pragma omp parallel
   {
     Scratch& scratch = scratch_[static_cast<size_t>(omp_get_thread_num())];
 #pragma omp for schedule(dynamic, 1)
-    for (int c = 0; c < q_; ++c) channelDistance(c, byChannel[c], scratch);
+    for (int c = 0; c < q_; ++c)
+      channelDistance(c, std::span<const int>(channelPixels_.data() + channelStart_[static_cast<size_t>(c)],
+                                              channelStart_[c + 1u] - channelStart_[static_cast<size_t>(c)]),
+                      scratch);
 #pragma omp for schedule(static)
     for (int y = 0; y < height_; ++y) orientationRecursion(y);
   }
@@ -73,7 +88,7 @@ void DirectionalDistanceTransform::compute(const cv::Mat1b& channelMap, const Dt
 // Exact Euclidean distance to the channel's pixels, truncated: a column pass of vertical
 // distances followed by Felzenszwalb's lower envelope per row, restricted to the rows and columns
 // that can be within `far` of a pixel of this channel.
-void DirectionalDistanceTransform::channelDistance(int channel, const std::vector<int>& pixels, Scratch& scratch) {
+void DirectionalDistanceTransform::channelDistance(int channel, std::span<const int> pixels, Scratch& scratch) {
   std::vector<uint8_t>& g = scratch.g;
   uint8_t* out = data_.data() + static_cast<size_t>(channel) * width_ * height_;
   const int cap = params_.capUnits();

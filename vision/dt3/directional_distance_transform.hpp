@@ -7,6 +7,7 @@
 // Storage: one byte per entry in fixed point (1/kCostScale px), channel-major planes of
 // width x height. At 640x480 and q = 60 that is 18.4 MB; see docs/benchmarks.md.
 #include <cstdint>
+#include <span>
 #include <vector>
 
 #include <opencv2/core/mat.hpp>
@@ -46,7 +47,7 @@ private:
     std::vector<int> v;      // lower envelope: parabola sites ...
     std::vector<float> z;    // ... and their boundaries
   };
-  void channelDistance(int channel, const std::vector<int>& pixels, Scratch& scratch);
+  void channelDistance(int channel, std::span<const int> pixels, Scratch& scratch);
   void orientationRecursion(int row);
 
   Dt3Params params_;
@@ -54,7 +55,8 @@ private:
   std::vector<uint8_t> data_;
   std::vector<uint8_t> sqrtTable_;  // squared distance -> fixed-point distance, capped
   // Kept between computes so that a compute of the same size allocates nothing once grown.
-  std::vector<std::vector<int>> byChannel_;  // edge pixels per channel
+  std::vector<int> channelPixels_;           // edge pixels (y * width + x), grouped by channel
+  std::vector<size_t> channelStart_;         // channel c's are [start[c], start[c + 1])
   std::vector<Scratch> scratch_;             // per thread
 };
 
