@@ -3,7 +3,6 @@
 // degraded and overrun accounting; no allocation in steady state; CycleStats against a reference.
 #include <gtest/gtest.h>
 
-#include <poll.h>
 
 #include <algorithm>
 #include <cmath>
@@ -12,6 +11,7 @@
 #include "../hal/alloc_counter.hpp"
 #include "daemon/cell.hpp"
 #include "daemon/cycle_stats.hpp"
+#include "run_cycle.hpp"
 #include "test_vision_stage.hpp"
 
 using namespace mfcd::daemon;
@@ -36,18 +36,7 @@ CycleRequest request(std::uint64_t id, int budgetMs) {
   return r;
 }
 
-CycleResult runOne(Cell& cell, const CycleRequest& r) {
-  EXPECT_TRUE(cell.submit(r));
-  for (;;) {
-    pollfd p{cell.resultFd(), POLLIN, 0};
-    ::poll(&p, 1, 5000);
-    if (CycleResult* res = cell.beginResult()) {
-      const CycleResult copy = *res;
-      cell.endResult();
-      if (copy.kind == CycleResult::Kind::Cycle) return copy;
-    }
-  }
-}
+CycleResult runOne(Cell& cell, const CycleRequest& r) { return test::runCycle(cell, r); }
 
 }  // namespace
 

@@ -7,13 +7,12 @@
 // Cycle.NoAllocationOnTheFramePathInSteadyState (the HAL's pattern scene, no rendering).
 #include <gtest/gtest.h>
 
-#include <poll.h>
-
 #include <filesystem>
 
 #include "../hal/alloc_counter.hpp"
 #include "daemon/cell.hpp"
 #include "daemon/vision_stage.hpp"
+#include "run_cycle.hpp"
 
 using namespace mfcd::daemon;
 namespace fs = std::filesystem;
@@ -47,16 +46,7 @@ CycleResult runOne(Cell& cell, std::uint64_t id, int recipe, int budgetMs) {
   r.obj_id = recipe;
   r.trigger = Clock::now();
   r.deadline = r.trigger + std::chrono::milliseconds(budgetMs);
-  EXPECT_TRUE(cell.submit(r));
-  for (;;) {
-    pollfd p{cell.resultFd(), POLLIN, 0};
-    ::poll(&p, 1, 5000);
-    if (CycleResult* res = cell.beginResult()) {
-      const CycleResult copy = *res;
-      cell.endResult();
-      if (copy.kind == CycleResult::Kind::Cycle) return copy;
-    }
-  }
+  return test::runCycle(cell, r);
 }
 
 }  // namespace
