@@ -3,7 +3,6 @@
 // degraded and overrun accounting; no allocation in steady state; CycleStats against a reference.
 #include <gtest/gtest.h>
 
-
 #include <algorithm>
 #include <cmath>
 #include <random>
