@@ -57,21 +57,30 @@ bool square_meets(const std::vector<cv::Point>& poly, int x, int y) {
   return true;
 }
 
+// Builds `region` on `trials` random point sets and hands each set, with cv::convexHull's
+// polygon of it as the independent reference, to `check`.
+template <class Check>
+void on_random_sets(unsigned seed, int trials, ConvexRegion& region, Check check) {
+  std::mt19937 rng(seed);
+  for (int trial = 0; trial < trials; ++trial) {
+    const auto pts = random_points(rng, trial);
+    region.build(pts);
+    std::vector<cv::Point> reference;
+    cv::convexHull(pts, reference);
+    check(trial, pts, reference);
+  }
+}
+
 }  // namespace
 
 // The hull is the one polygon that is strictly convex, has input points as vertices, contains
 // every input point and has cv::convexHull's area.
 TEST(ConvexRegion, HullIsTheConvexHull) {
-  std::mt19937 rng(11);
   ConvexRegion region;
-  for (int trial = 0; trial < 500; ++trial) {
-    const auto pts = random_points(rng, trial);
-    region.build(pts);
+  on_random_sets(11, 500, region, [&](int trial, const auto& pts, const auto& reference) {
     const auto& h = region.hull();
     ASSERT_FALSE(h.empty());
     for (const auto& v : h) ASSERT_NE(std::find(pts.begin(), pts.end(), v), pts.end());
-    std::vector<cv::Point> reference;
-    cv::convexHull(pts, reference);
     if (h.size() >= 3) {
       for (size_t i = 0; i < h.size(); ++i) {
         ASSERT_GT(turn(h[i], h[(i + 1) % h.size()], h[(i + 2) % h.size()]), 0) << "trial " << trial;
@@ -83,18 +92,13 @@ TEST(ConvexRegion, HullIsTheConvexHull) {
       for (const auto& p : pts) ASSERT_EQ(turn(h.front(), h.back(), p), 0) << "trial " << trial;
       EXPECT_DOUBLE_EQ(cv::contourArea(reference), 0.0);
     }
-  }
+  });
 }
 
 // Twin: every pixel near the points tested against cv::convexHull's polygon by separating axes.
 TEST(ConvexRegion, CoversExactlyThePixelsWhoseSquareMeetsTheHull) {
-  std::mt19937 rng(5);
   ConvexRegion region;
-  for (int trial = 0; trial < 300; ++trial) {
-    const auto pts = random_points(rng, trial);
-    region.build(pts);
-    std::vector<cv::Point> reference;
-    cv::convexHull(pts, reference);
+  on_random_sets(5, 300, region, [&](int trial, const auto& pts, const auto& reference) {
     const cv::Rect box = cv::boundingRect(pts);
     ASSERT_EQ(region.top(), box.y);
     ASSERT_EQ(region.bottom(), box.y + box.height - 1);
@@ -103,7 +107,7 @@ TEST(ConvexRegion, CoversExactlyThePixelsWhoseSquareMeetsTheHull) {
         const bool covered = y >= region.top() && y <= region.bottom() && x >= region.first(y) && x <= region.last(y);
         ASSERT_EQ(covered, square_meets(reference, x, y)) << "trial " << trial << " pixel " << x << "," << y;
       }
-  }
+  });
 }
 
 TEST(ConvexRegion, EmptyInputGivesAnEmptyRegion) {
