@@ -7,10 +7,9 @@
 
 namespace {
 std::atomic<std::uint64_t> g_allocations{0};
-thread_local bool t_uncounted = false;
 
 void* countedAlloc(std::size_t size, std::size_t align) {
-  if (!t_uncounted) g_allocations.fetch_add(1, std::memory_order_relaxed);
+  g_allocations.fetch_add(1, std::memory_order_relaxed);
   if (size == 0) size = 1;
   void* p = align > alignof(std::max_align_t) ? std::aligned_alloc(align, (size + align - 1) / align * align) : std::malloc(size);
   if (!p) throw std::bad_alloc();
@@ -20,7 +19,6 @@ void* countedAlloc(std::size_t size, std::size_t align) {
 
 namespace mfcd::hal::test {
 std::uint64_t allocationCount() noexcept { return g_allocations.load(std::memory_order_relaxed); }
-void stopCountingThisThread() noexcept { t_uncounted = true; }
 }  // namespace mfcd::hal::test
 
 void* operator new(std::size_t size) { return countedAlloc(size, 0); }

@@ -6,7 +6,4 @@
 
 namespace mfcd::hal::test {
 std::uint64_t allocationCount() noexcept;
-// Allocations made by the calling thread from now on are not counted: for a test to leave out a
-// thread that is not under test (the simulated camera's renderer, which allocates its noise).
-void stopCountingThisThread() noexcept;
 }

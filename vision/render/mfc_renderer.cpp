@@ -555,7 +555,15 @@ void MfcRenderer::render(std::span<const ScenePart> parts, MfcRender& out, uint6
       return;
     }
     noise_.create(size);
-    rng.fill(noise_, cv::RNG::NORMAL, 0.0, 1.0);
+    // The same draws as one fill of the whole image (the generator runs through the pixels in
+    // order either way), in pieces of at most 256 values: cv::RNG::fill keeps a piece that small
+    // on the stack, and allocates a buffer for anything larger on every call.
+    constexpr int kPiece = 256;
+    for (int y = 0; y < size.height; ++y)
+      for (int x = 0; x < size.width; x += kPiece) {
+        cv::Mat1f piece = noise_(cv::Rect(x, y, std::min(kPiece, size.width - x), 1));
+        rng.fill(piece, cv::RNG::NORMAL, 0.0, 1.0);
+      }
     for (int y = 0; y < size.height; ++y) {
       const float* sg = signal.ptr<float>(y);
       const float* nz = noise_.ptr<float>(y);

@@ -5,9 +5,12 @@
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <functional>
 #include <optional>
+
+#include "tests/hal/alloc_counter.hpp"
 
 using namespace mfcd::vision;
 
@@ -289,6 +292,39 @@ TEST(MfcRenderer, NoiseIsSeededAndOfTheConfiguredSize) {
   const double expected = std::sqrt(4.0 + 0.1 * signal + 1.0 / 12);
   EXPECT_NEAR(mean[0], 0.0, 0.1);
   EXPECT_NEAR(sd[0], expected, 0.1 * expected) << "signal " << signal;
+}
+
+// The sensor noise is one seeded draw through each image in turn (the eight flash images, then the
+// ambient one), exactly as one cv::RNG::fill of the whole image gives it: generated datasets stay
+// the same whichever way the renderer draws it. And a repeated render allocates nothing (the
+// simulated camera renders on the daemon's acquisition thread).
+TEST(MfcRenderer, NoiseIsOneDrawPerImageAndARepeatedRenderDoesNotAllocate) {
+  RenderOptions opt;
+  opt.noise.read_sigma_dn = 2.0;
+  opt.noise.shot_dn_per_electron = 0.1;
+  MfcRenderer r(sim_config(), opt);
+  const ScenePart floor{r.add_mesh(make_plane(1000)), cv::Matx33d::eye(), {0, 0, 300}, Material::matte(0.6f)};
+  MfcRender out;
+  r.render(std::span(&floor, 1), out, 7);
+  cv::RNG rng(7);
+  cv::Mat1f noise(out.ambient_linear.size());
+  auto expect_capture = [&](const cv::Mat1f& signal, const cv::Mat1b& image, const char* what) {
+    rng.fill(noise, cv::RNG::NORMAL, 0.0, 1.0);
+    int differ = 0;
+    for (int y = 0; y < signal.rows; ++y)
+      for (int x = 0; x < signal.cols; ++x) {
+        const float s = signal(y, x);
+        const float v = s + std::sqrt(4.0f + 0.1f * std::max(s, 0.f)) * noise(y, x);
+        differ += image(y, x) != static_cast<uint8_t>(std::clamp(std::nearbyint(v), 0.f, 255.f));
+      }
+    EXPECT_EQ(differ, 0) << what;
+  };
+  for (size_t i = 0; i < 8; ++i) expect_capture(out.flash_linear[i], out.frames.flash[i], "flash");
+  expect_capture(out.ambient_linear, out.frames.ambient, "ambient");
+
+  const auto before = mfcd::hal::test::allocationCount();
+  r.render(std::span(&floor, 1), out, 8);
+  EXPECT_EQ(mfcd::hal::test::allocationCount() - before, 0u);
 }
 
 // Shading: Lambert with inverse-square falloff. A white matte floor facing the camera at
