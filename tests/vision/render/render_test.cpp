@@ -266,12 +266,23 @@ TEST(MfcRenderer, CroppedCameraRendersTheSameWindow) {
                        cv::NORM_INF), 0.5);
 }
 
-TEST(MfcRenderer, NoiseIsSeededAndOfTheConfiguredSize) {
-  RenderOptions opt;
-  opt.noise.read_sigma_dn = 2.0;
-  opt.noise.shot_dn_per_electron = 0.1;
-  MfcRenderer r(sim_config(), opt);
+// Sensor noise of read sigma 2 DN and shot noise 0.1 DN per electron, and a floor facing the
+// camera at 300 mm.
+struct NoisyFloor {
+  static RenderOptions options() {
+    RenderOptions opt;
+    opt.noise.read_sigma_dn = 2.0;
+    opt.noise.shot_dn_per_electron = 0.1;
+    return opt;
+  }
+  MfcRenderer r{sim_config(), options()};
   const ScenePart floor{r.add_mesh(make_plane(1000)), cv::Matx33d::eye(), {0, 0, 300}, Material::matte(0.6f)};
+};
+
+TEST(MfcRenderer, NoiseIsSeededAndOfTheConfiguredSize) {
+  NoisyFloor scene;
+  MfcRenderer& r = scene.r;
+  const ScenePart& floor = scene.floor;
   MfcRender a, b, c;
   r.render(std::span(&floor, 1), a, 42);
   r.render(std::span(&floor, 1), b, 42);
@@ -299,11 +310,9 @@ TEST(MfcRenderer, NoiseIsSeededAndOfTheConfiguredSize) {
 // the same whichever way the renderer draws it. And a repeated render allocates nothing (the
 // simulated camera renders on the daemon's acquisition thread).
 TEST(MfcRenderer, NoiseIsOneDrawPerImageAndARepeatedRenderDoesNotAllocate) {
-  RenderOptions opt;
-  opt.noise.read_sigma_dn = 2.0;
-  opt.noise.shot_dn_per_electron = 0.1;
-  MfcRenderer r(sim_config(), opt);
-  const ScenePart floor{r.add_mesh(make_plane(1000)), cv::Matx33d::eye(), {0, 0, 300}, Material::matte(0.6f)};
+  NoisyFloor scene;
+  MfcRenderer& r = scene.r;
+  const ScenePart& floor = scene.floor;
   MfcRender out;
   r.render(std::span(&floor, 1), out, 7);
   cv::RNG rng(7);
