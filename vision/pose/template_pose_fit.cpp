@@ -54,6 +54,33 @@ double in_plane_angle(const TemplateDatabase& db, int view, const RigidPose& pos
   return std::atan2(Rz(1, 0), Rz(0, 0));
 }
 
+// The loaded view's points at a pose, in the image (score, fit and compare all place them so):
+// each point's projection plus its detected-edge offset, and its tangent angle, both turned by the
+// in-plane angle between the view and the pose.
+class PointPlacer {
+ public:
+  PointPlacer(const TemplatePoseFit::Workspace& ws, const RigidPose& pose, const PinholeCamera& camera, double turn)
+      : ws_(ws), pose_(pose), camera_(camera), turn_(turn), ct_(std::cos(turn)), st_(std::sin(turn)) {}
+  // Point i's image position `at`, its offset there `shift` (at = projection + shift) and its
+  // tangent angle in [0, pi); false when it lies behind the camera.
+  bool place(size_t i, cv::Point2d& at, cv::Point2d& shift, double& angle) const {
+    const cv::Vec3d p = pose_.R * ws_.model[i] + pose_.t_mm;
+    if (p[2] <= 1e-6) return false;
+    angle = std::fmod(ws_.angle[i] + turn_, std::numbers::pi);
+    if (angle < 0) angle += std::numbers::pi;
+    const cv::Vec2d& o = ws_.offset[i];
+    shift = cv::Point2d(ct_ * o[0] - st_ * o[1], st_ * o[0] + ct_ * o[1]);
+    at = camera_.project(p) + shift;
+    return true;
+  }
+
+ private:
+  const TemplatePoseFit::Workspace& ws_;
+  const RigidPose& pose_;
+  const PinholeCamera& camera_;
+  double turn_, ct_, st_;
+};
+
 }  // namespace
 
 int TemplatePoseFit::nearest_view(const TemplateDatabase& db, const PinholeCamera& /*camera*/, RigidPose& pose) {
@@ -173,19 +200,15 @@ RigidPose apply_pose_update(const RigidPose& pose, const cv::Vec3d& centre_model
 
 void TemplatePoseFit::score(const TemplateDatabase& db, int view, const PinholeCamera& camera, Workspace& ws,
                             TemplateFitResult& r) const {
-  const double turn = in_plane_angle(db, view, r.pose, camera);
-  const double ct = std::cos(turn), st = std::sin(turn);
+  const PointPlacer placer(ws, r.pose, camera, in_plane_angle(db, view, r.pose, camera));
   const double gate = params_.score_gate_px;
   double sum = 0;
   int inliers = 0, count = 0;
   for (size_t i = 0; i < ws.model.size(); ++i) {
-    const cv::Vec3d p = r.pose.R * ws.model[i] + r.pose.t_mm;
-    double cost = gate;
-    if (p[2] > 1e-6) {
-      double a = std::fmod(ws.angle[i] + turn, std::numbers::pi);
-      if (a < 0) a += std::numbers::pi;
-      const cv::Vec2d& o = ws.offset[i];
-      const cv::Point2d q = camera.project(p) + cv::Point2d(ct * o[0] - st * o[1], st * o[0] + ct * o[1]);
+    double cost = gate;  // a point behind the camera counts as unmatched
+    cv::Point2d q, shift;
+    double a;
+    if (placer.place(i, q, shift, a)) {
       const EdgeMatch m = index_.nearest(q, a, params_.lambda_px_per_rad, gate);
       if (m.found) cost = m.cost;
     }
@@ -266,20 +289,16 @@ TemplateFitResult TemplatePoseFit::fit(const TemplateDatabase& db, int view, con
   for (int it = 0; it < steps; ++it) {
     const double f = steps > 1 ? double(it) / (steps - 1) : 1.0;
     const double gate = params_.initial_gate_px * std::pow(params_.final_gate_px / params_.initial_gate_px, f);
-    const double turn = in_plane_angle(db, r.view, r.pose, camera);
-    const double ct = std::cos(turn), st = std::sin(turn);
+    const PointPlacer placer(ws, r.pose, camera, in_plane_angle(db, r.view, r.pose, camera));
     const cv::Vec3d centre = r.pose.R * db.center_mm + r.pose.t_mm;
     cv::Matx66d H = cv::Matx66d::zeros();
     cv::Vec6d g(0, 0, 0, 0, 0, 0);
     int n = 0;
     for (size_t i = 0; i < ws.model.size(); ++i) {
-      const cv::Vec3d p = r.pose.R * ws.model[i] + r.pose.t_mm;
-      if (p[2] <= 1e-6) continue;
-      double a = std::fmod(ws.angle[i] + turn, std::numbers::pi);
-      if (a < 0) a += std::numbers::pi;
-      const cv::Vec2d& o = ws.offset[i];
-      const cv::Point2d shift(ct * o[0] - st * o[1], st * o[0] + ct * o[1]);
-      const EdgeMatch m = index_.nearest(camera.project(p) + shift, a, params_.lambda_px_per_rad, gate);
+      cv::Point2d at, shift;
+      double a;
+      if (!placer.place(i, at, shift, a)) continue;
+      const EdgeMatch m = index_.nearest(at, a, params_.lambda_px_per_rad, gate);
       if (!m.found) continue;
       const cv::Vec2d normal(-std::sin(m.angle), std::cos(m.angle));
       cv::Matx16d J;
@@ -312,17 +331,14 @@ TemplateFitResult TemplatePoseFit::fit(const TemplateDatabase& db, int view, con
 void TemplatePoseFit::place_points(const TemplateDatabase& db, int view, const RigidPose& pose,
                                    const PinholeCamera& camera, const Workspace& ws, std::vector<cv::Point2d>& seen,
                                    std::vector<double>& angle) const {
-  const double turn = in_plane_angle(db, view, pose, camera);
-  const double ct = std::cos(turn), st = std::sin(turn);
+  const PointPlacer placer(ws, pose, camera, in_plane_angle(db, view, pose, camera));
   seen.clear();
   angle.clear();
   for (size_t i = 0; i < ws.model.size(); ++i) {
-    const cv::Vec3d p = pose.R * ws.model[i] + pose.t_mm;
-    if (p[2] <= 1e-6) continue;
-    double a = std::fmod(ws.angle[i] + turn, std::numbers::pi);
-    if (a < 0) a += std::numbers::pi;
-    const cv::Vec2d& o = ws.offset[i];
-    seen.push_back(camera.project(p) + cv::Point2d(ct * o[0] - st * o[1], st * o[0] + ct * o[1]));
+    cv::Point2d at, shift;
+    double a;
+    if (!placer.place(i, at, shift, a)) continue;
+    seen.push_back(at);
     angle.push_back(a);
   }
 }
