@@ -272,33 +272,32 @@ void Cell::visionMain(std::promise<void>& ready) {
   stage_.reset();
 }
 
-void Cell::handOverCalibrationImage(const FrameSlot& slot, CycleResult& out) {
+// What every result of a captured slot starts with. False when the capture failed: the result
+// then carries the capture error and nothing else is to be done with the slot.
+bool Cell::startResult(const FrameSlot& slot, CycleResult::Kind kind, CycleResult& out) {
   out = CycleResult{};
-  out.kind = CycleResult::Kind::CalibrationImage;
+  out.kind = kind;
   out.request = slot.request;
   out.capture_ms = slot.capture_ms;
   out.leds_off = slot.leds_after == 0;
-  if (!slot.ok) {
-    out.error = CycleError::Capture;
-    copyMessage(out.message, sizeof out.message, slot.error);
-  } else {
+  if (slot.ok) return true;
+  out.error = CycleError::Capture;
+  copyMessage(out.message, sizeof out.message, slot.error);
+  return false;
+}
+
+void Cell::handOverCalibrationImage(const FrameSlot& slot, CycleResult& out) {
+  if (startResult(slot, CycleResult::Kind::CalibrationImage, out))
     slot.mfc.ambient.copyTo(calibrationImage_);  // same size: no allocation
-  }
   out.total_ms = msBetween(slot.request.trigger, Clock::now());
 }
 
 void Cell::runCycle(FrameSlot& slot, CycleResult& out) {
   const Clock::time_point start = Clock::now();
-  out = CycleResult{};
-  out.request = slot.request;
-  out.capture_ms = slot.capture_ms;
+  const bool captured = startResult(slot, CycleResult::Kind::Cycle, out);
   out.queue_ms = msBetween(slot.captured, start);
   out.truth = slot.truth;
-  out.leds_off = slot.leds_after == 0;
-  if (!slot.ok) {
-    out.error = CycleError::Capture;
-    copyMessage(out.message, sizeof out.message, slot.error);
-  } else {
+  if (captured) {
     try {
       stage_->process({slot.mfc, slot.request.obj_id, slot.request.deadline, &slot.truth}, pipelineResult_);
       const Clock::time_point visionDone = Clock::now();

@@ -69,6 +69,7 @@ private:
   void visionMain(std::promise<void>& ready);
   void runCycle(FrameSlot& slot, CycleResult& out);
   void handOverCalibrationImage(const FrameSlot& slot, CycleResult& out);
+  static bool startResult(const FrameSlot& slot, CycleResult::Kind kind, CycleResult& out);
   void writeSnapshot(const FrameSlot& slot, const CycleResult& result);
 
   DaemonConfig config_;
