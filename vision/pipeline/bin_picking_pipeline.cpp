@@ -381,24 +381,23 @@ BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfi
   if (m.config.fit_candidates < 1) throw std::runtime_error("pipeline: fit_candidates must be >= 1");
   m.verified.reserve(static_cast<size_t>(m.config.fit_candidates));
   m.fit_workspaces.resize(static_cast<size_t>(threads));
+  m.distance_workspaces.resize(static_cast<size_t>(threads));
+  // Every per-thread buffer of the fits grown here for every view (a thread meets views in any
+  // order), so that the frame path never grows them. fit_distance digitises a hit's view at up to
+  // 1.01^14 its scale, at the search's reduction.
+  constexpr double kFitStretch = 1.2;
   size_t most_points = 0;
   for (const auto& part : m.parts) {
-    for (auto& ws : m.fit_workspaces) m.fitter.reserve(part.db, camera.camera.image_size, ws);
     for (const auto& v : part.db.views) most_points = std::max(most_points, v.points.size());
+    for (auto& ws : m.fit_workspaces) m.fitter.reserve(part.db, camera.camera.image_size, ws);
+    double stretch = 0;
+    for (const Warp& w : part.warps) stretch = std::max(stretch, w.scale * std::max(1.0, w.aspect));
+    for (auto& ws : m.distance_workspaces)
+      for (const auto& view : part.db.views)
+        reserveOrientedTemplate(view.lines, stretch * kFitStretch / m.config.search_downsample, ws.warped, ws.scratch);
   }
   m.placed.reserve(most_points);
   m.region.reserve(most_points, camera.camera.image_size.height);
-  m.distance_workspaces.resize(static_cast<size_t>(threads));
-  // fit_distance digitises a hit's view at up to 1.01^14 its scale, at the search's reduction;
-  // with its buffers grown here the frame path never grows them.
-  constexpr double kFitStretch = 1.2;
-  for (auto& ws : m.distance_workspaces)
-    for (const auto& part : m.parts) {
-      double stretch = 0;
-      for (const Warp& w : part.warps) stretch = std::max(stretch, w.scale * std::max(1.0, w.aspect));
-      for (const auto& view : part.db.views)
-        reserveOrientedTemplate(view.lines, stretch * kFitStretch / m.config.search_downsample, ws.warped, ws.scratch);
-    }
   m.search_workspaces.resize(static_cast<size_t>(threads));
   m.thread_results.resize(static_cast<size_t>(threads));
   size_t views = 0;

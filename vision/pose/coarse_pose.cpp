@@ -1,9 +1,9 @@
 #include "vision/pose/coarse_pose.hpp"
-#include "vision/pose/rigid_transform.hpp"
-
 
 #include <cmath>
 #include <stdexcept>
+
+#include "vision/pose/rigid_transform.hpp"
 
 namespace mfcd::vision {
 

@@ -1,8 +1,7 @@
 #include "vision/search/oriented_template.hpp"
 
-#include <array>
-
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <numbers>
 #include <stdexcept>
