@@ -336,8 +336,9 @@ void TemplatePoseFit::place_points(const TemplateDatabase& db, int view, const R
   angle.clear();
   for (size_t i = 0; i < ws.model.size(); ++i) {
     cv::Point2d at, shift;
-    double a;
-    if (!placer.place(i, at, shift, a)) continue;
+    double a = 0;
+    // A point behind the camera stays in the list, outside the image, so that seen[i] is point i.
+    if (!placer.place(i, at, shift, a)) at = cv::Point2d(-1e6, -1e6);
     seen.push_back(at);
     angle.push_back(a);
   }
@@ -345,20 +346,23 @@ void TemplatePoseFit::place_points(const TemplateDatabase& db, int view, const R
 
 TemplatePoseFit::Difference TemplatePoseFit::compare(const TemplateDatabase& db, const TemplateFitResult& a,
                                                      const TemplateFitResult& b, const PinholeCamera& camera,
-                                                     Workspace& ws, double apart_px) const {
+                                                     Workspace& ws, const std::vector<uint8_t>* differs_a,
+                                                     const std::vector<uint8_t>* differs_b, double apart_px) const {
   // Every point of both views (the fit's subsample is too sparse to say which points coincide).
   constexpr int kAll = std::numeric_limits<int>::max();
   load_view(db, a.view, camera, ws, kAll);
   place_points(db, a.view, a.pose, camera, ws, ws.seen_a, ws.angle_a);
   load_view(db, b.view, camera, ws, kAll);
   place_points(db, b.view, b.pose, camera, ws, ws.seen_b, ws.angle_b);
+  if ((differs_a && differs_a->size() != ws.seen_a.size()) || (differs_b && differs_b->size() != ws.seen_b.size()))
+    throw std::invalid_argument("template fit: compare's point flags do not match the views");
   const cv::Size size = edges_.size();
   if (ws.explained.size() != size) ws.explained = cv::Mat1b::zeros(size);
   const cv::Rect image(cv::Point(0, 0), size);
   const int r = std::max(0, static_cast<int>(std::lround(apart_px)));
   // The other pose's points, widened by apart_px, as a mask (ws.explained, cleared again after).
   auto only = [&](const std::vector<cv::Point2d>& mine, const std::vector<double>& angle,
-                  const std::vector<cv::Point2d>& other, int& count, double& found) {
+                  const std::vector<cv::Point2d>& other, const std::vector<uint8_t>* differs, int& count, double& found) {
     cv::Rect touched;
     for (const auto& q : other) {
       const cv::Point c(cvRound(q.x), cvRound(q.y));
@@ -369,7 +373,8 @@ TemplatePoseFit::Difference TemplatePoseFit::compare(const TemplateDatabase& db,
     int n = 0, on = 0;
     for (size_t i = 0; i < mine.size(); ++i) {
       const cv::Point c(cvRound(mine[i].x), cvRound(mine[i].y));
-      if (!image.contains(c) || ws.explained(c) != 0) continue;
+      if (!image.contains(c)) continue;
+      if (ws.explained(c) != 0 || (differs && !(*differs)[i])) continue;
       ++n;
       const EdgeMatch m = index_.nearest(mine[i], angle[i], params_.lambda_px_per_rad, params_.score_gate_px);
       on += m.found && m.cost <= params_.inlier_cost_px;
@@ -379,9 +384,30 @@ TemplatePoseFit::Difference TemplatePoseFit::compare(const TemplateDatabase& db,
     found = n ? double(on) / n : 0;
   };
   Difference d;
-  only(ws.seen_a, ws.angle_a, ws.seen_b, d.only_a, d.found_a);
-  only(ws.seen_b, ws.angle_b, ws.seen_a, d.only_b, d.found_b);
+  only(ws.seen_a, ws.angle_a, ws.seen_b, differs_a, d.only_a, d.found_a);
+  only(ws.seen_b, ws.angle_b, ws.seen_a, differs_b, d.only_b, d.found_b);
   return d;
+}
+
+SurfaceGrid part_surface(const TemplateDatabase& db) { return SurfaceGrid(db.mesh, 0.25, 0.5); }
+
+std::vector<std::vector<uint8_t>> asymmetric_points(const TemplateDatabase& db, const SurfaceGrid& surface,
+                                                    const cv::Matx33d& turn, double* share) {
+  const cv::Vec3d c = db.center_mm;
+  std::vector<std::vector<uint8_t>> out;
+  out.reserve(db.views.size());
+  size_t flagged = 0, total = 0;
+  for (const TemplateView& view : db.views) {
+    auto& flags = out.emplace_back(view.points.size(), 0);
+    for (size_t i = 0; i < view.points.size(); ++i) {
+      const cv::Vec3f& X = view.points[i].model_mm;
+      flags[i] = !surface.near(turn * (cv::Vec3d(X[0], X[1], X[2]) - c) + c);
+      flagged += flags[i];
+    }
+    total += view.points.size();
+  }
+  if (share) *share = total ? double(flagged) / double(total) : 0.0;
+  return out;
 }
 
 }  // namespace mfcd::vision

@@ -18,10 +18,12 @@
 #include "vision/camera/camera.hpp"
 #include "vision/common/convex_region.hpp"
 #include "vision/edges/depth_edges.hpp"
+#include "vision/model/surface_grid.hpp"
 #include "vision/pose/coarse_pose.hpp"
 #include "vision/pose/edge_correspondence.hpp"
 #include "vision/templates/template_database.hpp"
 
+#include <cstdint>
 #include <vector>
 
 namespace mfcd::vision {
@@ -94,12 +96,15 @@ class TemplatePoseFit {
   // near-symmetry axis) judged where they differ: only the points of each that have no point of
   // the other within `apart_px` in the image, and the share of those that find an image edge
   // (Eq. 21 cost <= inlier_cost_px). Where the poses agree, the edges cannot tell them apart.
+  // `differs_a` / `differs_b` (per point of a's / b's view, e.g. from asymmetric_points) narrow
+  // each side further to its flagged points.
   struct Difference {
     int only_a = 0, only_b = 0;         // points of each with no counterpart in the other
     double found_a = 0, found_b = 0;    // share of those on image edges
   };
   Difference compare(const TemplateDatabase& db, const TemplateFitResult& a, const TemplateFitResult& b,
-                     const PinholeCamera& camera, Workspace& ws, double apart_px = 3.0) const;
+                     const PinholeCamera& camera, Workspace& ws, const std::vector<uint8_t>* differs_a = nullptr,
+                     const std::vector<uint8_t>* differs_b = nullptr, double apart_px = 3.0) const;
 
   const TemplateFitParams& params() const { return params_; }
 
@@ -138,5 +143,19 @@ double point_to_line_residual(const RigidPose& pose, const cv::Vec3d& centre_cam
 // Applies an update (w, tau) as fit() does: R <- exp(w) R about the part centre `centre_model`,
 // the centre moved by tau (camera frame).
 RigidPose apply_pose_update(const RigidPose& pose, const cv::Vec3d& centre_model, const cv::Vec6d& update);
+
+// For a turn `turn` of the part about its centre (db.center_mm) that is a symmetry of the part but
+// for some feature (the breaker's toggle under the half turn about z): per view, per point,
+// whether the point's turned copy lies off the part's surface (`surface`, made from db.mesh),
+// i.e. whether the point belongs to the feature that breaks the symmetry. Only those points can
+// tell the pose from its turned twin; elsewhere the twin has edges of its own at the same place.
+// `share`, when given, receives the flagged fraction of all points (near 1 for a turn that is no
+// near-symmetry at all, e.g. a plate turned face down).
+std::vector<std::vector<uint8_t>> asymmetric_points(const TemplateDatabase& db, const SurfaceGrid& surface,
+                                                    const cv::Matx33d& turn, double* share = nullptr);
+// The template points come from the depth buffer and lie within a few hundredths of a millimetre
+// of the surface; a feature that breaks a symmetry by less than half a millimetre (2 px at the
+// working distance) would not show in the image anyway.
+SurfaceGrid part_surface(const TemplateDatabase& db);
 
 }  // namespace mfcd::vision

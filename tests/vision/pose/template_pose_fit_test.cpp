@@ -179,7 +179,8 @@ INSTANTIATE_TEST_SUITE_P(Parts, TemplatePoseFitOnRenders,
 
 // compare(): the breaker is 2-fold symmetric but for its tilted toggle. Fitted at the truth and
 // turned by 180 degrees about z (both fit the outline equally), the edges where the two poses
-// differ favour the truth; a pose compared with itself differs nowhere.
+// differ favour the truth, also when only the toggle's points (asymmetric_points) are compared;
+// a pose compared with itself differs nowhere.
 TEST(TemplatePoseFit, CompareFavoursTheTruthOverItsTurnedOverTwin) {
   const fs::path tdb = fs::path(MFC_BINARY_DIR) / "templates" / "breaker.tdb";
   if (!fs::exists(tdb)) GTEST_SKIP() << tdb << " not built (needs OpenSCAD)";
@@ -191,7 +192,8 @@ TEST(TemplatePoseFit, CompareFavoursTheTruthOverItsTurnedOverTwin) {
   std::mt19937 rng(5);
   std::uniform_real_distribution<double> u(-1, 1);
   const cv::Matx33d half_turn_z(-1, 0, 0, 0, -1, 0, 0, 0, 1);
-  int favoured = 0;
+  const auto toggle = asymmetric_points(db, part_surface(db), half_turn_z);
+  int favoured = 0, favoured_on_toggle = 0;
   const int trials = 5;
   for (int trial = 0; trial < trials; ++trial) {
     // Seen from above within 35 degrees (the toggle in view), turned at random in the image.
@@ -219,6 +221,45 @@ TEST(TemplatePoseFit, CompareFavoursTheTruthOverItsTurnedOverTwin) {
                 wrong.score, d.only_a, d.only_b, d.found_a, d.found_b);
     EXPECT_GT(d.only_a, 5);
     favoured += d.found_a > d.found_b + 0.2;
+    const auto t = fitter.compare(db, right, wrong, cam.camera, ws, &toggle[static_cast<size_t>(right.view)],
+                                  &toggle[static_cast<size_t>(wrong.view)]);
+    std::printf("  toggle only: differing points %d / %d, on edges %.2f / %.2f\n", t.only_a, t.only_b, t.found_a, t.found_b);
+    EXPECT_GT(t.only_a + t.only_b, 5);
+    EXPECT_LE(t.only_a, d.only_a);
+    EXPECT_LE(t.only_b, d.only_b);
+    favoured_on_toggle += t.found_a > t.found_b + 0.2;
   }
   EXPECT_GE(favoured, trials - 1);
+  EXPECT_GE(favoured_on_toggle, trials - 1);
+  // Flags that do not fit the views are refused.
+  const TemplateFitResult any = fitter.evaluate(db, 0, RigidPose{db.views[0].R_m2c, db.views[0].t_m2c_mm}, cam.camera, ws);
+  const std::vector<uint8_t> short_flags(3, 1);
+  EXPECT_THROW(fitter.compare(db, any, any, cam.camera, ws, &short_flags, nullptr), std::invalid_argument);
+}
+
+// asymmetric_points: the breaker's half turn about z moves only its toggle off the surface (a
+// few per cent of the points, all at the toggle's height), the turn face down most points; no
+// turn at all, none.
+TEST(TemplatePoseFit, AsymmetricPointsAreTheFeatureThatBreaksTheSymmetry) {
+  const fs::path tdb = fs::path(MFC_BINARY_DIR) / "templates" / "breaker.tdb";
+  if (!fs::exists(tdb)) GTEST_SKIP() << tdb << " not built (needs OpenSCAD)";
+  const TemplateDatabase db = load_template_database(tdb);
+  const SurfaceGrid surface = part_surface(db);
+  double share_z = 0, share_x = 0, share_none = 1;
+  const auto toggle = asymmetric_points(db, surface, cv::Matx33d(-1, 0, 0, 0, -1, 0, 0, 0, 1), &share_z);
+  asymmetric_points(db, surface, cv::Matx33d(1, 0, 0, 0, -1, 0, 0, 0, -1), &share_x);
+  asymmetric_points(db, surface, cv::Matx33d::eye(), &share_none);
+  std::printf("flagged: half turn about z %.3f, about x %.3f, none %.3f\n", share_z, share_x, share_none);
+  EXPECT_GT(share_z, 0.01);
+  EXPECT_LT(share_z, 0.10);
+  EXPECT_GT(share_x, 0.5);
+  EXPECT_EQ(share_none, 0.0);
+  // The toggle stands on the raised front, whose top is 23 mm above the base (breaker.scad).
+  ASSERT_EQ(toggle.size(), db.views.size());
+  for (size_t v = 0; v < db.views.size(); ++v)
+    for (size_t i = 0; i < toggle[v].size(); ++i) {
+      if (toggle[v][i]) {
+        ASSERT_GT(db.views[v].points[i].model_mm[2], 20.0f) << "view " << v << " point " << i;
+      }
+    }
 }
