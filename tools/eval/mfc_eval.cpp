@@ -54,7 +54,7 @@ detect: for every image and every part type present in it, runs each method for 
   --refine-candidates N  candidates the pipeline refines (1 view); 0 = coarse poses only
                          (default: the pipeline's default, PipelineConfig::refine_candidates)
   --set KEY=VALUE        a PipelineConfig setting for the pipeline methods (repeatable), e.g.
-                         --set view_stride=2; keys: see tools/eval/pipeline_detector.cpp
+                         --set view_stride=2; an unknown key lists the keys
   --all-types            also run FDCM once per image over all part types (best pick; timing)
   --line2d-step DEG      LINE-2D in-plane rotation step (default 15)
   --line2d-view-stride S LINE-2D: train every S-th template view (default 1)
@@ -340,26 +340,39 @@ int run_detect(const Options& o) {
               best_tilt_deg = std::acos(std::min(1.0, std::abs(g.gt[j].R(2, 2)))) * 180.0 / CV_PI;
             }
           }
-        if (!d.estimates.empty()) {
+        // The instance of the type an estimate matches best: a correct match first, then the
+        // smallest position error (plus the rotation error, `with_rotation`).
+        struct InstanceMatch {
+          size_t instance = 0;
+          PoseError error{1e9, 1e9};
+          bool correct = false;
+        };
+        auto match = [&](const Estimate& e, bool with_rotation) {
+          InstanceMatch best;
           double best_key = 1e18;
           for (size_t j : inst) {
+            const PoseError err = score(e, g.gt[j]);
+            const bool ok = o.criterion.accepts(err);
+            const double order = (ok ? 0 : 1e9) + err.position_mm + (with_rotation ? err.rotation_deg : 0.0);
+            if (order < best_key) best_key = order, best = {j, err, ok};
+          }
+          return best;
+        };
+        if (!d.estimates.empty()) {
+          // The same criterion on the position across the optical axis only: how much of the
+          // failure is the distance (scale) of a coarse pose.
+          for (size_t j : inst) {
             const PoseError e = score(d.estimates[0], g.gt[j]);
-            const bool ok = o.criterion.accepts(e);
-            // The same criterion on the position across the optical axis only: how much of the
-            // failure is the distance (scale) of a coarse pose.
             correct_xy = correct_xy || (std::hypot(e.abs_t_mm[0], e.abs_t_mm[1]) <= o.criterion.max_position_mm &&
                                         e.rotation_deg <= o.criterion.max_rotation_deg);
-            const double key2 = (ok ? 0 : 1e9) + e.position_mm;
-            if (key2 < best_key) {
-              best_key = key2;
-              correct = ok;
-              trial["position_mm"] = e.position_mm;
-              trial["rotation_deg"] = e.rotation_deg;
-              trial["d_t_mm"] = {e.d_t_mm[0], e.d_t_mm[1], e.d_t_mm[2]};
-              trial["matched_instance"] = j;
-              trial["matched_visib_fract"] = g.info[j].visib_fract;
-            }
           }
+          const InstanceMatch matched = match(d.estimates[0], false);
+          correct = matched.correct;
+          trial["position_mm"] = matched.error.position_mm;
+          trial["rotation_deg"] = matched.error.rotation_deg;
+          trial["d_t_mm"] = {matched.error.d_t_mm[0], matched.error.d_t_mm[1], matched.error.d_t_mm[2]};
+          trial["matched_instance"] = matched.instance;
+          trial["matched_visib_fract"] = g.info[matched.instance].visib_fract;
         }
         // Search miss or cost miss: how the truth scores on this image, by the detector's own
         // ranking measure, against the estimate it chose.
@@ -379,11 +392,7 @@ int run_detect(const Options& o) {
         {
           int first = -1;
           for (size_t c = 0; c < d.estimates.size() && first < 0; ++c)
-            for (size_t j : inst)
-              if (o.criterion.accepts(score(d.estimates[c], g.gt[j]))) {
-                first = static_cast<int>(c);
-                break;
-              }
+            if (match(d.estimates[c], false).correct) first = static_cast<int>(c);
           trial["first_correct_rank"] = first;
         }
         // With --set trace=1: the hypothesis nearest the truth (any instance), before and after
@@ -391,16 +400,15 @@ int run_detect(const Options& o) {
         auto nearest = [&](const std::vector<Estimate>& hyps) {
           json best;
           double best_key = 1e18;
-          for (size_t c = 0; c < hyps.size(); ++c)
-            for (size_t j : inst) {
-              if (hyps[c].obj_id != obj_id) continue;
-              const PoseError e = score(hyps[c], g.gt[j]);
-              const double rank_key = (o.criterion.accepts(e) ? 0 : 1e9) + e.position_mm + e.rotation_deg;
-              if (rank_key < best_key)
-                best_key = rank_key, best = {{"index", c}, {"instance", j}, {"correct", o.criterion.accepts(e)},
-                                        {"position_mm", e.position_mm}, {"rotation_deg", e.rotation_deg},
-                                        {"rank", hyps[c].rank}};
-            }
+          for (size_t c = 0; c < hyps.size(); ++c) {
+            if (hyps[c].obj_id != obj_id || inst.empty()) continue;
+            const InstanceMatch matched = match(hyps[c], true);
+            const double order = (matched.correct ? 0 : 1e9) + matched.error.position_mm + matched.error.rotation_deg;
+            if (order < best_key)
+              best_key = order, best = {{"index", c}, {"instance", matched.instance}, {"correct", matched.correct},
+                                      {"position_mm", matched.error.position_mm}, {"rotation_deg", matched.error.rotation_deg},
+                                      {"rank", hyps[c].rank}};
+          }
           return best;
         };
         if (!d.coarse_hypotheses.empty()) {
@@ -414,18 +422,10 @@ int run_detect(const Options& o) {
             json h;
             for (const auto& [name, value] : e.measures) h[name] = value;
             h["rank"] = e.rank;
-            PoseError nearest_error{1e9, 1e9};
-            bool ok = false;
-            for (size_t j : inst) {
-              if (e.obj_id != obj_id) break;
-              const PoseError err = score(e, g.gt[j]);
-              ok = ok || o.criterion.accepts(err);
-              if (err.position_mm + err.rotation_deg < nearest_error.position_mm + nearest_error.rotation_deg)
-                nearest_error = err;
-            }
-            h["correct"] = ok;
-            h["position_mm"] = nearest_error.position_mm;
-            h["rotation_deg"] = nearest_error.rotation_deg;
+            const InstanceMatch matched = e.obj_id == obj_id ? match(e, true) : InstanceMatch{};
+            h["correct"] = matched.correct;
+            h["position_mm"] = matched.error.position_mm;
+            h["rotation_deg"] = matched.error.rotation_deg;
             fitted.push_back(h);
           }
           trial["fitted"] = fitted;

@@ -8,6 +8,8 @@
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
+#include <string>
+#include <utility>
 
 namespace mfcd::eval {
 
@@ -92,27 +94,43 @@ std::unique_ptr<Detector> make_pipeline_detector(const std::string& name, vision
 }
 
 void apply_pipeline_setting(vision::PipelineConfig& c, const std::string& setting) {
+  using Config = vision::PipelineConfig;
+  // The settings an experiment may change, by their PipelineConfig names.
+  static constexpr std::pair<const char*, double Config::*> kNumbers[] = {
+      {"max_cost_px", &Config::max_cost_px},
+      {"min_guide_overlap", &Config::min_guide_overlap},
+      {"evidence_weight", &Config::evidence_weight}};
+  static constexpr std::pair<const char*, int Config::*> kIntegers[] = {
+      {"template_guides", &Config::template_guides}, {"query_guides", &Config::query_guides},
+      {"view_stride", &Config::view_stride},         {"coarse_seeds", &Config::coarse_seeds},
+      {"keep_per_view", &Config::keep_per_view},     {"slide_step", &Config::slide_step},
+      {"search_downsample", &Config::search_downsample}, {"fit_candidates", &Config::fit_candidates},
+      {"max_candidates", &Config::max_candidates},   {"flip_checks", &Config::flip_checks}};
+  static constexpr std::pair<const char*, bool Config::*> kSwitches[] = {
+      {"share_search_bound", &Config::share_search_bound}, {"trace", &Config::trace}};
   const auto eq = setting.find('=');
   if (eq == std::string::npos) throw std::invalid_argument("'" + setting + "' is not key=value");
   const std::string key = setting.substr(0, eq), value = setting.substr(eq + 1);
-  auto number = [&] { return mfcd::tools::parse_double(key, value); };
-  auto integer = [&] { return mfcd::tools::parse_int(key, value); };
-  if (key == "max_cost_px") c.max_cost_px = number();
-  else if (key == "template_guides") c.template_guides = integer();
-  else if (key == "query_guides") c.query_guides = integer();
-  else if (key == "min_guide_overlap") c.min_guide_overlap = number();
-  else if (key == "view_stride") c.view_stride = integer();
-  else if (key == "coarse_seeds") c.coarse_seeds = integer();
-  else if (key == "keep_per_view") c.keep_per_view = integer();
-  else if (key == "slide_step") c.slide_step = integer();
-  else if (key == "search_downsample") c.search_downsample = integer();
-  else if (key == "evidence_weight") c.evidence_weight = number();
-  else if (key == "fit_candidates") c.fit_candidates = integer();
-  else if (key == "max_candidates") c.max_candidates = integer();
-  else if (key == "flip_checks") c.flip_checks = integer();
-  else if (key == "share_search_bound") c.share_search_bound = integer() != 0;
-  else if (key == "trace") c.trace = integer() != 0;
-  else throw std::invalid_argument("unknown key '" + key + "'");
+  for (const auto& [name, field] : kNumbers)
+    if (key == name) {
+      c.*field = mfcd::tools::parse_double(key, value);
+      return;
+    }
+  for (const auto& [name, field] : kIntegers)
+    if (key == name) {
+      c.*field = mfcd::tools::parse_int(key, value);
+      return;
+    }
+  for (const auto& [name, field] : kSwitches)
+    if (key == name) {
+      c.*field = mfcd::tools::parse_int(key, value) != 0;
+      return;
+    }
+  std::string known;
+  for (const auto& k : kNumbers) known += std::string(known.empty() ? "" : ", ") + k.first;
+  for (const auto& k : kIntegers) known += std::string(", ") + k.first;
+  for (const auto& k : kSwitches) known += std::string(", ") + k.first + " (0/1)";
+  throw std::invalid_argument("unknown key '" + key + "' (keys: " + known + ")");
 }
 
 }  // namespace mfcd::eval

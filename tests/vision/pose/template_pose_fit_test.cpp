@@ -28,6 +28,16 @@ double symmetric_rotation_error_deg(const cv::Matx33d& a, const cv::Matx33d& b, 
   return best;
 }
 
+// A pose turned by up to 2 rad about a random axis, its origin within +-xy_mm of the optical axis
+// and depth_mm +- depth_spread_mm away.
+RigidPose random_pose(std::mt19937& rng, double xy_mm, double depth_mm, double depth_spread_mm) {
+  std::uniform_real_distribution<double> u(-1, 1);
+  RigidPose pose;
+  cv::Rodrigues(cv::Vec3d(u(rng), u(rng), u(rng)) * 2.0, pose.R);
+  pose.t_mm = cv::Vec3d(xy_mm * u(rng), xy_mm * u(rng), depth_mm + depth_spread_mm * u(rng));
+  return pose;
+}
+
 // A part's templates, the simulated MFC and a floor: show() renders the part at a pose over the
 // floor (10 mm below its bounding sphere) and prepares the fitter on the image's depth edges.
 struct FloorScene {
@@ -56,9 +66,7 @@ TEST(TemplatePoseFit, JacobianMatchesFiniteDifferences) {
   std::mt19937 rng(3);
   std::uniform_real_distribution<double> u(-1, 1);
   for (int trial = 0; trial < 200; ++trial) {
-    RigidPose pose;
-    cv::Rodrigues(cv::Vec3d(u(rng), u(rng), u(rng)) * 2.0, pose.R);
-    pose.t_mm = cv::Vec3d(30 * u(rng), 30 * u(rng), 290 + 20 * u(rng));
+    const RigidPose pose = random_pose(rng, 30, 290, 20);
     const cv::Vec3d centre_model(5 * u(rng), 5 * u(rng), 10 + 5 * u(rng));
     const cv::Vec3d X(25 * u(rng), 25 * u(rng), 25 * u(rng));
     const cv::Point2d edge(320 + 100 * u(rng), 240 + 100 * u(rng));
@@ -107,11 +115,8 @@ TEST(TemplatePoseFit, NearestViewKeepsThePlacedPart) {
   ASSERT_EQ(db.symmetry.kind, PartSymmetry::Kind::discrete_z);
   const CameraConfig cam = sim_camera();
   std::mt19937 rng(5);
-  std::uniform_real_distribution<double> u(-1, 1);
   for (int trial = 0; trial < 100; ++trial) {
-    RigidPose pose;
-    cv::Rodrigues(cv::Vec3d(u(rng), u(rng), u(rng)) * 2.0, pose.R);
-    pose.t_mm = cv::Vec3d(20 * u(rng), 20 * u(rng), 290);
+    const RigidPose pose = random_pose(rng, 20, 290, 0);
     RigidPose copy = pose;
     const int view = TemplatePoseFit::nearest_view(db, cam.camera, copy);
     // The copy is the same placed part: its centre and, up to the symmetry, its rotation.
