@@ -153,9 +153,9 @@ RigidPose apply_pose_update(const RigidPose& pose, const cv::Vec3d& centre_model
 // near-symmetry at all, e.g. a plate turned face down).
 std::vector<std::vector<uint8_t>> asymmetric_points(const TemplateDatabase& db, const SurfaceGrid& surface,
                                                     const cv::Matx33d& turn, double* share = nullptr);
-// The template points come from the depth buffer and lie within a few hundredths of a millimetre
-// of the surface; a feature that breaks a symmetry by less than half a millimetre (2 px at the
-// working distance) would not show in the image anyway.
+// The part's surface for asymmetric_points, to half a millimetre: the template points come from
+// the depth buffer and every one of the six development parts' lies within that of the mesh, and
+// a feature that breaks a symmetry by less (2 px at the working distance) would not show anyway.
 SurfaceGrid part_surface(const TemplateDatabase& db);
 
 }  // namespace mfcd::vision
