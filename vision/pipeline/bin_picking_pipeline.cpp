@@ -65,7 +65,7 @@ struct PartModel {
 // turned face down, the ellipse moves 67 % and the diamond 84 %. Measured on the three dev sets
 // (mfc-sim seeds 7, 13, 19; 283 trials): 90 failures with the image distance alone, 88 with the
 // feature's points for near-symmetries (breaker 10 -> 8), 89 when the feature's points replace the
-// image distance, 91 when every turn uses them (the ellipse turned face down 3 more).
+// image distance, 91 when they replace it for every turn (the ellipse turned face down 3 more).
 constexpr double kNearSymmetryShare = 0.25;
 
 std::vector<PartModel::Turn> turned_over(const TemplateDatabase& db) {
