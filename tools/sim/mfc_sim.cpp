@@ -32,6 +32,8 @@ const char* kUsage = R"(usage: mfc-sim --camera FILE --parts DIR|FILE[,FILE...] 
   --split NAME             split folder (default test)
   --bin X,Y,H              inner bin size and wall height in mm (default 150,110,60)
   --max-occlusion F        reject drops leaving any part more occluded than F (default 1 = off)
+  --resting-weight W       how a drop picks the face a part rests on: area (by support area,
+                           default) or solid-angle (by the solid angle at the centre of mass)
   --no-corrupt             neither missing edges nor clutter
   --no-missing-edges       keep every depth edge
   --missing-fraction F     share of found depth-edge pixels to remove (default 0.12)
@@ -133,6 +135,12 @@ int main(int argc, char** argv) {
       opt.bin.inner_y_mm = to_double(a, v[1]);
       opt.bin.wall_height_mm = to_double(a, v[2]);
     } else if (a == "--max-occlusion") opt.max_occlusion = to_double(a, value());
+    else if (a == "--resting-weight") {
+      const std::string w = value();
+      if (w == "area") opt.resting_weight = BinSceneOptions::RestingWeight::support_area;
+      else if (w == "solid-angle") opt.resting_weight = BinSceneOptions::RestingWeight::solid_angle;
+      else usage_error("--resting-weight: '" + w + "' is neither area nor solid-angle");
+    }
     else if (a == "--no-corrupt") opt.missing.enabled = opt.clutter.enabled = false;
     else if (a == "--no-missing-edges") opt.missing.enabled = false;
     else if (a == "--missing-fraction") opt.missing.fraction = to_double(a, value());

@@ -135,9 +135,11 @@ bool BinSimulator::drop(BinLayout& layout, bool is_part, HeightMap& top, std::ve
   const Mesh& mesh = is_part ? models_[static_cast<size_t>(obj.model)].mesh : rods_[static_cast<size_t>(obj.rod)];
   const cv::Vec3d com = is_part ? com_[static_cast<size_t>(obj.model)] : cv::Vec3d(0, 0, 0);
   const auto& poses = is_part ? poses_[static_cast<size_t>(obj.model)] : std::vector<RestingPose>{};
-  // Faces are chosen with probability proportional to their support area.
+  // Faces are chosen with probability proportional to their support area or solid angle.
   std::vector<double> weights;
-  for (const auto& p : poses) weights.push_back(p.support_area_mm2);
+  for (const auto& p : poses)
+    weights.push_back(options_.resting_weight == BinSceneOptions::RestingWeight::solid_angle ? p.solid_angle_sr
+                                                                                             : p.support_area_mm2);
   std::discrete_distribution<size_t> pick_face(weights.begin(), weights.end());
   const cv::Mat1f& top_h = top.heights();
 

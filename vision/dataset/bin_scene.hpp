@@ -79,6 +79,11 @@ struct BinSceneOptions {
   double clearance_mm = 0.3;      // gap left between a dropped part and what it rests on
   double contact_tolerance_mm = 1.0;
   int attempts_per_object = 300;
+  // How a drop picks the resting face: with probability proportional to its support area, or to
+  // the solid angle it subtends at the centre of mass (the quasi-static landing model, which
+  // puts flat parts on their rims less often; docs/datasets.md).
+  enum class RestingWeight { support_area, solid_angle };
+  RestingWeight resting_weight = RestingWeight::support_area;
   MissingEdgeOptions missing;
   ClutterOptions clutter;
   // True depth edges: discontinuities above this jump (mm) of the rendered depth.

@@ -25,6 +25,19 @@ cv::Vec3d centre_of_mass(const Mesh& mesh) {
   return moment / volume;
 }
 
+namespace {
+
+// Solid angle of the triangle (a, b, c), given relative to the viewpoint (Van Oosterom and
+// Strackee's formula); unsigned.
+double triangle_solid_angle(const cv::Vec3d& a, const cv::Vec3d& b, const cv::Vec3d& c) {
+  const double la = cv::norm(a), lb = cv::norm(b), lc = cv::norm(c);
+  const double numerator = std::abs(a.dot(b.cross(c)));
+  const double denominator = la * lb * lc + a.dot(b) * lc + a.dot(c) * lb + b.dot(c) * la;
+  return 2.0 * std::atan2(numerator, denominator);
+}
+
+}  // namespace
+
 cv::Matx33d yaw_rotation(double angle) {
   const double c = std::cos(angle), s = std::sin(angle);
   return {c, -s, 0, s, c, 0, 0, 0, 1};
@@ -68,6 +81,11 @@ std::vector<RestingPose> stable_resting_poses(const Mesh& mesh, double min_margi
     pose.face_normal = n;
     pose.support_area_mm2 = area;
     pose.com_margin_mm = margin;
+    // The support polygon is convex and the centre of mass lies off its plane, so a fan of
+    // triangles from one vertex covers it without overlap.
+    auto corner = [&](const cv::Point2f& q) { return u * double(q.x) + w * double(q.y) + n * h - com; };
+    for (size_t k = 1; k + 1 < hull.size(); ++k)
+      pose.solid_angle_sr += triangle_solid_angle(corner(hull[0]), corner(hull[k]), corner(hull[k + 1]));
     poses.push_back(pose);
   }
   std::sort(poses.begin(), poses.end(),

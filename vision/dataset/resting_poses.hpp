@@ -21,6 +21,9 @@ struct RestingPose {
   cv::Vec3d face_normal;           // outward normal of the support face, part frame
   double support_area_mm2 = 0;     // area of the support polygon
   double com_margin_mm = 0;        // distance of the projected centre of mass inside the polygon
+  // Solid angle the support polygon subtends at the centre of mass: the directions of gravity,
+  // in the part's frame, under which it lands on this face (the quasi-static landing model).
+  double solid_angle_sr = 0;
 };
 
 // Candidate support planes are the planes of the mesh's own triangles that have every

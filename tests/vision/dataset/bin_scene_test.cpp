@@ -332,3 +332,44 @@ TEST_F(BinScenes, OcclusionLimitIsRespected) {
   EXPECT_EQ(im.corruption.stretches, 0);
   EXPECT_EQ(im.corruption.removed_fraction, 0);
 }
+
+// A drop picks the resting face by support area (the default) or by solid angle at the centre
+// of mass: dropped alone, the diamond lands on its rim (4 side faces, stable_resting_poses) as
+// often as those weights say, within 3 standard deviations of 300 drops.
+TEST_F(BinScenes, RestingFacesAreDrawnByTheChosenWeight) {
+  std::vector<PartModel> diamond;
+  for (const auto& m : sim().models())
+    if (m.name == "diamond") diamond.push_back(m);
+  ASSERT_EQ(diamond.size(), 1u);
+  const auto poses = stable_resting_poses(diamond[0].mesh);
+  double area = 0, area_rim = 0, solid = 0, solid_rim = 0;
+  for (const auto& p : poses) {
+    const bool rim = std::abs(p.face_normal[2]) < 0.1;
+    area += p.support_area_mm2, solid += p.solid_angle_sr;
+    if (rim) area_rim += p.support_area_mm2, solid_rim += p.solid_angle_sr;
+  }
+  BinSceneOptions opt = sim().options();
+  opt.parts_per_image = 1;
+  opt.clutter.enabled = false;
+  const int drops = 300;
+  for (const auto weight : {BinSceneOptions::RestingWeight::support_area, BinSceneOptions::RestingWeight::solid_angle}) {
+    opt.resting_weight = weight;
+    BinSimulator alone(sim().camera(), diamond, opt);
+    int on_rim = 0, placed = 0;
+    for (int seed = 0; seed < drops; ++seed) {
+      const BinLayout layout = alone.layout(static_cast<uint64_t>(1000 + seed));
+      if (layout.parts.empty()) continue;
+      ++placed;
+      // The model's z axis (the plate normal) is horizontal when the plate stands on its rim.
+      on_rim += std::abs(layout.parts[0].R(2, 2)) < 0.2;
+    }
+    const double expected = weight == BinSceneOptions::RestingWeight::support_area ? area_rim / area : solid_rim / solid;
+    const double share = double(on_rim) / placed;
+    std::printf("%s: %d of %d on the rim (%.3f, expected %.3f)\n",
+                weight == BinSceneOptions::RestingWeight::support_area ? "support area" : "solid angle", on_rim, placed,
+                share, expected);
+    EXPECT_EQ(placed, drops);
+    EXPECT_NEAR(share, expected, 3 * std::sqrt(expected * (1 - expected) / drops));
+  }
+  EXPECT_LT(solid_rim / solid, area_rim / area - 0.1);
+}

@@ -71,3 +71,26 @@ TEST(RestingPoses, CylinderStandsOnEndsAndRollsOnItsSide) {
   EXPECT_EQ(poses.size(), 2u + 32u);
   EXPECT_NEAR(poses[0].support_area_mm2, 32 * 0.5 * 15 * 15 * std::sin(2 * std::numbers::pi / 32), 1e-2);
 }
+
+// The quasi-static landing weight: a box's faces, seen from its centre, subtend the analytic
+// solid angle of a rectangle (4 asin(sin a sin b), a and b the half-angles of its sides) and
+// together the whole sphere; so do a cylinder's caps and side facets.
+TEST(RestingPoses, SolidAnglesOfTheFacesAreAnalyticAndCoverTheSphere) {
+  const double sx = 40, sy = 28, sz = 18;
+  const auto poses = stable_resting_poses(make_box(sx, sy, sz));
+  ASSERT_EQ(poses.size(), 6u);
+  double total = 0;
+  for (const auto& p : poses) {
+    // The face's two side lengths and its distance from the centre, by its normal's axis.
+    const int axis = std::abs(p.face_normal[0]) > 0.5 ? 0 : std::abs(p.face_normal[1]) > 0.5 ? 1 : 2;
+    const double size[3] = {sx, sy, sz};
+    const double d = size[axis] / 2, s1 = size[(axis + 1) % 3], s2 = size[(axis + 2) % 3];
+    const double expected = 4 * std::asin(std::sin(std::atan(s1 / 2 / d)) * std::sin(std::atan(s2 / 2 / d)));
+    EXPECT_NEAR(p.solid_angle_sr, expected, 1e-9) << "axis " << axis;
+    total += p.solid_angle_sr;
+  }
+  EXPECT_NEAR(total, 4 * std::numbers::pi, 1e-9);
+  double cylinder = 0;
+  for (const auto& p : stable_resting_poses(make_cylinder(15, 30, 32))) cylinder += p.solid_angle_sr;
+  EXPECT_NEAR(cylinder, 4 * std::numbers::pi, 1e-6);
+}
