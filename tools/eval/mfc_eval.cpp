@@ -346,15 +346,15 @@ int run_detect(const Options& o) {
           size_t instance = 0;
           PoseError error{1e9, 1e9};
           bool correct = false;
+          double order = 1e18;  // the key it was chosen by: smaller is a better match
         };
         auto match = [&](const Estimate& e, bool with_rotation) {
           InstanceMatch best;
-          double best_key = 1e18;
           for (size_t j : inst) {
             const PoseError err = score(e, g.gt[j]);
             const bool ok = o.criterion.accepts(err);
             const double order = (ok ? 0 : 1e9) + err.position_mm + (with_rotation ? err.rotation_deg : 0.0);
-            if (order < best_key) best_key = order, best = {j, err, ok};
+            if (order < best.order) best = {j, err, ok, order};
           }
           return best;
         };
@@ -401,11 +401,10 @@ int run_detect(const Options& o) {
           json best;
           double best_key = 1e18;
           for (size_t c = 0; c < hyps.size(); ++c) {
-            if (hyps[c].obj_id != obj_id || inst.empty()) continue;
+            if (hyps[c].obj_id != obj_id) continue;
             const InstanceMatch matched = match(hyps[c], true);
-            const double order = (matched.correct ? 0 : 1e9) + matched.error.position_mm + matched.error.rotation_deg;
-            if (order < best_key)
-              best_key = order, best = {{"index", c}, {"instance", matched.instance}, {"correct", matched.correct},
+            if (matched.order < best_key)
+              best_key = matched.order, best = {{"index", c}, {"instance", matched.instance}, {"correct", matched.correct},
                                       {"position_mm", matched.error.position_mm}, {"rotation_deg", matched.error.rotation_deg},
                                       {"rank", hyps[c].rank}};
           }
