@@ -325,6 +325,8 @@ DaemonConfig parseConfig(const std::string& yamlText, const std::string& source,
     c.vision.refine_iterations = static_cast<int>(s.integer("refine_iterations", 10, 0, 1000));
     c.vision.refine_candidates = static_cast<int>(s.integer("refine_candidates", 0, 0, 64));
     c.vision.threads = static_cast<int>(s.integer("threads", 0, 0, 256));
+    c.vision.floor_check = s.boolean("floor_check", false);
+    c.vision.floor_tolerance_mm = s.number("floor_tolerance_mm", 3, 0, 100);
     s.finish();
   }
   {

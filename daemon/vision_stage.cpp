@@ -61,6 +61,10 @@ std::unique_ptr<VisionStage> makePipelineStage(const DaemonConfig& config) {
   pc.refine_iterations = std::max(1, config.vision.refine_iterations);
   pc.refine_candidates = config.vision.refine_iterations > 0 ? config.vision.refine_candidates : 0;
   pc.threads = config.vision.threads;
+  if (config.vision.floor_check) {
+    pc.floor.distance_mm = config.pick.bin_floor_distance_mm;  // the camera looks straight down at it
+    pc.floor.tolerance_mm = config.vision.floor_tolerance_mm;
+  }
   auto stage = std::make_unique<PipelineVisionStage>(camera, std::move(pc), files);
   // Every recipe's obj_id must be one the templates define.
   const auto loaded = stage->parts();

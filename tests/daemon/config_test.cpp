@@ -79,6 +79,20 @@ TEST(Config, RefinementIsOffUnlessAsked) {
   EXPECT_EQ(parseConfig(minimal("vision:\n  refine_candidates: 2\n"), "test.yaml", kPath).vision.refine_candidates, 2);
 }
 
+// The floor check needs a floor distance someone set: off unless asked; the tolerance is ranged.
+TEST(Config, FloorCheckIsOffUnlessAsked) {
+  const DaemonConfig plain = parseConfig(minimal(), "test.yaml", kPath);
+  EXPECT_FALSE(plain.vision.floor_check);
+  EXPECT_EQ(plain.vision.floor_tolerance_mm, 3.0);
+  const DaemonConfig on =
+      parseConfig(minimal("vision:\n  floor_check: true\n  floor_tolerance_mm: 2.5\n"), "test.yaml", kPath);
+  EXPECT_TRUE(on.vision.floor_check);
+  EXPECT_EQ(on.vision.floor_tolerance_mm, 2.5);
+  const ConfigError e = errorOf(minimal("vision:\n  floor_tolerance_mm: -1\n"));
+  EXPECT_EQ(e.key(), "vision.floor_tolerance_mm");
+  EXPECT_EQ(e.line(), 6);
+}
+
 TEST(Config, MissingRequiredKeys) {
   ConfigError e = errorOf("recipes:\n  - {id: 0, part: any, obj_id: 0}\n");
   EXPECT_EQ(e.key(), "camera.model");
@@ -164,6 +178,8 @@ TEST(Config, SimAndCellConfigsParse) {
   EXPECT_EQ(sim.modbus.port, 1502);
   EXPECT_EQ(sim.modbus.bind_address, "127.0.0.1");
   EXPECT_EQ(sim.recipes.size(), 7u);
+  EXPECT_TRUE(sim.vision.floor_check);  // the simulated bin's floor is at pick.bin_floor_distance_mm
+  EXPECT_EQ(sim.pick.bin_floor_distance_mm, sim.simulation.floor_distance_mm);
   for (const auto& r : sim.recipes)
     if (r.obj_id != 0) {
       EXPECT_TRUE(r.templates && r.mesh) << r.part;

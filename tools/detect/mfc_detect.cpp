@@ -31,6 +31,8 @@ void usage(std::FILE* to) {
                "  --views N            views used by the refinement (default 1; more need camera poses)\n"
                "  --max-per-image N    estimates kept per image (default 10)\n"
                "  --max-cost PX        search threshold, mean directional chamfer px (default 8)\n"
+               "  --floor MM           the bin floor's distance from the camera (along the optical axis):\n"
+               "                       poses below it are moved onto it or dropped (default 0: not known)\n"
                "  --scene ID           only this scene (repeatable)\n"
                "  --threads N          search threads (default: all cores)\n"
                "  --quiet              no per-image lines\n");
@@ -45,7 +47,7 @@ int main(int argc, char** argv) {
   std::vector<fs::path> templates;
   std::vector<int> only_scenes;
   int views = 1, max_per_image = 10, threads = 0;
-  double max_cost = PipelineConfig{}.max_cost_px;
+  double max_cost = PipelineConfig{}.max_cost_px, floor_mm = 0;
   bool quiet = false;
   try {
     for (int i = 1; i < argc; ++i) {
@@ -65,6 +67,7 @@ int main(int argc, char** argv) {
       else if (a == "--threads") threads = mfcd::tools::parse_int(a, value());
       else if (a == "--scene") only_scenes.push_back(mfcd::tools::parse_int(a, value()));
       else if (a == "--max-cost") max_cost = mfcd::tools::parse_double(a, value());
+      else if (a == "--floor") floor_mm = mfcd::tools::parse_double(a, value());
       else if (a == "--quiet") quiet = true;
       else if (a == "--templates") {
         while (i + 1 < argc && argv[i + 1][0] != '-') templates.emplace_back(argv[++i]);
@@ -94,6 +97,7 @@ int main(int argc, char** argv) {
     pc.max_candidates = max_per_image;
     pc.max_cost_px = max_cost;
     pc.threads = threads;
+    pc.floor.distance_mm = floor_mm;
 
     const fs::path tmp = out.string() + ".tmp";
     std::ofstream csv(tmp);

@@ -83,6 +83,7 @@ struct Line2dOptions {
   int view_stride = 1;           // use every n-th template view
   float min_similarity = 60;     // cv::linemod match threshold, percent
   std::vector<double> distances_mm;  // trained at the scale of each (as the pipeline searches); empty = 1
+  vision::BinFloor floor;  // poses below a known floor are moved onto it (as the pipeline's unfitted ones)
 };
 // LINE-2D on the max image (the per-pixel maximum of the flash images): for every template
 // view of every part, the part rendered alone at the view's pose by MfcRenderer, turned in the

@@ -53,6 +53,10 @@ detect: for every image and every part type present in it, runs each method for 
                          templates' scale is searched for each (default: the templates' own)
   --refine-candidates N  candidates the pipeline refines (1 view); 0 = coarse poses only
                          (default: the pipeline's default, PipelineConfig::refine_candidates)
+  --floor MM             the bin floor's distance from the camera along the optical axis, as the
+                         cell knows it (mfc-sim: the camera's working distance). Poses below it
+                         are moved onto it or dropped (BinFloor); LINE-2D's poses are moved onto
+                         it too. Default 0: not known
   --set KEY=VALUE        a PipelineConfig setting for the pipeline methods (repeatable), e.g.
                          --set view_stride=2; an unknown key lists the keys
   --all-types            also run FDCM once per image over all part types (best pick; timing)
@@ -116,6 +120,7 @@ struct Options {
   std::string split = "test";
   std::vector<std::string> methods = {"fdcm", "ocm", "cm"};
   int max_images = 0, threads = 0, refine_candidates = -1;
+  double floor_mm = 0;  // --floor
   std::vector<double> distances_mm;
   std::vector<std::string> pipeline_settings;  // --set KEY=VALUE, applied in order
   bool all_types = false, quiet = false;
@@ -159,6 +164,10 @@ Options parse(int argc, char** argv) {
         if (!(o.distances_mm.back() > 0)) throw Usage("--distances: '" + d + "' is not a positive distance");
       }
     }
+    else if (a == "--floor") {
+      o.floor_mm = to_double(a, value());
+      if (!(o.floor_mm >= 0)) throw Usage("--floor must be >= 0 (0: not known)");
+    }
     else if (a == "--set") {
       o.pipeline_settings.push_back(value());
       try {  // refused here, before any dataset is read
@@ -177,6 +186,9 @@ Options parse(int argc, char** argv) {
     else throw Usage("unknown argument '" + a + "'");
   }
   o.line2d.distances_mm = o.distances_mm;
+  o.line2d.floor.distance_mm = o.floor_mm;
+  // First, so that a --set floor_distance_mm of an experiment still overrides it.
+  if (o.floor_mm > 0) o.pipeline_settings.insert(o.pipeline_settings.begin(), "floor_distance_mm=" + std::to_string(o.floor_mm));
   if (o.dataset.empty()) throw Usage("--dataset is required");
   if (o.templates.empty()) throw Usage("--templates is required");
   if (o.out.empty()) throw Usage("--out is required");
@@ -270,6 +282,7 @@ int run_detect(const Options& o) {
   }
   out["parts"] = jparts;
   out["distances_mm"] = o.distances_mm;
+  out["floor_mm"] = o.floor_mm;
   out["refine_candidates"] = o.refine_candidates >= 0 ? o.refine_candidates : vision::PipelineConfig{}.refine_candidates;
   out["line2d_options"] = {{"inplane_step_deg", o.line2d.inplane_step_deg}, {"view_stride", o.line2d.view_stride},
                            {"min_similarity", o.line2d.min_similarity}};

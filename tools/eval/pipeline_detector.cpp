@@ -111,6 +111,12 @@ void apply_pipeline_setting(vision::PipelineConfig& c, const std::string& settin
   const auto eq = setting.find('=');
   if (eq == std::string::npos) throw std::invalid_argument("'" + setting + "' is not key=value");
   const std::string key = setting.substr(0, eq), value = setting.substr(eq + 1);
+  // The bin floor's fields (BinFloor), the floor's normal staying the optical axis.
+  if (key == "floor_distance_mm" || key == "floor_tolerance_mm") {
+    (key == "floor_distance_mm" ? c.floor.distance_mm : c.floor.tolerance_mm) = mfcd::tools::parse_double(key, value);
+    c.floor.validate();
+    return;
+  }
   for (const auto& [name, field] : kNumbers)
     if (key == name) {
       c.*field = mfcd::tools::parse_double(key, value);
@@ -126,8 +132,8 @@ void apply_pipeline_setting(vision::PipelineConfig& c, const std::string& settin
       c.*field = mfcd::tools::parse_int(key, value) != 0;
       return;
     }
-  std::string known;
-  for (const auto& k : kNumbers) known += std::string(known.empty() ? "" : ", ") + k.first;
+  std::string known = "floor_distance_mm, floor_tolerance_mm";
+  for (const auto& k : kNumbers) known += std::string(", ") + k.first;
   for (const auto& k : kIntegers) known += std::string(", ") + k.first;
   for (const auto& k : kSwitches) known += std::string(", ") + k.first + " (0/1)";
   throw std::invalid_argument("unknown key '" + key + "' (keys: " + known + ")");

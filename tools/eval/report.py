@@ -88,7 +88,7 @@ def main(bench_dir, docs_dir):
       "Correct = position error <= %g mm (%s) and rotation error <= %g degrees (%s; this single-angle test is "
       "stricter than asking each of three Euler angles to be within it). Symmetries from `config/parts/parts.csv`: "
       "`z:N` takes the minimum over the N turns about the model z axis, `z:inf` compares only the z axis direction. "
-      "%s The pipeline searches the templates at %s.\n" % (
+      "%s The pipeline searches the templates at %s. %s\n" % (
           crit["max_position_mm"], crit["position"], crit["max_rotation_deg"], crit["rotation"],
           ("Poses are the pipeline's as the daemon gets them. *FDCM (pipeline)*: the 48 best distinct search "
            "hypotheses are each fitted in 6-DoF with their template view's model points (`TemplatePoseFit`, render-free "
@@ -99,7 +99,12 @@ def main(bench_dir, docs_dir):
            % res["refine_candidates"]) if res.get("refine_candidates") else
           "Poses are the coarse poses of the template match (Sec. 4.4), not refined (the paper's Table 1 protocol).",
           ("distances " + ", ".join("%g" % d for d in dist) + " mm (one template scale per distance)") if dist
-          else "their own distance only (scale 1)"))
+          else "their own distance only (scale 1)",
+          ("Every detector knows the bin floor, %g mm from the camera, as the cell does (`--floor`; "
+           "`pick.bin_floor_distance_mm` with `vision.floor_check` in the daemon): the pipeline slides a fitted pose "
+           "that reaches below it onto it and fits it again, and drops it if it still reaches below (unfitted poses, "
+           "the baselines' and LINE-2D's, are only slid onto it; vision/pose/bin_floor.hpp)." % res["floor_mm"])
+          if res.get("floor_mm") else "The detectors are not told where the bin floor is."))
 
     # ---- Table 1 ----
     w("## Table 1: detection failure rate and time per detection\n")

@@ -218,6 +218,7 @@ struct BinPickingPipeline::Impl {
     double fit_score = -1, fit_rank = -1;
     TemplateFitResult fit;  // the fit's measures at `fitted` (trace)
     bool skipped = false;  // not fitted: the deadline had passed
+    bool below_floor = false;  // reaches below the bin floor, even after the move onto it: dropped
   };
   TemplatePoseFit fitter;
   bool fitter_prepared = false;  // the fitter indexes this cycle's edges (score_pose reuses them)
@@ -390,6 +391,11 @@ BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfi
     part.searched.assign(part.db.views.size(), 0);
     part.flips = turned_over(part.db);
     m.parts.push_back(std::move(part));
+  }
+  try {
+    m.config.floor.validate();
+  } catch (const std::invalid_argument& e) {
+    throw std::runtime_error(std::string("pipeline: ") + e.what());
   }
   if (m.config.coarse_seeds < 0) throw std::runtime_error("pipeline: coarse_seeds must be >= 0");
   if (!(m.config.evidence_weight >= 0)) throw std::runtime_error("pipeline: evidence_weight must be >= 0");
@@ -639,6 +645,7 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
     m.fitter_prepared = true;
   }
   std::atomic<bool> fit_late{false};
+  const BinFloor& floor = m.config.floor;
 #pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
   for (int i = 0; i < static_cast<int>(m.verified.size()); ++i) {
     Impl::Verified& v = m.verified[i];
@@ -662,13 +669,20 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
     v.coarse = coarse_pose(part.db, pl, m.camera.camera);
     v.view = h.view;
     if (fdcm && m.config.fit_hypotheses) {
-      const TemplateFitResult f =
-          m.fitter.fit(part.db, h.view, v.coarse, m.camera.camera, m.fit_workspaces[omp_get_thread_num()]);
+      auto& ws = m.fit_workspaces[omp_get_thread_num()];
+      TemplateFitResult f = m.fitter.fit(part.db, h.view, v.coarse, m.camera.camera, ws);
       if (moved_too_far_in_depth(part.db, v.coarse, f.pose)) {
         v.fitted = v.coarse;
         v.fit_score = 0;
         v.fit_rank = -1;
         continue;
+      }
+      if (floor.below(part.db.mesh, f.pose)) {
+        RigidPose moved = floor.onto(part.db.mesh, f.pose, part.db.center_mm);
+        const int view = TemplatePoseFit::nearest_view(part.db, m.camera.camera, moved);
+        f = m.fitter.fit(part.db, view, moved, m.camera.camera, ws);
+        v.below_floor = floor.below(part.db.mesh, f.pose);
+        if (v.below_floor) continue;
       }
       v.fitted = f.pose;
       v.view = f.view;
@@ -676,11 +690,13 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
       v.fit = f;
       v.fit_rank = fitted_rank(f, part.db, m.config.evidence_weight);
     } else {
-      v.fitted = v.coarse;
+      // The search's distance is one of a few guesses: a pose below the floor goes onto it.
+      v.fitted = floor.below(part.db.mesh, v.coarse) ? floor.onto(part.db.mesh, v.coarse, part.db.center_mm) : v.coarse;
     }
   }
-  // Hypotheses the deadline left unfitted are dropped (the best-so-far result is flagged degraded).
-  std::erase_if(m.verified, [](const Impl::Verified& v) { return v.skipped; });
+  // Hypotheses the deadline left unfitted are dropped (the best-so-far result is flagged degraded),
+  // and so are fitted ones no part could take (below the floor).
+  std::erase_if(m.verified, [](const Impl::Verified& v) { return v.skipped || v.below_floor; });
   out.degraded = out.degraded || fit_late.load();
   // The time the fit of all hypotheses takes, from the fits that ran (the search leaves it that).
   const int fitted = static_cast<int>(m.verified.size());
@@ -731,7 +747,8 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
         turned.t_mm = current.pose.t_mm + current.pose.R * (part.db.center_mm - S * part.db.center_mm);
         const int view = TemplatePoseFit::nearest_view(part.db, m.camera.camera, turned);
         const TemplateFitResult f = m.fitter.fit(part.db, view, turned, m.camera.camera, ws);
-        if (moved_too_far_in_depth(part.db, v.coarse, f.pose) || f.score < kFlipMinScoreRatio * current.score)
+        if (moved_too_far_in_depth(part.db, v.coarse, f.pose) || f.score < kFlipMinScoreRatio * current.score ||
+            m.config.floor.below(part.db.mesh, f.pose))
           continue;
         const bool feature = !turn.differs.empty();
         const TemplatePoseFit::Difference d =

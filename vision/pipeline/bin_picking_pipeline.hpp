@@ -12,6 +12,7 @@
 #include "vision/camera/camera.hpp"
 #include "vision/camera/mfc_frames.hpp"
 #include "vision/edges/depth_edges.hpp"
+#include "vision/pose/bin_floor.hpp"
 
 #include <opencv2/core.hpp>
 
@@ -79,7 +80,13 @@ struct PipelineConfig {
   // and 13, 191 trials): 67 failures at 0, 65 at 0.06; the lone-part control unchanged.
   double evidence_weight = 0.06;
   bool fit_hypotheses = true;
-  int refine_iterations = 20;      // per candidate (outer ICP iterations); cut short at the deadline
+  // The bin floor (BinFloor): no part reaches below it. A fitted hypothesis reaching more than
+  // its tolerance below is moved along the line of sight until it rests on the floor and fitted
+  // again, and dropped when it still reaches below; an unfitted one (the baselines) is moved onto
+  // the floor. Not known by default (distance 0): no check. Measured on three dev sets (mfc-sim
+  // seeds 7, 13, 19; 283 trials; floor at 300 mm): 88 failures without, 84 with (dropping
+  // instead of moving: 85; tolerance 2 / 5 mm: 85 / 84); on the bench set 35 -> 32 of 119.
+  BinFloor floor;  int refine_iterations = 20;      // per candidate (outer ICP iterations); cut short at the deadline
   // The best this many candidates are refined by the render-based PoseRefiner with the cell's one
   // view. 0 by default: measured on mfc-sim bins, one-view refinement of the fitted pose made it
   // worse (median centre error 0.76 -> 1.01 mm, rotation 0.51 -> 0.81 deg, same detections;

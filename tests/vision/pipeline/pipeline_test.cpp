@@ -148,6 +148,15 @@ TEST(Pipeline, RefusesBadConfiguration) {
     EXPECT_NE(std::string(e.what()).find("evidence_weight"), std::string::npos) << e.what();
   }
   pc.evidence_weight = 0.06;
+  pc.floor.distance_mm = 300;
+  pc.floor.normal = {0, 0, 2};
+  try {
+    BinPickingPipeline p(cam, pc);
+    ADD_FAILURE() << "a floor normal of length 2 accepted";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("normal"), std::string::npos) << e.what();
+  }
+  pc.floor = {};
   for (int bad : {0, 5}) {
     pc.search_downsample = bad;
     try {
@@ -157,6 +166,51 @@ TEST(Pipeline, RefusesBadConfiguration) {
       EXPECT_NE(std::string(e.what()).find("search_downsample"), std::string::npos) << e.what();
     }
   }
+}
+
+// The bin floor: with the floor where it is, the part is still found; with a floor placed above
+// the part's lowest point (an impossible scene, as a wrongly fitted pose deep in the bin is), no
+// candidate the pipeline reports reaches below it. Without the floor check the same scene reports
+// the part, which reaches below that floor (so the second case tests the check, not the scene).
+TEST(Pipeline, NoCandidateReachesBelowTheBinFloor) {
+  const fs::path tdb = kTemplates / "diamond.tdb";
+  ASSERT_TRUE(fs::exists(tdb)) << tdb;
+  const TemplateDatabase db = load_template_database(tdb);
+  const CameraConfig cam = sim_camera();
+  MfcRenderer renderer(cam);
+  const int part_id = renderer.add_mesh(db.mesh);
+  const int floor_id = renderer.add_mesh(make_plane(600));
+  const RigidPose truth = upper_view_pose(db, cam, 0.4, {330, 230});
+  const cv::Vec3d centre = truth.R * db.center_mm + truth.t_mm;
+  const MfcRender render = render_on_floor(renderer, part_id, floor_id, db, truth, 11);
+  BinFloor probe;
+  probe.distance_mm = 1;
+  const double lowest = probe.reach_below(db.mesh, truth) + 1;  // the part's deepest point, mm from the camera
+
+  auto run = [&](double floor_mm) {
+    PipelineConfig pc;
+    pc.template_files = {tdb};
+    pc.floor.distance_mm = floor_mm;
+    BinPickingPipeline pipeline(cam, pc);
+    PipelineResult result;
+    pipeline.process(render.frames, 0, std::chrono::steady_clock::now() + std::chrono::seconds(30), result);
+    return result;
+  };
+  // The floor under the part (the render's floor lies deeper still).
+  const PipelineResult on_floor = run(lowest);
+  ASSERT_FALSE(on_floor.candidates.empty());
+  const PoseCandidate& best = on_floor.candidates.front();
+  EXPECT_LE(cv::norm(best.R_m2c * db.center_mm + best.t_m2c_mm - centre), 5.0);
+  EXPECT_LE(rotation_error_deg(best.R_m2c, truth.R, db.symmetry), 10.0);
+
+  BinFloor high;
+  high.distance_mm = lowest - 8;
+  const PipelineResult unchecked = run(0);
+  ASSERT_FALSE(unchecked.candidates.empty());
+  EXPECT_TRUE(high.below(db.mesh, {unchecked.candidates.front().R_m2c, unchecked.candidates.front().t_m2c_mm}));
+  const PipelineResult checked = run(high.distance_mm);
+  for (const PoseCandidate& c : checked.candidates)
+    EXPECT_FALSE(high.below(db.mesh, {c.R_m2c, c.t_m2c_mm})) << "candidate reaches " << high.reach_below(db.mesh, {c.R_m2c, c.t_m2c_mm}) << " mm below";
 }
 
 // The render-based refinement stage (off by default with one view, see PipelineConfig) still runs
