@@ -105,7 +105,8 @@ void apply_pipeline_setting(vision::PipelineConfig& c, const std::string& settin
       {"view_stride", &Config::view_stride},         {"coarse_seeds", &Config::coarse_seeds},
       {"keep_per_view", &Config::keep_per_view},     {"slide_step", &Config::slide_step},
       {"search_downsample", &Config::search_downsample}, {"fit_candidates", &Config::fit_candidates},
-      {"max_candidates", &Config::max_candidates},   {"flip_checks", &Config::flip_checks}};
+      {"max_candidates", &Config::max_candidates},   {"flip_checks", &Config::flip_checks},
+      {"floor_starts", &Config::floor_starts}};
   static constexpr std::pair<const char*, bool Config::*> kSwitches[] = {
       {"share_search_bound", &Config::share_search_bound}, {"trace", &Config::trace}};
   const auto eq = setting.find('=');

@@ -213,6 +213,36 @@ TEST(Pipeline, NoCandidateReachesBelowTheBinFloor) {
     EXPECT_FALSE(high.below(db.mesh, {c.R_m2c, c.t_m2c_mm})) << "candidate reaches " << high.reach_below(db.mesh, {c.R_m2c, c.t_m2c_mm}) << " mm below";
 }
 
+// Floor starts are a second start, not a constraint: a part held 15 mm above the floor (on
+// something, as in a full bin) is fitted again from the floor, and the fit climbs back to it.
+TEST(Pipeline, FloorStartsLeaveAPartThatDoesNotRestOnTheFloorWhereItIs) {
+  const fs::path tdb = kTemplates / "tnut.tdb";
+  ASSERT_TRUE(fs::exists(tdb)) << tdb;
+  const TemplateDatabase db = load_template_database(tdb);
+  const CameraConfig cam = sim_camera();
+  MfcRenderer renderer(cam);
+  const int part_id = renderer.add_mesh(db.mesh);
+  const int floor_id = renderer.add_mesh(make_plane(600));
+  const RigidPose truth = upper_view_pose(db, cam, -0.6, {300, 260});
+  const cv::Vec3d centre = truth.R * db.center_mm + truth.t_mm;
+  const MfcRender render = render_on_floor(renderer, part_id, floor_id, db, truth, 13);
+  BinFloor floor;
+  floor.distance_mm = 1;
+  floor.distance_mm = floor.reach_below(db.mesh, truth) + 1 + 15;  // 15 mm below the part's lowest point
+  PipelineConfig pc;
+  pc.template_files = {tdb};
+  pc.floor = floor;
+  ASSERT_GT(pc.floor_starts, 0);
+  BinPickingPipeline pipeline(cam, pc);
+  PipelineResult result;
+  pipeline.process(render.frames, 0, std::chrono::steady_clock::now() + std::chrono::seconds(30), result);
+  ASSERT_FALSE(result.candidates.empty());
+  const PoseCandidate& best = result.candidates.front();
+  EXPECT_LE(cv::norm(best.R_m2c * db.center_mm + best.t_m2c_mm - centre), 5.0);
+  EXPECT_LE(rotation_error_deg(best.R_m2c, truth.R, db.symmetry), 10.0);
+  EXPECT_LT(floor.reach_below(db.mesh, {best.R_m2c, best.t_m2c_mm}), -10.0);  // still well above the floor
+}
+
 // The render-based refinement stage (off by default with one view, see PipelineConfig) still runs
 // when asked: the refined best candidate stays within the correctness bounds.
 TEST(Pipeline, RefinesTheBestCandidateWhenAsked) {
@@ -325,6 +355,8 @@ TEST(Pipeline, FramePathDoesNotAllocateInSteadyState) {
   const CameraConfig cam = sim_camera();
   PipelineConfig pc;
   pc.template_files = {tdb};
+  // A floor a little below the parts: the floor's slides, refits and floor starts run too.
+  pc.floor.distance_mm = db.distance_mm + 15;
   BinPickingPipeline pipeline(cam, pc);
   MfcRenderer renderer(cam);
   const int part_id = renderer.add_mesh(db.mesh);
