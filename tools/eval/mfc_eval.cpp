@@ -436,6 +436,7 @@ int run_detect(const Options& o) {
             h["rank"] = e.rank;
             const InstanceMatch matched = e.obj_id == obj_id ? match(e, true) : InstanceMatch{};
             h["correct"] = matched.correct;
+            if (e.obj_id == obj_id) h["instance"] = matched.instance;
             h["position_mm"] = matched.error.position_mm;
             h["rotation_deg"] = matched.error.rotation_deg;
             fitted.push_back(h);

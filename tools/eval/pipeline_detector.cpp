@@ -104,6 +104,7 @@ void apply_pipeline_setting(vision::PipelineConfig& c, const std::string& settin
       {"template_guides", &Config::template_guides}, {"query_guides", &Config::query_guides},
       {"view_stride", &Config::view_stride},         {"coarse_seeds", &Config::coarse_seeds},
       {"keep_per_view", &Config::keep_per_view},     {"slide_step", &Config::slide_step},
+      {"keep_separation_px", &Config::keep_separation_px},
       {"search_downsample", &Config::search_downsample}, {"fit_candidates", &Config::fit_candidates},
       {"max_candidates", &Config::max_candidates},   {"flip_checks", &Config::flip_checks},
       {"floor_starts", &Config::floor_starts}};
