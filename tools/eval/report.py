@@ -101,9 +101,10 @@ def main(bench_dir, docs_dir):
           ("distances " + ", ".join("%g" % d for d in dist) + " mm (one template scale per distance)") if dist
           else "their own distance only (scale 1)",
           ("Every detector knows the bin floor, %g mm from the camera, as the cell does (`--floor`; "
-           "`pick.bin_floor_distance_mm` with `vision.floor_check` in the daemon): the pipeline slides a fitted pose "
-           "that reaches below it onto it and fits it again, and drops it if it still reaches below (unfitted poses, "
-           "the baselines' and LINE-2D's, are only slid onto it; vision/pose/bin_floor.hpp)." % res["floor_mm"])
+           "`pick.bin_floor_distance_mm` with `vision.floor_check` in the daemon): the pipeline drops a fitted pose "
+           "that reaches below it and fits its best few hypotheses hovering just above it again from the floor "
+           "(floor starts); unfitted poses, the baselines' and LINE-2D's, are slid onto it "
+           "(vision/pose/bin_floor.hpp, docs/pose.md)." % res["floor_mm"])
           if res.get("floor_mm") else "The detectors are not told where the bin floor is."))
 
     # ---- Table 1 ----

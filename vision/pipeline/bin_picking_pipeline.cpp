@@ -170,9 +170,9 @@ bool moved_too_far_in_depth(const TemplateDatabase& db, const RigidPose& coarse,
 // above the floor are fitted again from the floor, and the floor-start fit is kept when it scores
 // at least this share of the free fit: a prior that a part low in the bin rests on the floor,
 // which a single view cannot tell from a part a few millimetres nearer. Measured on three dev sets
-// (mfc-sim seeds 7, 13, 19; 283 trials, floor at 300 mm) and the bench set (119 trials): 84 and 32
-// failures without; with the 6 best: 80 and 30 (height 30 mm, share 0.8); 81 and 32 at share 1.0
-// (the better of the two fits); 82 at 12 mm; 80 and 31 at 20 mm.
+// (mfc-sim seeds 7, 13, 19; 283 trials, floor at 300 mm) and the bench set (119 trials): 85 and 32
+// failures without, 81 and 30 with the 6 best (height 30 mm, share 0.8). Other settings are in
+// docs/pose.md (share 1.0, the better of the two fits: 1 and 2 failures more).
 constexpr double kFloorStartHeightMm = 30;
 constexpr double kFloorStartMinScoreRatio = 0.8;
 
@@ -228,7 +228,7 @@ struct BinPickingPipeline::Impl {
     double fit_score = -1, fit_rank = -1;
     TemplateFitResult fit;  // the fit's measures at `fitted` (trace)
     bool skipped = false;  // not fitted: the deadline had passed
-    bool below_floor = false;  // reaches below the bin floor, even after the move onto it: dropped
+    bool below_floor = false;  // fitted reaching below the bin floor: dropped
   };
   TemplatePoseFit fitter;
   bool fitter_prepared = false;  // the fitter indexes this cycle's edges (score_pose reuses them)
@@ -680,21 +680,18 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
     v.coarse = coarse_pose(part.db, pl, m.camera.camera);
     v.view = h.view;
     if (fdcm && m.config.fit_hypotheses) {
-      auto& ws = m.fit_workspaces[omp_get_thread_num()];
-      TemplateFitResult f = m.fitter.fit(part.db, h.view, v.coarse, m.camera.camera, ws);
+      const TemplateFitResult f =
+          m.fitter.fit(part.db, h.view, v.coarse, m.camera.camera, m.fit_workspaces[omp_get_thread_num()]);
       if (moved_too_far_in_depth(part.db, v.coarse, f.pose)) {
         v.fitted = v.coarse;
         v.fit_score = 0;
         v.fit_rank = -1;
         continue;
       }
-      if (floor.below(part.db.mesh, f.pose)) {
-        RigidPose moved = floor.onto(part.db.mesh, f.pose, part.db.center_mm);
-        const int view = TemplatePoseFit::nearest_view(part.db, m.camera.camera, moved);
-        f = m.fitter.fit(part.db, view, moved, m.camera.camera, ws);
-        v.below_floor = floor.below(part.db.mesh, f.pose);
-        if (v.below_floor) continue;
-      }
+      // No part can lie there. About half of the fitted hypotheses of a full bin do (dev set 7:
+      // 555 of 1000); fitting them again from the floor cost ~5 ms a cycle for no measured gain.
+      v.below_floor = floor.below(part.db.mesh, f.pose);
+      if (v.below_floor) continue;
       v.fitted = f.pose;
       v.view = f.view;
       v.fit_score = f.score;

@@ -81,11 +81,10 @@ struct PipelineConfig {
   double evidence_weight = 0.06;
   bool fit_hypotheses = true;
   // The bin floor (BinFloor): no part reaches below it. A fitted hypothesis reaching more than
-  // its tolerance below is moved along the line of sight until it rests on the floor and fitted
-  // again, and dropped when it still reaches below; an unfitted one (the baselines) is moved onto
-  // the floor. Not known by default (distance 0): no check. Measured on three dev sets (mfc-sim
-  // seeds 7, 13, 19; 283 trials; floor at 300 mm): 88 failures without, 84 with (dropping
-  // instead of moving: 85; tolerance 2 / 5 mm: 85 / 84); on the bench set 35 -> 32 of 119.
+  // its tolerance below is dropped; an unfitted one (the baselines) is slid onto the floor. Not
+  // known by default (distance 0): no check. Measured on three dev sets (mfc-sim seeds 7, 13, 19;
+  // 283 trials; floor at 300 mm) and the bench set (119 trials): 88 and 35 failures without, 85
+  // and 33 with (docs/pose.md "The bin floor"; 80 and 30 with the floor starts below).
   BinFloor floor;
   // With a known floor, the best this many fitted hypotheses whose lowest point lies a few to
   // 30 mm above it are fitted again from the pose slid down onto the floor, and take that fit when
