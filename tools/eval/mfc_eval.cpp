@@ -467,15 +467,16 @@ int run_detect(const Options& o) {
         trials.push_back(trial);
         // Per instance (Fig. 13): found by the best estimate, or by any of the top-k estimates
         // where k = the number of instances of its type in the image.
+        // `rank`: the first estimate of all returned that matches it (-1: none), to tell an
+        // instance ranked below k from one never found.
         for (size_t j : inst) {
-          bool top1 = false, topk = false;
-          for (size_t c = 0; c < d.estimates.size() && c < inst.size(); ++c) {
-            const bool ok = o.criterion.accepts(score(d.estimates[c], g.gt[j]));
-            topk = topk || ok;
-            if (c == 0) top1 = ok;
-          }
+          int rank = -1;
+          for (size_t c = 0; c < d.estimates.size() && rank < 0; ++c)
+            if (o.criterion.accepts(score(d.estimates[c], g.gt[j]))) rank = static_cast<int>(c);
+          const bool top1 = rank == 0, topk = rank >= 0 && static_cast<size_t>(rank) < inst.size();
           instances.push_back({{"scene", ref.scene}, {"image", ref.image}, {"obj_id", obj_id}, {"instance", j},
-                               {"visib_fract", g.info[j].visib_fract}, {"top1", top1}, {"topk", topk}});
+                               {"visib_fract", g.info[j].visib_fract}, {"top1", top1}, {"topk", topk},
+                               {"rank", rank}});
         }
         ++n_trials;
         failures += !correct;
