@@ -53,6 +53,39 @@ RigidPose upper_view_pose(const TemplateDatabase& db, const CameraConfig& cam, d
   return coarse_pose(db, TemplatePlacement{view, angle, 1.0, origin}, cam.camera);
 }
 
+// One part at an upper view's pose, rendered over a floor: the scene of the single-part tests.
+struct RenderedPart {
+  TemplateDatabase db;
+  RigidPose truth;
+  cv::Vec3d centre;  // the truth's part centre, camera frame
+  MfcRender render;
+};
+
+RenderedPart render_part(const fs::path& tdb, const CameraConfig& cam, double angle, cv::Point2d origin, uint64_t seed) {
+  RenderedPart out;
+  out.db = load_template_database(tdb);
+  out.truth = upper_view_pose(out.db, cam, angle, origin);
+  out.centre = out.truth.R * out.db.center_mm + out.truth.t_mm;
+  MfcRenderer renderer(cam);
+  const int part_id = renderer.add_mesh(out.db.mesh);
+  const int floor_id = renderer.add_mesh(make_plane(600));
+  out.render = render_on_floor(renderer, part_id, floor_id, out.db, out.truth, seed);
+  return out;
+}
+
+// The Table 1 criterion: centre within 5 mm, rotation within 10 degrees (symmetry-aware).
+void expect_within_bounds(const PoseCandidate& c, const RenderedPart& scene) {
+  EXPECT_LE(cv::norm(c.R_m2c * scene.db.center_mm + c.t_m2c_mm - scene.centre), 5.0);
+  EXPECT_LE(rotation_error_deg(c.R_m2c, scene.truth.R, scene.db.symmetry), 10.0);
+}
+
+// Distance from the camera (along the optical axis) of the model's deepest vertex at `pose`.
+double deepest_mm(const Mesh& mesh, const RigidPose& pose) {
+  double z = -1e9;
+  for (const cv::Vec3f& p : mesh.vertices) z = std::max(z, (pose.R * cv::Vec3d(p[0], p[1], p[2]) + pose.t_mm)[2]);
+  return z;
+}
+
 struct SceneCase {
   const char* part;
 };
@@ -175,42 +208,32 @@ TEST(Pipeline, RefusesBadConfiguration) {
 TEST(Pipeline, NoCandidateReachesBelowTheBinFloor) {
   const fs::path tdb = kTemplates / "diamond.tdb";
   ASSERT_TRUE(fs::exists(tdb)) << tdb;
-  const TemplateDatabase db = load_template_database(tdb);
   const CameraConfig cam = sim_camera();
-  MfcRenderer renderer(cam);
-  const int part_id = renderer.add_mesh(db.mesh);
-  const int floor_id = renderer.add_mesh(make_plane(600));
-  const RigidPose truth = upper_view_pose(db, cam, 0.4, {330, 230});
-  const cv::Vec3d centre = truth.R * db.center_mm + truth.t_mm;
-  const MfcRender render = render_on_floor(renderer, part_id, floor_id, db, truth, 11);
-  BinFloor probe;
-  probe.distance_mm = 1;
-  const double lowest = probe.reach_below(db.mesh, truth) + 1;  // the part's deepest point, mm from the camera
-
+  const RenderedPart scene = render_part(tdb, cam, 0.4, {330, 230}, 11);
+  const Mesh& mesh = scene.db.mesh;
+  const double lowest = deepest_mm(mesh, scene.truth);
   auto run = [&](double floor_mm) {
     PipelineConfig pc;
     pc.template_files = {tdb};
     pc.floor.distance_mm = floor_mm;
     BinPickingPipeline pipeline(cam, pc);
     PipelineResult result;
-    pipeline.process(render.frames, 0, std::chrono::steady_clock::now() + std::chrono::seconds(30), result);
+    pipeline.process(scene.render.frames, 0, std::chrono::steady_clock::now() + std::chrono::seconds(30), result);
     return result;
   };
   // The floor under the part (the render's floor lies deeper still).
   const PipelineResult on_floor = run(lowest);
   ASSERT_FALSE(on_floor.candidates.empty());
-  const PoseCandidate& best = on_floor.candidates.front();
-  EXPECT_LE(cv::norm(best.R_m2c * db.center_mm + best.t_m2c_mm - centre), 5.0);
-  EXPECT_LE(rotation_error_deg(best.R_m2c, truth.R, db.symmetry), 10.0);
+  expect_within_bounds(on_floor.candidates.front(), scene);
 
   BinFloor high;
   high.distance_mm = lowest - 8;
   const PipelineResult unchecked = run(0);
   ASSERT_FALSE(unchecked.candidates.empty());
-  EXPECT_TRUE(high.below(db.mesh, {unchecked.candidates.front().R_m2c, unchecked.candidates.front().t_m2c_mm}));
+  EXPECT_TRUE(high.below(mesh, {unchecked.candidates.front().R_m2c, unchecked.candidates.front().t_m2c_mm}));
   const PipelineResult checked = run(high.distance_mm);
   for (const PoseCandidate& c : checked.candidates)
-    EXPECT_FALSE(high.below(db.mesh, {c.R_m2c, c.t_m2c_mm})) << "candidate reaches " << high.reach_below(db.mesh, {c.R_m2c, c.t_m2c_mm}) << " mm below";
+    EXPECT_FALSE(high.below(mesh, {c.R_m2c, c.t_m2c_mm})) << "candidate reaches " << high.reach_below(mesh, {c.R_m2c, c.t_m2c_mm}) << " mm below";
 }
 
 // Floor starts are a second start, not a constraint: a part held 15 mm above the floor (on
@@ -218,29 +241,19 @@ TEST(Pipeline, NoCandidateReachesBelowTheBinFloor) {
 TEST(Pipeline, FloorStartsLeaveAPartThatDoesNotRestOnTheFloorWhereItIs) {
   const fs::path tdb = kTemplates / "tnut.tdb";
   ASSERT_TRUE(fs::exists(tdb)) << tdb;
-  const TemplateDatabase db = load_template_database(tdb);
   const CameraConfig cam = sim_camera();
-  MfcRenderer renderer(cam);
-  const int part_id = renderer.add_mesh(db.mesh);
-  const int floor_id = renderer.add_mesh(make_plane(600));
-  const RigidPose truth = upper_view_pose(db, cam, -0.6, {300, 260});
-  const cv::Vec3d centre = truth.R * db.center_mm + truth.t_mm;
-  const MfcRender render = render_on_floor(renderer, part_id, floor_id, db, truth, 13);
-  BinFloor floor;
-  floor.distance_mm = 1;
-  floor.distance_mm = floor.reach_below(db.mesh, truth) + 1 + 15;  // 15 mm below the part's lowest point
+  const RenderedPart scene = render_part(tdb, cam, -0.6, {300, 260}, 13);
   PipelineConfig pc;
   pc.template_files = {tdb};
-  pc.floor = floor;
+  pc.floor.distance_mm = deepest_mm(scene.db.mesh, scene.truth) + 15;
   ASSERT_GT(pc.floor_starts, 0);
   BinPickingPipeline pipeline(cam, pc);
   PipelineResult result;
-  pipeline.process(render.frames, 0, std::chrono::steady_clock::now() + std::chrono::seconds(30), result);
+  pipeline.process(scene.render.frames, 0, std::chrono::steady_clock::now() + std::chrono::seconds(30), result);
   ASSERT_FALSE(result.candidates.empty());
   const PoseCandidate& best = result.candidates.front();
-  EXPECT_LE(cv::norm(best.R_m2c * db.center_mm + best.t_m2c_mm - centre), 5.0);
-  EXPECT_LE(rotation_error_deg(best.R_m2c, truth.R, db.symmetry), 10.0);
-  EXPECT_LT(floor.reach_below(db.mesh, {best.R_m2c, best.t_m2c_mm}), -10.0);  // still well above the floor
+  expect_within_bounds(best, scene);
+  EXPECT_LT(pc.floor.reach_below(scene.db.mesh, {best.R_m2c, best.t_m2c_mm}), -10.0);  // still well above the floor
 }
 
 // The render-based refinement stage (off by default with one view, see PipelineConfig) still runs
@@ -248,25 +261,17 @@ TEST(Pipeline, FloorStartsLeaveAPartThatDoesNotRestOnTheFloorWhereItIs) {
 TEST(Pipeline, RefinesTheBestCandidateWhenAsked) {
   const fs::path tdb = kTemplates / "tnut.tdb";
   ASSERT_TRUE(fs::exists(tdb)) << tdb;
-  const TemplateDatabase db = load_template_database(tdb);
   const CameraConfig cam = sim_camera();
   PipelineConfig pc;
   pc.template_files = {tdb};
   pc.refine_candidates = 1;
   BinPickingPipeline pipeline(cam, pc);
-  MfcRenderer renderer(cam);
-  const int part_id = renderer.add_mesh(db.mesh);
-  const int floor_id = renderer.add_mesh(make_plane(600));
-  const RigidPose truth = upper_view_pose(db, cam, 0.7, {300, 250});
-  const cv::Vec3d centre = truth.R * db.center_mm + truth.t_mm;
-  const MfcRender render = render_on_floor(renderer, part_id, floor_id, db, truth, 7);
+  const RenderedPart scene = render_part(tdb, cam, 0.7, {300, 250}, 7);
   PipelineResult result;
-  pipeline.process(render.frames, 0, std::chrono::steady_clock::now() + std::chrono::seconds(30), result);
+  pipeline.process(scene.render.frames, 0, std::chrono::steady_clock::now() + std::chrono::seconds(30), result);
   ASSERT_FALSE(result.candidates.empty());
   EXPECT_GT(result.times.refine_ms, 0.0);
-  const PoseCandidate& best = result.candidates.front();
-  EXPECT_LE(cv::norm(best.R_m2c * db.center_mm + best.t_m2c_mm - centre), 5.0);
-  EXPECT_LE(rotation_error_deg(best.R_m2c, truth.R, db.symmetry), 10.0);
+  expect_within_bounds(result.candidates.front(), scene);
 }
 
 // A deadline shorter than the search returns soon after it, flagged degraded, with picks, and
