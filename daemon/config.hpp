@@ -109,9 +109,10 @@ struct VisionSettings {
   int refine_iterations = 10;
   int refine_candidates = 0;  // render-based refinement of the best n (0: the fitted pose is kept)
   int threads = 0;
-  // Poses below the bin floor (pick.bin_floor_distance_mm) are moved onto it or dropped
-  // (vision::BinFloor). Off by default: a floor distance left at its default would refuse every
-  // part of a deeper cell.
+  // The bin floor (pick.bin_floor_distance_mm) as a constraint: fitted poses below it are dropped,
+  // and the best few hovering just above it are fitted again from it (vision::BinFloor,
+  // PipelineConfig::floor). Off by default: a floor distance left at its default would refuse
+  // every part of a deeper cell.
   bool floor_check = false;
   double floor_tolerance_mm = 3;
 };

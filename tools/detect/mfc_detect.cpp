@@ -31,8 +31,9 @@ void usage(std::FILE* to) {
                "  --views N            views used by the refinement (default 1; more need camera poses)\n"
                "  --max-per-image N    estimates kept per image (default 10)\n"
                "  --max-cost PX        search threshold, mean directional chamfer px (default 8)\n"
-               "  --floor MM           the bin floor's distance from the camera (along the optical axis):\n"
-               "                       poses below it are moved onto it or dropped (default 0: not known)\n"
+               "  --floor MM           the bin floor's distance from the camera (along the optical axis): poses\n"
+               "                       below it are dropped, the best few just above it also fitted from it\n"
+               "                       (PipelineConfig::floor; default 0: not known)\n"
                "  --scene ID           only this scene (repeatable)\n"
                "  --threads N          search threads (default: all cores)\n"
                "  --quiet              no per-image lines\n");

@@ -54,9 +54,10 @@ detect: for every image and every part type present in it, runs each method for 
   --refine-candidates N  candidates the pipeline refines (1 view); 0 = coarse poses only
                          (default: the pipeline's default, PipelineConfig::refine_candidates)
   --floor MM             the bin floor's distance from the camera along the optical axis, as the
-                         cell knows it (mfc-sim: the camera's working distance). Poses below it
-                         are moved onto it or dropped (BinFloor); LINE-2D's poses are moved onto
-                         it too. Default 0: not known
+                         cell knows it (mfc-sim: the camera's working distance). The pipeline
+                         drops fitted poses below it and fits the best few just above it again
+                         from it; unfitted poses (baselines, LINE-2D) below it are slid onto it
+                         (PipelineConfig::floor). Default 0: not known
   --set KEY=VALUE        a PipelineConfig setting for the pipeline methods (repeatable), e.g.
                          --set view_stride=2; an unknown key lists the keys
   --all-types            also run FDCM once per image over all part types (best pick; timing)

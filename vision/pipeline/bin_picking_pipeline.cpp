@@ -734,9 +734,6 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
   if (fdcm && m.config.fit_hypotheses) {
     auto by_rank = [](const Impl::Verified& a, const Impl::Verified& b) { return a.fit_rank > b.fit_rank; };
     stable_sort_in_place(m.verified, by_rank);
-    // Turned-over check of the best few: a part that is symmetric but for a small feature (the
-    // breaker's toggle) fits as well turned by 180 degrees about an axis; the edges can only tell
-    // the two apart where they differ (TemplatePoseFit::compare).
     // Floor starts: one view measures a part's distance poorly, and the fit converges to the
     // depth nearest its start. Parts low in the bin mostly rest on its floor, so the best few
     // hypotheses whose lowest point hovers above the floor are fitted again from the pose slid
@@ -763,6 +760,9 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
     }
     if (floor_starts > 0) stable_sort_in_place(m.verified, by_rank);
 
+    // Turned-over check of the best few: a part that is symmetric but for a small feature (the
+    // breaker's toggle) fits as well turned by 180 degrees about an axis; the edges can only tell
+    // the two apart where they differ (TemplatePoseFit::compare).
     const int checks = std::min<int>(m.config.flip_checks, static_cast<int>(m.verified.size()));
 #pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
     for (int i = 0; i < checks; ++i) {

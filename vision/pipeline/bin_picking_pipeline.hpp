@@ -84,12 +84,13 @@ struct PipelineConfig {
   // its tolerance below is dropped; an unfitted one (the baselines) is slid onto the floor. Not
   // known by default (distance 0): no check. Measured on three dev sets (mfc-sim seeds 7, 13, 19;
   // 283 trials; floor at 300 mm) and the bench set (119 trials): 88 and 35 failures without, 85
-  // and 33 with (docs/pose.md "The bin floor"; 80 and 30 with the floor starts below).
+  // and 33 with (docs/pose.md "The bin floor"; 81 and 30 with the floor starts below).
   BinFloor floor;
   // With a known floor, the best this many fitted hypotheses whose lowest point lies a few to
   // 30 mm above it are fitted again from the pose slid down onto the floor, and take that fit when
   // it scores at least 0.8 of theirs (docs/pose.md "The bin floor"). 0 = off.
-  int floor_starts = 6;  int refine_iterations = 20;      // per candidate (outer ICP iterations); cut short at the deadline
+  int floor_starts = 6;
+  int refine_iterations = 20;      // per candidate (outer ICP iterations); cut short at the deadline
   // The best this many candidates are refined by the render-based PoseRefiner with the cell's one
   // view. 0 by default: measured on mfc-sim bins, one-view refinement of the fitted pose made it
   // worse (median centre error 0.76 -> 1.01 mm, rotation 0.51 -> 0.81 deg, same detections;

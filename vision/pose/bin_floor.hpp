@@ -26,7 +26,8 @@ struct BinFloor {
   // (normal . (0, 0, 1) <= 0).
   void validate() const;
   // How far the model reaches below the plane at `pose` (mm; negative: wholly above it). The
-  // largest over the mesh's vertices, which bound it (the mesh is their convex combinations).
+  // largest over the mesh's vertices: every surface point is a convex combination of its
+  // triangle's vertices, so none reaches deeper than they do.
   double reach_below(const Mesh& model, const RigidPose& pose) const;
   // reach_below > tolerance_mm on a known floor.
   bool below(const Mesh& model, const RigidPose& pose) const;
