@@ -120,6 +120,9 @@ public:
   double number(const char* k, double def, double min, double max) {
     YAML::Node n = child(k);
     if (!n.IsDefined() || n.IsNull()) return def;
+    return toNumber(k, n, min, max);
+  }
+  double toNumber(const char* k, const YAML::Node& n, double min, double max) const {
     const std::string s = scalar(k, n);
     char* end = nullptr;
     const double v = std::strtod(s.c_str(), &end);
@@ -327,6 +330,13 @@ DaemonConfig parseConfig(const std::string& yamlText, const std::string& source,
     c.vision.threads = static_cast<int>(s.integer("threads", 0, 0, 256));
     c.vision.floor_check = s.boolean("floor_check", false);
     c.vision.floor_tolerance_mm = s.number("floor_tolerance_mm", 3, 0, 100);
+    YAML::Node distances = s.child("search_distances_mm");
+    if (distances.IsDefined() && !distances.IsNull()) {
+      if (!distances.IsSequence() || distances.size() == 0 || distances.size() > 4)
+        s.fail(s.key("search_distances_mm"), lineOf(distances), "must be a list of 1 to 4 distances (mm)");
+      for (const YAML::Node& d : distances)
+        c.vision.search_distances_mm.push_back(s.toNumber("search_distances_mm", d, 50, 5000));
+    }
     s.finish();
   }
   {

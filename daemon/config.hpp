@@ -115,6 +115,9 @@ struct VisionSettings {
   // every part of a deeper cell.
   bool floor_check = false;
   double floor_tolerance_mm = 3;
+  // Part distances the search tries, one template scale each (PipelineConfig::distances_mm);
+  // empty: the templates' own distance only. A deep bin wants two or three (docs/configuration.md).
+  std::vector<double> search_distances_mm;
 };
 
 struct PickSettings {

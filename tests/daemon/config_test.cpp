@@ -93,6 +93,21 @@ TEST(Config, FloorCheckIsOffUnlessAsked) {
   EXPECT_EQ(e.line(), 6);
 }
 
+// Search distances: a list of 1..4 numbers; an element out of range is named with its line.
+TEST(Config, SearchDistancesAreAListOfDistances) {
+  EXPECT_TRUE(parseConfig(minimal(), "test.yaml", kPath).vision.search_distances_mm.empty());
+  const DaemonConfig two =
+      parseConfig(minimal("vision:\n  search_distances_mm: [315, 299]\n"), "test.yaml", kPath);
+  EXPECT_EQ(two.vision.search_distances_mm, (std::vector<double>{315, 299}));
+  ConfigError e = errorOf(minimal("vision:\n  search_distances_mm:\n    - 300\n    - 10\n"));
+  EXPECT_EQ(e.key(), "vision.search_distances_mm");
+  EXPECT_EQ(e.line(), 8);  // the element's own line
+  EXPECT_NE(std::string(e.what()).find("out of range"), std::string::npos) << e.what();
+  e = errorOf(minimal("vision:\n  search_distances_mm: 300\n"));
+  EXPECT_EQ(e.key(), "vision.search_distances_mm");
+  EXPECT_NE(std::string(e.what()).find("list of 1 to 4"), std::string::npos) << e.what();
+}
+
 TEST(Config, MissingRequiredKeys) {
   ConfigError e = errorOf("recipes:\n  - {id: 0, part: any, obj_id: 0}\n");
   EXPECT_EQ(e.key(), "camera.model");
