@@ -229,6 +229,14 @@ struct BinPickingPipeline::Impl {
     TemplateFitResult fit;  // the fit's measures at `fitted` (trace)
     bool skipped = false;  // not fitted: the deadline had passed
     bool below_floor = false;  // fitted reaching below the bin floor: dropped
+    // The hypothesis becomes fit `f`, ranked `rank`.
+    void take(const TemplateFitResult& f, double rank) {
+      fitted = f.pose;
+      view = f.view;
+      fit_score = f.score;
+      fit = f;
+      fit_rank = rank;
+    }
   };
   TemplatePoseFit fitter;
   bool fitter_prepared = false;  // the fitter indexes this cycle's edges (score_pose reuses them)
@@ -692,11 +700,7 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
       // 555 of 1000); fitting them again from the floor cost ~5 ms a cycle for no measured gain.
       v.below_floor = floor.below(part.db.mesh, f.pose);
       if (v.below_floor) continue;
-      v.fitted = f.pose;
-      v.view = f.view;
-      v.fit_score = f.score;
-      v.fit = f;
-      v.fit_rank = fitted_rank(f, part.db, m.config.evidence_weight);
+      v.take(f, fitted_rank(f, part.db, m.config.evidence_weight));
     } else {
       // The search's distance is one of a few guesses: a pose below the floor goes onto it.
       v.fitted = floor.below(part.db.mesh, v.coarse) ? floor.onto(part.db.mesh, v.coarse, part.db.center_mm) : v.coarse;
@@ -752,11 +756,7 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
       if (f.score < kFloorStartMinScoreRatio * v.fit_score || floor.below(part.db.mesh, f.pose) ||
           moved_too_far_in_depth(part.db, v.coarse, f.pose))
         continue;
-      v.fitted = f.pose;
-      v.view = f.view;
-      v.fit_score = f.score;
-      v.fit = f;
-      v.fit_rank = fitted_rank(f, part.db, m.config.evidence_weight);
+      v.take(f, fitted_rank(f, part.db, m.config.evidence_weight));
     }
     if (floor_starts > 0) stable_sort_in_place(m.verified, by_rank);
 
@@ -782,7 +782,7 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
         const int view = TemplatePoseFit::nearest_view(part.db, m.camera.camera, turned);
         const TemplateFitResult f = m.fitter.fit(part.db, view, turned, m.camera.camera, ws);
         if (moved_too_far_in_depth(part.db, v.coarse, f.pose) || f.score < kFlipMinScoreRatio * current.score ||
-            m.config.floor.below(part.db.mesh, f.pose))
+            floor.below(part.db.mesh, f.pose))
           continue;
         const bool feature = !turn.differs.empty();
         const TemplatePoseFit::Difference d =
