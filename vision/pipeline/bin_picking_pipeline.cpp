@@ -18,6 +18,7 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <limits>
 #include <optional>
@@ -183,6 +184,13 @@ constexpr double kFlipMinScoreRatio = 0.6;
 constexpr int kFlipMinPoints = 6;
 constexpr double kFlipMargin = 0.2;
 
+// Search rounds (PipelineConfig::search_rounds): at most this many; a later round takes out the
+// image edges within this many pixels of the best candidates' points.
+constexpr int kMaxSearchRounds = 4;
+constexpr int kRoundErasePx = 2;
+// Candidates whose search boxes overlap by more than this (intersection over union) are one part.
+constexpr double kCandidateOverlap = 0.3;
+
 // Per-thread buffers of fit_distance: the warped template it scores, kept between warps and cycles.
 struct DistanceFitWorkspace {
   OrientedTemplate warped;
@@ -251,6 +259,38 @@ struct BinPickingPipeline::Impl {
   cv::Mat1b explained;  // verification scratch, image size, kept zero outside use
   std::vector<cv::Point> placed;
   ConvexRegion region;
+  // Later search rounds (PipelineConfig::search_rounds): the query without the best candidates'
+  // edges (full and reduced resolution) and its integral distance transform; `idt` stays the
+  // whole image's (score_pose uses it).
+  cv::Mat1b erased;  // image size: the edges taken out
+  LineFitResult round_query;
+  LineSet round_lines;
+  cv::Mat1b round_channels;
+  IntegralDistanceTransform round_idt;
+  double round_ms_estimate = 0;  // what the last later round took
+
+  // One cycle's settings and outcomes shared by the stages below.
+  struct Cycle {
+    int obj_id = 0;
+    bool fdcm = true;
+    size_t selected_parts = 0;
+    Clock::time_point deadline, search_deadline;
+    // The first few views and fits run even past the deadline, so that a late cycle still gives
+    // picks (the first round; a later round only adds candidates).
+    bool minimum_past_deadline = true;
+    bool late = false;      // the search skipped views past its deadline
+    bool fit_late = false;  // the fit skipped hypotheses past the deadline
+  };
+  // The line search over every view of the selected parts into `hits`, best first, its bound
+  // keeping the best `wanted` (fdcm_idt: FDCM's costs; null for the baselines).
+  void search(Cycle& cycle, const LineSet& query, const IntegralDistanceTransform* fdcm_idt, size_t wanted,
+              PipelineResult& out);
+  void verify(size_t count);  // appends the best `count` new distinct hits to `verified`
+  void fit(Cycle& cycle, size_t first, const IntegralDistanceTransform* fdcm_idt);
+  void trace(size_t first, int round, PipelineResult& out) const;
+  void sort_verified(size_t first);
+  void rank(const Cycle& cycle, size_t first);
+  void query_without_best(int best);  // into round_query
 
   Impl(const CameraConfig& cam, PipelineConfig cfg)
       : camera(cam), config(std::move(cfg)), extractor(cam.camera, cam.flashes, config.depth_edges) {}
@@ -276,9 +316,9 @@ double explained_fraction(const TemplateView& view, const Warp& warp, int tx, in
 // The order of std::stable_sort without its temporary buffer (allocated on every call): insertion
 // sort, for the cycle's few dozen hypotheses.
 template <class T, class Less>
-void stable_sort_in_place(std::vector<T>& v, Less less) {
-  for (size_t i = 1; i < v.size(); ++i)
-    for (size_t j = i; j > 0 && less(v[j], v[j - 1]); --j) std::swap(v[j], v[j - 1]);
+void stable_sort_in_place(std::vector<T>& v, Less less, size_t first = 0) {
+  for (size_t i = first + 1; i < v.size(); ++i)
+    for (size_t j = i; j > first && less(v[j], v[j - 1]); --j) std::swap(v[j], v[j - 1]);
 }
 
 // The fitted view's edge points at the fitted distance (a view's point count scales with 1 / distance).
@@ -417,6 +457,9 @@ BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfi
   }
   if (m.config.floor_starts < 0) throw std::runtime_error("pipeline: floor_starts must be >= 0");
   if (m.config.coarse_seeds < 0) throw std::runtime_error("pipeline: coarse_seeds must be >= 0");
+  if (m.config.search_rounds < 1 || m.config.search_rounds > kMaxSearchRounds)
+    throw std::runtime_error("pipeline: search_rounds must be 1.." + std::to_string(kMaxSearchRounds));
+  if (m.config.round_hypotheses < 1) throw std::runtime_error("pipeline: round_hypotheses must be >= 1");
   if (!(m.config.evidence_weight >= 0)) throw std::runtime_error("pipeline: evidence_weight must be >= 0");
   m.search_dt3 = m.dt3_params;
   m.search_dt3.lambda /= m.config.search_downsample;
@@ -428,10 +471,13 @@ BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfi
   for (auto& h : m.thread_hits) h.reserve(4096);
   m.thread_best.resize(static_cast<size_t>(threads));
   for (auto& h : m.thread_best)
-    h.reserve(std::max<size_t>(m.config.fit_candidates * m.config.keep_per_view, m.config.coarse_seeds * m.parts.size()) + 1);
+    h.reserve(std::max<size_t>(std::max(m.config.fit_candidates, m.config.round_hypotheses) * m.config.keep_per_view,
+                               m.config.coarse_seeds * m.parts.size()) +
+              1);
   m.hits.reserve(4096);
   if (m.config.fit_candidates < 1) throw std::runtime_error("pipeline: fit_candidates must be >= 1");
-  m.verified.reserve(static_cast<size_t>(m.config.fit_candidates));
+  m.verified.reserve(static_cast<size_t>(m.config.fit_candidates) +
+                     static_cast<size_t>(m.config.search_rounds - 1) * static_cast<size_t>(m.config.round_hypotheses));
   m.fit_workspaces.resize(static_cast<size_t>(threads));
   m.distance_workspaces.resize(static_cast<size_t>(threads));
   // Every per-thread buffer of the fits grown here for every view (a thread meets views in any
@@ -457,6 +503,7 @@ BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfi
   m.jobs.reserve(views);
   m.fit_ms_estimate = 2.0 * m.config.fit_candidates / threads;
   m.explained = cv::Mat1b::zeros(camera.camera.image_size);
+  m.erased = cv::Mat1b::zeros(camera.camera.image_size);
 }
 
 BinPickingPipeline::~BinPickingPipeline() = default;
@@ -468,6 +515,370 @@ std::vector<std::pair<int, std::string>> BinPickingPipeline::parts() const {
 }
 const CameraConfig& BinPickingPipeline::camera() const { return impl_->camera; }
 const DepthEdges& BinPickingPipeline::last_edges() const { return impl_->edges; }
+
+// Coarse to fine, every part at once. The coarse stage: every `view_stride`-th view of every
+// selected part, in four passes (every 4th of them first, then those halfway between, then the
+// rest: views are numbered along a spiral on the sphere, so each pass is spread over it). A
+// search the deadline cuts short has still looked at every part from all round, and the
+// hypothesis fit moves between neighbouring views.
+void BinPickingPipeline::Impl::search(Cycle& cycle, const LineSet& query, const IntegralDistanceTransform* fdcm_idt,
+                                      size_t wanted, PipelineResult& out) {
+  Impl& m = *this;
+  const int down = m.config.search_downsample;
+  m.jobs.clear();
+  const int stride = m.config.view_stride;
+  static constexpr int kPassOf[4] = {0, 2, 1, 3};  // pass of (view / stride) % 4
+  for (auto& part : m.parts) std::fill(part.searched.begin(), part.searched.end(), 0);
+  for (int pass = 0; pass < 4; ++pass)
+    for (int v = 0;; v += stride) {
+      bool any = false;
+      for (int p = 0; p < static_cast<int>(m.parts.size()); ++p) {
+        if (cycle.obj_id != 0 && m.parts[p].db.obj_id != cycle.obj_id) continue;
+        if (v >= static_cast<int>(m.parts[p].db.views.size())) continue;
+        any = true;
+        if (kPassOf[(v / stride) % 4] == pass) m.jobs.emplace_back(p, v), m.parts[p].searched[v] = 1;
+      }
+      if (!any) break;
+    }
+  std::optional<FdcmMatcher> matcher;      // FDCM: over the round's integral distance transform
+  std::optional<ChamferMatcher> baseline;  // built from the baseline costs only when they exist
+  if (cycle.fdcm)
+    matcher.emplace(*fdcm_idt);
+  else
+    baseline.emplace(m.chamfer, m.config.cost == PipelineConfig::Cost::cm ? ChamferMatcher::Kind::Chamfer
+                                                                          : ChamferMatcher::Kind::OrientedChamfer);
+  LineSearchParams lp;
+  // Per view only its best placement is kept (Best mode): its bound tightens as the search
+  // improves, far cheaper than collecting every placement under the threshold. Several instances
+  // of a part still come out, through different (neighbouring) views, after NMS.
+  lp.mode = SearchMode::Best;
+  lp.threshold = m.config.max_cost_px / down;
+  lp.templateLines = m.config.template_guides;
+  lp.queryLines = m.config.query_guides;
+  lp.minOverlap = m.config.min_guide_overlap;
+  lp.slideStep = m.config.slide_step;
+  lp.keep = m.config.keep_per_view;
+  lp.separationPx = std::max(1, m.config.keep_separation_px / down);
+  m.shared_bound.store(SharedCostBound::kNone);
+  if (m.config.share_search_bound) lp.sharedBound = &m.shared_bound;
+  const size_t useful = std::max(wanted * static_cast<size_t>(m.config.keep_per_view),
+                                 static_cast<size_t>(m.config.coarse_seeds) * cycle.selected_parts);
+  for (auto& h : m.thread_best) h.clear();
+  std::atomic<bool> late{false};
+  for (auto& h : m.thread_hits) h.clear();
+  std::fill(m.thread_hypotheses.begin(), m.thread_hypotheses.end(), 0);
+  std::fill(m.thread_views.begin(), m.thread_views.end(), 0);
+  const int threads = static_cast<int>(m.thread_hits.size());
+  auto search_jobs = [&](size_t first) {
+#pragma omp parallel for schedule(dynamic, 4) num_threads(threads)
+    for (int j = static_cast<int>(first); j < static_cast<int>(m.jobs.size()); ++j) {
+      // The first few views of every part are searched even when late (the jobs interleave the
+      // parts), so that a late cycle still has hypotheses to give its best-so-far picks from.
+      const bool always =
+          cycle.minimum_past_deadline && static_cast<size_t>(j) < kAlwaysSearchedPerPart * cycle.selected_parts;
+      if (!always && late.load(std::memory_order_relaxed)) continue;
+      if (!always && Clock::now() > cycle.search_deadline) {
+        late = true;
+        continue;
+      }
+      const auto [p, v] = m.jobs[j];
+      const auto& list = m.parts[p].oriented[v];
+      const int me = omp_get_thread_num();
+      SearchResult& r = m.thread_results[me];
+      if (cycle.fdcm)
+        lineSearch(*matcher, list, query.lines, lp, m.search_workspaces[me], r);
+      else
+        r = lineSearch(*baseline, list, query.lines, lp);  // the baselines are evaluation tools
+      auto& mine = m.thread_hits[me];
+      m.thread_hypotheses[me] += r.stats.evaluated;
+      ++m.thread_views[me];
+      auto& best = m.thread_best[me];
+      for (const Candidate& c : r.candidates) {
+        const cv::Rect2d box = placedBox(list[c.oriented], c);
+        mine.push_back({p, v, c.oriented, c, cv::Rect2d(box.x * down, box.y * down, box.width * down, box.height * down)});
+        best.push_back(c);
+        std::push_heap(best.begin(), best.end(), better);  // worst on top
+        if (best.size() > useful) {
+          std::pop_heap(best.begin(), best.end(), better);
+          best.pop_back();
+        }
+        if (best.size() == useful)
+          SharedCostBound::lower(m.shared_bound, best.front().sum, static_cast<uint32_t>(best.front().pixels));
+      }
+    }
+  };
+  // Every thread's hits so far in one list, best first (hit_order: independent of the threads).
+  auto gather_hits = [&] {
+    m.hits.clear();
+    for (const auto& h : m.thread_hits) m.hits.insert(m.hits.end(), h.begin(), h.end());
+    std::sort(m.hits.begin(), m.hits.end(), hit_order);
+  };
+  search_jobs(0);
+  // The fine stage: the views around the best coarse_seeds x (parts searched) coarse hits, the
+  // best hit's first, so that a deadline cuts the least promising. (These seeds are always among
+  // the hits the shared bound keeps: it keeps at least that many.)
+  if (stride > 1 && m.config.coarse_seeds > 0 && !late.load()) {
+    const size_t coarse_jobs = m.jobs.size();
+    gather_hits();
+    const size_t seeds = std::min(m.hits.size(), static_cast<size_t>(m.config.coarse_seeds) * cycle.selected_parts);
+    for (size_t i = 0; i < seeds; ++i) {
+      const Hit& h = m.hits[i];
+      PartModel& part = m.parts[h.part];
+      for (int u : part.neighbours[h.view])
+        if (!part.searched[u]) part.searched[u] = 1, m.jobs.emplace_back(h.part, u);
+    }
+    search_jobs(coarse_jobs);
+  }
+  cycle.late = late.load();
+  for (int k = 0; k < threads; ++k) out.hypotheses += m.thread_hypotheses[k], out.views_searched += m.thread_views[k];
+  gather_hits();
+}
+
+// Verification. Chamfer matching only asks whether the template's edges are in the image, so a
+// view with fewer edges (the plain back of a part) matches wherever the detailed front does.
+// The distinct best hits are re-ranked by also asking the converse: which fraction of the
+// image's edges inside the placed outline the template explains (within 2 px). A hit that repeats
+// one verified before (same view, same place: an earlier round's) is not taken again.
+void BinPickingPipeline::Impl::verify(size_t count) {
+  Impl& m = *this;
+  const int down = m.config.search_downsample;
+  const size_t first = m.verified.size();
+  for (const Hit& h : m.hits) {
+    if (m.verified.size() - first >= count) break;
+    bool duplicate = false;
+    for (const auto& k : m.verified) duplicate = duplicate || (k.hit.part == h.part && iou(k.hit.box, h.box) > 0.8 &&
+                                                               k.hit.view == h.view);
+    if (duplicate) continue;
+    const PartModel& part = m.parts[h.part];
+    const double coverage =
+        explained_fraction(part.db.views[h.view], part.warps[h.warp], h.c.tx * down, h.c.ty * down, m);
+    Verified v;
+    v.hit = h;
+    v.coverage = coverage;
+    v.combined = h.c.cost() * down + kUnexplainedPenaltyPx * (1.0 - coverage);
+    m.verified.push_back(v);
+  }
+}
+
+// Each hypothesis from `first` on: local fit of distance, angle and translation (FDCM), its
+// coarse 3-D pose, then the 6-DoF fit with the template's model points (TemplatePoseFit): the
+// sampled views are up to ~6 degrees off any real pose, and only after this fit does the truth
+// score clearly better than clutter. Hypotheses are then ranked by the fitted score.
+void BinPickingPipeline::Impl::fit(Cycle& cycle, size_t first, const IntegralDistanceTransform* fdcm_idt) {
+  Impl& m = *this;
+  const int down = m.config.search_downsample;
+  const int threads = static_cast<int>(m.thread_hits.size());
+  std::atomic<bool> fit_late{false};
+  const BinFloor& floor = m.config.floor;
+  const int begin = static_cast<int>(first);
+#pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
+  for (int i = begin; i < static_cast<int>(m.verified.size()); ++i) {
+    Verified& v = m.verified[i];
+    v.fit_score = -1;
+    // Past the deadline only the first few (the best by search cost) are still fitted, so that a
+    // late cycle still gives its best-so-far picks.
+    const bool always = cycle.minimum_past_deadline && i - begin < kAlwaysFitted;
+    v.skipped = !always && (fit_late.load(std::memory_order_relaxed) || Clock::now() > cycle.deadline);
+    if (v.skipped) {
+      fit_late = true;
+      continue;
+    }
+    const Hit& h = v.hit;
+    const PartModel& part = m.parts[h.part];
+    const Warp& w = part.warps[h.warp];
+    TemplatePlacement pl;
+    pl.view = h.view;
+    pl.angle_rad = w.angle;
+    pl.scale = w.scale;
+    pl.origin_px = cv::Point2d(h.c.tx * down, h.c.ty * down);
+    if (cycle.fdcm)
+      fit_distance(part.db.views[h.view].lines, *fdcm_idt, down, pl, m.distance_workspaces[omp_get_thread_num()]);
+    v.coarse = coarse_pose(part.db, pl, m.camera.camera);
+    v.view = h.view;
+    if (cycle.fdcm && m.config.fit_hypotheses) {
+      const TemplateFitResult f =
+          m.fitter.fit(part.db, h.view, v.coarse, m.camera.camera, m.fit_workspaces[omp_get_thread_num()]);
+      if (moved_too_far_in_depth(part.db, v.coarse, f.pose)) {
+        v.fitted = v.coarse;
+        v.fit_score = 0;
+        v.fit_rank = -1;
+        continue;
+      }
+      // No part can lie there. About half of the fitted hypotheses of a full bin do (dev set 7:
+      // 555 of 1000); fitting them again from the floor cost ~5 ms a cycle for no measured gain.
+      v.below_floor = floor.below(part.db.mesh, f.pose);
+      if (v.below_floor) continue;
+      v.take(f, fitted_rank(f, part.db, m.config.evidence_weight));
+    } else {
+      // The search's distance is one of a few guesses: a pose below the floor goes onto it.
+      v.fitted = floor.below(part.db.mesh, v.coarse) ? floor.onto(part.db.mesh, v.coarse, part.db.center_mm) : v.coarse;
+    }
+  }
+  // Hypotheses the deadline left unfitted are dropped (the best-so-far result is flagged degraded),
+  // and so are fitted ones no part could take (below the floor).
+  m.verified.erase(std::remove_if(m.verified.begin() + begin, m.verified.end(),
+                                  [](const Verified& v) { return v.skipped || v.below_floor; }),
+                   m.verified.end());
+  cycle.fit_late = cycle.fit_late || fit_late.load();
+}
+
+void BinPickingPipeline::Impl::trace(size_t first, int round, PipelineResult& out) const {
+  const Impl& m = *this;
+  const int down = m.config.search_downsample;
+  for (size_t i = first; i < m.verified.size(); ++i) {
+    const Verified& v = m.verified[i];
+    HypothesisTrace h;
+    h.obj_id = m.parts[v.hit.part].db.obj_id;
+    h.round = round;
+    h.search_view = v.hit.view;
+    h.fitted_view = v.view;
+    h.search_cost_px = v.hit.c.cost() * down;
+    h.coverage = v.coverage;
+    h.R_coarse = v.coarse.R;
+    h.t_coarse_mm = v.coarse.t_mm;
+    h.R_fitted = v.fitted.R;
+    h.t_fitted_mm = v.fitted.t_mm;
+    h.fit_rank = v.fit_rank;
+    h.fit_score = v.fit.score;
+    h.fit_coverage = v.fit.coverage;
+    h.inlier_fraction = v.fit.inlier_fraction;
+    h.mean_cost_px = v.fit.mean_cost_px;
+    if (v.fit.view >= 0) h.view_points = view_points(v.fit, m.parts[v.hit.part].db);
+    out.trace.push_back(h);
+  }
+}
+
+// Best first from `first` on: by the fitted rank, or without the fit (the baselines, search
+// only) by the search's combined cost.
+void BinPickingPipeline::Impl::sort_verified(size_t first) {
+  if (config.cost == PipelineConfig::Cost::fdcm && config.fit_hypotheses)
+    stable_sort_in_place(verified, [](const Verified& a, const Verified& b) { return a.fit_rank > b.fit_rank; }, first);
+  else
+    stable_sort_in_place(verified, [](const Verified& a, const Verified& b) { return a.combined < b.combined; }, first);
+}
+
+// Ranks the hypotheses from `first` on, and checks the best few of them against the floor and
+// turned over.
+void BinPickingPipeline::Impl::rank(const Cycle& cycle, size_t first) {
+  Impl& m = *this;
+  sort_verified(first);
+  if (!cycle.fdcm || !m.config.fit_hypotheses) return;
+  const int threads = static_cast<int>(m.thread_hits.size());
+  const BinFloor& floor = m.config.floor;
+  const int begin = static_cast<int>(first);
+  const int count = static_cast<int>(m.verified.size()) - begin;
+  // Floor starts: one view measures a part's distance poorly, and the fit converges to the
+  // depth nearest its start. Parts low in the bin mostly rest on its floor, so the best few
+  // hypotheses whose lowest point hovers above the floor are fitted again from the pose slid
+  // down onto it (the fit stays free to leave it).
+  const int floor_starts = floor.known() ? std::min(m.config.floor_starts, count) : 0;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
+  for (int i = begin; i < begin + floor_starts; ++i) {
+    Verified& v = m.verified[i];
+    if (v.fit_score <= 0 || Clock::now() > cycle.deadline) continue;
+    const PartModel& part = m.parts[v.hit.part];
+    const double height = -floor.reach_below(part.db.mesh, v.fitted);
+    if (height <= floor.tolerance_mm || height > kFloorStartHeightMm) continue;
+    RigidPose start = floor.onto(part.db.mesh, v.fitted, part.db.center_mm);
+    const int view = TemplatePoseFit::nearest_view(part.db, m.camera.camera, start);
+    const TemplateFitResult f = m.fitter.fit(part.db, view, start, m.camera.camera, m.fit_workspaces[omp_get_thread_num()]);
+    if (f.score < kFloorStartMinScoreRatio * v.fit_score || floor.below(part.db.mesh, f.pose) ||
+        moved_too_far_in_depth(part.db, v.coarse, f.pose))
+      continue;
+    v.take(f, fitted_rank(f, part.db, m.config.evidence_weight));
+  }
+  if (floor_starts > 0) sort_verified(first);
+
+  // Turned-over check of the best few: a part that is symmetric but for a small feature (the
+  // breaker's toggle) fits as well turned by 180 degrees about an axis; the edges can only tell
+  // the two apart where they differ (TemplatePoseFit::compare).
+  const int checks = std::min(m.config.flip_checks, count);
+#pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
+  for (int i = begin; i < begin + checks; ++i) {
+    Verified& v = m.verified[i];
+    if (v.fit_score <= 0 || Clock::now() > cycle.deadline) continue;
+    const PartModel& part = m.parts[v.hit.part];
+    auto& ws = m.fit_workspaces[omp_get_thread_num()];
+    TemplateFitResult current;
+    current.pose = v.fitted;
+    current.view = v.view;
+    current.score = v.fit_score;
+    for (const PartModel::Turn& turn : part.flips) {
+      const cv::Matx33d& S = turn.S;
+      RigidPose turned;
+      turned.R = current.pose.R * S;
+      turned.t_mm = current.pose.t_mm + current.pose.R * (part.db.center_mm - S * part.db.center_mm);
+      const int view = TemplatePoseFit::nearest_view(part.db, m.camera.camera, turned);
+      const TemplateFitResult f = m.fitter.fit(part.db, view, turned, m.camera.camera, ws);
+      if (moved_too_far_in_depth(part.db, v.coarse, f.pose) || f.score < kFlipMinScoreRatio * current.score ||
+          floor.below(part.db.mesh, f.pose))
+        continue;
+      const bool feature = !turn.differs.empty();
+      const TemplatePoseFit::Difference d =
+          m.fitter.compare(part.db, current, f, m.camera.camera, ws,
+                           feature ? &turn.differs[static_cast<size_t>(current.view)] : nullptr,
+                           feature ? &turn.differs[static_cast<size_t>(f.view)] : nullptr);
+      if (d.only_b < kFlipMinPoints || d.found_b < d.found_a + kFlipMargin) continue;
+      current = f;
+      v.fitted = f.pose;
+      v.view = f.view;
+      v.fit_score = f.score;
+      v.fit_rank = std::max(v.fit_rank, fitted_rank(f, part.db, m.config.evidence_weight));
+    }
+  }
+  sort_verified(first);
+}
+
+// The query of a later search round: the cycle's query lines and directional edge map without
+// the image edges that the best `best` distinct candidates so far explain (those within
+// kRoundErasePx of their fitted view's points; distinct as the candidates' NMS sees them). A line
+// is dropped when more than half of it lies there.
+void BinPickingPipeline::Impl::query_without_best(int best) {
+  Impl& m = *this;
+  // (Plain loops: cv::Mat::setTo allocates a scalar buffer on every call.)
+  for (int y = 0; y < erased.rows; ++y) std::fill_n(erased.ptr<uchar>(y), erased.cols, uchar{0});
+  std::array<cv::Rect2d, kMaxSearchRounds> taken;
+  int n = 0;
+  for (const Verified& v : m.verified) {
+    if (n >= best) break;
+    bool overlaps = false;
+    for (int k = 0; k < n; ++k) overlaps = overlaps || iou(taken[static_cast<size_t>(k)], v.hit.box) > kCandidateOverlap;
+    if (overlaps) continue;
+    taken[static_cast<size_t>(n++)] = v.hit.box;
+    for (const TemplateEdgePoint& p : m.parts[v.hit.part].db.views[static_cast<size_t>(v.view)].points) {
+      const cv::Vec3d cam = v.fitted.R * cv::Vec3d(p.model_mm[0], p.model_mm[1], p.model_mm[2]) + v.fitted.t_mm;
+      if (cam[2] <= 0) continue;
+      const cv::Point2d q = m.camera.camera.project(cam);
+      const cv::Rect around(cvRound(q.x) - kRoundErasePx, cvRound(q.y) - kRoundErasePx, 2 * kRoundErasePx + 1,
+                            2 * kRoundErasePx + 1);
+      const cv::Rect inside = around & cv::Rect(cv::Point(0, 0), erased.size());
+      for (int y = inside.y; y < inside.y + inside.height; ++y)
+        std::fill_n(erased.ptr<uchar>(y) + inside.x, inside.width, uchar{255});
+    }
+  }
+  m.lines.channelMap.copyTo(round_query.channelMap);
+  for (int y = 0; y < erased.rows; ++y) {
+    const uchar* gone = erased.ptr<uchar>(y);
+    uchar* channel = round_query.channelMap.ptr<uchar>(y);
+    for (int x = 0; x < erased.cols; ++x)
+      if (gone[x]) channel[x] = kNoChannel;
+  }
+  const LineSet& all = m.lines.set;
+  round_query.set.q = all.q;
+  round_query.set.size = all.size;
+  round_query.set.origin = all.origin;
+  round_query.set.lines.clear();
+  for (const LineSegment& line : all.lines) {
+    const int steps = std::max(1, static_cast<int>(std::ceil(line.length())));
+    int gone = 0;
+    for (int k = 0; k <= steps; ++k) {
+      const cv::Point2f at = line.a + (line.b - line.a) * (static_cast<float>(k) / static_cast<float>(steps));
+      const int x = cvRound(at.x), y = cvRound(at.y);
+      gone += x >= 0 && y >= 0 && x < erased.cols && y < erased.rows && erased(y, x) != 0;
+    }
+    if (2 * gone <= steps + 1) round_query.set.lines.push_back(line);
+  }
+}
 
 void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::time_point deadline,
                                  PipelineResult& out) {
@@ -512,302 +923,75 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
   // shared out among the threads. Past the search's deadline the remaining views are skipped: it
   // leaves the hypothesis fit the time it took last cycle, with a margin.
   // At most half the time left goes to the fit: the search always gets the other half.
+  Impl::Cycle cycle;
+  cycle.obj_id = obj_id;
+  cycle.fdcm = fdcm;
+  cycle.deadline = deadline;
   const double left_ms = std::max(0.0, ms_between(Clock::now(), deadline));
-  const auto search_deadline =
+  cycle.search_deadline =
       deadline - std::chrono::duration_cast<Clock::duration>(
                      std::chrono::duration<double, std::milli>(std::min(1.5 * m.fit_ms_estimate, 0.5 * left_ms)));
-  // Coarse to fine, every part at once. The coarse stage: every `view_stride`-th view of every
-  // selected part, in four passes (every 4th of them first, then those halfway between, then the
-  // rest: views are numbered along a spiral on the sphere, so each pass is spread over it). A
-  // search the deadline cuts short has still looked at every part from all round, and the
-  // hypothesis fit moves between neighbouring views.
-  m.jobs.clear();
-  const int stride = m.config.view_stride;
-  static constexpr int kPassOf[4] = {0, 2, 1, 3};  // pass of (view / stride) % 4
-  for (auto& part : m.parts) std::fill(part.searched.begin(), part.searched.end(), 0);
-  for (int pass = 0; pass < 4; ++pass)
-    for (int v = 0;; v += stride) {
-      bool any = false;
-      for (int p = 0; p < static_cast<int>(m.parts.size()); ++p) {
-        if (obj_id != 0 && m.parts[p].db.obj_id != obj_id) continue;
-        if (v >= static_cast<int>(m.parts[p].db.views.size())) continue;
-        any = true;
-        if (kPassOf[(v / stride) % 4] == pass) m.jobs.emplace_back(p, v), m.parts[p].searched[v] = 1;
-      }
-      if (!any) break;
-    }
-  const FdcmMatcher matcher(m.idt);
-  std::optional<ChamferMatcher> baseline;  // built from the baseline costs only when they exist
-  if (!fdcm)
-    baseline.emplace(m.chamfer, m.config.cost == PipelineConfig::Cost::cm ? ChamferMatcher::Kind::Chamfer
-                                                                          : ChamferMatcher::Kind::OrientedChamfer);
-  LineSearchParams lp;
-  // Per view only its best placement is kept (Best mode): its bound tightens as the search
-  // improves, far cheaper than collecting every placement under the threshold. Several instances
-  // of a part still come out, through different (neighbouring) views, after NMS.
-  lp.mode = SearchMode::Best;
-  lp.threshold = m.config.max_cost_px / down;
-  lp.templateLines = m.config.template_guides;
-  lp.queryLines = m.config.query_guides;
-  lp.minOverlap = m.config.min_guide_overlap;
-  lp.slideStep = m.config.slide_step;
-  lp.keep = m.config.keep_per_view;
-  lp.separationPx = std::max(1, m.config.keep_separation_px / down);
-  m.shared_bound.store(SharedCostBound::kNone);
-  if (m.config.share_search_bound) lp.sharedBound = &m.shared_bound;
-  size_t selected_parts = 0;
-  for (const auto& part : m.parts) selected_parts += obj_id == 0 || part.db.obj_id == obj_id;
-  const size_t useful = std::max(static_cast<size_t>(m.config.fit_candidates * m.config.keep_per_view),
-                                 static_cast<size_t>(m.config.coarse_seeds) * selected_parts);
-  for (auto& h : m.thread_best) h.clear();
-  std::atomic<bool> late{false};
-  for (auto& h : m.thread_hits) h.clear();
-  std::fill(m.thread_hypotheses.begin(), m.thread_hypotheses.end(), 0);
-  std::fill(m.thread_views.begin(), m.thread_views.end(), 0);
-  const int threads = static_cast<int>(m.thread_hits.size());
-  auto search_jobs = [&](size_t first) {
-#pragma omp parallel for schedule(dynamic, 4) num_threads(threads)
-    for (int j = static_cast<int>(first); j < static_cast<int>(m.jobs.size()); ++j) {
-      // The first few views of every part are searched even when late (the jobs interleave the
-      // parts), so that a late cycle still has hypotheses to give its best-so-far picks from.
-      const bool always = static_cast<size_t>(j) < kAlwaysSearchedPerPart * selected_parts;
-      if (!always && late.load(std::memory_order_relaxed)) continue;
-      if (!always && Clock::now() > search_deadline) {
-        late = true;
-        continue;
-      }
-      const auto [p, v] = m.jobs[j];
-      const auto& list = m.parts[p].oriented[v];
-      const int me = omp_get_thread_num();
-      SearchResult& r = m.thread_results[me];
-      if (fdcm)
-        lineSearch(matcher, list, query.lines, lp, m.search_workspaces[me], r);
-      else
-        r = lineSearch(*baseline, list, query.lines, lp);  // the baselines are evaluation tools
-      auto& mine = m.thread_hits[me];
-      m.thread_hypotheses[me] += r.stats.evaluated;
-      ++m.thread_views[me];
-      auto& best = m.thread_best[me];
-      for (const Candidate& c : r.candidates) {
-        const cv::Rect2d box = placedBox(list[c.oriented], c);
-        mine.push_back({p, v, c.oriented, c, cv::Rect2d(box.x * down, box.y * down, box.width * down, box.height * down)});
-        best.push_back(c);
-        std::push_heap(best.begin(), best.end(), better);  // worst on top
-        if (best.size() > useful) {
-          std::pop_heap(best.begin(), best.end(), better);
-          best.pop_back();
-        }
-        if (best.size() == useful)
-          SharedCostBound::lower(m.shared_bound, best.front().sum, static_cast<uint32_t>(best.front().pixels));
-      }
-    }
-  };
-  // Every thread's hits so far in one list, best first (hit_order: independent of the threads).
-  auto gather_hits = [&] {
-    m.hits.clear();
-    for (const auto& h : m.thread_hits) m.hits.insert(m.hits.end(), h.begin(), h.end());
-    std::sort(m.hits.begin(), m.hits.end(), hit_order);
-  };
-  search_jobs(0);
-  // The fine stage: the views around the best coarse_seeds x (parts searched) coarse hits, the
-  // best hit's first, so that a deadline cuts the least promising. (These seeds are always among
-  // the hits the shared bound keeps: it keeps at least that many.)
-  if (stride > 1 && m.config.coarse_seeds > 0 && !late.load()) {
-    const size_t coarse_jobs = m.jobs.size();
-    gather_hits();
-    const size_t seeds = std::min(m.hits.size(), static_cast<size_t>(m.config.coarse_seeds) * selected_parts);
-    for (size_t i = 0; i < seeds; ++i) {
-      const Hit& h = m.hits[i];
-      PartModel& part = m.parts[h.part];
-      for (int u : part.neighbours[h.view])
-        if (!part.searched[u]) part.searched[u] = 1, m.jobs.emplace_back(h.part, u);
-    }
-    search_jobs(coarse_jobs);
-  }
-  out.degraded = late.load();
+  for (const auto& part : m.parts) cycle.selected_parts += obj_id == 0 || part.db.obj_id == obj_id;
   out.hypotheses = 0;
   out.views_searched = 0;
-  for (int k = 0; k < threads; ++k) out.hypotheses += m.thread_hypotheses[k], out.views_searched += m.thread_views[k];
-  gather_hits();
+  m.search(cycle, query, fdcm ? &m.idt : nullptr, static_cast<size_t>(m.config.fit_candidates), out);
+  out.degraded = cycle.late;
   t1 = Clock::now();
   out.times.search_ms = ms_between(t, t1);
 
-  // Verification. Chamfer matching only asks whether the template's edges are in the image, so a
-  // view with fewer edges (the plain back of a part) matches wherever the detailed front does.
-  // The distinct best hits are re-ranked by also asking the converse: which fraction of the
-  // image's edges inside the placed outline the template explains (within 2 px).
+  // Verification, then each hypothesis fitted in 6-DoF and ranked (Impl::verify, fit, rank).
   m.verified.clear();
-  const int hypotheses = m.config.fit_candidates;
-  for (const Hit& h : m.hits) {
-    if (static_cast<int>(m.verified.size()) >= hypotheses) break;
-    bool duplicate = false;
-    for (const auto& k : m.verified) duplicate = duplicate || (k.hit.part == h.part && iou(k.hit.box, h.box) > 0.8 &&
-                                                               k.hit.view == h.view);
-    if (duplicate) continue;
-    const PartModel& part = m.parts[h.part];
-    const double coverage =
-        explained_fraction(part.db.views[h.view], part.warps[h.warp], h.c.tx * down, h.c.ty * down, m);
-    Impl::Verified v;
-    v.hit = h;
-    v.coverage = coverage;
-    v.combined = h.c.cost() * down + kUnexplainedPenaltyPx * (1.0 - coverage);
-    m.verified.push_back(v);
-  }
-
-  // Each hypothesis: local fit of distance, angle and translation (FDCM), its coarse 3-D pose,
-  // then the 6-DoF fit with the template's model points (TemplatePoseFit): the sampled views are
-  // up to ~6 degrees off any real pose, and only after this fit does the truth score clearly
-  // better than clutter. Hypotheses are then ranked by the fitted score.
+  out.trace.clear();
   const auto fit_start = Clock::now();
-  if (fdcm && !m.verified.empty()) {
+  if (fdcm && !m.hits.empty()) {
     m.fitter.prepare(m.edges);
     m.fitter_prepared = true;
   }
-  std::atomic<bool> fit_late{false};
-  const BinFloor& floor = m.config.floor;
-#pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
-  for (int i = 0; i < static_cast<int>(m.verified.size()); ++i) {
-    Impl::Verified& v = m.verified[i];
-    v.fit_score = -1;
-    // Past the deadline only the first few (the best by search cost) are still fitted, so that a
-    // late cycle still gives its best-so-far picks.
-    v.skipped = i >= kAlwaysFitted && (fit_late.load(std::memory_order_relaxed) || Clock::now() > deadline);
-    if (v.skipped) {
-      fit_late = true;
-      continue;
-    }
-    const Hit& h = v.hit;
-    const PartModel& part = m.parts[h.part];
-    const Warp& w = part.warps[h.warp];
-    TemplatePlacement pl;
-    pl.view = h.view;
-    pl.angle_rad = w.angle;
-    pl.scale = w.scale;
-    pl.origin_px = cv::Point2d(h.c.tx * down, h.c.ty * down);
-    if (fdcm) fit_distance(part.db.views[h.view].lines, m.idt, down, pl, m.distance_workspaces[omp_get_thread_num()]);
-    v.coarse = coarse_pose(part.db, pl, m.camera.camera);
-    v.view = h.view;
-    if (fdcm && m.config.fit_hypotheses) {
-      const TemplateFitResult f =
-          m.fitter.fit(part.db, h.view, v.coarse, m.camera.camera, m.fit_workspaces[omp_get_thread_num()]);
-      if (moved_too_far_in_depth(part.db, v.coarse, f.pose)) {
-        v.fitted = v.coarse;
-        v.fit_score = 0;
-        v.fit_rank = -1;
-        continue;
-      }
-      // No part can lie there. About half of the fitted hypotheses of a full bin do (dev set 7:
-      // 555 of 1000); fitting them again from the floor cost ~5 ms a cycle for no measured gain.
-      v.below_floor = floor.below(part.db.mesh, f.pose);
-      if (v.below_floor) continue;
-      v.take(f, fitted_rank(f, part.db, m.config.evidence_weight));
-    } else {
-      // The search's distance is one of a few guesses: a pose below the floor goes onto it.
-      v.fitted = floor.below(part.db.mesh, v.coarse) ? floor.onto(part.db.mesh, v.coarse, part.db.center_mm) : v.coarse;
-    }
-  }
-  // Hypotheses the deadline left unfitted are dropped (the best-so-far result is flagged degraded),
-  // and so are fitted ones no part could take (below the floor).
-  std::erase_if(m.verified, [](const Impl::Verified& v) { return v.skipped || v.below_floor; });
-  out.degraded = out.degraded || fit_late.load();
+  m.verify(static_cast<size_t>(m.config.fit_candidates));
+  m.fit(cycle, 0, fdcm ? &m.idt : nullptr);
+  out.degraded = out.degraded || cycle.fit_late;
   // The time the fit of all hypotheses takes, from the fits that ran (the search leaves it that).
   const int fitted = static_cast<int>(m.verified.size());
   if (fitted > 0)
     m.fit_ms_estimate = ms_between(fit_start, Clock::now()) * m.config.fit_candidates / std::max(fitted, 1);
-  out.trace.clear();
-  if (m.config.trace)
-    for (const Impl::Verified& v : m.verified) {
-      HypothesisTrace h;
-      h.obj_id = m.parts[v.hit.part].db.obj_id;
-      h.search_view = v.hit.view;
-      h.fitted_view = v.view;
-      h.search_cost_px = v.hit.c.cost() * down;
-      h.coverage = v.coverage;
-      h.R_coarse = v.coarse.R;
-      h.t_coarse_mm = v.coarse.t_mm;
-      h.R_fitted = v.fitted.R;
-      h.t_fitted_mm = v.fitted.t_mm;
-      h.fit_rank = v.fit_rank;
-      h.fit_score = v.fit.score;
-      h.fit_coverage = v.fit.coverage;
-      h.inlier_fraction = v.fit.inlier_fraction;
-      h.mean_cost_px = v.fit.mean_cost_px;
-      if (v.fit.view >= 0) h.view_points = view_points(v.fit, m.parts[v.hit.part].db);
-      out.trace.push_back(h);
-    }
-  if (fdcm && m.config.fit_hypotheses) {
-    auto by_rank = [](const Impl::Verified& a, const Impl::Verified& b) { return a.fit_rank > b.fit_rank; };
-    stable_sort_in_place(m.verified, by_rank);
-    // Floor starts: one view measures a part's distance poorly, and the fit converges to the
-    // depth nearest its start. Parts low in the bin mostly rest on its floor, so the best few
-    // hypotheses whose lowest point hovers above the floor are fitted again from the pose slid
-    // down onto it (the fit stays free to leave it).
-    const int floor_starts = floor.known() ? std::min<int>(m.config.floor_starts, static_cast<int>(m.verified.size())) : 0;
-#pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
-    for (int i = 0; i < floor_starts; ++i) {
-      Impl::Verified& v = m.verified[i];
-      if (v.fit_score <= 0 || Clock::now() > deadline) continue;
-      const PartModel& part = m.parts[v.hit.part];
-      const double height = -floor.reach_below(part.db.mesh, v.fitted);
-      if (height <= floor.tolerance_mm || height > kFloorStartHeightMm) continue;
-      RigidPose start = floor.onto(part.db.mesh, v.fitted, part.db.center_mm);
-      const int view = TemplatePoseFit::nearest_view(part.db, m.camera.camera, start);
-      const TemplateFitResult f = m.fitter.fit(part.db, view, start, m.camera.camera, m.fit_workspaces[omp_get_thread_num()]);
-      if (f.score < kFloorStartMinScoreRatio * v.fit_score || floor.below(part.db.mesh, f.pose) ||
-          moved_too_far_in_depth(part.db, v.coarse, f.pose))
-        continue;
-      v.take(f, fitted_rank(f, part.db, m.config.evidence_weight));
-    }
-    if (floor_starts > 0) stable_sort_in_place(m.verified, by_rank);
+  if (m.config.trace) m.trace(0, 1, out);
+  m.rank(cycle, 0);
 
-    // Turned-over check of the best few: a part that is symmetric but for a small feature (the
-    // breaker's toggle) fits as well turned by 180 degrees about an axis; the edges can only tell
-    // the two apart where they differ (TemplatePoseFit::compare).
-    const int checks = std::min<int>(m.config.flip_checks, static_cast<int>(m.verified.size()));
-#pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
-    for (int i = 0; i < checks; ++i) {
-      Impl::Verified& v = m.verified[i];
-      if (v.fit_score <= 0 || Clock::now() > deadline) continue;
-      const PartModel& part = m.parts[v.hit.part];
-      auto& ws = m.fit_workspaces[omp_get_thread_num()];
-      TemplateFitResult current;
-      current.pose = v.fitted;
-      current.view = v.view;
-      current.score = v.fit_score;
-      for (const PartModel::Turn& turn : part.flips) {
-        const cv::Matx33d& S = turn.S;
-        RigidPose turned;
-        turned.R = current.pose.R * S;
-        turned.t_mm = current.pose.t_mm + current.pose.R * (part.db.center_mm - S * part.db.center_mm);
-        const int view = TemplatePoseFit::nearest_view(part.db, m.camera.camera, turned);
-        const TemplateFitResult f = m.fitter.fit(part.db, view, turned, m.camera.camera, ws);
-        if (moved_too_far_in_depth(part.db, v.coarse, f.pose) || f.score < kFlipMinScoreRatio * current.score ||
-            floor.below(part.db.mesh, f.pose))
-          continue;
-        const bool feature = !turn.differs.empty();
-        const TemplatePoseFit::Difference d =
-            m.fitter.compare(part.db, current, f, m.camera.camera, ws,
-                             feature ? &turn.differs[static_cast<size_t>(current.view)] : nullptr,
-                             feature ? &turn.differs[static_cast<size_t>(f.view)] : nullptr);
-        if (d.only_b < kFlipMinPoints || d.found_b < d.found_a + kFlipMargin) continue;
-        current = f;
-        v.fitted = f.pose;
-        v.view = f.view;
-        v.fit_score = f.score;
-        v.fit_rank = std::max(v.fit_rank, fitted_rank(f, part.db, m.config.evidence_weight));
-      }
-    }
-    stable_sort_in_place(m.verified, by_rank);
-  } else
-    stable_sort_in_place(m.verified,
-                         [](const Impl::Verified& a, const Impl::Verified& b) { return a.combined < b.combined; });
+  // Later search rounds (PipelineConfig::search_rounds): the image edges the best candidates so
+  // far explain are taken out of the query and the search runs again for the parts they hid.
+  // A round starts only when the first was complete and the deadline leaves it the time the last
+  // one took; its result is extra candidates, so skipping it does not degrade the cycle.
+  out.rounds = 1;
+  for (int round = 2; fdcm && round <= m.config.search_rounds && !out.degraded && !m.verified.empty(); ++round) {
+    const auto round_start = Clock::now();
+    if (round_start + std::chrono::duration_cast<Clock::duration>(
+                          std::chrono::duration<double, std::milli>(m.round_ms_estimate)) > deadline)
+      break;
+    m.query_without_best(round - 1);
+    if (down > 1) reduceQuery(m.round_query.set, m.round_query.channelMap, down, m.round_lines, m.round_channels);
+    m.dt3.compute(down > 1 ? m.round_channels : m.round_query.channelMap, m.search_dt3);
+    m.round_idt.compute(m.dt3);
+    Impl::Cycle later = cycle;
+    later.minimum_past_deadline = false;
+    later.search_deadline = deadline;
+    m.search(later, down > 1 ? m.round_lines : m.round_query.set, &m.round_idt,
+             static_cast<size_t>(m.config.round_hypotheses), out);
+    const size_t first = m.verified.size();
+    m.verify(static_cast<size_t>(m.config.round_hypotheses));
+    m.fit(later, first, &m.round_idt);
+    if (m.config.trace) m.trace(first, round, out);
+    m.rank(later, first);
+    m.sort_verified(0);
+    m.round_ms_estimate = ms_between(round_start, Clock::now());
+    out.rounds = round;
+  }
 
   // Non-maximum suppression across views and part types: one part per place in the bin.
   for (const Impl::Verified& v : m.verified) {
     const Hit& h = v.hit;
     if (static_cast<int>(out.candidates.size()) >= m.config.max_candidates) break;
     bool overlaps = false;
-    for (const auto& k : out.candidates) overlaps = overlaps || iou(k.box, h.box) > 0.3;
+    for (const auto& k : out.candidates) overlaps = overlaps || iou(k.box, h.box) > kCandidateOverlap;
     if (overlaps) continue;
     const PartModel& part = m.parts[h.part];
     PoseCandidate c;

@@ -90,6 +90,15 @@ struct PipelineConfig {
   // 30 mm above it are fitted again from the pose slid down onto the floor, and take that fit when
   // it scores at least 0.8 of theirs (docs/pose.md "The bin floor"). 0 = off.
   int floor_starts = 6;
+  // Search rounds: each view keeps only its best placement, so the hypotheses gather on the
+  // instance that matches best, and a second instance of the type is often not among them
+  // (docs/pose.md "Search rounds"). A later round takes out of the query (its lines and
+  // directional edge map) the image edges that the best candidates so far explain (round k: the
+  // best k - 1 distinct ones), searches again and fits its best `round_hypotheses` new hits, ranked
+  // with the others. It starts only when the deadline leaves it the time the last one took, and
+  // costs about as much as the first search plus that many fits. 1..4; 1 = one search.
+  int search_rounds = 1;
+  int round_hypotheses = 16;
   int refine_iterations = 20;      // per candidate (outer ICP iterations); cut short at the deadline
   // The best this many candidates are refined by the render-based PoseRefiner with the cell's one
   // view. 0 by default: measured on mfc-sim bins, one-view refinement of the fitted pose made it
@@ -128,6 +137,7 @@ struct StageTimes {
 // One hypothesis of the cycle as the search found it and as the fit left it (PipelineConfig::trace).
 struct HypothesisTrace {
   int obj_id = 0;
+  int round = 1;              // the search round that found it (PipelineConfig::search_rounds)
   int search_view = -1, fitted_view = -1;
   double search_cost_px = 0;  // mean directional chamfer cost of the search hit
   double coverage = 0;        // explained-edge fraction at the search hit
@@ -145,8 +155,9 @@ struct PipelineResult {
   bool degraded = false;      // the deadline cut a stage short: best-so-far result
   int edge_pixels = 0;
   int query_lines = 0;
-  uint64_t hypotheses = 0;    // FDCM hypotheses evaluated by the search
-  int views_searched = 0;     // template views searched (fewer than loaded when degraded)
+  uint64_t hypotheses = 0;    // FDCM hypotheses evaluated by the search, all rounds
+  int views_searched = 0;     // template views searched, all rounds (fewer than loaded when degraded)
+  int rounds = 1;             // search rounds run (PipelineConfig::search_rounds; fewer near the deadline)
   std::vector<HypothesisTrace> trace;  // PipelineConfig::trace only: every fitted hypothesis, search order,
                                        // before the turned-over check
 };

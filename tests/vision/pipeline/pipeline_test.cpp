@@ -199,6 +199,19 @@ TEST(Pipeline, RefusesBadConfiguration) {
       EXPECT_NE(std::string(e.what()).find("search_downsample"), std::string::npos) << e.what();
     }
   }
+  pc.search_downsample = 3;
+  for (int bad : {0, 5}) {
+    pc.search_rounds = bad;
+    try {
+      BinPickingPipeline p(cam, pc);
+      ADD_FAILURE() << "search_rounds " << bad << " accepted";
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find("search_rounds"), std::string::npos) << e.what();
+    }
+  }
+  pc.search_rounds = 2;
+  pc.round_hypotheses = 0;
+  EXPECT_THROW(BinPickingPipeline(cam, pc), std::runtime_error);
 }
 
 // The bin floor: with the floor where it is, the part is still found; with a floor placed above
@@ -360,8 +373,10 @@ TEST(Pipeline, FramePathDoesNotAllocateInSteadyState) {
   const CameraConfig cam = sim_camera();
   PipelineConfig pc;
   pc.template_files = {tdb};
-  // A floor a little below the parts: the floor's slides, refits and floor starts run too.
+  // A floor a little below the parts: the floor's slides, refits and floor starts run too; and
+  // a second search round.
   pc.floor.distance_mm = db.distance_mm + 15;
+  pc.search_rounds = 2;
   BinPickingPipeline pipeline(cam, pc);
   MfcRenderer renderer(cam);
   const int part_id = renderer.add_mesh(db.mesh);
@@ -381,4 +396,69 @@ TEST(Pipeline, FramePathDoesNotAllocateInSteadyState) {
   const auto allocations = mfcd::hal::test::allocationCount() - before;
   EXPECT_EQ(allocations, 0u) << "heap allocations in 6 steady-state cycles";
   ASSERT_FALSE(result.candidates.empty());
+}
+
+// Search rounds: two T-nuts in one image, seen from different views. With one hypothesis, the
+// first round can only find one of them; the second searches again without the edges that the
+// first one's candidate explains, and its four hypotheses find the other.
+TEST(Pipeline, SecondSearchRoundFindsTheOtherInstance) {
+  const fs::path tdb = kTemplates / "tnut.tdb";
+  ASSERT_TRUE(fs::exists(tdb)) << tdb;
+  const CameraConfig cam = sim_camera();
+  const TemplateDatabase db = load_template_database(tdb);
+  MfcRenderer renderer(cam);
+  const int part_id = renderer.add_mesh(db.mesh);
+  const int floor_id = renderer.add_mesh(make_plane(600));
+  const RigidPose a = coarse_pose(db, TemplatePlacement{3, 0.3, 1.0, {230, 220}}, cam.camera);
+  const RigidPose b = coarse_pose(db, TemplatePlacement{11, 2.0, 1.0, {430, 280}}, cam.camera);
+  const double floor_z =
+      std::max((a.R * db.center_mm + a.t_mm)[2], (b.R * db.center_mm + b.t_mm)[2]) + db.diameter_mm / 2 + 10;
+  const ScenePart parts[3] = {{part_id, a.R, a.t_mm, Material::matte(0.6f)},
+                              {part_id, b.R, b.t_mm, Material::matte(0.6f)},
+                              {floor_id, cv::Matx33d::eye(), {0, 0, floor_z}, Material::matte(0.5f)}};
+  MfcRender render;
+  renderer.render(parts, render, 21);
+  auto finds = [&](const PipelineResult& r, const RigidPose& truth) {
+    const cv::Vec3d centre = truth.R * db.center_mm + truth.t_mm;
+    for (const PoseCandidate& c : r.candidates)
+      if (cv::norm(c.R_m2c * db.center_mm + c.t_m2c_mm - centre) <= 5.0 &&
+          rotation_error_deg(c.R_m2c, truth.R, db.symmetry) <= 10.0)
+        return true;
+    return false;
+  };
+  auto run = [&](int rounds) {
+    PipelineConfig pc;
+    pc.template_files = {tdb};
+    pc.fit_candidates = 1;
+    pc.round_hypotheses = 4;
+    pc.search_rounds = rounds;
+    pc.trace = true;
+    BinPickingPipeline pipeline(cam, pc);
+    PipelineResult r;
+    pipeline.process(render.frames, 0, std::chrono::steady_clock::now() + std::chrono::seconds(30), r);
+    return r;
+  };
+  const PipelineResult one = run(1);
+  EXPECT_EQ(one.rounds, 1);
+  ASSERT_EQ(one.candidates.size(), 1u);
+  EXPECT_NE(finds(one, a), finds(one, b)) << "one round, one hypothesis: exactly one of the two";
+  for (int rounds : {2, 3}) {
+    const PipelineResult more = run(rounds);
+    EXPECT_EQ(more.rounds, rounds);
+    EXPECT_FALSE(more.degraded);
+    EXPECT_TRUE(finds(more, a)) << rounds << " rounds";
+    EXPECT_TRUE(finds(more, b)) << rounds << " rounds";
+    int later = 0;
+    for (const HypothesisTrace& h : more.trace) later += h.round > 1;
+    EXPECT_GE(later, 1) << "the trace names the round of each hypothesis";
+  }
+  // A cycle already past its deadline runs no later round (and the first is flagged degraded).
+  PipelineConfig pc;
+  pc.template_files = {tdb};
+  pc.search_rounds = 2;
+  BinPickingPipeline pipeline(cam, pc);
+  PipelineResult late;
+  pipeline.process(render.frames, 0, std::chrono::steady_clock::now() - std::chrono::seconds(1), late);
+  EXPECT_TRUE(late.degraded);
+  EXPECT_EQ(late.rounds, 1);
 }
