@@ -44,9 +44,11 @@ detect: for every image and every part type present in it, runs each method for 
   --templates DIR        folder with <name>.tdb per part (mfc-teach; <build>/templates)
   --parts FILE           parts table name,obj_id,symmetry (default config/parts/parts.csv)
   --out FILE             JSON to write
-  --methods LIST         comma-separated: fdcm, fdcm-search, ocm, cm, line2d (default fdcm,ocm,cm);
-                         fdcm-search = FDCM without the hypothesis fit (ranked by the search
-                         cost, as CM and OCM are: the matching costs compared on equal terms)
+  --methods LIST         comma-separated: fdcm, fdcm-rounds, fdcm-search, ocm, cm, line2d (default
+                         fdcm,ocm,cm); fdcm-search = FDCM without the hypothesis fit (ranked by the
+                         search cost, as CM and OCM are: the matching costs compared on equal
+                         terms); fdcm-rounds = FDCM with two search rounds (search_rounds=2: the
+                         second searches again without the best candidate's edges)
   --max-images N         only the first N images (default all)
   --threads N            search threads (default: all cores)
   --distances LIST       part distances (mm) the pipeline searches, e.g. 292,282,272,262: the
@@ -146,8 +148,8 @@ Options parse(int argc, char** argv) {
       o.methods.clear();
       std::stringstream ss(value());
       for (std::string m; std::getline(ss, m, ',');) {
-        if (m != "fdcm" && m != "fdcm-search" && m != "ocm" && m != "cm" && m != "line2d")
-          throw Usage("--methods: unknown method '" + m + "' (known: fdcm, fdcm-search, ocm, cm, line2d)");
+        if (m != "fdcm" && m != "fdcm-rounds" && m != "fdcm-search" && m != "ocm" && m != "cm" && m != "line2d")
+          throw Usage("--methods: unknown method '" + m + "' (known: fdcm, fdcm-rounds, fdcm-search, ocm, cm, line2d)");
         o.methods.push_back(m);
       }
       if (o.methods.empty()) throw Usage("--methods needs at least one method");
@@ -314,11 +316,14 @@ int run_detect(const Options& o) {
     std::unique_ptr<Detector> det;
     if (m == "line2d") det = make_line2d_detector(camera, tdbs, o.line2d, max_candidates);
     else {
-      const auto cost = m == "fdcm" || m == "fdcm-search" ? vision::PipelineConfig::Cost::fdcm
-                        : m == "ocm"                      ? vision::PipelineConfig::Cost::ocm
-                                                          : vision::PipelineConfig::Cost::cm;
+      const auto cost = m == "fdcm" || m == "fdcm-rounds" || m == "fdcm-search" ? vision::PipelineConfig::Cost::fdcm
+                        : m == "ocm"                                        ? vision::PipelineConfig::Cost::ocm
+                                                                            : vision::PipelineConfig::Cost::cm;
+      // fdcm-rounds: the pipeline's second search round on (after --set, which cannot undo it).
+      std::vector<std::string> settings = o.pipeline_settings;
+      if (m == "fdcm-rounds") settings.push_back("search_rounds=2");
       det = make_pipeline_detector(m, cost, camera, tdbs, o.threads, max_candidates, o.distances_mm,
-                                   o.refine_candidates, /*fit_hypotheses=*/m != "fdcm-search", o.pipeline_settings);
+                                   o.refine_candidates, /*fit_hypotheses=*/m != "fdcm-search", settings);
     }
     std::fprintf(stderr, "mfc-eval: %s ready (%.1f s setup)\n", m.c_str(), det->setup_seconds());
     json trials = json::array(), instances = json::array();

@@ -55,7 +55,8 @@ class PipelineDetector final : public Detector {
                                         {"fit_coverage", h.fit_coverage},
                                         {"inlier_fraction", h.inlier_fraction},
                                         {"mean_cost_px", h.mean_cost_px},
-                                        {"view_points", h.view_points}}});
+                                        {"view_points", h.view_points},
+                                        {"round", static_cast<double>(h.round)}}});
     }
   }
   std::optional<vision::PoseScore> score_pose(int obj_id, const cv::Matx33d& R, const cv::Vec3d& t_mm) override {
@@ -107,7 +108,8 @@ void apply_pipeline_setting(vision::PipelineConfig& c, const std::string& settin
       {"keep_separation_px", &Config::keep_separation_px},
       {"search_downsample", &Config::search_downsample}, {"fit_candidates", &Config::fit_candidates},
       {"max_candidates", &Config::max_candidates},   {"flip_checks", &Config::flip_checks},
-      {"floor_starts", &Config::floor_starts}};
+      {"floor_starts", &Config::floor_starts},       {"search_rounds", &Config::search_rounds},
+      {"round_hypotheses", &Config::round_hypotheses}};
   static constexpr std::pair<const char*, bool Config::*> kSwitches[] = {
       {"share_search_bound", &Config::share_search_bound}, {"trace", &Config::trace}};
   const auto eq = setting.find('=');
