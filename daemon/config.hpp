@@ -118,6 +118,9 @@ struct VisionSettings {
   // Part distances the search tries, one template scale each (PipelineConfig::distances_mm);
   // empty: the templates' own distance only. A deep bin wants two or three (docs/configuration.md).
   std::vector<double> search_distances_mm;
+  // Search rounds (PipelineConfig::search_rounds): later rounds search again without the edges
+  // of the candidates found so far, for the parts they hid; each costs about one more search.
+  int search_rounds = 1;
 };
 
 struct PickSettings {

@@ -62,6 +62,7 @@ std::unique_ptr<VisionStage> makePipelineStage(const DaemonConfig& config) {
   pc.refine_candidates = config.vision.refine_iterations > 0 ? config.vision.refine_candidates : 0;
   pc.threads = config.vision.threads;
   pc.distances_mm = config.vision.search_distances_mm;
+  pc.search_rounds = config.vision.search_rounds;
   if (config.vision.floor_check) {
     pc.floor.distance_mm = config.pick.bin_floor_distance_mm;  // the camera looks straight down at it
     pc.floor.tolerance_mm = config.vision.floor_tolerance_mm;

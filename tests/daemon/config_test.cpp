@@ -93,6 +93,17 @@ TEST(Config, FloorCheckIsOffUnlessAsked) {
   EXPECT_EQ(e.line(), 6);
 }
 
+// Search rounds: one unless asked, 1..4, a bad value named with its key and line.
+TEST(Config, SearchRoundsAreOneUnlessAsked) {
+  EXPECT_EQ(parseConfig(minimal(), "test.yaml", kPath).vision.search_rounds, 1);
+  EXPECT_EQ(parseConfig(minimal("vision:\n  search_rounds: 2\n"), "test.yaml", kPath).vision.search_rounds, 2);
+  for (const char* bad : {"0", "5", "two"}) {
+    const ConfigError e = errorOf(minimal(std::string("vision:\n  search_rounds: ") + bad + "\n"));
+    EXPECT_EQ(e.key(), "vision.search_rounds") << bad;
+    EXPECT_EQ(e.line(), 6) << bad;
+  }
+}
+
 // Search distances: a list of 1..4 numbers; an element out of range is named with its line.
 TEST(Config, SearchDistancesAreAListOfDistances) {
   EXPECT_TRUE(parseConfig(minimal(), "test.yaml", kPath).vision.search_distances_mm.empty());
@@ -194,6 +205,7 @@ TEST(Config, SimAndCellConfigsParse) {
   EXPECT_EQ(sim.modbus.bind_address, "127.0.0.1");
   EXPECT_EQ(sim.recipes.size(), 7u);
   EXPECT_TRUE(sim.vision.floor_check);  // the simulated bin's floor is at pick.bin_floor_distance_mm
+  EXPECT_EQ(sim.vision.search_rounds, 2);
   EXPECT_EQ(sim.pick.bin_floor_distance_mm, sim.simulation.floor_distance_mm);
   for (const auto& r : sim.recipes)
     if (r.obj_id != 0) {
