@@ -86,6 +86,14 @@ double deepest_mm(const Mesh& mesh, const RigidPose& pose) {
   return z;
 }
 
+// One cycle of a pipeline made with `pc` on `frames`, every part type, a generous deadline.
+PipelineResult process_once(const CameraConfig& cam, const PipelineConfig& pc, const MfcFrames& frames) {
+  BinPickingPipeline pipeline(cam, pc);
+  PipelineResult r;
+  pipeline.process(frames, 0, std::chrono::steady_clock::now() + std::chrono::seconds(60), r);
+  return r;
+}
+
 struct SceneCase {
   const char* part;
 };
@@ -190,28 +198,23 @@ TEST(Pipeline, RefusesBadConfiguration) {
     EXPECT_NE(std::string(e.what()).find("normal"), std::string::npos) << e.what();
   }
   pc.floor = {};
-  for (int bad : {0, 5}) {
-    pc.search_downsample = bad;
-    try {
-      BinPickingPipeline p(cam, pc);
-      ADD_FAILURE() << "search_downsample " << bad << " accepted";
-    } catch (const std::runtime_error& e) {
-      EXPECT_NE(std::string(e.what()).find("search_downsample"), std::string::npos) << e.what();
+  // An integer setting out of its range is refused naming it; the setting is restored after.
+  auto refuses = [&](const char* name, int PipelineConfig::*field, std::initializer_list<int> bad) {
+    const int good = pc.*field;
+    for (int value : bad) {
+      pc.*field = value;
+      try {
+        BinPickingPipeline p(cam, pc);
+        ADD_FAILURE() << name << " " << value << " accepted";
+      } catch (const std::runtime_error& e) {
+        EXPECT_NE(std::string(e.what()).find(name), std::string::npos) << e.what();
+      }
     }
-  }
-  pc.search_downsample = 3;
-  for (int bad : {0, 5}) {
-    pc.search_rounds = bad;
-    try {
-      BinPickingPipeline p(cam, pc);
-      ADD_FAILURE() << "search_rounds " << bad << " accepted";
-    } catch (const std::runtime_error& e) {
-      EXPECT_NE(std::string(e.what()).find("search_rounds"), std::string::npos) << e.what();
-    }
-  }
-  pc.search_rounds = 2;
-  pc.round_hypotheses = 0;
-  EXPECT_THROW(BinPickingPipeline(cam, pc), std::runtime_error);
+    pc.*field = good;
+  };
+  refuses("search_downsample", &PipelineConfig::search_downsample, {0, 5});
+  refuses("search_rounds", &PipelineConfig::search_rounds, {0, 5});
+  refuses("round_hypotheses", &PipelineConfig::round_hypotheses, {0});
 }
 
 // The bin floor: with the floor where it is, the part is still found; with a floor placed above
@@ -229,10 +232,7 @@ TEST(Pipeline, NoCandidateReachesBelowTheBinFloor) {
     PipelineConfig pc;
     pc.template_files = {tdb};
     pc.floor.distance_mm = floor_mm;
-    BinPickingPipeline pipeline(cam, pc);
-    PipelineResult result;
-    pipeline.process(scene.render.frames, 0, std::chrono::steady_clock::now() + std::chrono::seconds(30), result);
-    return result;
+    return process_once(cam, pc, scene.render.frames);
   };
   // The floor under the part (the render's floor lies deeper still).
   const PipelineResult on_floor = run(lowest);
@@ -339,10 +339,7 @@ TEST(Pipeline, CoarseToFineViewsAndSharedBoundAgainstTheFullSearch) {
     pc.template_files = files;
     pc.view_stride = view_stride;
     pc.share_search_bound = share;
-    BinPickingPipeline pipeline(cam, pc);
-    PipelineResult r;
-    pipeline.process(render.frames, 0, std::chrono::steady_clock::now() + std::chrono::seconds(60), r);
-    return r;
+    return process_once(cam, pc, render.frames);
   };
   const PipelineResult full = run(1, false), staged = run(4, true), staged_free = run(4, false);
   const cv::Vec3d centre = truth.R * db.center_mm + truth.t_mm;
@@ -433,10 +430,7 @@ TEST(Pipeline, SecondSearchRoundFindsTheOtherInstance) {
     pc.round_hypotheses = 4;
     pc.search_rounds = rounds;
     pc.trace = true;
-    BinPickingPipeline pipeline(cam, pc);
-    PipelineResult r;
-    pipeline.process(render.frames, 0, std::chrono::steady_clock::now() + std::chrono::seconds(30), r);
-    return r;
+    return process_once(cam, pc, render.frames);
   };
   const PipelineResult one = run(1);
   EXPECT_EQ(one.rounds, 1);
