@@ -307,6 +307,7 @@ void Cell::runCycle(FrameSlot& slot, CycleResult& out) {
       out.search_ms = t.search_ms, out.pose_ms = t.pose_ms, out.refine_ms = t.refine_ms;
       out.degraded = pipelineResult_.degraded;
       out.edge_pixels = pipelineResult_.edge_pixels;
+      out.search_rounds = pipelineResult_.rounds;
 
       // Pick choice and robot-base transform, on fixed-size arrays.
       const motion::PickTransform transform(config_.hand_eye);

@@ -129,6 +129,7 @@ struct CycleResult {
   double capture_ms = 0, queue_ms = 0, vision_ms = 0, choice_ms = 0, total_ms = 0;
   double edges_ms = 0, lines_ms = 0, distance_ms = 0, search_ms = 0, pose_ms = 0, refine_ms = 0;
   int edge_pixels = 0;
+  int search_rounds = 0;  // search rounds the pipeline ran (vision.search_rounds; fewer near the deadline)
   SimTruth truth;
   bool leds_off = true;
   char snapshot_dir[256] = {};
