@@ -5,6 +5,7 @@ written by tools/bench/run) into docs/results.md and docs/img/results-*.png.
 Usage: report.py BENCH_DIR DOCS_DIR
 """
 import json
+import math
 import os
 import statistics
 import sys
@@ -24,6 +25,16 @@ PAPER = {  # Table 1 of the paper: failure rate per part, average, time (s)
     "cm": ([0.11, 0.22, 0.26, 0.34, 0.26, 0.22], 0.24, 29.1),
 }
 STAGES = ["edges", "lines", "dt", "search", "pose", "refine", "total"]
+
+
+def wilson(k, n, z=1.96):
+    """95 % Wilson score interval of a rate k / n: how far a bin of a few instances pins it down."""
+    if n == 0:
+        return float("nan"), float("nan")
+    p = k / n
+    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
+    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+    return max(0.0, centre - half), min(1.0, centre + half)
 
 
 def pct(values, q):
@@ -288,15 +299,18 @@ def main(bench_dir, docs_dir):
           "occluders are other parts, clutter rods and the bin walls). An instance counts as detected when one of the "
           "first k estimates of its type's detection run matches it (k = the number of instances of that type in the "
           "image, so several instances of one type can all be found); *best only* counts only the best estimate. "
+          "*95 %*: the Wilson score interval of the top-k rate (how well a bin of this many instances pins the rate "
+          "down). "
           "*Two rounds, top-k*: the same with the pipeline's second search round (`search_rounds` 2, the "
           "*FDCM, two search rounds* row of Table 1; docs/pose.md \"Search rounds\"). "
           "Target: >= 90 % at 25 % occlusion.\n")
-        w("| occlusion | instances | detected (top-k) | best only | two rounds, top-k |")
-        w("|---|---:|---:|---:|---:|")
+        w("| occlusion | instances | detected (top-k) | 95 % | best only | two rounds, top-k |")
+        w("|---|---:|---:|---:|---:|---:|")
         xs, ys, y1, y2 = [], [], [], []
         for lo_, hi_, n, k, one, two in rows:
-            w("| %d-%d %% | %d | %s | %s | %s |" % (lo_ * 100, hi_ * 100, n, "%.2f" % (k / n) if n else "-",
-                                                   "%.2f" % (one / n) if n else "-",
+            w("| %d-%d %% | %d | %s | %s | %s | %s |" % (lo_ * 100, hi_ * 100, n, "%.2f" % (k / n) if n else "-",
+                                                        "%.2f-%.2f" % wilson(k, n) if n else "-",
+                                                        "%.2f" % (one / n) if n else "-",
                                                    "%.2f" % two if two is not None else "-"))
             if n:
                 xs.append((lo_ + hi_) / 2 * 100)
@@ -304,8 +318,9 @@ def main(bench_dir, docs_dir):
                 y1.append(one / n)
                 y2.append(two)
         if over:
-            w("| > 40 %% | %d | %.2f | %.2f | %s |" % (
-                len(over), sum(x["topk"] for x in over) / len(over), sum(x["top1"] for x in over) / len(over),
+            w("| > 40 %% | %d | %.2f | %.2f-%.2f | %.2f | %s |" % (
+                len(over), sum(x["topk"] for x in over) / len(over),
+                *wilson(sum(x["topk"] for x in over), len(over)), sum(x["top1"] for x in over) / len(over),
                 "%.2f" % (sum(over_two) / len(over_two)) if over_two and len(over_two) == len(over) else "-"))
         w("")
         fig, ax = plt.subplots(figsize=(5.5, 3.6))
