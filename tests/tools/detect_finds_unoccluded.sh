@@ -71,6 +71,8 @@ PY
 set +e
 msg="$("$BUILD/tools/detect/mfc-detect" --dataset "$OUT/nope" --templates "$BUILD/templates/tnut.tdb" --out "$OUT/x.csv" 2>&1)"
 [[ $? -ne 0 && "$msg" == *"$OUT/nope"* ]] || { echo "missing dataset not refused clearly: $msg"; exit 1; }
+msg="$("$BUILD/tools/detect/mfc-detect" --dataset "$OUT/data" --templates "$BUILD/templates/tnut.tdb" --out "$OUT/x.csv" --search-rounds 0 2>&1)"
+[[ $? -ne 0 && "$msg" == *"--search-rounds"* ]] || { echo "search rounds 0 not refused clearly: $msg"; exit 1; }
 head -c 100 "$BUILD/templates/tnut.tdb" > "$OUT/cut.tdb"
 msg="$("$BUILD/tools/detect/mfc-detect" --dataset "$OUT/data" --templates "$OUT/cut.tdb" --out "$OUT/x.csv" 2>&1)"
 [[ $? -ne 0 && "$msg" == *"truncated"* ]] || { echo "truncated template not refused clearly: $msg"; exit 1; }

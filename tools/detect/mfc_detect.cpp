@@ -34,6 +34,9 @@ void usage(std::FILE* to) {
                "  --floor MM           the bin floor's distance from the camera (along the optical axis): poses\n"
                "                       below it are dropped, the best few just above it also fitted from it\n"
                "                       (PipelineConfig::floor; default 0: not known)\n"
+               "  --search-rounds N    search rounds per image, 1-4 (default 2): a later round searches again\n"
+               "                       without the edges of the best estimates so far, so that the other\n"
+               "                       instances of a type are found too (PipelineConfig::search_rounds)\n"
                "  --scene ID           only this scene (repeatable)\n"
                "  --threads N          search threads (default: all cores)\n"
                "  --quiet              no per-image lines\n");
@@ -47,7 +50,7 @@ int main(int argc, char** argv) {
   std::string split = "test";
   std::vector<fs::path> templates;
   std::vector<int> only_scenes;
-  int views = 1, max_per_image = 10, threads = 0;
+  int views = 1, max_per_image = 10, threads = 0, search_rounds = 2;
   double max_cost = PipelineConfig{}.max_cost_px, floor_mm = 0;
   bool quiet = false;
   try {
@@ -69,6 +72,7 @@ int main(int argc, char** argv) {
       else if (a == "--scene") only_scenes.push_back(mfcd::tools::parse_int(a, value()));
       else if (a == "--max-cost") max_cost = mfcd::tools::parse_double(a, value());
       else if (a == "--floor") floor_mm = mfcd::tools::parse_double(a, value());
+      else if (a == "--search-rounds") search_rounds = mfcd::tools::parse_int(a, value());
       else if (a == "--quiet") quiet = true;
       else if (a == "--templates") {
         while (i + 1 < argc && argv[i + 1][0] != '-') templates.emplace_back(argv[++i]);
@@ -85,6 +89,7 @@ int main(int argc, char** argv) {
                                   ": the dataset gives no camera poses between its images (cam_R_w2c/cam_t_w2c); "
                                   "multi-view refinement is measured by mfc-eval");
     if (max_per_image < 1) throw std::invalid_argument("--max-per-image must be >= 1");
+    if (search_rounds < 1 || search_rounds > 4) throw std::invalid_argument("--search-rounds must be 1..4");
 
     const BopDataset dataset(dataset_dir, split);
     std::vector<int> scenes = dataset.scenes();
@@ -99,6 +104,7 @@ int main(int argc, char** argv) {
     pc.max_cost_px = max_cost;
     pc.threads = threads;
     pc.floor.distance_mm = floor_mm;
+    pc.search_rounds = search_rounds;
 
     const fs::path tmp = out.string() + ".tmp";
     std::ofstream csv(tmp);
