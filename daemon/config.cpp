@@ -3,6 +3,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include "vision/camera/camera.hpp"
+#include "vision/pipeline/bin_picking_pipeline.hpp"
 
 #include <cerrno>
 #include <cmath>
@@ -330,7 +331,8 @@ DaemonConfig parseConfig(const std::string& yamlText, const std::string& source,
     c.vision.threads = static_cast<int>(s.integer("threads", 0, 0, 256));
     c.vision.floor_check = s.boolean("floor_check", false);
     c.vision.floor_tolerance_mm = s.number("floor_tolerance_mm", 3, 0, 100);
-    c.vision.search_rounds = static_cast<int>(s.integer("search_rounds", 1, 1, 4));
+    c.vision.search_rounds =
+        static_cast<int>(s.integer("search_rounds", 1, 1, vision::PipelineConfig::kMaxSearchRounds));
     YAML::Node distances = s.child("search_distances_mm");
     if (distances.IsDefined() && !distances.IsNull()) {
       if (!distances.IsSequence() || distances.size() == 0 || distances.size() > 4)

@@ -89,7 +89,8 @@ int main(int argc, char** argv) {
                                   ": the dataset gives no camera poses between its images (cam_R_w2c/cam_t_w2c); "
                                   "multi-view refinement is measured by mfc-eval");
     if (max_per_image < 1) throw std::invalid_argument("--max-per-image must be >= 1");
-    if (search_rounds < 1 || search_rounds > 4) throw std::invalid_argument("--search-rounds must be 1..4");
+    if (search_rounds < 1 || search_rounds > PipelineConfig::kMaxSearchRounds)
+      throw std::invalid_argument("--search-rounds must be 1.." + std::to_string(PipelineConfig::kMaxSearchRounds));
 
     const BopDataset dataset(dataset_dir, split);
     std::vector<int> scenes = dataset.scenes();

@@ -184,9 +184,8 @@ constexpr double kFlipMinScoreRatio = 0.6;
 constexpr int kFlipMinPoints = 6;
 constexpr double kFlipMargin = 0.2;
 
-// Search rounds (PipelineConfig::search_rounds): at most this many; a later round takes out the
-// image edges within this many pixels of the best candidates' points.
-constexpr int kMaxSearchRounds = 4;
+// Search rounds (PipelineConfig::search_rounds): a later round takes out the image edges within
+// this many pixels of the best candidates' points.
 constexpr int kRoundErasePx = 2;
 // Candidates whose search boxes overlap by more than this (intersection over union) are one part.
 constexpr double kCandidateOverlap = 0.3;
@@ -260,12 +259,9 @@ struct BinPickingPipeline::Impl {
   std::vector<cv::Point> placed;
   ConvexRegion region;
   // Later search rounds (PipelineConfig::search_rounds): the query without the best candidates'
-  // edges (full and reduced resolution) and its integral distance transform; `idt` stays the
-  // whole image's (score_pose uses it).
+  // edges and its integral distance transform; `idt` stays the whole image's (score_pose uses it).
   cv::Mat1b erased;  // image size: the edges taken out
   LineFitResult round_query;
-  LineSet round_lines;
-  cv::Mat1b round_channels;
   IntegralDistanceTransform round_idt;
   double round_ms_estimate = 0;  // what the last later round took
 
@@ -291,6 +287,9 @@ struct BinPickingPipeline::Impl {
   void sort_verified(size_t first);
   void rank(const Cycle& cycle, size_t first);
   void query_without_best(int best);  // into round_query
+  // The query at the search's resolution (PipelineConfig::search_downsample): `q` itself, or
+  // reduced into search_lines / search_channels (each round's search needs them only until it ends).
+  std::pair<const LineSet*, const cv::Mat1b*> search_query(const LineFitResult& q);
 
   Impl(const CameraConfig& cam, PipelineConfig cfg)
       : camera(cam), config(std::move(cfg)), extractor(cam.camera, cam.flashes, config.depth_edges) {}
@@ -457,8 +456,8 @@ BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfi
   }
   if (m.config.floor_starts < 0) throw std::runtime_error("pipeline: floor_starts must be >= 0");
   if (m.config.coarse_seeds < 0) throw std::runtime_error("pipeline: coarse_seeds must be >= 0");
-  if (m.config.search_rounds < 1 || m.config.search_rounds > kMaxSearchRounds)
-    throw std::runtime_error("pipeline: search_rounds must be 1.." + std::to_string(kMaxSearchRounds));
+  if (m.config.search_rounds < 1 || m.config.search_rounds > PipelineConfig::kMaxSearchRounds)
+    throw std::runtime_error("pipeline: search_rounds must be 1.." + std::to_string(PipelineConfig::kMaxSearchRounds));
   if (m.config.round_hypotheses < 1) throw std::runtime_error("pipeline: round_hypotheses must be >= 1");
   if (!(m.config.evidence_weight >= 0)) throw std::runtime_error("pipeline: evidence_weight must be >= 0");
   m.search_dt3 = m.dt3_params;
@@ -837,7 +836,7 @@ void BinPickingPipeline::Impl::query_without_best(int best) {
   Impl& m = *this;
   // (Plain loops: cv::Mat::setTo allocates a scalar buffer on every call.)
   for (int y = 0; y < erased.rows; ++y) std::fill_n(erased.ptr<uchar>(y), erased.cols, uchar{0});
-  std::array<cv::Rect2d, kMaxSearchRounds> taken;
+  std::array<cv::Rect2d, PipelineConfig::kMaxSearchRounds> taken;
   int n = 0;
   for (const Verified& v : m.verified) {
     if (n >= best) break;
@@ -880,6 +879,13 @@ void BinPickingPipeline::Impl::query_without_best(int best) {
   }
 }
 
+std::pair<const LineSet*, const cv::Mat1b*> BinPickingPipeline::Impl::search_query(const LineFitResult& q) {
+  const int down = config.search_downsample;
+  if (down <= 1) return {&q.set, &q.channelMap};
+  reduceQuery(q.set, q.channelMap, down, search_lines, search_channels);
+  return {&search_lines, &search_channels};
+}
+
 void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::time_point deadline,
                                  PipelineResult& out) {
   Impl& m = *impl_;
@@ -905,16 +911,12 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
   out.times.lines_ms = ms_between(t, t1);
 
   const bool fdcm = m.config.cost == PipelineConfig::Cost::fdcm;
-  // The search's resolution (PipelineConfig::search_downsample).
-  const int down = m.config.search_downsample;
-  if (down > 1) reduceQuery(fit.set, fit.channelMap, down, m.search_lines, m.search_channels);
-  const cv::Mat1b& search_map = down > 1 ? m.search_channels : fit.channelMap;
-  const LineSet& query = down > 1 ? m.search_lines : fit.set;
+  const auto [query, search_map] = m.search_query(fit);
   if (fdcm) {
-    m.dt3.compute(search_map, m.search_dt3);
+    m.dt3.compute(*search_map, m.search_dt3);
     m.idt.compute(m.dt3);
   } else {
-    m.chamfer.compute(search_map, m.search_dt3);
+    m.chamfer.compute(*search_map, m.search_dt3);
   }
   t = Clock::now();
   out.times.distance_ms = ms_between(t1, t);
@@ -934,7 +936,7 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
   for (const auto& part : m.parts) cycle.selected_parts += obj_id == 0 || part.db.obj_id == obj_id;
   out.hypotheses = 0;
   out.views_searched = 0;
-  m.search(cycle, query, fdcm ? &m.idt : nullptr, static_cast<size_t>(m.config.fit_candidates), out);
+  m.search(cycle, *query, fdcm ? &m.idt : nullptr, static_cast<size_t>(m.config.fit_candidates), out);
   out.degraded = cycle.late;
   t1 = Clock::now();
   out.times.search_ms = ms_between(t, t1);
@@ -968,13 +970,13 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
                           std::chrono::duration<double, std::milli>(m.round_ms_estimate)) > deadline)
       break;
     m.query_without_best(round - 1);
-    if (down > 1) reduceQuery(m.round_query.set, m.round_query.channelMap, down, m.round_lines, m.round_channels);
-    m.dt3.compute(down > 1 ? m.round_channels : m.round_query.channelMap, m.search_dt3);
+    const auto [round_lines, round_map] = m.search_query(m.round_query);
+    m.dt3.compute(*round_map, m.search_dt3);
     m.round_idt.compute(m.dt3);
     Impl::Cycle later = cycle;
     later.minimum_past_deadline = false;
     later.search_deadline = deadline;
-    m.search(later, down > 1 ? m.round_lines : m.round_query.set, &m.round_idt,
+    m.search(later, *round_lines, &m.round_idt,
              static_cast<size_t>(m.config.round_hypotheses), out);
     const size_t first = m.verified.size();
     m.verify(static_cast<size_t>(m.config.round_hypotheses));
@@ -987,6 +989,7 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
   }
 
   // Non-maximum suppression across views and part types: one part per place in the bin.
+  const int down = m.config.search_downsample;  // the search hits' pixels
   for (const Impl::Verified& v : m.verified) {
     const Hit& h = v.hit;
     if (static_cast<int>(out.candidates.size()) >= m.config.max_candidates) break;

@@ -96,8 +96,9 @@ struct PipelineConfig {
   // directional edge map) the image edges that the best candidates so far explain (round k: the
   // best k - 1 distinct ones), searches again and fits its best `round_hypotheses` new hits, ranked
   // with the others. It starts only when the deadline leaves it the time the last one took, and
-  // costs about as much as the first search plus that many fits. 1..4; 1 = one search. FDCM only
-  // (the baselines, evaluation tools, always search once).
+  // costs about as much as the first search plus that many fits. 1..kMaxSearchRounds; 1 = one
+  // search. FDCM only (the baselines, evaluation tools, always search once).
+  static constexpr int kMaxSearchRounds = 4;
   int search_rounds = 1;
   int round_hypotheses = 16;
   int refine_iterations = 20;      // per candidate (outer ICP iterations); cut short at the deadline
