@@ -68,6 +68,7 @@ class LineFitter {
   std::vector<cv::Point> pts_;
   cv::Mat1b alive_;
   std::vector<float> dir_;
+  std::vector<int> seed_scores_;  // per edge pixel, its 2 * channelSpread + 1 hypotheses' support
   std::vector<Hypothesis> heap_;
   std::vector<cv::Point> support_, next_;
   std::vector<std::pair<float, int>> order_;  // sortLongestFirst's buffers

@@ -5,6 +5,7 @@
 #include <random>
 #include <vector>
 
+#include <omp.h>
 #include <opencv2/imgproc.hpp>
 
 #include "tests/hal/alloc_counter.hpp"
@@ -20,6 +21,20 @@ using namespace mfcd::vision::testing;
 // corner the two edges' pixels are within the fitting band of each other for a pixel or two
 // (~ residual / sin(turn)), and the first segment accepted keeps them. The segments cover every
 // edge except at most those corner pixels, and every vertex has a segment end within 3 px.
+namespace {
+// Bit for bit: the same segments in the same order and the same channel map.
+bool same(const LineFitResult& a, const LineFitResult& b) {
+  if (a.set.lines.size() != b.set.lines.size() || a.inputEdgePixels != b.inputEdgePixels ||
+      a.explainedEdgePixels != b.explainedEdgePixels || cv::countNonZero(a.channelMap != b.channelMap) != 0)
+    return false;
+  for (size_t i = 0; i < a.set.lines.size(); ++i) {
+    const LineSegment &p = a.set.lines[i], &q = b.set.lines[i];
+    if (p.a != q.a || p.b != q.b || p.channel != q.channel || p.support != q.support) return false;
+  }
+  return true;
+}
+}  // namespace
+
 TEST(LineFitter, RecoversRandomPolygons) {
   std::mt19937 rng(11);
   const OrientationChannels ch(60);
@@ -249,16 +264,6 @@ TEST(LineFitter, ReusedGivesFitLinesResultWithoutAllocating) {
   }
   LineFitter fitter;
   LineFitResult out;
-  auto same = [](const LineFitResult& a, const LineFitResult& b) {
-    if (a.set.lines.size() != b.set.lines.size() || a.inputEdgePixels != b.inputEdgePixels ||
-        a.explainedEdgePixels != b.explainedEdgePixels || cv::countNonZero(a.channelMap != b.channelMap) != 0)
-      return false;
-    for (size_t i = 0; i < a.set.lines.size(); ++i) {
-      const LineSegment &p = a.set.lines[i], &q = b.set.lines[i];
-      if (p.a != q.a || p.b != q.b || p.channel != q.channel || p.support != q.support) return false;
-    }
-    return true;
-  };
   for (size_t k = 0; k < images.size(); ++k) {
     fitter.fit(images[k], &directions[k], out);
     EXPECT_TRUE(same(out, fitLines(images[k], {}, &directions[k]))) << "image " << k;
@@ -270,4 +275,29 @@ TEST(LineFitter, ReusedGivesFitLinesResultWithoutAllocating) {
   EXPECT_EQ(mfcd::hal::test::allocationCount() - before, 0u);
   EXPECT_EQ(out.channelMap.data, storage);
   EXPECT_TRUE(same(out, fitLines(images.back(), {}, &directions.back())));
+}
+
+// The hypotheses are scored on several threads: the result must not depend on how many. Dense
+// clutter (crossing lines, polygons, noise) gives many equal scores, where only the
+// hypotheses' total order (score, seed, channel) keeps the greedy choice the same.
+TEST(LineFitter, OneThreadAndSeveralGiveTheSameLines) {
+  std::mt19937 rng(47);
+  std::uniform_int_distribution<int> ux(0, 399), uy(0, 299);
+  for (int k = 0; k < 6; ++k) {
+    cv::Mat1b img(300, 400, uchar(0));
+    for (int i = 0; i < 25 + 10 * k; ++i) cv::line(img, {ux(rng), uy(rng)}, {ux(rng), uy(rng)}, 255);
+    const auto poly = randomPolygon(rng, {200, 150}, 100, 3 + k);
+    std::vector<cv::Point> ipoly;
+    for (const auto& p : poly) ipoly.emplace_back(cvRound(p.x), cvRound(p.y));
+    cv::polylines(img, ipoly, true, 255);
+    for (int i = 0; i < 300; ++i) img(uy(rng), ux(rng)) = 255;
+    const int before = omp_get_max_threads();
+    omp_set_num_threads(1);
+    const LineFitResult one = fitLines(img);
+    omp_set_num_threads(3);
+    const LineFitResult several = fitLines(img);
+    omp_set_num_threads(before);
+    EXPECT_GT(one.set.lines.size(), 20u) << "image " << k;
+    EXPECT_TRUE(same(one, several)) << "image " << k;
+  }
 }
