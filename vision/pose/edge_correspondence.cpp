@@ -12,6 +12,17 @@ double undirected_angle_difference(double a, double b) {
   return std::min(d, std::numbers::pi - d);
 }
 
+namespace {
+// An undirected angle in [0, pi): nearest() relies on its entries' range.
+float modulo_pi(float angle) {
+  constexpr float pi = static_cast<float>(std::numbers::pi);
+  if (angle >= 0 && angle < pi) return angle;
+  const double r = std::fmod(static_cast<double>(angle), std::numbers::pi);
+  const float wrapped = static_cast<float>(r < 0 ? r + std::numbers::pi : r);
+  return wrapped < pi ? wrapped : 0.f;  // pi rounds up in float
+}
+}  // namespace
+
 DirectionalEdgeIndex::DirectionalEdgeIndex(int cell_px) : cell_(cell_px) {
   if (cell_px < 1) throw std::invalid_argument("DirectionalEdgeIndex: cell size must be >= 1 px");
 }
@@ -45,29 +56,42 @@ void DirectionalEdgeIndex::build(const DepthEdges& edges, const char* source) {
     const float* d = edges.direction.ptr<float>(y);
     const uint32_t row = static_cast<uint32_t>(y / cell_) * grid_w_;
     for (int x = 0; x < size_.width; ++x)
-      if (e[x]) points_[fill_[row + static_cast<uint32_t>(x / cell_)]++] = {static_cast<float>(x), static_cast<float>(y), d[x]};
+      if (e[x]) points_[fill_[row + static_cast<uint32_t>(x / cell_)]++] = {static_cast<float>(x), static_cast<float>(y), modulo_pi(d[x])};
   }
 }
 
 EdgeMatch DirectionalEdgeIndex::nearest(cv::Point2d u, double angle, double lambda, double max_cost) const {
   EdgeMatch best;
-  if (points_.empty() || !(max_cost >= 0) || !std::isfinite(u.x) || !std::isfinite(u.y)) return best;
+  if (points_.empty() || !(max_cost >= 0) || !std::isfinite(u.x) || !std::isfinite(u.y) || !std::isfinite(angle))
+    return best;
+  // The query's angle is taken modulo pi once: the entries' lie in [0, pi) (build), so the
+  // undirected difference of the two is min(d, pi - d) of d = |a - b|, without a remainder per
+  // pixel.
+  constexpr double pi = std::numbers::pi;
+  double a = std::fmod(angle, pi);
+  if (a < 0) a += pi;
   // Clamp u into the pixel area: the clamped point is no farther from any edge pixel than u
-  // (projection onto a convex set), so ring bounds computed from it stay valid lower bounds.
+  // (projection onto a convex set), so the bounds computed from it stay valid lower bounds.
   const double cxu = std::clamp(u.x, -0.5, size_.width - 0.5);
   const double cyu = std::clamp(u.y, -0.5, size_.height - 0.5);
   const int gx = std::clamp(static_cast<int>(std::floor((cxu + 0.5) / cell_)), 0, grid_w_ - 1);
   const int gy = std::clamp(static_cast<int>(std::floor((cyu + 0.5) / cell_)), 0, grid_h_ - 1);
   double best_cost = max_cost;
   const int max_ring = std::max(grid_w_, grid_h_);
+  // The distance from the clamped u to the nearest pixel of cell c along one axis.
+  auto gap = [this](double v, int c) { return std::max({0.0, c * cell_ - v, v - ((c + 1) * cell_ - 1)}); };
   auto scan_cell = [&](int cx, int cy) {
+    // A cell all of whose pixels are farther than the best cost so far cannot hold the argmin.
+    const double bx = gap(cxu, cx), by = gap(cyu, cy);
+    if (bx * bx + by * by > best_cost * best_cost) return;
     const size_t c = static_cast<size_t>(cy) * grid_w_ + cx;
     for (uint32_t i = cell_start_[c]; i < cell_start_[c + 1]; ++i) {
       const Entry& p = points_[i];
       const double dx = p.x - u.x, dy = p.y - u.y;
       const double d2 = dx * dx + dy * dy;
       if (d2 > best_cost * best_cost) continue;
-      const double cost = std::sqrt(d2) + lambda * undirected_angle_difference(angle, p.angle);
+      const double d = std::abs(a - p.angle);
+      const double cost = std::sqrt(d2) + lambda * std::min(d, pi - d);
       if (cost < best_cost || (cost == best_cost && !best.found)) {
         best_cost = cost;
         best = {true, p.x, p.y, p.angle, cost};
@@ -75,10 +99,12 @@ EdgeMatch DirectionalEdgeIndex::nearest(cv::Point2d u, double angle, double lamb
     }
   };
   for (int r = 0; r <= max_ring; ++r) {
-    // Every pixel of ring r lies at least (r - 1) cells plus the half-pixel border from u
-    // along one axis (u's cell spans [g*cell - 0.5, (g+1)*cell - 0.5)).
-    if (r >= 1 && (r - 1) * cell_ + 0.5 > best_cost) break;
     const int x0 = gx - r, x1 = gx + r, y0 = gy - r, y1 = gy + r;
+    // Ring r lies outside the cells [x0 + 1, x1 - 1] x [y0 + 1, y1 - 1], which hold u: every
+    // pixel of it is at least the distance from u to that block's border away.
+    if (r >= 1 && std::min({cxu - (x0 + 1) * cell_ + 1, x1 * cell_ - cxu, cyu - (y0 + 1) * cell_ + 1,
+                            y1 * cell_ - cyu}) > best_cost)
+      break;
     for (int cy = std::max(y0, 0); cy <= std::min(y1, grid_h_ - 1); ++cy) {
       if (cy == y0 || cy == y1) {
         for (int cx = std::max(x0, 0); cx <= std::min(x1, grid_w_ - 1); ++cx) scan_cell(cx, cy);

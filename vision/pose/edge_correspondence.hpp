@@ -6,9 +6,9 @@
 // Orientations are used unquantised, so the index returns the exact argmin of Eq. 21.
 //
 // The index buckets the edge pixels of one DepthEdges map into square cells; a query scans
-// rings of cells around u and stops as soon as the ring's distance bound exceeds the best cost
-// found (or the gate). Built once per view image and shared by every candidate refined
-// against it; the buffers are reused between builds.
+// rings of cells around u, skips a cell whose nearest pixel is farther than the best cost found
+// (or the gate), and stops as soon as a whole ring is. Built once per view image and shared by
+// every candidate refined against it; the buffers are reused between builds.
 
 #include "vision/edges/depth_edges.hpp"
 
@@ -53,7 +53,7 @@ class DirectionalEdgeIndex {
 
  private:
   struct Entry {
-    float x, y, angle;
+    float x, y, angle;  // angle in [0, pi)
   };
   int cell_;
   cv::Size size_;
