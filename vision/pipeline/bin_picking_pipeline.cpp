@@ -255,9 +255,6 @@ struct BinPickingPipeline::Impl {
   // search leaves the fit that much, with a margin. Before the first cycle, 2 ms per hypothesis.
   double fit_ms_estimate = 0;
   std::vector<Verified> verified;
-  cv::Mat1b explained;  // verification scratch, image size, kept zero outside use
-  std::vector<cv::Point> placed;
-  ConvexRegion region;
   // Later search rounds (PipelineConfig::search_rounds): the query without the best candidates'
   // edges and its integral distance transform; `idt` stays the whole image's (score_pose uses it).
   cv::Mat1b erased;  // image size: the edges taken out
@@ -298,18 +295,19 @@ struct BinPickingPipeline::Impl {
 namespace {
 
 // The fraction of image edge pixels inside the placed template's outline (convex hull of its
-// edge points) that lie within 2 px of a template edge point.
-template <class Impl>
-double explained_fraction(const TemplateView& view, const Warp& warp, int tx, int ty, Impl& m) {
+// edge points) that lie within 2 px of a template edge point. Scratch: the fit's per-thread
+// workspace (its coverage buffers, grown for every view at configure).
+double explained_fraction(const TemplateView& view, const Warp& warp, int tx, int ty, const cv::Mat1b& edges,
+                          TemplatePoseFit::Workspace& ws) {
   const cv::Matx22d A = warp.matrix();
-  const cv::Rect image(cv::Point(0, 0), m.edges.edges.size());
-  m.placed.clear();
+  const cv::Rect image(cv::Point(0, 0), edges.size());
+  ws.placed.clear();
   for (const auto& p : view.points) {
     const cv::Vec2d q = A * cv::Vec2d(p.pixel.x, p.pixel.y);
     const cv::Point r(cvRound(q[0] + tx), cvRound(q[1] + ty));
-    if (image.contains(r)) m.placed.push_back(r);
+    if (image.contains(r)) ws.placed.push_back(r);
   }
-  return explained_edge_fraction(m.edges.edges, m.placed, m.region, m.explained);
+  return explained_edge_fraction(edges, ws.placed, ws.region, ws.explained);
 }
 
 // The order of std::stable_sort without its temporary buffer (allocated on every call): insertion
@@ -483,9 +481,7 @@ BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfi
   // order), so that the frame path never grows them. fit_distance digitises a hit's view at up to
   // 1.01^14 its scale, at the search's reduction.
   constexpr double kFitStretch = 1.2;
-  size_t most_points = 0;
   for (const auto& part : m.parts) {
-    for (const auto& v : part.db.views) most_points = std::max(most_points, v.points.size());
     for (auto& ws : m.fit_workspaces) m.fitter.reserve(part.db, camera.camera.image_size, ws);
     double stretch = 0;
     for (const Warp& w : part.warps) stretch = std::max(stretch, w.scale * std::max(1.0, w.aspect));
@@ -493,15 +489,12 @@ BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfi
       for (const auto& view : part.db.views)
         reserveOrientedTemplate(view.lines, stretch * kFitStretch / m.config.search_downsample, ws.warped, ws.scratch);
   }
-  m.placed.reserve(most_points);
-  m.region.reserve(most_points, camera.camera.image_size.height);
   m.search_workspaces.resize(static_cast<size_t>(threads));
   m.thread_results.resize(static_cast<size_t>(threads));
   size_t views = 0;
   for (const auto& part : m.parts) views += part.db.views.size();
   m.jobs.reserve(views);
   m.fit_ms_estimate = 2.0 * m.config.fit_candidates / threads;
-  m.explained = cv::Mat1b::zeros(camera.camera.image_size);
   m.erased = cv::Mat1b::zeros(camera.camera.image_size);
 }
 
@@ -648,14 +641,20 @@ void BinPickingPipeline::Impl::verify(size_t count) {
     for (const auto& k : m.verified) duplicate = duplicate || (k.hit.part == h.part && iou(k.hit.box, h.box) > 0.8 &&
                                                                k.hit.view == h.view);
     if (duplicate) continue;
-    const PartModel& part = m.parts[h.part];
-    const double coverage =
-        explained_fraction(part.db.views[h.view], part.warps[h.warp], h.c.tx * down, h.c.ty * down, m);
     Verified v;
     v.hit = h;
-    v.coverage = coverage;
-    v.combined = h.c.cost() * down + kUnexplainedPenaltyPx * (1.0 - coverage);
     m.verified.push_back(v);
+  }
+  // The coverages are independent of each other: shared out among the threads.
+  const int threads = static_cast<int>(m.thread_hits.size());
+#pragma omp parallel for schedule(dynamic, 2) num_threads(threads)
+  for (int i = static_cast<int>(first); i < static_cast<int>(m.verified.size()); ++i) {
+    Verified& v = m.verified[i];
+    const Hit& h = v.hit;
+    const PartModel& part = m.parts[h.part];
+    v.coverage = explained_fraction(part.db.views[h.view], part.warps[h.warp], h.c.tx * down, h.c.ty * down,
+                                    m.edges.edges, m.fit_workspaces[omp_get_thread_num()]);
+    v.combined = h.c.cost() * down + kUnexplainedPenaltyPx * (1.0 - v.coverage);
   }
 }
 
@@ -1091,7 +1090,7 @@ PoseScore BinPickingPipeline::score_pose(int obj_id, const cv::Matx33d& R_m2c, c
   if (!std::isfinite(out.cost_px)) out.cost_px = m.dt3_params.maxCost;
   const Warp w{placement.angle_rad, placement.scale, 1.0};
   out.coverage = explained_fraction(view, w, static_cast<int>(placement.origin_px.x),
-                                    static_cast<int>(placement.origin_px.y), m);
+                                    static_cast<int>(placement.origin_px.y), m.edges.edges, m.fit_workspaces[0]);
   out.rank_px = out.cost_px + kUnexplainedPenaltyPx * (1.0 - out.coverage);
   if (!m.fitter_prepared) {
     m.fitter.prepare(m.edges);
