@@ -191,7 +191,8 @@ constexpr int kRoundErasePx = 2;
 constexpr double kCandidateOverlap = 0.3;
 
 // Per-thread buffers of fit_distance: the warped template it scores, kept between warps and cycles.
-struct DistanceFitWorkspace {
+// Cache-line aligned, as every per-thread workspace: the threads' workspaces lie side by side.
+struct alignas(64) DistanceFitWorkspace {
   OrientedTemplate warped;
   std::vector<DigitalSegment> scratch;
 };

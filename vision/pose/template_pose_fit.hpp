@@ -59,8 +59,9 @@ struct TemplateFitResult {
 
 class TemplatePoseFit {
  public:
-  // Per-thread buffers, reused between fits (no allocation once they have grown).
-  struct Workspace {
+  // Per-thread buffers, reused between fits (no allocation once they have grown). Cache-line
+  // aligned: the threads' workspaces lie side by side, and their vectors' ends change per point.
+  struct alignas(64) Workspace {
     std::vector<cv::Vec3d> model;  // the view's points in use, model frame
     std::vector<float> angle;      // their template tangent angles
     std::vector<cv::Vec2d> offset; // detected edge pixel minus the model point's projection, template view

@@ -68,7 +68,9 @@ struct SharedCostBound {
 SearchResult lineSearch(const FdcmMatcher& matcher, const std::vector<OrientedTemplate>& templates,
                         const std::vector<LineSegment>& queryLines, const LineSearchParams& params);
 // A search's buffers, kept between calls (one per thread, the pick cycle's use).
-struct LineSearchWorkspace {
+// Cache-line aligned: the pipeline keeps one per thread side by side, and these vectors' ends
+// change with every template.
+struct alignas(64) LineSearchWorkspace {
   struct Slide {
     cv::Point2d start, d;  // translation at k = 0 and its step
     int steps;
