@@ -63,6 +63,11 @@ detect: for every image and every part type present in it, runs each method for 
   --set KEY=VALUE        a PipelineConfig setting for the pipeline methods (repeatable), e.g.
                          --set view_stride=2; an unknown key lists the keys
   --all-types            also run FDCM once per image over all part types (best pick; timing)
+  --timing-repeats N     run every fdcm detection (and --all-types run) N times on its image (1-10,
+                         default 1): its trial keeps the first run's result and times, and adds
+                         "times_best", the stage times of the run with the smallest total (the
+                         machine is shared: the fastest of a few runs has the least of the other
+                         tenants' interference in it; docs/results.md)
   --line2d-step DEG      LINE-2D in-plane rotation step (default 15)
   --line2d-view-stride S LINE-2D: train every S-th template view (default 1)
   --max-position MM      criterion (default 5)
@@ -123,6 +128,7 @@ struct Options {
   std::string split = "test";
   std::vector<std::string> methods = {"fdcm", "ocm", "cm"};
   int max_images = 0, threads = 0, refine_candidates = -1;
+  int timing_repeats = 1;  // --timing-repeats
   double floor_mm = 0;  // --floor
   std::vector<double> distances_mm;
   std::vector<std::string> pipeline_settings;  // --set KEY=VALUE, applied in order
@@ -155,6 +161,7 @@ Options parse(int argc, char** argv) {
       if (o.methods.empty()) throw Usage("--methods needs at least one method");
     } else if (a == "--max-images") o.max_images = to_int(a, value());
     else if (a == "--threads") o.threads = to_int(a, value());
+    else if (a == "--timing-repeats") o.timing_repeats = to_int(a, value());
     else if (a == "--all-types") o.all_types = true;
     else if (a == "--refine-candidates") {
       o.refine_candidates = to_int(a, value());
@@ -196,6 +203,7 @@ Options parse(int argc, char** argv) {
   if (o.templates.empty()) throw Usage("--templates is required");
   if (o.out.empty()) throw Usage("--out is required");
   if (o.max_images < 0) throw Usage("--max-images must be >= 0");
+  if (o.timing_repeats < 1 || o.timing_repeats > 10) throw Usage("--timing-repeats must be in 1..10");
   if (!(o.line2d.inplane_step_deg > 0 && o.line2d.inplane_step_deg <= 360)) throw Usage("--line2d-step must be in (0, 360]");
   if (o.line2d.view_stride < 1) throw Usage("--line2d-view-stride must be >= 1");
   if (!(o.criterion.max_position_mm > 0) || !(o.criterion.max_rotation_deg > 0))
@@ -312,6 +320,22 @@ int run_detect(const Options& o) {
 
   const int max_candidates = 8;
   json methods = json::object();
+  // --timing-repeats: the detection of `first` run again on the same image and type; the stage
+  // times of the fastest run, all runs included. The repeats must give the first run's result
+  // (the pipeline is deterministic without a deadline): a repeat that differs is an error.
+  auto repeat_timing = [&](Detector& det, const vision::MfcFrames& frames, int obj_id, const Detection& first) {
+    vision::StageTimes best = first.times;
+    Detection again;
+    for (int r = 1; r < o.timing_repeats; ++r) {
+      det.detect(frames, obj_id, again);
+      const bool same = again.estimates.size() == first.estimates.size() &&
+                        (first.estimates.empty() || (again.estimates[0].R == first.estimates[0].R &&
+                                                     again.estimates[0].t_mm == first.estimates[0].t_mm));
+      if (!same) throw std::runtime_error("--timing-repeats: a repeated detection gave another result");
+      if (again.times.total_ms < best.total_ms) best = again.times;
+    }
+    return times_json(best);
+  };
   for (const std::string& m : o.methods) {
     std::unique_ptr<Detector> det;
     if (m == "line2d") det = make_line2d_detector(camera, tdbs, o.line2d, max_candidates);
@@ -470,6 +494,7 @@ int run_detect(const Options& o) {
         trial["instances"] = n_inst;
         trial["best_visib_fract"] = best_visib;
         trial["best_tilt_deg"] = best_tilt_deg;
+        if (m == "fdcm" && o.timing_repeats > 1) trial["times_best"] = repeat_timing(*det, frames, obj_id, d);
         trials.push_back(trial);
         // Per instance (Fig. 13): found by the best estimate, or by any of the top-k estimates
         // where k = the number of instances of its type in the image.
@@ -507,14 +532,17 @@ int run_detect(const Options& o) {
         if (!d.estimates.empty())
           for (const auto& gp : gts[k].gt)
             if (gp.obj_id == d.estimates[0].obj_id) correct = correct || o.criterion.accepts(score(d.estimates[0], gp));
-        picks.push_back({{"scene", ref.scene}, {"image", ref.image}, {"found", !d.estimates.empty()},
-                         {"obj_id", d.estimates.empty() ? 0 : d.estimates[0].obj_id}, {"correct", correct},
-                         {"times", times_json(d.times)}});
+        json pick = {{"scene", ref.scene}, {"image", ref.image}, {"found", !d.estimates.empty()},
+                     {"obj_id", d.estimates.empty() ? 0 : d.estimates[0].obj_id}, {"correct", correct},
+                     {"times", times_json(d.times)}};
+        if (o.timing_repeats > 1) pick["times_best"] = repeat_timing(*det, dataset.frames(ref.scene, ref.image), 0, d);
+        picks.push_back(pick);
       }
       out["all_types"] = picks;
     }
   }
   out["methods"] = methods;
+  out["timing_repeats"] = o.timing_repeats;
 
   const fs::path tmp = o.out.string() + ".tmp";
   {

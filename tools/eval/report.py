@@ -402,21 +402,42 @@ def main(bench_dir, docs_dir):
     w("| run | n | " + " | ".join(STAGES) + " |")
     w("|---|---:|" + "---:|" * len(STAGES))
     timing_sets = []
-    if "fdcm" in res["methods"]:
-        timing_sets.append(("one part type", [x["times"] for x in res["methods"]["fdcm"]["trials"]]))
+    fdcm_trials = res["methods"]["fdcm"]["trials"] if "fdcm" in res["methods"] else []
+    if fdcm_trials:
+        timing_sets.append(("one part type", [x["times"] for x in fdcm_trials]))
     if "all_types" in res:
         timing_sets.append(("all six", [x["times"] for x in res["all_types"]]))
+    # --timing-repeats: the same detections' fastest of several runs (the code's own time, with
+    # less of the other tenants' interference in it).
+    repeats = res.get("timing_repeats", 1)
+    best_sets = []
+    if repeats > 1 and fdcm_trials and all("times_best" in x for x in fdcm_trials):
+        best_sets.append(("one part type", [x["times_best"] for x in fdcm_trials]))
+        if "all_types" in res and all("times_best" in x for x in res["all_types"]):
+            best_sets.append(("all six", [x["times_best"] for x in res["all_types"]]))
+    def stage_row(label, ts, q):
+        w("| %s | %d | %s |" % (label, len(ts), " | ".join("%.1f" % pct([t[s] for t in ts], q) for s in STAGES)))
     for name, ts in timing_sets:
         for q, label in [(0.5, "median"), (0.9, "p90")]:
-            w("| %s, %s | %d | %s |" % (name, label, len(ts), " | ".join("%.1f" % pct([t[s] for t in ts], q)
-                                                                      for s in STAGES)))
-    if "fdcm" in res["methods"]:
-        for p in parts:
-            ts = [x["times"] for x in res["methods"]["fdcm"]["trials"] if x["obj_id"] == p["obj_id"]]
-            if ts:
-                w("| per part type: %s, median | %d | %s |" % (p["name"], len(ts), " | ".join(
-                    "%.1f" % pct([t[s] for t in ts], 0.5) for s in STAGES)))
+            stage_row("%s, %s" % (name, label), ts, q)
+    for p in parts:
+        mine = [x for x in fdcm_trials if x["obj_id"] == p["obj_id"]]
+        if mine:
+            stage_row("per part type: %s, median" % p["name"], [x["times"] for x in mine], 0.5)
+    # The fastest of the repeats: the medians, and the breaker's (the target's K = 300 views).
+    for name, ts in best_sets:
+        stage_row("%s, median, fastest of %d runs" % (name, repeats), ts, 0.5)
+    breaker = next((p for p in parts if p["name"] == "breaker"), None)
+    if best_sets and breaker:
+        mine = [x["times_best"] for x in fdcm_trials if x["obj_id"] == breaker["obj_id"]]
+        if mine:
+            stage_row("per part type: breaker, median, fastest of %d runs" % repeats, mine, 0.5)
     w("")
+    if best_sets:
+        w("*Fastest of %d runs*: every detection of the timed FDCM row was run %d times on its image "
+          "(`mfc-eval --timing-repeats %d`; the same result each time) and these rows take the stage times of its "
+          "fastest run: the machine is shared, and other tenants can slow any single run. The other "
+          "rows and Table 1 time the first run.\n" % (repeats, repeats, repeats))
     if "all_types" in res:
         picks = res["all_types"]
         ok = sum(1 for x in picks if x["correct"])

@@ -240,6 +240,11 @@ TEST_F(EvalFiles, CommandRefusesMalformedInput) {
   r = run("detect" + ds + " --set view_stride=two");
   EXPECT_EQ(r.first, 2);
   EXPECT_NE(r.second.find("view_stride 'two' is not an integer"), std::string::npos) << r.second;
+  for (const char* repeats : {"0", "11"}) {
+    r = run("detect" + ds + " --timing-repeats " + repeats);
+    EXPECT_EQ(r.first, 2);
+    EXPECT_NE(r.second.find("--timing-repeats must be in 1..10"), std::string::npos) << r.second;
+  }
   EXPECT_FALSE(fs::exists(out));
 }
 
@@ -316,6 +321,39 @@ TEST_F(EvalFiles, TraceWritesEveryFittedHypothesisWithTheMeasuresOfItsRank) {
     }
     EXPECT_GT(ranked, 0);
     EXPECT_EQ(any_correct, t["nearest_fitted"]["correct"].get<bool>()) << t.dump();
+  }
+}
+// --timing-repeats 3: every FDCM trial (and --all-types pick) also gets the stage times of its
+// fastest run. The result is the first run's, so the trial scores as without repeats; the
+// fastest of three is no slower than the first, and every stage time is a time.
+TEST_F(EvalFiles, TimingRepeatsAddTheFastestRunsStageTimes) {
+  nlohmann::json trials;
+  ASSERT_NO_FATAL_FAILURE(detect_on_two_parts(*this, dir_, "--timing-repeats 3 --all-types", trials));
+  std::ifstream in(dir_ / "out.json");
+  const nlohmann::json out = nlohmann::json::parse(in);
+  EXPECT_EQ(out["timing_repeats"].get<int>(), 3);
+  nlohmann::json timed = trials;
+  for (const auto& pick : out["all_types"]) timed.push_back(pick);
+  for (const auto& t : timed) {
+    ASSERT_TRUE(t.contains("times_best")) << t.dump();
+    const auto& best = t["times_best"];
+    EXPECT_LE(best["total"].get<double>(), t["times"]["total"].get<double>()) << t.dump();
+    double stages = 0;
+    for (const char* stage : {"edges", "lines", "dt", "search", "pose", "refine"}) {
+      EXPECT_GE(best[stage].get<double>(), 0) << stage;
+      stages += best[stage].get<double>();
+    }
+    EXPECT_GT(best["total"].get<double>(), 0);
+    EXPECT_LE(stages, best["total"].get<double>() + 1e-6) << t.dump();
+  }
+  nlohmann::json plain;
+  fs::create_directories(dir_ / "plain");
+  ASSERT_NO_FATAL_FAILURE(detect_on_two_parts(*this, dir_ / "plain", "", plain));
+  ASSERT_EQ(plain.size(), trials.size());
+  for (size_t i = 0; i < trials.size(); ++i) {
+    EXPECT_FALSE(plain[i].contains("times_best"));
+    EXPECT_EQ(plain[i]["correct"], trials[i]["correct"]);
+    EXPECT_EQ(plain[i].value("position_mm", -1.0), trials[i].value("position_mm", -1.0));
   }
 }
 #endif
