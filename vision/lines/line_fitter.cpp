@@ -150,7 +150,7 @@ void LineFitter::fit(const cv::Mat1b& edges, const cv::Mat1f* direction, LineFit
 
   const Tracer tracer(alive, params);
   // Every seed's hypotheses are scored on the untouched edge map, so independently: shared out
-  // among the threads (two thirds of the stage's time before). Hypothesis's order is total
+  // among the threads (more than half of the stage's time before). Hypothesis's order is total
   // (score, then seed, then channel), so the heap pops them in the same order however it was
   // built, and the result is the one-thread result.
   const int spread = params.channelSpread, per_seed = 2 * spread + 1;

@@ -56,7 +56,7 @@ void lineSearchWith(const Matcher& matcher, At at, const std::vector<OrientedTem
   result.truncated = false;
   // Counted here and stored once at the end: the pipeline's threads keep their results side by
   // side, and a counter written on every hypothesis in a cache line another thread writes too
-  // made the whole search up to a fifth slower, depending on where the allocator put them.
+  // made the whole search up to a third slower, depending on where the allocator put them.
   SearchStats stats;
   const size_t nq = std::min<size_t>(queryLines.size(), std::max(0, params.queryLines));
   const size_t keep = static_cast<size_t>(std::max(1, params.keep));
