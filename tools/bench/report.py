@@ -58,11 +58,13 @@ def main(bench_dir, docs_dir):
     w("Two queries: *typical* (2 blobs, 15 clutter segments: an edge density like a depth-edge map of a bin) "
       "and *dense* (the full clutter above).\n")
     w("## Line fitting (Sec. 3.3)\n")
-    w("| query | edge pixels | fitted lines | time |\n|---|---:|---:|---:|")
+    w("| query | edge pixels | fitted lines | threads | wall time |\n|---|---:|---:|---:|---:|")
     for d in (0, 1):
-        fit = b.get("BM_LineFit640x480/dense:%d" % d)
-        if fit:
-            w("| %s | %d | %d | %.1f ms |" % ("dense" if d else "typical", fit["edge_pixels"], fit["lines"], ms(fit)))
+        for t in (1, 2):
+            fit = b.get("BM_LineFit640x480/dense:%d/threads:%d/real_time" % (d, t))
+            if fit:
+                w("| %s | %d | %d | %d | %.1f ms |" % ("dense" if d else "typical", fit["edge_pixels"], fit["lines"], t,
+                                                    ms(fit)))
     w("")
 
     w("## DT3 + IDT3 build (Sec. 3.4-3.5), 640x480, q = 60, lambda = 0.5, truncation 30 px\n")
