@@ -38,7 +38,7 @@ void usage(std::FILE* to) {
                "                       without the edges of the best estimates so far, so that the other\n"
                "                       instances of a type are found too (PipelineConfig::search_rounds)\n"
                "  --scene ID           only this scene (repeatable)\n"
-               "  --threads N          search threads (default: all cores)\n"
+               "  --threads N          threads of every stage of a detection (default: all cores)\n"
                "  --quiet              no per-image lines\n");
 }
 

@@ -50,7 +50,7 @@ detect: for every image and every part type present in it, runs each method for 
                          terms); fdcm-rounds = FDCM with two search rounds (search_rounds=2: the
                          second searches again without the best candidate's edges)
   --max-images N         only the first N images (default all)
-  --threads N            search threads (default: all cores)
+  --threads N            threads of every stage of a detection (default: all cores)
   --distances LIST       part distances (mm) the pipeline searches, e.g. 292,282,272,262: the
                          templates' scale is searched for each (default: the templates' own)
   --refine-candidates N  candidates the pipeline refines (1 view); 0 = coarse poses only

@@ -190,6 +190,23 @@ constexpr int kRoundErasePx = 2;
 // Candidates whose search boxes overlap by more than this (intersection over union) are one part.
 constexpr double kCandidateOverlap = 0.3;
 
+// The calling thread's OpenMP team size set for a scope and restored after. The stages that open
+// their own parallel regions (depth edges, line fitting, DT3 / IDT3) take it from the calling
+// thread, so a cycle under this runs every stage on PipelineConfig::threads threads, as the
+// search and the fits do with theirs; 0 leaves the caller's setting.
+class OmpThreadsInScope {
+ public:
+  explicit OmpThreadsInScope(int threads) : before_(omp_get_max_threads()) {
+    if (threads > 0) omp_set_num_threads(threads);
+  }
+  ~OmpThreadsInScope() { omp_set_num_threads(before_); }
+  OmpThreadsInScope(const OmpThreadsInScope&) = delete;
+  OmpThreadsInScope& operator=(const OmpThreadsInScope&) = delete;
+
+ private:
+  int before_;
+};
+
 // Per-thread buffers of fit_distance: the warped template it scores, kept between warps and cycles.
 // Cache-line aligned, as every per-thread workspace: the threads' workspaces lie side by side.
 struct alignas(64) DistanceFitWorkspace {
@@ -890,6 +907,7 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
                                  PipelineResult& out) {
   Impl& m = *impl_;
   const auto t0 = Clock::now();
+  const OmpThreadsInScope team(m.config.threads);
   out.candidates.clear();
   out.degraded = false;
   out.times = {};

@@ -107,7 +107,9 @@ struct PipelineConfig {
   // worse (median centre error 0.76 -> 1.01 mm, rotation 0.51 -> 0.81 deg, same detections;
   // docs/results.md Table 2: worse on every axis), while two views improve it.
   int refine_candidates = 0;
-  int threads = 0;                 // search threads; 0 = OpenMP default
+  // Threads of every stage of a cycle (edges, lines, distance transforms, search, fits); 0 = the
+  // calling thread's OpenMP setting (OMP_NUM_THREADS, else every core).
+  int threads = 0;
   DepthEdgeParams depth_edges;
   // Diagnostics (mfc-eval): every fitted hypothesis is also reported in PipelineResult::trace.
   // Allocates per cycle; off in the daemon.

@@ -10,6 +10,7 @@
 #include "tests/vision/support/floor_scene.hpp"
 
 #include <gtest/gtest.h>
+#include <omp.h>
 
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -359,6 +360,43 @@ TEST(Pipeline, CoarseToFineViewsAndSharedBoundAgainstTheFullSearch) {
   }
   EXPECT_EQ(staged.views_searched, staged_free.views_searched);
 }
+// PipelineConfig::threads runs the whole cycle, and the result does not depend on it: one, two
+// and three threads give the same candidates. The caller's own OpenMP setting is left as it was.
+TEST(Pipeline, ThreadCountChangesNothingButTheThreads) {
+  const std::vector<fs::path> files = {kTemplates / "tnut.tdb", kTemplates / "breaker.tdb"};
+  const CameraConfig cam = sim_camera();
+  const TemplateDatabase db = load_template_database(files[0]);
+  MfcRenderer renderer(cam);
+  const int part_id = renderer.add_mesh(db.mesh);
+  const int floor_id = renderer.add_mesh(make_plane(600));
+  const MfcRender render =
+      render_on_floor(renderer, part_id, floor_id, db, upper_view_pose(db, cam, 2.2, {280, 220}), 9);
+  const int callers = omp_get_max_threads();
+  omp_set_num_threads(2);
+  std::vector<PipelineResult> results;
+  for (int threads : {1, 2, 3}) {
+    PipelineConfig pc;
+    pc.template_files = files;
+    pc.threads = threads;
+    results.push_back(process_once(cam, pc, render.frames));
+    EXPECT_EQ(omp_get_max_threads(), 2) << "after a cycle on " << threads << " threads";
+  }
+  omp_set_num_threads(callers);
+  ASSERT_FALSE(results[0].candidates.empty());
+  for (size_t k = 1; k < results.size(); ++k) {
+    const PipelineResult& r = results[k];
+    EXPECT_EQ(r.query_lines, results[0].query_lines) << k + 1 << " threads";
+    EXPECT_EQ(r.views_searched, results[0].views_searched) << k + 1 << " threads";
+    ASSERT_EQ(r.candidates.size(), results[0].candidates.size()) << k + 1 << " threads";
+    for (size_t i = 0; i < r.candidates.size(); ++i) {
+      EXPECT_EQ(r.candidates[i].obj_id, results[0].candidates[i].obj_id);
+      EXPECT_EQ(r.candidates[i].view, results[0].candidates[i].view);
+      EXPECT_EQ(r.candidates[i].t_m2c_mm, results[0].candidates[i].t_m2c_mm);
+      EXPECT_EQ(r.candidates[i].R_m2c, results[0].candidates[i].R_m2c);
+    }
+  }
+}
+
 // The real-time rule: no heap allocation on the frame path once its buffers have grown
 // (operator new counted over the cycles after a warm-up). Two scenes take turns, the part at
 // two places and turns, so buffers grown for one and reused for the other count too. The level
