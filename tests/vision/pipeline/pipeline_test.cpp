@@ -365,12 +365,7 @@ TEST(Pipeline, CoarseToFineViewsAndSharedBoundAgainstTheFullSearch) {
 TEST(Pipeline, ThreadCountChangesNothingButTheThreads) {
   const std::vector<fs::path> files = {kTemplates / "tnut.tdb", kTemplates / "breaker.tdb"};
   const CameraConfig cam = sim_camera();
-  const TemplateDatabase db = load_template_database(files[0]);
-  MfcRenderer renderer(cam);
-  const int part_id = renderer.add_mesh(db.mesh);
-  const int floor_id = renderer.add_mesh(make_plane(600));
-  const MfcRender render =
-      render_on_floor(renderer, part_id, floor_id, db, upper_view_pose(db, cam, 2.2, {280, 220}), 9);
+  const MfcRender render = render_part(files[0], cam, 2.2, {280, 220}, 9).render;
   const int callers = omp_get_max_threads();
   omp_set_num_threads(2);
   std::vector<PipelineResult> results;
