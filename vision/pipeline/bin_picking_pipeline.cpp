@@ -336,6 +336,17 @@ void stable_sort_in_place(std::vector<T>& v, Less less, size_t first = 0) {
     for (size_t j = i; j > first && less(v[j], v[j - 1]); --j) std::swap(v[j], v[j - 1]);
 }
 
+// Calls `at` with the image point of every edge point of `view` at `pose`, those behind the
+// camera skipped (unrounded and unclipped: the caller decides which pixel it is and whether it is
+// in the image).
+template <class At>
+void for_each_projected_point(const TemplateView& view, const RigidPose& pose, const PinholeCamera& camera, At at) {
+  for (const TemplateEdgePoint& p : view.points) {
+    const cv::Vec3d cam = pose.R * cv::Vec3d(p.model_mm[0], p.model_mm[1], p.model_mm[2]) + pose.t_mm;
+    if (cam[2] > 0) at(camera.project(cam));
+  }
+}
+
 // The fitted view's edge points at the fitted distance (a view's point count scales with 1 / distance).
 double view_points(const TemplateFitResult& f, const TemplateDatabase& db) {
   const double z = cv::norm(f.pose.R * db.center_mm + f.pose.t_mm);
@@ -861,16 +872,14 @@ void BinPickingPipeline::Impl::query_without_best(int best) {
     for (int k = 0; k < n; ++k) overlaps = overlaps || iou(taken[static_cast<size_t>(k)], v.hit.box) > kCandidateOverlap;
     if (overlaps) continue;
     taken[static_cast<size_t>(n++)] = v.hit.box;
-    for (const TemplateEdgePoint& p : m.parts[v.hit.part].db.views[static_cast<size_t>(v.view)].points) {
-      const cv::Vec3d cam = v.fitted.R * cv::Vec3d(p.model_mm[0], p.model_mm[1], p.model_mm[2]) + v.fitted.t_mm;
-      if (cam[2] <= 0) continue;
-      const cv::Point2d q = m.camera.camera.project(cam);
+    const TemplateView& view = m.parts[v.hit.part].db.views[static_cast<size_t>(v.view)];
+    for_each_projected_point(view, v.fitted, m.camera.camera, [&](const cv::Point2d& q) {
       const cv::Rect around(cvRound(q.x) - kRoundErasePx, cvRound(q.y) - kRoundErasePx, 2 * kRoundErasePx + 1,
                             2 * kRoundErasePx + 1);
       const cv::Rect inside = around & cv::Rect(cv::Point(0, 0), erased.size());
       for (int y = inside.y; y < inside.y + inside.height; ++y)
         std::fill_n(erased.ptr<uchar>(y) + inside.x, inside.width, uchar{255});
-    }
+    });
   }
   m.lines.channelMap.copyTo(round_query.channelMap);
   for (int y = 0; y < erased.rows; ++y) {
@@ -1132,13 +1141,10 @@ void BinPickingPipeline::draw_pose(cv::Mat3b& image, int obj_id, const cv::Matx3
   const int view = TemplatePoseFit::nearest_view(part->db, m.camera.camera, pose);
   const cv::Vec3b c(cv::saturate_cast<uchar>(colour[0]), cv::saturate_cast<uchar>(colour[1]),
                     cv::saturate_cast<uchar>(colour[2]));
-  for (const TemplateEdgePoint& p : part->db.views[static_cast<size_t>(view)].points) {
-    const cv::Vec3d cam = pose.R * cv::Vec3d(p.model_mm[0], p.model_mm[1], p.model_mm[2]) + pose.t_mm;
-    if (cam[2] <= 0) continue;
-    const cv::Point2d q = m.camera.camera.project(cam);
+  for_each_projected_point(part->db.views[static_cast<size_t>(view)], pose, m.camera.camera, [&](const cv::Point2d& q) {
     const cv::Point px(static_cast<int>(std::lround(q.x)), static_cast<int>(std::lround(q.y)));
     if (px.x >= 0 && px.y >= 0 && px.x < image.cols && px.y < image.rows) image(px) = c;
-  }
+  });
 }
 
 cv::Mat3b draw_candidates(const cv::Mat1b& image, const PipelineResult& result, const CameraConfig& camera) {
