@@ -360,6 +360,7 @@ TEST(Pipeline, CoarseToFineViewsAndSharedBoundAgainstTheFullSearch) {
   }
   EXPECT_EQ(staged.views_searched, staged_free.views_searched);
 }
+
 // PipelineConfig::threads runs the whole cycle, and the result does not depend on it: one, two
 // and three threads give the same candidates. The caller's own OpenMP setting is left as it was.
 TEST(Pipeline, ThreadCountChangesNothingButTheThreads) {
