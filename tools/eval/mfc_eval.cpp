@@ -416,6 +416,13 @@ int run_detect(const Options& o) {
           trial["d_t_mm"] = {matched.error.d_t_mm[0], matched.error.d_t_mm[1], matched.error.d_t_mm[2]};
           trial["matched_instance"] = matched.instance;
           trial["matched_visib_fract"] = g.info[matched.instance].visib_fract;
+          // The estimate itself (model -> camera, R row-major, t in mm), to score it again by
+          // another criterion without running the detector.
+          const Estimate& best = d.estimates[0];
+          trial["R"] = json::array();
+          for (int r = 0; r < 3; ++r)
+            for (int c = 0; c < 3; ++c) trial["R"].push_back(best.R(r, c));
+          trial["t_mm"] = {best.t_mm[0], best.t_mm[1], best.t_mm[2]};
         }
         // Search miss or cost miss: how the truth scores on this image, by the detector's own
         // ranking measure, against the estimate it chose.

@@ -1,4 +1,5 @@
 #include "tools/eval/pose_error.hpp"
+#include "vision/dataset/bop_dataset.hpp"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -288,6 +289,36 @@ TEST_F(EvalFiles, OverlayDrawsTheTruthAndTheEstimateOfEveryFailedTrial) {
     EXPECT_GT(red, 100) << t["overlay"];
     EXPECT_GT(grey, 500) << t["overlay"];  // the depth edges under them
   }
+}
+
+// Every trial that found something carries its best estimate (R row-major, t in mm), so that it
+// can be scored again by another criterion without the detector: scored against the instance it
+// was matched to, it gives the trial's own errors.
+TEST_F(EvalFiles, TrialsCarryTheBestEstimateThatTheirErrorsWereMeasuredOn) {
+  nlohmann::json trials;
+  ASSERT_NO_FATAL_FAILURE(detect_on_two_parts(*this, dir_, "", trials));
+  const mfcd::vision::BopDataset data(dir_ / "data");
+  const auto parts = read_parts_csv(fs::path(MFC_SOURCE_DIR) / "config/parts/parts.csv");
+  int found = 0;
+  for (const auto& t : trials) {
+    if (!t["found"].get<bool>()) continue;
+    ++found;
+    ASSERT_EQ(t["R"].size(), 9u) << t.dump();
+    ASSERT_EQ(t["t_mm"].size(), 3u) << t.dump();
+    cv::Matx33d R;
+    for (int k = 0; k < 9; ++k) R.val[k] = t["R"][k].get<double>();
+    EXPECT_LT(cv::norm(R.t() * R - cv::Matx33d::eye()), 1e-6) << t.dump();
+    EXPECT_NEAR(cv::determinant(R), 1.0, 1e-6) << t.dump();
+    const cv::Vec3d t_mm(t["t_mm"][0].get<double>(), t["t_mm"][1].get<double>(), t["t_mm"][2].get<double>());
+    const auto gt = data.ground_truth(t["scene"].get<int>(), t["image"].get<int>());
+    const auto& truth = gt.at(t["matched_instance"].get<size_t>());
+    const auto& info = data.models_info().at(truth.obj_id);
+    const PoseError e = pose_error(R, t_mm, truth.R, truth.t_mm, part_by_id(parts, truth.obj_id, "").symmetry,
+                                   info.min + info.size * 0.5);
+    EXPECT_NEAR(e.position_mm, t["position_mm"].get<double>(), 1e-6) << t.dump();
+    EXPECT_NEAR(e.rotation_deg, t["rotation_deg"].get<double>(), 1e-6) << t.dump();
+  }
+  EXPECT_GT(found, 0);
 }
 
 // --set trace=1: every fitted hypothesis is written with the measures its rank is made of (the
