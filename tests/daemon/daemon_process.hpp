@@ -44,7 +44,7 @@ inline std::string simCellConfig(const fs::path& dir, int budgetMs = 1000, const
     if (templates) s << ", templates: templates/" << parts[i] << ".tdb";
     s << "}\n";
   }
-  // The pipeline's score is 1 - cost / max_cost_px: a correct match of a large part often scores 0.2-0.4.
+  // A candidate's score is its fitted rank clamped to 0..1 (PoseCandidate::score): a correct match often scores 0.2-0.4.
   s << "pick:\n  min_score: 0.1\n";
   s << "hand_eye:\n  base_T_camera: {x_mm: 500, y_mm: 0, z_mm: 800, rx_deg: 180, ry_deg: 0, rz_deg: 0}\n"
     << "modbus:\n  bind_address: 127.0.0.1\n  port: 0\n"

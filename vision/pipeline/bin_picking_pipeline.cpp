@@ -726,7 +726,9 @@ void BinPickingPipeline::Impl::fit(Cycle& cycle, size_t first, const IntegralDis
       const TemplateFitResult f =
           m.fitter.fit(part.db, h.view, v.coarse, m.camera.camera, m.fit_workspaces[omp_get_thread_num()]);
       if (moved_too_far_in_depth(part.db, v.coarse, f.pose)) {
-        v.fitted = v.coarse;
+        // Refused: the hypothesis keeps its unfitted coarse pose, ranked last, and like every
+        // unfitted pose it goes onto the floor when it reaches below.
+        v.fitted = floor.below(part.db.mesh, v.coarse) ? floor.onto(part.db.mesh, v.coarse, part.db.center_mm) : v.coarse;
         v.fit_score = 0;
         v.fit_rank = -1;
         continue;

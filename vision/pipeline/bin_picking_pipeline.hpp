@@ -32,9 +32,14 @@ struct PipelineConfig {
   Cost cost = Cost::fdcm;
   std::vector<std::filesystem::path> template_files;  // *.tdb, one per part type (mfc-teach)
   int max_candidates = 8;          // pick candidates kept per cycle, best first
-  double max_cost_px = 8.0;        // search threshold, px (mean directional chamfer cost). A part between
-                                   // template views reaches 3-4 px alone and 5-7 px in a full bin; the
-                                   // hypothesis fit decides, so this only bounds the search
+  // Search threshold, px (mean directional chamfer cost). A part between template views reaches
+  // 3-4 px alone and 5-7 px in a full bin; the hypothesis fit decides, so this only bounds the
+  // search. A part with few views (the wheel's 5-fold symmetry leaves it 60 of 300) can lie far
+  // from all of them: at 8 px its truth was sometimes not among the hits at all. Measured at 8 /
+  // 9 / 10 / 12 (dev sets, mfc-sim seeds 7, 13, 19, 283 trials; bench set, 119; capped-occlusion
+  // set, 116): 81 / 80 / 80 / 80, 30 / 27 / 28 / 28, 17 / 16 / 16 / 16 failures, none broken at 10;
+  // median detection +1.5 ms (docs/pose.md "Search threshold").
+  double max_cost_px = 10.0;
   std::vector<double> distances_mm;  // hypothesised part distances; empty = the templates' own
   // 1-D line search (paper Sec. 4.4): each template's longest `template_guides` lines are slid
   // along the query's longest `query_guides` lines of the same orientation.
