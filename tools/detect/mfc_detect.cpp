@@ -30,7 +30,7 @@ void usage(std::FILE* to) {
                "  --out FILE           BOP results CSV to write\n"
                "  --views N            views used by the refinement (default 1; more need camera poses)\n"
                "  --max-per-image N    estimates kept per image (default 10)\n"
-               "  --max-cost PX        search threshold, mean directional chamfer px (default 8)\n"
+               "  --max-cost PX        search threshold, mean directional chamfer px (default 10)\n"
                "  --floor MM           the bin floor's distance from the camera (along the optical axis): poses\n"
                "                       below it are dropped, the best few just above it also fitted from it\n"
                "                       (PipelineConfig::floor; default 0: not known)\n"
