@@ -849,10 +849,8 @@ void BinPickingPipeline::Impl::rank(const Cycle& cycle, size_t first) {
                            feature ? &turn.differs[static_cast<size_t>(f.view)] : nullptr);
       if (d.only_b < kFlipMinPoints || d.found_b < d.found_a + kFlipMargin) continue;
       current = f;
-      v.fitted = f.pose;
-      v.view = f.view;
-      v.fit_score = f.score;
-      v.fit_rank = std::max(v.fit_rank, fitted_rank(f, part.db, m.config.evidence_weight));
+      // The turned pose replaces the fit, but never lowers the rank the hypothesis was sorted by.
+      v.take(f, std::max(v.fit_rank, fitted_rank(f, part.db, m.config.evidence_weight)));
     }
   }
   sort_verified(first);
