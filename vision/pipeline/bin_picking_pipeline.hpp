@@ -38,7 +38,7 @@ struct PipelineConfig {
   // from all of them: at 8 px its truth was sometimes not among the hits at all. Measured at 8 /
   // 9 / 10 / 12 (dev sets, mfc-sim seeds 7, 13, 19, 283 trials; bench set, 119; capped-occlusion
   // set, 116): 81 / 80 / 80 / 80, 30 / 27 / 28 / 28, 17 / 16 / 16 / 16 failures, none broken at 10;
-  // median detection +1.5 ms (docs/pose.md "Search threshold").
+  // median detection +1.5 ms (docs/pose.md, "Session 12: the search threshold").
   double max_cost_px = 10.0;
   std::vector<double> distances_mm;  // hypothesised part distances; empty = the templates' own
   // 1-D line search (paper Sec. 4.4): each template's longest `template_guides` lines are slid
