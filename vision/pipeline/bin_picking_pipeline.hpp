@@ -73,8 +73,9 @@ struct PipelineConfig {
   // and ranked by the fitted score (TemplatePoseFit); false = ranked by the search cost.
   int fit_candidates = 48;
   // The best this many fitted hypotheses are also fitted turned over (by 180 degrees about each
-  // model axis that is not a symmetry) and replaced by the turned pose when the edges where the
-  // two differ favour it (TemplatePoseFit::compare). 0 = off.
+  // model axis that is not a symmetry) and, for an N-fold symmetry about z (N >= 3), turned about z
+  // by +-0.4 of the period, and replaced by the turned pose when the edges where the two differ
+  // favour it (TemplatePoseFit::compare; docs/pose.md "Turned-over check"). 0 = off.
   int flip_checks = 6;
   // Evidence: the fitted rank gains evidence_weight x ln(found / 300), found = the matched view's
   // edge points at the fitted distance times the fit's inlier fraction. A flat part seen edge-on
