@@ -57,6 +57,22 @@ struct FloorScene {
     extractor.extract(render.frames, edges);
     fitter.prepare(edges);
   }
+  // The fit started at `start` with the view nearest to it, as the pipeline starts its fits.
+  TemplateFitResult fit_from(RigidPose start) {
+    const int view = TemplatePoseFit::nearest_view(db, cam.camera, start);
+    return fitter.fit(db, view, start, cam.camera, ws);
+  }
+  // A pose of the part seen from above, tilted by `tilt_deg` about a horizontal axis at
+  // `tilt_dir` and turned by `spin` about its z axis, its centre at `centre`.
+  RigidPose from_above(double tilt_deg, double tilt_dir, double spin, const cv::Vec3d& centre) const {
+    cv::Matx33d tilt, turn;
+    cv::Rodrigues(cv::Vec3d(std::cos(tilt_dir), std::sin(tilt_dir), 0) * (tilt_deg * CV_PI / 180), tilt);
+    cv::Rodrigues(cv::Vec3d(0, 0, spin), turn);
+    RigidPose p;
+    p.R = cv::Matx33d(1, 0, 0, 0, -1, 0, 0, 0, -1) * tilt * turn;  // model z towards the camera
+    p.t_mm = centre - p.R * db.center_mm;
+    return p;
+  }
 };
 
 }  // namespace
@@ -202,22 +218,16 @@ TEST(TemplatePoseFit, CompareFavoursTheTruthOverItsTurnedOverTwin) {
   const int trials = 5;
   for (int trial = 0; trial < trials; ++trial) {
     // Seen from above within 35 degrees (the toggle in view), turned at random in the image.
-    RigidPose truth;
-    cv::Matx33d tilt, spin;
-    cv::Rodrigues(cv::Vec3d(u(rng), u(rng), 0) * (25 * CV_PI / 180), tilt);
-    cv::Rodrigues(cv::Vec3d(0, 0, u(rng) * CV_PI), spin);
-    truth.R = cv::Matx33d(1, 0, 0, 0, -1, 0, 0, 0, -1) * tilt * spin;  // model z towards the camera
+    const double ay = u(rng);  // drawn in the order the poses of docs/pose.md were
+    const double ax = u(rng);
+    const double spin = u(rng) * CV_PI;
     const cv::Vec3d centre(30 * u(rng), 20 * u(rng), 285);
-    truth.t_mm = centre - truth.R * db.center_mm;
+    const RigidPose truth = scene.from_above(25 * std::hypot(ax, ay), std::atan2(ay, ax), spin, centre);
     scene.show(truth, 300 + trial);
-    auto fit_from = [&](RigidPose p) {
-      const int view = TemplatePoseFit::nearest_view(db, cam.camera, p);
-      return fitter.fit(db, view, p, cam.camera, ws);
-    };
     RigidPose turned;
     turned.R = truth.R * half_turn_z;
     turned.t_mm = truth.t_mm + truth.R * (db.center_mm - half_turn_z * db.center_mm);
-    const TemplateFitResult right = fit_from(truth), wrong = fit_from(turned);
+    const TemplateFitResult right = scene.fit_from(truth), wrong = scene.fit_from(turned);
     const auto same = fitter.compare(db, right, right, cam.camera, ws);
     EXPECT_EQ(same.only_a, 0);
     EXPECT_EQ(same.only_b, 0);
@@ -251,11 +261,7 @@ TEST(TemplatePoseFit, CompareFavoursTheTruthOverItsPhaseTwin) {
   const fs::path tdb = fs::path(MFC_BINARY_DIR) / "templates" / "knob.tdb";
   if (!fs::exists(tdb)) GTEST_SKIP() << tdb << " not built (needs OpenSCAD)";
   FloorScene scene(tdb);
-  const TemplateDatabase& db = scene.db;
-  const CameraConfig& cam = scene.cam;
-  TemplatePoseFit& fitter = scene.fitter;
-  TemplatePoseFit::Workspace& ws = scene.ws;
-  const double period = 2 * CV_PI / db.symmetry.order;
+  const double period = 2 * CV_PI / scene.db.symmetry.order;
   auto about_z = [](double a) { return cv::Matx33d(std::cos(a), -std::sin(a), 0, std::sin(a), std::cos(a), 0, 0, 0, 1); };
   // The fitted pose's turn about the knob's axis from the truth, folded into (-period/2, period/2].
   auto phase_deg = [&](const RigidPose& truth, const RigidPose& p) {
@@ -267,32 +273,23 @@ TEST(TemplatePoseFit, CompareFavoursTheTruthOverItsPhaseTwin) {
   int twins = 0;
   for (int trial = 0; trial < 5; ++trial) {
     // Tilted by 30-55 degrees, so that the flutes show on the outline.
-    RigidPose truth;
-    cv::Matx33d tilt, spin;
-    const double t = (42.5 + 12.5 * u(rng)) * CV_PI / 180, dir = u(rng) * CV_PI;
-    cv::Rodrigues(cv::Vec3d(std::cos(dir), std::sin(dir), 0) * t, tilt);
-    cv::Rodrigues(cv::Vec3d(0, 0, u(rng) * CV_PI), spin);
-    truth.R = cv::Matx33d(1, 0, 0, 0, -1, 0, 0, 0, -1) * tilt * spin;
+    const double tilt = 42.5 + 12.5 * u(rng), dir = u(rng) * CV_PI, spin = u(rng) * CV_PI;
     const cv::Vec3d centre(30 * u(rng), 20 * u(rng), 285);
-    truth.t_mm = centre - truth.R * db.center_mm;
+    const RigidPose truth = scene.from_above(tilt, dir, spin, centre);
     scene.show(truth, 400 + trial);
-    auto fit_from = [&](RigidPose p) {
-      const int view = TemplatePoseFit::nearest_view(db, cam.camera, p);
-      return fitter.fit(db, view, p, cam.camera, ws);
-    };
-    const TemplateFitResult right = fit_from(truth);
+    const TemplateFitResult right = scene.fit_from(truth);
     ASSERT_LT(std::abs(phase_deg(truth, right.pose)), 3.0) << "trial " << trial;
     for (const double sign : {1.0, -1.0}) {
-      const TemplateFitResult twin = fit_from(RigidPose{truth.R * about_z(sign * 14.5 * CV_PI / 180), truth.t_mm});
+      const TemplateFitResult twin = scene.fit_from(RigidPose{truth.R * about_z(sign * 14.5 * CV_PI / 180), truth.t_mm});
       const double phase = phase_deg(truth, twin.pose);
       if (std::abs(phase) < 5) continue;  // this start came back to the truth
       ++twins;
-      const auto d = fitter.compare(db, twin, right, cam.camera, ws);
+      const auto d = scene.fitter.compare(scene.db, twin, right, scene.cam.camera, scene.ws);
       std::printf("trial %d: twin at %+.1f deg, scores %.3f (truth) / %.3f (twin), differing points %d / %d, on edges %.2f / %.2f\n",
                   trial, phase, right.score, twin.score, d.only_b, d.only_a, d.found_b, d.found_a);
       EXPECT_GE(d.only_b, 6) << "trial " << trial;
       EXPECT_GE(d.found_b, d.found_a + 0.2) << "trial " << trial;  // the truth is taken from the twin
-      const auto back = fitter.compare(db, right, twin, cam.camera, ws);
+      const auto back = scene.fitter.compare(scene.db, right, twin, scene.cam.camera, scene.ws);
       EXPECT_FALSE(back.only_b >= 6 && back.found_b >= back.found_a + 0.2) << "trial " << trial;  // and kept
     }
   }
