@@ -46,8 +46,9 @@ struct PartModel {
   // (symmetry-aware), nearest first.
   std::vector<std::vector<int>> neighbours;
   std::vector<uint8_t> searched;  // per view, this cycle
-  // Turns by 180 degrees about the model axes through the centre that are not symmetries of the
-  // part: the turned-over poses the fit checks.
+  // The turns the fit checks its best poses against: by 180 degrees about the model axes through
+  // the centre that are not symmetries of the part (turned_over), and for an N-fold symmetry about
+  // z (N >= 3) by +-0.4 of the period about z (phase_turns).
   struct Turn {
     cv::Matx33d S;
     // The point of the model the turn is about: the part centre for the turns over, the origin
