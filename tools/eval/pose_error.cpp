@@ -1,5 +1,7 @@
 #include "tools/eval/pose_error.hpp"
 
+#include "vision/pose/rigid_transform.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <fstream>
@@ -16,11 +18,6 @@ std::string trim(const std::string& s) {
   if (b == std::string::npos) return "";
   const auto e = s.find_last_not_of(" \t\r");
   return s.substr(b, e - b + 1);
-}
-
-cv::Matx33d rot_z(double a) {
-  const double c = std::cos(a), s = std::sin(a);
-  return {c, -s, 0, s, c, 0, 0, 0, 1};
 }
 
 }  // namespace
@@ -101,7 +98,7 @@ PoseError pose_error(const cv::Matx33d& R_est, const cv::Vec3d& t_est, const cv:
   if (symmetry.kind == vision::PartSymmetry::Kind::continuous_z) {
     // max over a of trace(R_est^T R_gt Rz(a)) = (A00 + A11) cos a + (A01 - A10) sin a + A22.
     const cv::Matx33d A = R_est.t() * R_gt;
-    best = R_gt * rot_z(std::atan2(A(0, 1) - A(1, 0), A(0, 0) + A(1, 1)));
+    best = R_gt * vision::rotation_about_z(std::atan2(A(0, 1) - A(1, 0), A(0, 0) + A(1, 1)));
   } else {
     double best_angle = 1e9;
     for (const auto& S : symmetry.discrete_rotations()) {

@@ -107,9 +107,8 @@ std::vector<PartModel::Turn> phase_turns(const TemplateDatabase& db) {
   std::vector<PartModel::Turn> out;
   if (sym.kind != PartSymmetry::Kind::discrete_z || sym.order < 3) return out;
   for (const double sign : {1.0, -1.0}) {
-    const double a = sign * kPhaseTurnShare * 2 * CV_PI / sym.order;
     PartModel::Turn& t = out.emplace_back();
-    t.S = cv::Matx33d(std::cos(a), -std::sin(a), 0, std::sin(a), std::cos(a), 0, 0, 0, 1);
+    t.S = rotation_about_z(sign * kPhaseTurnShare * 2 * CV_PI / sym.order);
   }
   return out;
 }

@@ -8,10 +8,6 @@
 namespace mfcd::vision {
 
 namespace {
-cv::Matx33d rot_z(double a) {
-  const double c = std::cos(a), s = std::sin(a);
-  return cv::Matx33d(c, -s, 0, s, c, 0, 0, 0, 1);
-}
 cv::Vec3d unit_ray(const PinholeCamera& camera, const cv::Point2d& p) {
   return cv::normalize(cv::Vec3d((p.x - camera.cx()) / camera.fx(), (p.y - camera.cy()) / camera.fy(), 1.0));
 }
@@ -33,7 +29,7 @@ RigidPose coarse_pose(const TemplateDatabase& db, const TemplatePlacement& place
   const TemplateView& v = db.views[placement.view];
   const cv::Matx33d A = ray_alignment(camera, placement.origin_px);
   RigidPose pose;
-  pose.R = A * rot_z(placement.angle_rad) * v.R_m2c;
+  pose.R = A * rotation_about_z(placement.angle_rad) * v.R_m2c;
   const cv::Vec3d centre = unit_ray(camera, placement.origin_px) * (db.distance_mm / placement.scale);
   pose.t_mm = centre - pose.R * db.center_mm;
   return pose;

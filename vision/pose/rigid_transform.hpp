@@ -29,6 +29,12 @@ inline cv::Matx33d rotation_from_angle_axis(const cv::Vec3d& w) {
   return cv::Matx33d::eye() + std::sin(th) * Kx + (1 - std::cos(th)) * Kx * Kx;
 }
 
+// Rotation by `a` radians about the z axis.
+inline cv::Matx33d rotation_about_z(double a) {
+  const double c = std::cos(a), s = std::sin(a);
+  return {c, -s, 0, s, c, 0, 0, 0, 1};
+}
+
 // Angle of the rotation R in radians, [0, pi].
 inline double rotation_angle(const cv::Matx33d& R) {
   const double c = std::clamp((cv::trace(R) - 1.0) / 2.0, -1.0, 1.0);

@@ -41,11 +41,6 @@ void TemplatePoseFit::prepare(const DepthEdges& edges) {
 
 namespace {
 
-cv::Matx33d rot_z(double a) {
-  const double c = std::cos(a), s = std::sin(a);
-  return {c, -s, 0, s, c, 0, 0, 0, 1};
-}
-
 // The in-plane angle by which the image of the part at `pose` is turned relative to the
 // template view's image (as placement_of measures it).
 double in_plane_angle(const TemplateDatabase& db, int view, const RigidPose& pose, const PinholeCamera& camera) {
@@ -111,7 +106,7 @@ int TemplatePoseFit::nearest_view(const TemplateDatabase& db, const PinholeCamer
   double best_dot = -2;
   cv::Matx33d best_turn = cv::Matx33d::eye();
   for (int k = 0; k < turns; ++k) {
-    const cv::Matx33d S = rot_z(first + k * step);
+    const cv::Matx33d S = rotation_about_z(first + k * step);
     // The copy R S of the pose sees the part from S^T d.
     const cv::Vec3d ds = S.t() * d;
     for (int v = 0; v < static_cast<int>(db.views.size()); ++v) {

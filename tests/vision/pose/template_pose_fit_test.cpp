@@ -262,7 +262,6 @@ TEST(TemplatePoseFit, CompareFavoursTheTruthOverItsPhaseTwin) {
   if (!fs::exists(tdb)) GTEST_SKIP() << tdb << " not built (needs OpenSCAD)";
   FloorScene scene(tdb);
   const double period = 2 * CV_PI / scene.db.symmetry.order;
-  auto about_z = [](double a) { return cv::Matx33d(std::cos(a), -std::sin(a), 0, std::sin(a), std::cos(a), 0, 0, 0, 1); };
   // The fitted pose's turn about the knob's axis from the truth, folded into (-period/2, period/2].
   auto phase_deg = [&](const RigidPose& truth, const RigidPose& p) {
     const cv::Matx33d E = truth.R.t() * p.R;
@@ -280,7 +279,7 @@ TEST(TemplatePoseFit, CompareFavoursTheTruthOverItsPhaseTwin) {
     const TemplateFitResult right = scene.fit_from(truth);
     ASSERT_LT(std::abs(phase_deg(truth, right.pose)), 3.0) << "trial " << trial;
     for (const double sign : {1.0, -1.0}) {
-      const TemplateFitResult twin = scene.fit_from(RigidPose{truth.R * about_z(sign * 14.5 * CV_PI / 180), truth.t_mm});
+      const TemplateFitResult twin = scene.fit_from(RigidPose{truth.R * rotation_about_z(sign * 14.5 * CV_PI / 180), truth.t_mm});
       const double phase = phase_deg(truth, twin.pose);
       if (std::abs(phase) < 5) continue;  // this start came back to the truth
       ++twins;
