@@ -755,7 +755,7 @@ void BinPickingPipeline::Impl::fit(Cycle& cycle, size_t first, const IntegralDis
       if (moved_too_far_in_depth(part.db, v.coarse, f.pose)) {
         // Refused: the hypothesis keeps its unfitted coarse pose, ranked last, and like every
         // unfitted pose it goes onto the floor when it reaches below.
-        v.fitted = floor.below(part.db.mesh, v.coarse) ? floor.onto(part.db.mesh, v.coarse, part.db.center_mm) : v.coarse;
+        v.fitted = floor.onto_if_below(part.db.mesh, v.coarse, part.db.center_mm);
         v.fit_score = 0;
         v.fit_rank = -1;
         continue;
@@ -767,7 +767,7 @@ void BinPickingPipeline::Impl::fit(Cycle& cycle, size_t first, const IntegralDis
       v.take(f, fitted_rank(f, part.db, m.config.evidence_weight));
     } else {
       // The search's distance is one of a few guesses: a pose below the floor goes onto it.
-      v.fitted = floor.below(part.db.mesh, v.coarse) ? floor.onto(part.db.mesh, v.coarse, part.db.center_mm) : v.coarse;
+      v.fitted = floor.onto_if_below(part.db.mesh, v.coarse, part.db.center_mm);
     }
   }
   // Hypotheses the deadline left unfitted are dropped (the best-so-far result is flagged degraded),

@@ -37,6 +37,11 @@ struct BinFloor {
   // poorly. The pose unchanged on an unknown floor or when the pivot's camera-frame point P does not
   // lie in front of the camera along the normal (normal . P <= 0).
   RigidPose onto(const Mesh& model, const RigidPose& pose, const cv::Vec3d& pivot) const;
+  // An unfitted pose (a search's distance is one of a few guesses) made possible: onto() when it
+  // is below(), otherwise the pose itself.
+  RigidPose onto_if_below(const Mesh& model, const RigidPose& pose, const cv::Vec3d& pivot) const {
+    return below(model, pose) ? onto(model, pose, pivot) : pose;
+  }
 };
 
 }  // namespace mfcd::vision

@@ -90,6 +90,31 @@ TEST(BinFloor, OntoRestsThePartOnThePlaneAlongTheLineOfSight) {
   EXPECT_EQ(unknown.onto(m, pose, pivot).t_mm, pose.t_mm);
 }
 
+// onto_if_below: a pose below the floor goes onto it, any other stays exactly as it was.
+TEST(BinFloor, OntoIfBelowMovesOnlyPosesBelowTheFloor) {
+  const Mesh m = box(25, 15, 6);
+  const cv::Vec3d pivot(3, -2, 1);
+  std::mt19937 rng(7);
+  int moved_count = 0, kept_count = 0;
+  for (int i = 0; i < 200; ++i) {
+    const RigidPose pose = random_pose(rng);
+    const BinFloor floor = tilted_floor(rng, 270 + 40 * std::uniform_real_distribution<double>(0, 1)(rng));
+    const RigidPose out = floor.onto_if_below(m, pose, pivot);
+    if (floor.below(m, pose)) {
+      ++moved_count;
+      const RigidPose onto = floor.onto(m, pose, pivot);
+      EXPECT_EQ(out.t_mm, onto.t_mm) << "pose " << i;
+      EXPECT_FALSE(floor.below(m, out)) << "pose " << i;
+    } else {
+      ++kept_count;
+      EXPECT_EQ(out.t_mm, pose.t_mm) << "pose " << i;
+    }
+    EXPECT_LE(cv::norm(out.R - pose.R), 0.0);
+  }
+  EXPECT_GT(moved_count, 10);
+  EXPECT_GT(kept_count, 10);
+}
+
 TEST(BinFloor, ValidateNamesWhatIsWrong) {
   auto message = [](const BinFloor& f) {
     try {
