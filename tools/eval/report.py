@@ -65,6 +65,67 @@ def causes(trials, crit):
     return c
 
 
+def config_min_score(path):
+    """pick.min_score of the daemon configuration at `path` (None when the file or the key is missing):
+    the score below which the daemon never picks a candidate (motion/pick_choice.cpp)."""
+    try:
+        with open(path) as f:
+            lines = f.read().splitlines()
+    except OSError:
+        return None
+    in_pick = False
+    for line in lines:
+        if line.strip() and not line[0].isspace():
+            in_pick = line.split("#")[0].strip() == "pick:"
+        elif in_pick and line.strip().startswith("min_score:"):
+            return float(line.split(":", 1)[1].split("#")[0])
+    return None
+
+
+def delivery_counts(trials, threshold):
+    """(right delivered, wrong delivered, right withheld, wrong or nothing withheld): each trial's best
+    estimate is delivered when it exists and its fitted rank (`best_score`) is at least `threshold`
+    (None: every estimate is delivered)."""
+    def delivered(x):
+        return x.get("found", True) and "best_score" in x and (threshold is None or x["best_score"] >= threshold)
+    rd = sum(1 for x in trials if x["correct"] and delivered(x))
+    wd = sum(1 for x in trials if not x["correct"] and delivered(x))
+    rw = sum(1 for x in trials if x["correct"] and not delivered(x))
+    return rd, wd, rw, len(trials) - rd - wd - rw
+
+
+def picks_at_threshold(w, rows, thresholds):
+    """What the cell does with each trial's best estimate: the daemon only picks a candidate whose
+    score (the fitted rank) is at least pick.min_score, so a low-scoring wrong estimate is withheld
+    rather than picked, at the price of withholding some right ones. `thresholds`: (label, value)."""
+    w("**The best estimate at the cell's score threshold.** The daemon picks only candidates whose score (the "
+      "fitted rank, `PoseCandidate::score`) is at least `pick.min_score` (docs/configuration.md); the same trials "
+      "as above, each trial's best estimate delivered or withheld by that test alone (the daemon's other pick "
+      "tests, grasp visibility and height, are not applied). *Wrong share*: of the estimates delivered.\n")
+    w("| run | min_score | right, delivered | wrong, delivered | right, withheld | wrong or none, withheld | "
+      "wrong share |")
+    w("|---|---|---:|---:|---:|---:|---:|")
+    for label, ts in rows:
+        if not ts:
+            continue
+        for name, t in thresholds:
+            rd, wd, rw, ww = delivery_counts(ts, t)
+            w("| %s | %s | %d | %d | %d | %d | %s |" % (label, name, rd, wd, rw, ww,
+                                                       "%.2f" % (wd / (rd + wd)) if rd + wd else "-"))
+    w("")
+
+
+def cell_thresholds():
+    """(label, value) of no threshold and of pick.min_score in the repository's config/sim.yaml and cell.yaml."""
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    out = [("none", None)]
+    for name in ("sim.yaml", "cell.yaml"):
+        t = config_min_score(os.path.join(root, "config", name))
+        if t is not None:
+            out.append(("%g (config/%s)" % (t, name), t))
+    return out
+
+
 def main(bench_dir, docs_dir):
     path = os.path.join(bench_dir, "paper.json")
     if not os.path.exists(path):
@@ -259,6 +320,7 @@ def main(bench_dir, docs_dir):
                 sum(1 for x in ts if not x.get("correct_xy", x["correct"])) / len(ts), c["none"], c["depth"],
                 c["flip"], c["turn"], c["place"]))
         w("")
+        picks_at_threshold(w, rows, cell_thresholds())
     if "line2d" in methods:
         lo = res.get("line2d_options", {})
         w("**LINE-2D** (`cv::linemod::getDefaultLINE()`, colour-gradient modality, pyramid T = {4, 8}) is trained on "

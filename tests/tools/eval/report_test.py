@@ -1,0 +1,70 @@
+#!/usr/bin/env python3
+"""tools/eval/report.py: the score-threshold table's reading of the daemon configuration and its
+counts, on hand-made trials and configuration files (the bench's own data is far too slow to make
+here). Usage: report_test.py REPO_ROOT"""
+import importlib.util
+import os
+import sys
+import tempfile
+import unittest
+
+ROOT = sys.argv.pop(1) if len(sys.argv) > 1 else os.path.join(os.path.dirname(__file__), "..", "..", "..")
+spec = importlib.util.spec_from_file_location("report", os.path.join(ROOT, "tools", "eval", "report.py"))
+report = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(report)
+
+
+def write(text):
+    f = tempfile.NamedTemporaryFile("w", suffix=".yaml", delete=False)
+    f.write(text)
+    f.close()
+    return f.name
+
+
+class ConfigMinScore(unittest.TestCase):
+    def test_reads_the_pick_sections_key_only(self):
+        # A min_score under another section, before and after, must not be taken for the pick one.
+        path = write("vision:\n  min_score: 0.5\npick:\n  weight_score: 1.0\n  min_score: 0.07   # comment\n"
+                     "other:\n  min_score: 0.9\n")
+        self.assertAlmostEqual(report.config_min_score(path), 0.07)
+        os.unlink(path)
+
+    def test_missing_key_or_file_is_none(self):
+        path = write("vision:\n  min_score: 0.5\npick:\n  weight_score: 1.0\n")
+        self.assertIsNone(report.config_min_score(path))
+        os.unlink(path)
+        self.assertIsNone(report.config_min_score(path))
+
+    def test_the_repositorys_configs_have_one(self):
+        # The report labels its rows by these files: they must keep a pick.min_score.
+        labels = [label for label, _ in report.cell_thresholds()]
+        self.assertEqual(labels[0], "none")
+        self.assertTrue(any("config/sim.yaml" in label for label in labels), labels)
+
+
+class DeliveryCounts(unittest.TestCase):
+    TRIALS = [
+        {"correct": True, "found": True, "best_score": 0.30},
+        {"correct": True, "found": True, "best_score": 0.05},
+        {"correct": False, "found": True, "best_score": 0.20},
+        {"correct": False, "found": True, "best_score": -0.10},
+        {"correct": False, "found": False},
+    ]
+
+    def test_no_threshold_delivers_every_estimate(self):
+        self.assertEqual(report.delivery_counts(self.TRIALS, None), (2, 2, 0, 1))
+
+    def test_threshold_withholds_below_it(self):
+        self.assertEqual(report.delivery_counts(self.TRIALS, 0.1), (1, 1, 1, 2))
+        self.assertEqual(report.delivery_counts(self.TRIALS, 0.05), (2, 1, 0, 2))  # at the threshold: delivered
+
+    def test_table_rows_match_the_counts(self):
+        lines = []
+        report.picks_at_threshold(lines.append, [("bins", self.TRIALS), ("empty", [])], [("none", None), ("0.1", 0.1)])
+        rows = [line for line in lines if line.startswith("| bins")]
+        self.assertEqual(rows, ["| bins | none | 2 | 2 | 0 | 1 | 0.50 |", "| bins | 0.1 | 1 | 1 | 1 | 2 | 0.50 |"])
+        self.assertFalse(any(line.startswith("| empty") for line in lines))
+
+
+if __name__ == "__main__":
+    unittest.main()
