@@ -308,6 +308,7 @@ void Cell::runCycle(FrameSlot& slot, CycleResult& out) {
       out.degraded = pipelineResult_.degraded;
       out.edge_pixels = pipelineResult_.edge_pixels;
       out.search_rounds = pipelineResult_.rounds;
+      out.escalated = pipelineResult_.escalated;
 
       // Pick choice and robot-base transform, on fixed-size arrays.
       const motion::PickTransform transform(config_.hand_eye);

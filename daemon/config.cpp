@@ -333,6 +333,7 @@ DaemonConfig parseConfig(const std::string& yamlText, const std::string& source,
     c.vision.floor_tolerance_mm = s.number("floor_tolerance_mm", 3, 0, 100);
     c.vision.search_rounds =
         static_cast<int>(s.integer("search_rounds", 1, 1, vision::PipelineConfig::kMaxSearchRounds));
+    if (s.has("escalate_below")) c.vision.escalate_below = s.number("escalate_below", 0, 0, 1);
     YAML::Node distances = s.child("search_distances_mm");
     if (distances.IsDefined() && !distances.IsNull()) {
       if (!distances.IsSequence() || distances.size() == 0 || distances.size() > 4)

@@ -121,6 +121,9 @@ struct VisionSettings {
   // Search rounds (PipelineConfig::search_rounds): later rounds search again without the edges
   // of the candidates found so far, for the parts they hid; each costs about one more search.
   int search_rounds = 1;
+  // Escalation (PipelineConfig::escalate_below): a cycle whose best candidate ranks below this
+  // searches again over every view, within the cycle budget. Unset: the pipeline's default.
+  std::optional<double> escalate_below;
 };
 
 struct PickSettings {

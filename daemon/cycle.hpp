@@ -130,6 +130,7 @@ struct CycleResult {
   double edges_ms = 0, lines_ms = 0, distance_ms = 0, search_ms = 0, pose_ms = 0, refine_ms = 0;
   int edge_pixels = 0;
   int search_rounds = 0;  // search rounds the pipeline ran (vision.search_rounds; fewer near the deadline)
+  bool escalated = false;  // the pipeline's wide search ran (vision.escalate_below)
   SimTruth truth;
   bool leds_off = true;
   char snapshot_dir[256] = {};

@@ -69,6 +69,7 @@ json resultJson(const CycleResult& r, const DaemonConfig& config) {
   j["budget_ms"] = config.cycle_budget_ms;
   j["edge_pixels"] = r.edge_pixels;
   j["search_rounds"] = r.search_rounds;
+  j["escalated"] = r.escalated;
   json cands = json::array();
   for (int i = 0; i < r.candidate_count; ++i) {
     const CandidateOut& c = r.candidates[static_cast<std::size_t>(i)];

@@ -63,6 +63,7 @@ std::unique_ptr<VisionStage> makePipelineStage(const DaemonConfig& config) {
   pc.threads = config.vision.threads;
   pc.distances_mm = config.vision.search_distances_mm;
   pc.search_rounds = config.vision.search_rounds;
+  if (config.vision.escalate_below) pc.escalate_below = *config.vision.escalate_below;
   if (config.vision.floor_check) {
     pc.floor.distance_mm = config.pick.bin_floor_distance_mm;  // the camera looks straight down at it
     pc.floor.tolerance_mm = config.vision.floor_tolerance_mm;

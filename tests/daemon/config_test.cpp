@@ -104,6 +104,20 @@ TEST(Config, SearchRoundsAreOneUnlessAsked) {
   }
 }
 
+// Escalation: the pipeline's default unless set, 0..1, a bad value named with its key and line.
+TEST(Config, EscalationThresholdIsThePipelinesUnlessSet) {
+  EXPECT_FALSE(parseConfig(minimal(), "test.yaml", kPath).vision.escalate_below.has_value());
+  const DaemonConfig off = parseConfig(minimal("vision:\n  escalate_below: 0\n"), "test.yaml", kPath);
+  ASSERT_TRUE(off.vision.escalate_below.has_value());
+  EXPECT_EQ(*off.vision.escalate_below, 0.0);
+  EXPECT_EQ(*parseConfig(minimal("vision:\n  escalate_below: 0.15\n"), "test.yaml", kPath).vision.escalate_below, 0.15);
+  for (const char* bad : {"-0.1", "1.5", "high"}) {
+    const ConfigError e = errorOf(minimal(std::string("vision:\n  escalate_below: ") + bad + "\n"));
+    EXPECT_EQ(e.key(), "vision.escalate_below") << bad;
+    EXPECT_EQ(e.line(), 6) << bad;
+  }
+}
+
 // Search distances: a list of 1..4 numbers; an element out of range is named with its line.
 TEST(Config, SearchDistancesAreAListOfDistances) {
   EXPECT_TRUE(parseConfig(minimal(), "test.yaml", kPath).vision.search_distances_mm.empty());

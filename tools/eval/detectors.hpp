@@ -33,6 +33,7 @@ struct Detection {
   vision::StageTimes times;         // stages the detector has; total_ms always set
   int views_searched = 0;           // pipeline detectors: template views the search visited
   uint64_t evaluated = 0;           // pipeline detectors: hypotheses the search evaluated
+  bool escalated = false;           // pipeline detectors: the wide search ran (PipelineConfig::escalate_below)
   // Pipeline detectors with PipelineConfig::trace (--set trace=1): every fitted hypothesis,
   // before (coarse) and after the fit, in search order.
   std::vector<Estimate> coarse_hypotheses, fitted_hypotheses;

@@ -366,7 +366,8 @@ int run_detect(const Options& o) {
         // errors reported for the instance it matches best (smallest position error among the
         // matching ones, else overall).
         json trial = {{"scene", ref.scene}, {"image", ref.image}, {"obj_id", obj_id}, {"times", times_json(d.times)},
-                      {"found", !d.estimates.empty()}, {"views_searched", d.views_searched}, {"evaluated", d.evaluated}};
+                      {"found", !d.estimates.empty()}, {"views_searched", d.views_searched}, {"evaluated", d.evaluated},
+                      {"escalated", d.escalated}};
         bool correct = false, correct_xy = false;
         double best_visib = 0;
         int n_inst = 0;

@@ -44,6 +44,7 @@ class PipelineDetector final : public Detector {
     out.times = result_.times;
     out.views_searched = result_.views_searched;
     out.evaluated = result_.hypotheses;
+    out.escalated = result_.escalated;
     out.coarse_hypotheses.clear();
     out.fitted_hypotheses.clear();
     for (const auto& h : result_.trace) {
@@ -100,7 +101,7 @@ void apply_pipeline_setting(vision::PipelineConfig& c, const std::string& settin
   static constexpr std::pair<const char*, double Config::*> kNumbers[] = {
       {"max_cost_px", &Config::max_cost_px},
       {"min_guide_overlap", &Config::min_guide_overlap},
-      {"evidence_weight", &Config::evidence_weight}};
+      {"evidence_weight", &Config::evidence_weight}, {"escalate_below", &Config::escalate_below}};
   static constexpr std::pair<const char*, int Config::*> kIntegers[] = {
       {"template_guides", &Config::template_guides}, {"query_guides", &Config::query_guides},
       {"view_stride", &Config::view_stride},         {"coarse_seeds", &Config::coarse_seeds},
@@ -109,7 +110,8 @@ void apply_pipeline_setting(vision::PipelineConfig& c, const std::string& settin
       {"search_downsample", &Config::search_downsample}, {"fit_candidates", &Config::fit_candidates},
       {"max_candidates", &Config::max_candidates},   {"flip_checks", &Config::flip_checks},
       {"floor_starts", &Config::floor_starts},       {"search_rounds", &Config::search_rounds},
-      {"round_hypotheses", &Config::round_hypotheses}};
+      {"round_hypotheses", &Config::round_hypotheses}, {"escalate_query_guides", &Config::escalate_query_guides},
+      {"escalate_hypotheses", &Config::escalate_hypotheses}};
   static constexpr std::pair<const char*, bool Config::*> kSwitches[] = {
       {"share_search_bound", &Config::share_search_bound}, {"trace", &Config::trace}};
   const auto eq = setting.find('=');

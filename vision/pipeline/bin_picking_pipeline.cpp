@@ -216,6 +216,12 @@ constexpr int kRoundErasePx = 2;
 // Candidates whose search boxes overlap by more than this (intersection over union) are one part.
 constexpr double kCandidateOverlap = 0.3;
 
+// Escalation's wide search (PipelineConfig::escalate_below): every view, and per view its best
+// two placements at least this far apart (full-resolution px), so that a part whose view matches
+// clutter better still gets a placement of its own.
+constexpr int kEscalationPlacementsPerView = 2;
+constexpr int kEscalationSeparationPx = 40;
+
 // The calling thread's OpenMP team size set for a scope and restored after. The stages that open
 // their own parallel regions (depth edges, line fitting, DT3 / IDT3) take it from the calling
 // thread, so a cycle under this runs every stage on PipelineConfig::threads threads, as the
@@ -305,6 +311,15 @@ struct BinPickingPipeline::Impl {
   LineFitResult round_query;
   IntegralDistanceTransform round_idt;
   double round_ms_estimate = 0;  // what the last later round took
+  double escalation_ms_estimate = 0;  // what the last escalation took
+
+  // How a search is spread: the shipped settings (PipelineConfig) or escalation's wide ones.
+  struct SearchSettings {
+    int view_stride = 4, query_guides = 60, keep_per_view = 1, keep_separation_px = 8;
+  };
+  SearchSettings shipped_search() const {
+    return {config.view_stride, config.query_guides, config.keep_per_view, config.keep_separation_px};
+  }
 
   // One cycle's settings and outcomes shared by the stages below.
   struct Cycle {
@@ -321,7 +336,7 @@ struct BinPickingPipeline::Impl {
   // The line search over every view of the selected parts into `hits`, best first, its bound
   // keeping the best `wanted` (fdcm_idt: FDCM's costs; null for the baselines).
   void search(Cycle& cycle, const LineSet& query, const IntegralDistanceTransform* fdcm_idt, size_t wanted,
-              PipelineResult& out);
+              const SearchSettings& settings, PipelineResult& out);
   void verify(size_t count);  // appends the best `count` new distinct hits to `verified`
   void fit(Cycle& cycle, size_t first, const IntegralDistanceTransform* fdcm_idt);
   void trace(size_t first, int round, PipelineResult& out) const;
@@ -513,6 +528,10 @@ BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfi
   if (m.config.search_rounds < 1 || m.config.search_rounds > PipelineConfig::kMaxSearchRounds)
     throw std::runtime_error("pipeline: search_rounds must be 1.." + std::to_string(PipelineConfig::kMaxSearchRounds));
   if (m.config.round_hypotheses < 1) throw std::runtime_error("pipeline: round_hypotheses must be >= 1");
+  if (!(m.config.escalate_below >= 0) || !std::isfinite(m.config.escalate_below))
+    throw std::runtime_error("pipeline: escalate_below must be >= 0 (0 = off)");
+  if (m.config.escalate_query_guides < 1 || m.config.escalate_hypotheses < 1)
+    throw std::runtime_error("pipeline: escalate_query_guides and escalate_hypotheses must be >= 1");
   if (!(m.config.evidence_weight >= 0)) throw std::runtime_error("pipeline: evidence_weight must be >= 0");
   m.search_dt3 = m.dt3_params;
   m.search_dt3.lambda /= m.config.search_downsample;
@@ -524,13 +543,16 @@ BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfi
   for (auto& h : m.thread_hits) h.reserve(4096);
   m.thread_best.resize(static_cast<size_t>(threads));
   for (auto& h : m.thread_best)
-    h.reserve(std::max<size_t>(std::max(m.config.fit_candidates, m.config.round_hypotheses) * m.config.keep_per_view,
-                               m.config.coarse_seeds * m.parts.size()) +
+    h.reserve(std::max<size_t>({static_cast<size_t>(std::max(m.config.fit_candidates, m.config.round_hypotheses) *
+                                                    m.config.keep_per_view),
+                                static_cast<size_t>(m.config.escalate_hypotheses * kEscalationPlacementsPerView),
+                                m.config.coarse_seeds * m.parts.size()}) +
               1);
   m.hits.reserve(4096);
   if (m.config.fit_candidates < 1) throw std::runtime_error("pipeline: fit_candidates must be >= 1");
   m.verified.reserve(static_cast<size_t>(m.config.fit_candidates) +
-                     static_cast<size_t>(m.config.search_rounds - 1) * static_cast<size_t>(m.config.round_hypotheses));
+                     static_cast<size_t>(m.config.search_rounds - 1) * static_cast<size_t>(m.config.round_hypotheses) +
+                     (m.config.escalate_below > 0 ? static_cast<size_t>(m.config.escalate_hypotheses) : 0));
   m.fit_workspaces.resize(static_cast<size_t>(threads));
   m.distance_workspaces.resize(static_cast<size_t>(threads));
   // Every per-thread buffer of the fits grown here for every view (a thread meets views in any
@@ -570,11 +592,11 @@ const DepthEdges& BinPickingPipeline::last_edges() const { return impl_->edges; 
 // search the deadline cuts short has still looked at every part from all round, and the
 // hypothesis fit moves between neighbouring views.
 void BinPickingPipeline::Impl::search(Cycle& cycle, const LineSet& query, const IntegralDistanceTransform* fdcm_idt,
-                                      size_t wanted, PipelineResult& out) {
+                                      size_t wanted, const SearchSettings& settings, PipelineResult& out) {
   Impl& m = *this;
   const int down = m.config.search_downsample;
   m.jobs.clear();
-  const int stride = m.config.view_stride;
+  const int stride = settings.view_stride;
   static constexpr int kPassOf[4] = {0, 2, 1, 3};  // pass of (view / stride) % 4
   for (auto& part : m.parts) std::fill(part.searched.begin(), part.searched.end(), 0);
   for (int pass = 0; pass < 4; ++pass)
@@ -602,14 +624,14 @@ void BinPickingPipeline::Impl::search(Cycle& cycle, const LineSet& query, const 
   lp.mode = SearchMode::Best;
   lp.threshold = m.config.max_cost_px / down;
   lp.templateLines = m.config.template_guides;
-  lp.queryLines = m.config.query_guides;
+  lp.queryLines = settings.query_guides;
   lp.minOverlap = m.config.min_guide_overlap;
   lp.slideStep = m.config.slide_step;
-  lp.keep = m.config.keep_per_view;
-  lp.separationPx = std::max(1, m.config.keep_separation_px / down);
+  lp.keep = settings.keep_per_view;
+  lp.separationPx = std::max(1, settings.keep_separation_px / down);
   m.shared_bound.store(SharedCostBound::kNone);
   if (m.config.share_search_bound) lp.sharedBound = &m.shared_bound;
-  const size_t useful = std::max(wanted * static_cast<size_t>(m.config.keep_per_view),
+  const size_t useful = std::max(wanted * static_cast<size_t>(settings.keep_per_view),
                                  static_cast<size_t>(m.config.coarse_seeds) * cycle.selected_parts);
   for (auto& h : m.thread_best) h.clear();
   std::atomic<bool> late{false};
@@ -990,7 +1012,8 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
   for (const auto& part : m.parts) cycle.selected_parts += obj_id == 0 || part.db.obj_id == obj_id;
   out.hypotheses = 0;
   out.views_searched = 0;
-  m.search(cycle, *query, fdcm ? &m.idt : nullptr, static_cast<size_t>(m.config.fit_candidates), out);
+  m.search(cycle, *query, fdcm ? &m.idt : nullptr, static_cast<size_t>(m.config.fit_candidates), m.shipped_search(),
+           out);
   out.degraded = cycle.late;
   t1 = Clock::now();
   out.times.search_ms = ms_between(t, t1);
@@ -1013,6 +1036,39 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
   if (m.config.trace) m.trace(0, 1, out);
   m.rank(cycle, 0);
 
+  // Escalation (PipelineConfig::escalate_below): nothing the cell would pick, so the same query
+  // is searched again wide, and its new hypotheses are fitted and ranked with the first ones.
+  // Like a later round it only adds candidates: skipped near the deadline, it degrades nothing.
+  out.escalated = false;
+  if (fdcm && m.config.fit_hypotheses && m.config.escalate_below > 0 && !out.degraded &&
+      (m.verified.empty() || m.verified.front().fit_rank < m.config.escalate_below) &&
+      Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                         std::chrono::duration<double, std::milli>(m.escalation_ms_estimate)) <= deadline) {
+    const auto escalation_start = Clock::now();
+    Impl::Cycle wide = cycle;
+    wide.minimum_past_deadline = false;
+    wide.search_deadline = deadline;
+    Impl::SearchSettings settings;
+    settings.view_stride = 1;
+    settings.query_guides = m.config.escalate_query_guides;
+    settings.keep_per_view = kEscalationPlacementsPerView;
+    settings.keep_separation_px = kEscalationSeparationPx;
+    const size_t wanted = static_cast<size_t>(m.config.escalate_hypotheses);
+    m.search(wide, *query, &m.idt, wanted, settings, out);
+    if (!m.hits.empty() && !m.fitter_prepared) {
+      m.fitter.prepare(m.edges);
+      m.fitter_prepared = true;
+    }
+    const size_t first = m.verified.size();
+    m.verify(wanted);
+    m.fit(wide, first, &m.idt);
+    if (m.config.trace) m.trace(first, 0, out);
+    m.rank(wide, first);
+    m.sort_verified(0);
+    m.escalation_ms_estimate = ms_between(escalation_start, Clock::now());
+    out.escalated = true;
+  }
+
   // Later search rounds (PipelineConfig::search_rounds): the image edges the best candidates so
   // far explain are taken out of the query and the search runs again for the parts they hid.
   // A round starts only when the first was complete and the deadline leaves it the time the last
@@ -1030,8 +1086,8 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
     Impl::Cycle later = cycle;
     later.minimum_past_deadline = false;
     later.search_deadline = deadline;
-    m.search(later, *round_lines, &m.round_idt,
-             static_cast<size_t>(m.config.round_hypotheses), out);
+    m.search(later, *round_lines, &m.round_idt, static_cast<size_t>(m.config.round_hypotheses), m.shipped_search(),
+             out);
     const size_t first = m.verified.size();
     m.verify(static_cast<size_t>(m.config.round_hypotheses));
     m.fit(later, first, &m.round_idt);

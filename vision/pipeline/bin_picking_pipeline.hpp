@@ -107,6 +107,18 @@ struct PipelineConfig {
   static constexpr int kMaxSearchRounds = 4;
   int search_rounds = 1;
   int round_hypotheses = 16;
+  // Escalation: when the first search's best fitted hypothesis ranks below `escalate_below` (the
+  // cycle has nothing a cell would pick: config pick.min_score is 0.08-0.1), the search runs again
+  // wide: every view of the part types, escalate_query_guides query guides, two placements per
+  // view at least 40 px apart, and escalate_hypotheses hypotheses fitted and ranked with the
+  // first search's. With the shipped search a correct hypothesis is never fitted in most failed
+  // trials; the wide search finds one in 97 % of them but alone, in every cycle, it would cost
+  // 3-4 times the cycle (docs/pose.md "Escalation"). Like a later round it starts only when the
+  // deadline leaves it the time the last escalation took, and skipping it does not degrade the
+  // cycle. 0 = off. FDCM with the hypothesis fit only.
+  double escalate_below = 0.1;
+  int escalate_query_guides = 120;
+  int escalate_hypotheses = 150;
   int refine_iterations = 20;      // per candidate (outer ICP iterations); cut short at the deadline
   // The best this many candidates are refined by the render-based PoseRefiner with the cell's one
   // view. 0 by default: measured on mfc-sim bins, one-view refinement of the fitted pose made it
@@ -147,7 +159,8 @@ struct StageTimes {
 // One hypothesis of the cycle as the search found it and as the fit left it (PipelineConfig::trace).
 struct HypothesisTrace {
   int obj_id = 0;
-  int round = 1;              // the search round that found it (PipelineConfig::search_rounds)
+  int round = 1;              // the search round that found it (PipelineConfig::search_rounds); 0: the
+                              // escalation's wide search (PipelineConfig::escalate_below)
   int search_view = -1, fitted_view = -1;
   double search_cost_px = 0;  // mean directional chamfer cost of the search hit
   double coverage = 0;        // explained-edge fraction at the search hit
@@ -168,6 +181,7 @@ struct PipelineResult {
   uint64_t hypotheses = 0;    // FDCM hypotheses evaluated by the search, all rounds
   int views_searched = 0;     // template views searched, all rounds (fewer than loaded when degraded)
   int rounds = 1;             // search rounds run (PipelineConfig::search_rounds; fewer near the deadline)
+  bool escalated = false;     // the wide search ran (PipelineConfig::escalate_below)
   std::vector<HypothesisTrace> trace;  // PipelineConfig::trace only: every fitted hypothesis, search order,
                                        // before the turned-over check
 };

@@ -219,6 +219,17 @@ TEST(Pipeline, RefusesBadConfiguration) {
   refuses("search_downsample", &PipelineConfig::search_downsample, {0, 5});
   refuses("search_rounds", &PipelineConfig::search_rounds, {0, 5});
   refuses("round_hypotheses", &PipelineConfig::round_hypotheses, {0});
+  refuses("escalate_query_guides", &PipelineConfig::escalate_query_guides, {0});
+  refuses("escalate_hypotheses", &PipelineConfig::escalate_hypotheses, {0});
+  for (const double bad : {-0.1, std::numeric_limits<double>::quiet_NaN()}) {
+    pc.escalate_below = bad;
+    try {
+      BinPickingPipeline p(cam, pc);
+      ADD_FAILURE() << "escalate_below " << bad << " accepted";
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find("escalate_below"), std::string::npos) << e.what();
+    }
+  }
 }
 
 // The bin floor: with the floor where it is, the part is still found; with a floor placed above
@@ -416,6 +427,8 @@ TEST(Pipeline, FramePathDoesNotAllocateInSteadyState) {
   // a second search round.
   pc.floor.distance_mm = db.distance_mm + 15;
   pc.search_rounds = 2;
+  // And escalation's wide search in every cycle (no rank reaches 2).
+  pc.escalate_below = 2;
   BinPickingPipeline pipeline(cam, pc);
   MfcRenderer renderer(cam);
   const int part_id = renderer.add_mesh(db.mesh);
@@ -435,6 +448,56 @@ TEST(Pipeline, FramePathDoesNotAllocateInSteadyState) {
   const auto allocations = mfcd::hal::test::allocationCount() - before;
   EXPECT_EQ(allocations, 0u) << "heap allocations in 6 steady-state cycles";
   ASSERT_FALSE(result.candidates.empty());
+  EXPECT_TRUE(result.escalated);
+}
+
+// Escalation (PipelineConfig::escalate_below): a cycle whose best fitted hypothesis ranks below
+// the threshold searches again over every view and fits more hypotheses; one whose best ranks
+// above it, or that is past its deadline, does not. The lone T-nut is found either way.
+TEST(Pipeline, EscalatesOnlyWhenTheBestRanksBelowTheThreshold) {
+  const fs::path tdb = kTemplates / "tnut.tdb";
+  ASSERT_TRUE(fs::exists(tdb)) << tdb;
+  const CameraConfig cam = sim_camera();
+  const RenderedPart scene = render_part(tdb, cam, 0.7, {300, 250}, 5);
+  auto run = [&](double escalate_below) {
+    PipelineConfig pc;
+    pc.template_files = {tdb};
+    pc.escalate_below = escalate_below;
+    pc.trace = true;
+    return process_once(cam, pc, scene.render.frames);
+  };
+  auto escalated_hypotheses = [](const PipelineResult& r) {
+    int n = 0;
+    for (const HypothesisTrace& h : r.trace) n += h.round == 0;
+    return n;
+  };
+  const PipelineResult off = run(0);
+  EXPECT_FALSE(off.escalated);
+  ASSERT_FALSE(off.candidates.empty());
+  expect_within_bounds(off.candidates[0], scene);
+  // The lone part ranks well above the default threshold: no escalation by default.
+  ASSERT_GT(off.candidates[0].fit_rank, PipelineConfig{}.escalate_below);
+  const PipelineResult shipped = run(PipelineConfig{}.escalate_below);
+  EXPECT_FALSE(shipped.escalated);
+  EXPECT_EQ(shipped.views_searched, off.views_searched);
+  EXPECT_EQ(escalated_hypotheses(shipped), 0);
+  // Just above the best's rank: the wide search runs, over every view once more.
+  const PipelineResult forced = run(off.candidates[0].fit_rank + 0.01);
+  EXPECT_TRUE(forced.escalated);
+  EXPECT_FALSE(forced.degraded);
+  EXPECT_EQ(forced.views_searched, off.views_searched + static_cast<int>(scene.db.views.size()));
+  EXPECT_GT(escalated_hypotheses(forced), 0);
+  ASSERT_FALSE(forced.candidates.empty());
+  expect_within_bounds(forced.candidates[0], scene);
+  // Past the deadline: the first search is cut short (degraded) and there is no escalation.
+  PipelineConfig pc;
+  pc.template_files = {tdb};
+  pc.escalate_below = 2;
+  BinPickingPipeline pipeline(cam, pc);
+  PipelineResult late;
+  pipeline.process(scene.render.frames, 0, std::chrono::steady_clock::now() - std::chrono::seconds(1), late);
+  EXPECT_TRUE(late.degraded);
+  EXPECT_FALSE(late.escalated);
 }
 
 // Search rounds: two T-nuts in one image, seen from different views. With one hypothesis, the
