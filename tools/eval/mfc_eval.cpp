@@ -542,7 +542,7 @@ int run_detect(const Options& o) {
             if (gp.obj_id == d.estimates[0].obj_id) correct = correct || o.criterion.accepts(score(d.estimates[0], gp));
         json pick = {{"scene", ref.scene}, {"image", ref.image}, {"found", !d.estimates.empty()},
                      {"obj_id", d.estimates.empty() ? 0 : d.estimates[0].obj_id}, {"correct", correct},
-                     {"times", times_json(d.times)}};
+                     {"times", times_json(d.times)}, {"escalated", d.escalated}};
         if (o.timing_repeats > 1) pick["times_best"] = repeat_timing(*det, dataset.frames(ref.scene, ref.image), 0, d);
         picks.push_back(pick);
       }

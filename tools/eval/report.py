@@ -115,6 +115,21 @@ def picks_at_threshold(w, rows, thresholds):
     w("")
 
 
+def escalation_note(w, runs):
+    """How many detections of each timed run escalated (PipelineConfig::escalate_below: the wide
+    search after a first search whose best ranks below the threshold) and what those took."""
+    parts = []
+    for name, ts in runs:
+        if not ts or not all("escalated" in x for x in ts):
+            continue
+        esc = [x["times"]["total"] for x in ts if x["escalated"]]
+        parts.append("%s: %d of %d%s" % (name, len(esc), len(ts),
+                                         ", median %.0f ms, at most %.0f ms" % (pct(esc, 0.5), max(esc)) if esc else ""))
+    if parts:
+        w("*Escalated detections* (the wide second search of a cycle whose best candidate ranks below "
+          "`escalate_below`, docs/pose.md \"Escalation\"; their times are in the rows above): %s.\n" % "; ".join(parts))
+
+
 def cell_thresholds():
     """(label, value) of no threshold and of pick.min_score in the repository's config/sim.yaml and cell.yaml."""
     root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
@@ -536,6 +551,7 @@ def main(bench_dir, docs_dir):
           "(`mfc-eval --timing-repeats %d`; the same result each time) and these rows take the stage times of its "
           "fastest run: the machine is shared, and other tenants can slow any single run. The other "
           "rows and Table 1 time the first run.\n" % (repeats, repeats, repeats))
+    escalation_note(w, [("one part type", fdcm_trials)] + ([("all six", res["all_types"])] if "all_types" in res else []))
     if "all_types" in res:
         picks = res["all_types"]
         ok = sum(1 for x in picks if x["correct"])

@@ -66,5 +66,21 @@ class DeliveryCounts(unittest.TestCase):
         self.assertFalse(any(line.startswith("| empty") for line in lines))
 
 
+class EscalationNote(unittest.TestCase):
+    def test_counts_and_times_of_the_escalated_detections(self):
+        lines = []
+        trials = [{"escalated": True, "times": {"total": 200.0}}, {"escalated": False, "times": {"total": 50.0}},
+                  {"escalated": True, "times": {"total": 300.0}}]
+        report.escalation_note(lines.append, [("one part type", trials), ("all six", [])])
+        self.assertEqual(len(lines), 1)
+        self.assertIn("one part type: 2 of 3, median 250 ms, at most 300 ms", lines[0])
+        self.assertNotIn("all six", lines[0])
+
+    def test_runs_without_the_field_say_nothing(self):
+        lines = []
+        report.escalation_note(lines.append, [("one part type", [{"times": {"total": 50.0}}])])
+        self.assertEqual(lines, [])
+
+
 if __name__ == "__main__":
     unittest.main()
