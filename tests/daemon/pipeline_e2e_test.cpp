@@ -62,6 +62,8 @@ TEST(PipelineE2E, RealMfcdPicksSimulatedPartsWithinToleranceAndBudget) {
     EXPECT_LE(at(reg::kCycleTimeMs), kBudgetMs) << "job " << job;
     const json last = proc.ctl({{"cmd", "last"}})["result"];
     const int rounds = last["search_rounds"].get<int>();
+    // Whether the pipeline's wide search ran (vision.escalate_below) is reported with every cycle.
+    EXPECT_TRUE(last.contains("escalated") && last["escalated"].is_boolean()) << "job " << job << ": " << last.dump();
     EXPECT_TRUE(rounds == 1 || rounds == 2) << "job " << job << ": " << rounds << " search rounds";
     degraded += last["degraded"].get<bool>();
     twoRounds += rounds == 2;
