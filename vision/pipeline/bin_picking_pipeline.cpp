@@ -35,6 +35,12 @@ double ms_between(Clock::time_point a, Clock::time_point b) {
   return std::chrono::duration<double, std::milli>(b - a).count();
 }
 
+// Whether a stage that took `ms` last time would still end before `deadline` if started now.
+bool leaves_time(Clock::time_point deadline, double ms) {
+  return Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double, std::milli>(ms)) <=
+         deadline;
+}
+
 // A part type: its database and, per view, the view's lines under every in-plane rotation and
 // scale of the search, digitised once at load (the search itself then only slides them).
 struct PartModel {
@@ -297,6 +303,11 @@ struct BinPickingPipeline::Impl {
   };
   TemplatePoseFit fitter;
   bool fitter_prepared = false;  // the fitter indexes this cycle's edges (score_pose reuses them)
+  void prepare_fitter() {
+    if (fitter_prepared) return;
+    fitter.prepare(edges);
+    fitter_prepared = true;
+  }
   std::vector<TemplatePoseFit::Workspace> fit_workspaces;  // per search thread
   std::vector<DistanceFitWorkspace> distance_workspaces;  // per search thread
   std::vector<LineSearchWorkspace> search_workspaces;     // per search thread
@@ -315,10 +326,13 @@ struct BinPickingPipeline::Impl {
 
   // How a search is spread: the shipped settings (PipelineConfig) or escalation's wide ones.
   struct SearchSettings {
-    int view_stride = 4, query_guides = 60, keep_per_view = 1, keep_separation_px = 8;
+    int view_stride, query_guides, keep_per_view, keep_separation_px;
   };
   SearchSettings shipped_search() const {
     return {config.view_stride, config.query_guides, config.keep_per_view, config.keep_separation_px};
+  }
+  SearchSettings escalation_search() const {
+    return {1, config.escalate_query_guides, kEscalationPlacementsPerView, kEscalationSeparationPx};
   }
 
   // One cycle's settings and outcomes shared by the stages below.
@@ -343,6 +357,11 @@ struct BinPickingPipeline::Impl {
   void sort_verified(size_t first);
   void rank(const Cycle& cycle, size_t first);
   void query_without_best(int best);  // into round_query
+  // A search after the first (a later round's or escalation's): its best `wanted` new hits
+  // verified, fitted (traced as `round`) and ranked with the hypotheses so far. It has no "always
+  // searched" views or fits, so the deadline only makes it add fewer.
+  void add_search(const Cycle& cycle, const LineSet& query, const IntegralDistanceTransform& idt, size_t wanted,
+                  const SearchSettings& settings, int round, PipelineResult& out);
   // The query at the search's resolution (PipelineConfig::search_downsample): `q` itself, or
   // reduced into search_lines / search_channels (each round's search needs them only until it ends).
   std::pair<const LineSet*, const cv::Mat1b*> search_query(const LineFitResult& q);
@@ -905,6 +924,22 @@ void BinPickingPipeline::Impl::rank(const Cycle& cycle, size_t first) {
   sort_verified(first);
 }
 
+void BinPickingPipeline::Impl::add_search(const Cycle& cycle, const LineSet& query,
+                                          const IntegralDistanceTransform& idt, size_t wanted,
+                                          const SearchSettings& settings, int round, PipelineResult& out) {
+  Cycle later = cycle;
+  later.minimum_past_deadline = false;
+  later.search_deadline = cycle.deadline;
+  search(later, query, &idt, wanted, settings, out);
+  if (!hits.empty()) prepare_fitter();
+  const size_t first = verified.size();
+  verify(wanted);
+  fit(later, first, &idt);
+  if (config.trace) trace(first, round, out);
+  rank(later, first);
+  sort_verified(0);
+}
+
 // The query of a later search round: the cycle's query lines and directional edge map without
 // the image edges that the best `best` distinct candidates so far explain (those within
 // kRoundErasePx of their fitted view's points; distinct as the candidates' NMS sees them). A line
@@ -1022,10 +1057,7 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
   m.verified.clear();
   out.trace.clear();
   const auto fit_start = Clock::now();
-  if (fdcm && !m.hits.empty()) {
-    m.fitter.prepare(m.edges);
-    m.fitter_prepared = true;
-  }
+  if (fdcm && !m.hits.empty()) m.prepare_fitter();
   m.verify(static_cast<size_t>(m.config.fit_candidates));
   m.fit(cycle, 0, fdcm ? &m.idt : nullptr);
   out.degraded = out.degraded || cycle.fit_late;
@@ -1042,29 +1074,10 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
   out.escalated = false;
   if (fdcm && m.config.fit_hypotheses && m.config.escalate_below > 0 && !out.degraded &&
       (m.verified.empty() || m.verified.front().fit_rank < m.config.escalate_below) &&
-      Clock::now() + std::chrono::duration_cast<Clock::duration>(
-                         std::chrono::duration<double, std::milli>(m.escalation_ms_estimate)) <= deadline) {
+      leaves_time(deadline, m.escalation_ms_estimate)) {
     const auto escalation_start = Clock::now();
-    Impl::Cycle wide = cycle;
-    wide.minimum_past_deadline = false;
-    wide.search_deadline = deadline;
-    Impl::SearchSettings settings;
-    settings.view_stride = 1;
-    settings.query_guides = m.config.escalate_query_guides;
-    settings.keep_per_view = kEscalationPlacementsPerView;
-    settings.keep_separation_px = kEscalationSeparationPx;
-    const size_t wanted = static_cast<size_t>(m.config.escalate_hypotheses);
-    m.search(wide, *query, &m.idt, wanted, settings, out);
-    if (!m.hits.empty() && !m.fitter_prepared) {
-      m.fitter.prepare(m.edges);
-      m.fitter_prepared = true;
-    }
-    const size_t first = m.verified.size();
-    m.verify(wanted);
-    m.fit(wide, first, &m.idt);
-    if (m.config.trace) m.trace(first, 0, out);
-    m.rank(wide, first);
-    m.sort_verified(0);
+    m.add_search(cycle, *query, m.idt, static_cast<size_t>(m.config.escalate_hypotheses), m.escalation_search(), 0,
+                 out);
     m.escalation_ms_estimate = ms_between(escalation_start, Clock::now());
     out.escalated = true;
   }
@@ -1076,24 +1089,13 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
   out.rounds = 1;
   for (int round = 2; fdcm && round <= m.config.search_rounds && !out.degraded && !m.verified.empty(); ++round) {
     const auto round_start = Clock::now();
-    if (round_start + std::chrono::duration_cast<Clock::duration>(
-                          std::chrono::duration<double, std::milli>(m.round_ms_estimate)) > deadline)
-      break;
+    if (!leaves_time(deadline, m.round_ms_estimate)) break;
     m.query_without_best(round - 1);
     const auto [round_lines, round_map] = m.search_query(m.round_query);
     m.dt3.compute(*round_map, m.search_dt3);
     m.round_idt.compute(m.dt3);
-    Impl::Cycle later = cycle;
-    later.minimum_past_deadline = false;
-    later.search_deadline = deadline;
-    m.search(later, *round_lines, &m.round_idt, static_cast<size_t>(m.config.round_hypotheses), m.shipped_search(),
-             out);
-    const size_t first = m.verified.size();
-    m.verify(static_cast<size_t>(m.config.round_hypotheses));
-    m.fit(later, first, &m.round_idt);
-    if (m.config.trace) m.trace(first, round, out);
-    m.rank(later, first);
-    m.sort_verified(0);
+    m.add_search(cycle, *round_lines, m.round_idt, static_cast<size_t>(m.config.round_hypotheses), m.shipped_search(),
+                 round, out);
     m.round_ms_estimate = ms_between(round_start, Clock::now());
     out.rounds = round;
   }
@@ -1203,10 +1205,7 @@ PoseScore BinPickingPipeline::score_pose(int obj_id, const cv::Matx33d& R_m2c, c
   out.coverage = explained_fraction(view, w, static_cast<int>(placement.origin_px.x),
                                     static_cast<int>(placement.origin_px.y), m.edges.edges, m.fit_workspaces[0]);
   out.rank_px = out.cost_px + kUnexplainedPenaltyPx * (1.0 - out.coverage);
-  if (!m.fitter_prepared) {
-    m.fitter.prepare(m.edges);
-    m.fitter_prepared = true;
-  }
+  m.prepare_fitter();
   const RigidPose start = coarse_pose(part->db, placement, m.camera.camera);
   const TemplateFitResult f = m.fitter.fit(part->db, out.view, start, m.camera.camera, m.fit_workspaces[0]);
   out.fit_score = fitted_rank(f, part->db, m.config.evidence_weight);
