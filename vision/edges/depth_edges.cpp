@@ -28,7 +28,22 @@ void quantise(float nx, float ny, int& ox, int& oy) {
   oy = ax <= tan22 * ay ? (ny > 0 ? 1 : -1) : (ay <= tan22 * ax ? 0 : (ny > 0 ? 1 : -1));
 }
 
+// Angle in [0, 2 pi) of (nx, ny).
+float full_angle(float nx, float ny) {
+  float a = std::atan2(ny, nx);
+  if (a < 0) a += 2 * std::numbers::pi_v<float>;
+  return a < 2 * std::numbers::pi_v<float> ? a : 0.f;
+}
+
 }  // namespace
+
+float oriented_tangent(float tangent, float shadow) {
+  const float left = -std::sin(tangent) * std::cos(shadow) + std::cos(tangent) * std::sin(shadow);
+  float a = left >= 0 ? tangent : tangent + std::numbers::pi_v<float>;
+  if (a >= 2 * std::numbers::pi_v<float>) a -= 2 * std::numbers::pi_v<float>;
+  if (a < 0) a += 2 * std::numbers::pi_v<float>;
+  return a;
+}
 
 DepthEdgeExtractor::DepthEdgeExtractor(const PinholeCamera& camera, const FlashRing& flashes,
                                        const DepthEdgeParams& params)
@@ -177,16 +192,19 @@ void DepthEdgeExtractor::extract(const MfcFrames& frames, DepthEdges& out) {
 
   out.edges.create(H, W);
   out.direction.create(H, W);
+  out.shadow.create(H, W);
   for (int y = 0; y < H; ++y) {
     const uint8_t* st = state_.ptr<uint8_t>(y);
     const float* nx = normal_x_.ptr<float>(y);
     const float* ny = normal_y_.ptr<float>(y);
     uint8_t* e = out.edges.ptr<uint8_t>(y);
     float* d = out.direction.ptr<float>(y);
+    float* sh = out.shadow.ptr<float>(y);
     for (int x = 0; x < W; ++x) {
       const bool edge = st[x] == 2;
       e[x] = edge ? 255 : 0;
       d[x] = edge ? tangent_angle(nx[x], ny[x]) : 0.f;
+      sh[x] = edge ? full_angle(nx[x], ny[x]) : 0.f;
     }
   }
 }
@@ -195,6 +213,7 @@ void CannyEdgeDetector::detect(const cv::Mat1b& image, DepthEdges& out) {
   cv::Sobel(image, dx_, CV_16S, 1, 0, 3);
   cv::Sobel(image, dy_, CV_16S, 0, 1, 3);
   cv::Canny(dx_, dy_, out.edges, low_, high_, true);
+  out.shadow.release();  // intensity edges do not say which side is nearer
   out.direction.create(image.size());
   for (int y = 0; y < image.rows; ++y) {
     const uint8_t* e = out.edges.ptr<uint8_t>(y);

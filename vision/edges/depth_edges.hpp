@@ -17,7 +17,16 @@ namespace mfcd::vision {
 struct DepthEdges {
   cv::Mat1b edges;      // 255 = edge
   cv::Mat1f direction;  // edge tangent angle in radians, [0, pi), image axes (x right, y down); 0 off edges
+  // Which side of each edge is the near one: the angle in [0, 2 pi) of the edge normal pointing
+  // into the shadow, i.e. away from the occluding surface; 0 off edges. Empty when the detector
+  // cannot tell (Canny intensity edges).
+  cv::Mat1f shadow;
 };
+
+// The chain tangent `tangent` ([0, pi)) turned by pi where needed so that its left normal
+// (-sin, cos) points to the shadow side given by `shadow` (an angle as in DepthEdges::shadow):
+// an oriented tangent in [0, 2 pi) that carries which side of the edge is the occluder.
+float oriented_tangent(float tangent, float shadow);
 
 struct DepthEdgeParams {
   // Pixels whose brightest flash adds less than this (grey levels above ambient) carry no

@@ -305,7 +305,8 @@ struct BinPickingPipeline::Impl {
   bool fitter_prepared = false;  // the fitter indexes this cycle's edges (score_pose reuses them)
   void prepare_fitter() {
     if (fitter_prepared) return;
-    fitter.prepare(edges);
+    // Without polarity: the same edges, no shadow map (Mat headers, no allocation).
+    fitter.prepare(config.edge_polarity ? edges : DepthEdges{edges.edges, edges.direction, {}});
     fitter_prepared = true;
   }
   std::vector<TemplatePoseFit::Workspace> fit_workspaces;  // per search thread

@@ -12,14 +12,19 @@ double undirected_angle_difference(double a, double b) {
   return std::min(d, std::numbers::pi - d);
 }
 
+double oriented_angle_difference(double a, double b) {
+  double d = std::fmod(std::abs(a - b), 2 * std::numbers::pi);
+  return std::min(d, 2 * std::numbers::pi - d);
+}
+
 namespace {
-// An undirected angle in [0, pi): nearest() relies on its entries' range.
-float modulo_pi(float angle) {
-  constexpr float pi = static_cast<float>(std::numbers::pi);
-  if (angle >= 0 && angle < pi) return angle;
-  const double r = std::fmod(static_cast<double>(angle), std::numbers::pi);
-  const float wrapped = static_cast<float>(r < 0 ? r + std::numbers::pi : r);
-  return wrapped < pi ? wrapped : 0.f;  // pi rounds up in float
+// An angle in [0, period): nearest() relies on its entries' range.
+float modulo(float angle, double period) {
+  const auto top = static_cast<float>(period);
+  if (angle >= 0 && angle < top) return angle;
+  const double r = std::fmod(static_cast<double>(angle), period);
+  const float wrapped = static_cast<float>(r < 0 ? r + period : r);
+  return wrapped < top ? wrapped : 0.f;  // the period rounds up in float
 }
 }  // namespace
 
@@ -27,7 +32,7 @@ DirectionalEdgeIndex::DirectionalEdgeIndex(int cell_px) : cell_(cell_px) {
   if (cell_px < 1) throw std::invalid_argument("DirectionalEdgeIndex: cell size must be >= 1 px");
 }
 
-void DirectionalEdgeIndex::build(const DepthEdges& edges, const char* source) {
+void DirectionalEdgeIndex::build(const DepthEdges& edges, const char* source, bool oriented) {
   // The source's name goes into a string only on the way out (build() runs every cycle).
   auto name = [source] { return std::string(source); };
   if (edges.edges.empty()) throw std::invalid_argument(name() + ": the edge image is empty");
@@ -36,6 +41,8 @@ void DirectionalEdgeIndex::build(const DepthEdges& edges, const char* source) {
     throw std::invalid_argument(name() + ": direction must be a float image of the edges' size (" +
                                 std::to_string(edges.edges.cols) + "x" + std::to_string(edges.edges.rows) + "), got " +
                                 std::to_string(edges.direction.cols) + "x" + std::to_string(edges.direction.rows));
+  oriented_ = oriented;
+  const double period = oriented ? 2 * std::numbers::pi : std::numbers::pi;
   size_ = edges.edges.size();
   grid_w_ = (size_.width + cell_ - 1) / cell_;
   grid_h_ = (size_.height + cell_ - 1) / cell_;
@@ -56,7 +63,7 @@ void DirectionalEdgeIndex::build(const DepthEdges& edges, const char* source) {
     const float* d = edges.direction.ptr<float>(y);
     const uint32_t row = static_cast<uint32_t>(y / cell_) * grid_w_;
     for (int x = 0; x < size_.width; ++x)
-      if (e[x]) points_[fill_[row + static_cast<uint32_t>(x / cell_)]++] = {static_cast<float>(x), static_cast<float>(y), modulo_pi(d[x])};
+      if (e[x]) points_[fill_[row + static_cast<uint32_t>(x / cell_)]++] = {static_cast<float>(x), static_cast<float>(y), modulo(d[x], period)};
   }
 }
 
@@ -64,12 +71,12 @@ EdgeMatch DirectionalEdgeIndex::nearest(cv::Point2d u, double angle, double lamb
   EdgeMatch best;
   if (points_.empty() || !(max_cost >= 0) || !std::isfinite(u.x) || !std::isfinite(u.y) || !std::isfinite(angle))
     return best;
-  // The query's angle is taken modulo pi once: the entries' lie in [0, pi) (build), so the
-  // undirected difference of the two is min(d, pi - d) of d = |a - b|, without a remainder per
+  // The query's angle is taken modulo the period once: the entries' lie in [0, period) (build),
+  // so the difference of the two is min(d, period - d) of d = |a - b|, without a remainder per
   // pixel.
-  constexpr double pi = std::numbers::pi;
-  double a = std::fmod(angle, pi);
-  if (a < 0) a += pi;
+  const double period = oriented_ ? 2 * std::numbers::pi : std::numbers::pi;
+  double a = std::fmod(angle, period);
+  if (a < 0) a += period;
   // Clamp u into the pixel area: the clamped point is no farther from any edge pixel than u
   // (projection onto a convex set), so the bounds computed from it stay valid lower bounds.
   const double cxu = std::clamp(u.x, -0.5, size_.width - 0.5);
@@ -91,7 +98,7 @@ EdgeMatch DirectionalEdgeIndex::nearest(cv::Point2d u, double angle, double lamb
       const double d2 = dx * dx + dy * dy;
       if (d2 > best_cost * best_cost) continue;
       const double d = std::abs(a - p.angle);
-      const double cost = std::sqrt(d2) + lambda * std::min(d, pi - d);
+      const double cost = std::sqrt(d2) + lambda * std::min(d, period - d);
       if (cost < best_cost || (cost == best_cost && !best.found)) {
         best_cost = cost;
         best = {true, p.x, p.y, p.angle, cost};
@@ -118,12 +125,14 @@ EdgeMatch DirectionalEdgeIndex::nearest(cv::Point2d u, double angle, double lamb
 }
 
 EdgeMatch nearest_edge_brute_force(const DepthEdges& edges, cv::Point2d u, double angle, double lambda,
-                                   double max_cost) {
+                                   double max_cost, bool oriented) {
   EdgeMatch best;
   for (int y = 0; y < edges.edges.rows; ++y)
     for (int x = 0; x < edges.edges.cols; ++x) {
       if (!edges.edges(y, x)) continue;
-      const double cost = std::hypot(x - u.x, y - u.y) + lambda * undirected_angle_difference(angle, edges.direction(y, x));
+      const double turn = oriented ? oriented_angle_difference(angle, edges.direction(y, x))
+                                   : undirected_angle_difference(angle, edges.direction(y, x));
+      const double cost = std::hypot(x - u.x, y - u.y) + lambda * turn;
       if (cost <= max_cost && (!best.found || cost < best.cost))
         best = {true, static_cast<float>(x), static_cast<float>(y), edges.direction(y, x), cost};
     }

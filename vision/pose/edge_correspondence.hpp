@@ -26,11 +26,13 @@ inline constexpr double kDefaultLambdaPxPerRad = 30.0 / std::numbers::pi;
 
 // Undirected angle difference in [0, pi/2] of two angles given modulo pi.
 double undirected_angle_difference(double a, double b);
+// Difference in [0, pi] of two oriented angles (given modulo 2 pi).
+double oriented_angle_difference(double a, double b);
 
 struct EdgeMatch {
   bool found = false;
   float x = 0, y = 0;   // the matched edge pixel (integer coordinates)
-  float angle = 0;      // its tangent angle, [0, pi)
+  float angle = 0;      // its tangent angle, [0, pi) ([0, 2 pi) from an oriented index)
   double cost = 0;      // Eq. 21 cost in px
 };
 
@@ -42,7 +44,11 @@ class DirectionalEdgeIndex {
   // tangent angle, same size). Throws std::invalid_argument naming `source` on an empty map or
   // mismatched sizes/types. An edge map without any edge pixel is accepted (every query then
   // finds nothing); callers decide whether that is an error.
-  void build(const DepthEdges& edges, const char* source = "edge map");
+  // `oriented`: the directions are oriented tangents ([0, 2 pi), oriented_tangent) and the
+  // queries' too; Eq. 21's orientation term then compares them modulo 2 pi, so an edge whose
+  // occluder lies on the other side costs lambda * pi more than one on the same side.
+  void build(const DepthEdges& edges, const char* source = "edge map", bool oriented = false);
+  bool oriented() const { return oriented_; }
 
   // The Eq. 21 argmin among edge pixels whose cost is <= max_cost_px (the gate); found = false
   // when there is none.
@@ -53,9 +59,10 @@ class DirectionalEdgeIndex {
 
  private:
   struct Entry {
-    float x, y, angle;  // angle in [0, pi)
+    float x, y, angle;  // angle in [0, pi), or [0, 2 pi) when oriented
   };
   int cell_;
+  bool oriented_ = false;
   cv::Size size_;
   int grid_w_ = 0, grid_h_ = 0;
   std::vector<uint32_t> cell_start_;  // grid_w * grid_h + 1 offsets into points_
@@ -65,6 +72,6 @@ class DirectionalEdgeIndex {
 
 // The obviously-right twin of DirectionalEdgeIndex::nearest for tests: every edge pixel tried.
 EdgeMatch nearest_edge_brute_force(const DepthEdges& edges, cv::Point2d u, double angle, double lambda_px_per_rad,
-                                   double max_cost_px);
+                                   double max_cost_px, bool oriented = false);
 
 }  // namespace mfcd::vision

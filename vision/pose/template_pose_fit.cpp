@@ -36,7 +36,22 @@ void TemplatePoseFit::prepare(const DepthEdges& edges) {
   chain_edges_.edges = edges.edges;  // shared, not copied
   edges_ = edges.edges;
   edge_tangents(edges.edges, chain_edges_.direction);
-  index_.build(chain_edges_, "template fit: edge map");
+  // Depth edges say which side is the occluder; the templates' points carry it too
+  // (TemplateEdgePoint::direction), so a point only pairs with an edge whose near side is the
+  // part's. Intensity edges (no shadow map) are matched undirected.
+  const bool oriented = !edges.shadow.empty();
+  if (oriented) {
+    if (edges.shadow.size() != edges.edges.size())
+      throw std::invalid_argument("template fit: the shadow map does not match the edge map");
+    for (int y = 0; y < edges.edges.rows; ++y) {
+      const uint8_t* e = edges.edges.ptr<uint8_t>(y);
+      const float* sh = edges.shadow.ptr<float>(y);
+      float* d = chain_edges_.direction.ptr<float>(y);
+      for (int x = 0; x < edges.edges.cols; ++x)
+        if (e[x]) d[x] = oriented_tangent(d[x], sh[x]);
+    }
+  }
+  index_.build(chain_edges_, "template fit: edge map", oriented);
 }
 
 namespace {
@@ -54,15 +69,17 @@ double in_plane_angle(const TemplateDatabase& db, int view, const RigidPose& pos
 // in-plane angle between the view and the pose.
 class PointPlacer {
  public:
-  PointPlacer(const TemplatePoseFit::Workspace& ws, const RigidPose& pose, const PinholeCamera& camera, double turn)
-      : ws_(ws), pose_(pose), camera_(camera), turn_(turn), ct_(std::cos(turn)), st_(std::sin(turn)) {}
+  // `period`: 2 pi with oriented tangents (an oriented index), else pi.
+  PointPlacer(const TemplatePoseFit::Workspace& ws, const RigidPose& pose, const PinholeCamera& camera, double turn,
+              double period)
+      : ws_(ws), pose_(pose), camera_(camera), turn_(turn), period_(period), ct_(std::cos(turn)), st_(std::sin(turn)) {}
   // Point i's image position `at`, its offset there `shift` (at = projection + shift) and its
-  // tangent angle in [0, pi); false when it lies behind the camera.
+  // tangent angle in [0, period); false when it lies behind the camera.
   bool place(size_t i, cv::Point2d& at, cv::Point2d& shift, double& angle) const {
     const cv::Vec3d p = pose_.R * ws_.model[i] + pose_.t_mm;
     if (p[2] <= 1e-6) return false;
-    angle = std::fmod(ws_.angle[i] + turn_, std::numbers::pi);
-    if (angle < 0) angle += std::numbers::pi;
+    angle = std::fmod(ws_.angle[i] + turn_, period_);
+    if (angle < 0) angle += period_;
     const cv::Vec2d& o = ws_.offset[i];
     shift = cv::Point2d(ct_ * o[0] - st_ * o[1], st_ * o[0] + ct_ * o[1]);
     at = camera_.project(p) + shift;
@@ -73,7 +90,7 @@ class PointPlacer {
   const TemplatePoseFit::Workspace& ws_;
   const RigidPose& pose_;
   const PinholeCamera& camera_;
-  double turn_, ct_, st_;
+  double turn_, period_, ct_, st_;
 };
 
 }  // namespace
@@ -195,7 +212,7 @@ RigidPose apply_pose_update(const RigidPose& pose, const cv::Vec3d& centre_model
 
 void TemplatePoseFit::score(const TemplateDatabase& db, int view, const PinholeCamera& camera, Workspace& ws,
                             TemplateFitResult& r) const {
-  const PointPlacer placer(ws, r.pose, camera, in_plane_angle(db, view, r.pose, camera));
+  const PointPlacer placer(ws, r.pose, camera, in_plane_angle(db, view, r.pose, camera), period());
   const double gate = params_.score_gate_px;
   double sum = 0;
   int inliers = 0, count = 0;
@@ -284,7 +301,7 @@ TemplateFitResult TemplatePoseFit::fit(const TemplateDatabase& db, int view, con
   for (int it = 0; it < steps; ++it) {
     const double f = steps > 1 ? double(it) / (steps - 1) : 1.0;
     const double gate = params_.initial_gate_px * std::pow(params_.final_gate_px / params_.initial_gate_px, f);
-    const PointPlacer placer(ws, r.pose, camera, in_plane_angle(db, r.view, r.pose, camera));
+    const PointPlacer placer(ws, r.pose, camera, in_plane_angle(db, r.view, r.pose, camera), period());
     const cv::Vec3d centre = r.pose.R * db.center_mm + r.pose.t_mm;
     cv::Matx66d H = cv::Matx66d::zeros();
     cv::Vec6d g(0, 0, 0, 0, 0, 0);
@@ -326,7 +343,7 @@ TemplateFitResult TemplatePoseFit::fit(const TemplateDatabase& db, int view, con
 void TemplatePoseFit::place_points(const TemplateDatabase& db, int view, const RigidPose& pose,
                                    const PinholeCamera& camera, const Workspace& ws, std::vector<cv::Point2d>& seen,
                                    std::vector<double>& angle) const {
-  const PointPlacer placer(ws, pose, camera, in_plane_angle(db, view, pose, camera));
+  const PointPlacer placer(ws, pose, camera, in_plane_angle(db, view, pose, camera), period());
   seen.clear();
   angle.clear();
   for (size_t i = 0; i < ws.model.size(); ++i) {

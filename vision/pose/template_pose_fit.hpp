@@ -24,6 +24,7 @@
 #include "vision/templates/template_database.hpp"
 
 #include <cstdint>
+#include <numbers>
 #include <vector>
 
 namespace mfcd::vision {
@@ -120,6 +121,9 @@ class TemplatePoseFit {
              TemplateFitResult& r) const;
   double coverage(const TemplateDatabase& db, int view, const RigidPose& pose, const PinholeCamera& camera,
                   Workspace& ws) const;
+
+  // The period of the tangent angles the index compares: 2 pi when oriented.
+  double period() const { return index_.oriented() ? 2 * std::numbers::pi : std::numbers::pi; }
 
   TemplateFitParams params_;
   DepthEdges chain_edges_;

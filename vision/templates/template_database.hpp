@@ -38,7 +38,10 @@ struct PartSymmetry {
 // One edge pixel of a template view and the model point it images.
 struct TemplateEdgePoint {
   cv::Point2f pixel;     // relative to the view's origin (image of the part centre)
-  float direction = 0;   // edge tangent, radians in [0, pi), image axes, of the pixel chain (edge_tangents)
+  // Edge tangent of the pixel chain (edge_tangents), radians, image axes, oriented: in [0, 2 pi),
+  // turned so that its left normal (-sin, cos) points into the shadow, away from the part
+  // (oriented_tangent). Modulo pi it is the undirected tangent.
+  float direction = 0;
   cv::Vec3f model_mm;    // the visible surface point on the near side of the depth edge, model frame
 };
 
@@ -53,7 +56,7 @@ struct TemplateView {
 };
 
 struct TemplateDatabase {
-  static constexpr uint32_t kVersion = 1;
+  static constexpr uint32_t kVersion = 2;
 
   std::string part_name;
   int obj_id = 0;                  // BOP object id

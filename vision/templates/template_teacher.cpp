@@ -132,7 +132,7 @@ void trace_points(const DepthEdges& edges, const MfcRender& render, const Pinhol
       const cv::Vec3d pm = Rt * (pc - t);
       TemplateEdgePoint p;
       p.pixel = cv::Point2f(static_cast<float>(x), static_cast<float>(y)) - origin;
-      p.direction = tangents(y, x);
+      p.direction = oriented_tangent(tangents(y, x), edges.shadow(y, x));
       p.model_mm = cv::Vec3f(static_cast<float>(pm[0]), static_cast<float>(pm[1]), static_cast<float>(pm[2]));
       view.points.push_back(p);
     }

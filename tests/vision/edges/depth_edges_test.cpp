@@ -80,13 +80,15 @@ DepthEdges reference_depth_edges(const MfcFrames& frames, const PinholeCamera& c
     if (cv::countNonZero(grown != edges) == 0) break;
     edges = grown;
   }
-  DepthEdges out{edges, cv::Mat1f(size, 0.f)};
+  DepthEdges out{edges, cv::Mat1f(size, 0.f), cv::Mat1f(size, 0.f)};
   for (int y = 0; y < size.height; ++y)
     for (int x = 0; x < size.width; ++x)
       if (edges(y, x)) {
-        double t = std::atan2(Ny(y, x), Nx(y, x)) + std::numbers::pi / 2;
+        const double normal = std::atan2(Ny(y, x), Nx(y, x));
+        double t = normal + std::numbers::pi / 2;
         t = std::fmod(t + 2 * std::numbers::pi, std::numbers::pi);
         out.direction(y, x) = static_cast<float>(t);
+        out.shadow(y, x) = static_cast<float>(std::fmod(normal + 2 * std::numbers::pi, 2 * std::numbers::pi));
       }
   return out;
 }
@@ -134,6 +136,9 @@ TEST(DepthEdges, MatchesReferenceOnRandomImages) {
       for (int x = 0; x < got.edges.cols; ++x)
         if (got.edges(y, x) && want.edges(y, x)) {
           EXPECT_LT(angle_difference(got.direction(y, x), want.direction(y, x)), 1e-4);
+          // The shadow side: the same normal, modulo 2 pi.
+          const double d = std::fmod(std::abs(got.shadow(y, x) - want.shadow(y, x)), 2 * std::numbers::pi);
+          EXPECT_LT(std::min(d, 2 * std::numbers::pi - d), 1e-4);
         }
   }
 }
@@ -225,6 +230,53 @@ TEST(DepthEdges, DirectionIsTheTangentOfTheDiscontinuity) {
   EXPECT_GE(close, 0.9 * compared) << close << " of " << compared;
 }
 
+// The shadow side: the normal DepthEdges::shadow gives points away from the occluder, so the
+// rendered depth a few pixels along it is farther than a few pixels against it.
+TEST(DepthEdges, ShadowSideIsTheFartherSurface) {
+  const CameraConfig cfg = sim_config();
+  MfcRenderer r(cfg);
+  const SceneMeshes meshes(r);
+  DepthEdgeExtractor extractor(cfg.camera, cfg.flashes);
+  MfcRender out;
+  r.render(random_scene(meshes, 5, false), out);
+  DepthEdges edges;
+  extractor.extract(out.frames, edges);
+  ASSERT_EQ(edges.shadow.size(), edges.edges.size());
+  int compared = 0, right = 0;
+  const cv::Rect image(cv::Point(0, 0), out.depth_mm.size());
+  for (int y = 0; y < edges.edges.rows; ++y)
+    for (int x = 0; x < edges.edges.cols; ++x) {
+      if (!edges.edges(y, x)) continue;
+      const float a = edges.shadow(y, x);
+      ASSERT_GE(a, 0.f);
+      ASSERT_LT(a, 2 * std::numbers::pi_v<float>);
+      const cv::Point2f n(std::cos(a), std::sin(a));
+      const cv::Point behind(cvRound(x + 3 * n.x), cvRound(y + 3 * n.y)), before(cvRound(x - 3 * n.x), cvRound(y - 3 * n.y));
+      if (!image.contains(behind) || !image.contains(before)) continue;
+      const float far = out.depth_mm(behind), near = out.depth_mm(before);
+      if (!(far > 0) || !(near > 0) || std::abs(far - near) < 2.f) continue;  // only clear depth jumps
+      ++compared;
+      right += far > near;
+    }
+  EXPECT_GT(compared, 500);
+  EXPECT_GE(right, 0.95 * compared) << right << " of " << compared;
+}
+
+// oriented_tangent keeps the tangent modulo pi and turns it so that its left normal points into
+// the shadow.
+TEST(DepthEdges, OrientedTangentPointsItsLeftNormalIntoTheShadow) {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> tangent(0, std::numbers::pi_v<float>), shadow(0, 2 * std::numbers::pi_v<float>);
+  for (int i = 0; i < 1000; ++i) {
+    const float t = tangent(rng), s = shadow(rng);
+    const float o = oriented_tangent(t, s);
+    ASSERT_GE(o, 0.f);
+    ASSERT_LT(o, 2 * std::numbers::pi_v<float>);
+    ASSERT_LT(angle_difference(o, t), 1e-5);
+    ASSERT_GE(-std::sin(o) * std::cos(s) + std::cos(o) * std::sin(s), -1e-5f) << t << " " << s;
+  }
+}
+
 TEST(DepthEdges, SteadyStateCallsKeepTheirBuffers) {
   const CameraConfig cfg = sim_config();
   MfcRenderer r(cfg);
@@ -236,11 +288,13 @@ TEST(DepthEdges, SteadyStateCallsKeepTheirBuffers) {
   extractor.extract(out.frames, edges);
   const uchar* e = edges.edges.data;
   const uchar* d = edges.direction.data;
+  const uchar* sh = edges.shadow.data;
   const uchar* resp = extractor.response().data;
   const cv::Mat1b first = edges.edges.clone();
   extractor.extract(out.frames, edges);
   EXPECT_EQ(edges.edges.data, e);
   EXPECT_EQ(edges.direction.data, d);
+  EXPECT_EQ(edges.shadow.data, sh);
   EXPECT_EQ(extractor.response().data, resp);
   EXPECT_EQ(cv::countNonZero(first != edges.edges), 0) << "extraction must be deterministic";
 }
@@ -280,4 +334,5 @@ TEST(CannyEdges, FindsASquareWithItsDirections) {
     }
   EXPECT_GT(vertical, 80);
   EXPECT_GT(horizontal, 100);
+  EXPECT_TRUE(out.shadow.empty()) << "intensity edges do not say which side is nearer";
 }

@@ -258,13 +258,13 @@ TEST_F(PoseRefinerTest, BadInputIsRefusedClearly) {
   expect_error([&] { refiner.prepare({}); }, "no views");
   RefinementView null_edges{nullptr, config_.camera, {}};
   expect_error([&] { refiner.prepare(std::span(&null_edges, 1)); }, "view 0: no edge map");
-  DepthEdges blank{cv::Mat1b(config_.camera.image_size, uchar(0)), cv::Mat1f(config_.camera.image_size, 0.f)};
+  DepthEdges blank{cv::Mat1b(config_.camera.image_size, uchar(0)), cv::Mat1f(config_.camera.image_size, 0.f), {}};
   std::vector<RefinementView> two{s.views[0], {&blank, config_.camera, {}}};
   expect_error([&] { refiner.prepare(two); }, "view 1: the edge map has no edge pixels");
-  DepthEdges small{cv::Mat1b(100, 100, uchar(0)), cv::Mat1f(100, 100, 0.f)};
+  DepthEdges small{cv::Mat1b(100, 100, uchar(0)), cv::Mat1f(100, 100, 0.f), {}};
   two[1].edges = &small;
   expect_error([&] { refiner.prepare(two); }, "view 1: edge map is 100x100 but its camera is 640x480");
-  DepthEdges bad_dir{s.edges[0].edges, cv::Mat1f(10, 10, 0.f)};
+  DepthEdges bad_dir{s.edges[0].edges, cv::Mat1f(10, 10, 0.f), {}};
   two[1].edges = &bad_dir;
   RefinerParams given_directions;
   given_directions.edge_directions_from_chains = false;

@@ -49,11 +49,11 @@ struct FloorScene {
   DepthEdgeExtractor extractor{cam.camera, cam.flashes, {}};
   TemplatePoseFit fitter;
   TemplatePoseFit::Workspace ws;
+  DepthEdges edges;  // of the last show()
 
   explicit FloorScene(const fs::path& tdb) : db(load_template_database(tdb)) {}
   void show(const RigidPose& pose, uint64_t seed) {
     const MfcRender render = mfcd::vision::testing::render_on_floor(renderer, part_id, floor_id, db, pose, seed);
-    DepthEdges edges;
     extractor.extract(render.frames, edges);
     fitter.prepare(edges);
   }
@@ -193,6 +193,39 @@ TEST_P(TemplatePoseFitOnRenders, MovesTheCoarsePoseTowardsTheTruth) {
   EXPECT_EQ(better, trials);
   EXPECT_LT(end_r, 0.6 * start_r);
   EXPECT_LT(end_t / trials, 1.5);
+}
+
+// The occluding side: the templates' points and the depth edges both say which side of an edge
+// is the near one, and a point pairs only with an edge whose near side is the part's. At the
+// truth the part's points find their edges; with every image edge's sides swapped they find
+// none; without the shadow map (intensity edges) they are paired undirected, at least as well.
+TEST_P(TemplatePoseFitOnRenders, PointsPairOnlyWithEdgesWhoseNearSideIsThePart) {
+  const fs::path tdb = fs::path(MFC_BINARY_DIR) / "templates" / (std::string(GetParam()) + ".tdb");
+  if (!fs::exists(tdb)) GTEST_SKIP() << tdb << " not built (needs OpenSCAD)";
+  FloorScene scene(tdb);
+  const CameraConfig& cam = scene.cam;
+  const RigidPose truth = scene.from_above(30, 0.7, 0.4, cv::Vec3d(10, -5, 290));
+  scene.show(truth, 11);
+  RigidPose at = truth;
+  const int view = TemplatePoseFit::nearest_view(scene.db, cam.camera, at);
+  const TemplateFitResult oriented = scene.fitter.fit(scene.db, view, at, cam.camera, scene.ws);
+
+  DepthEdges swapped{scene.edges.edges, scene.edges.direction, scene.edges.shadow.clone()};
+  for (int y = 0; y < swapped.shadow.rows; ++y)
+    for (int x = 0; x < swapped.shadow.cols; ++x)
+      if (swapped.edges(y, x)) swapped.shadow(y, x) = std::fmod(swapped.shadow(y, x) + CV_PI, 2 * CV_PI);
+  scene.fitter.prepare(swapped);
+  const TemplateFitResult wrong_side = scene.fitter.evaluate(scene.db, oriented.view, oriented.pose, cam.camera, scene.ws);
+
+  const DepthEdges undirected{scene.edges.edges, scene.edges.direction, {}};
+  scene.fitter.prepare(undirected);
+  const TemplateFitResult either_side = scene.fitter.evaluate(scene.db, oriented.view, oriented.pose, cam.camera, scene.ws);
+  std::printf("%s: score %.3f (inliers %.2f), sides swapped %.3f (%.2f), undirected %.3f (%.2f)\n", GetParam(),
+              oriented.score, oriented.inlier_fraction, wrong_side.score, wrong_side.inlier_fraction,
+              either_side.score, either_side.inlier_fraction);
+  EXPECT_GT(oriented.inlier_fraction, 0.6);
+  EXPECT_LT(wrong_side.inlier_fraction, 0.25 * oriented.inlier_fraction);
+  EXPECT_GE(either_side.inlier_fraction, oriented.inlier_fraction);
 }
 
 INSTANTIATE_TEST_SUITE_P(Parts, TemplatePoseFitOnRenders,

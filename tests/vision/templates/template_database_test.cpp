@@ -4,6 +4,7 @@
 #include "vision/templates/template_teacher.hpp"
 
 #include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
 
 #include <cstdio>
 #include <filesystem>
@@ -80,6 +81,21 @@ TEST(TemplateTeacher, EveryViewHasLinesAndPointsThatReprojectOntoTheirPixels) {
       EXPECT_LE(std::abs(p.model_mm[2]), 10.0 + 0.3);
     }
     EXPECT_GE(near, static_cast<int>(0.97 * v.points.size())) << "view " << v.index;
+    // On the box's outline (its points within 2 px of their convex hull) the shadow lies outside
+    // the box: each such point's oriented tangent turns its left normal away from the image of the
+    // centre (the origin). (Inside the outline are creases where a face turns away from a flash;
+    // their near side is whatever the shading makes it, the same in scenes.)
+    std::vector<cv::Point2f> pixels, hull;
+    for (const auto& p : v.points) pixels.push_back(p.pixel);
+    cv::convexHull(pixels, hull);
+    int outline = 0, outward = 0;
+    for (const auto& p : v.points) {
+      if (cv::pointPolygonTest(hull, p.pixel, true) > 2) continue;
+      ++outline;
+      outward += -std::sin(p.direction) * p.pixel.x + std::cos(p.direction) * p.pixel.y > 0;
+    }
+    EXPECT_GT(outline, 200) << "view " << v.index;
+    EXPECT_GE(outward, static_cast<int>(0.9 * outline)) << "view " << v.index;  // corners: either side
     // Each line lies on edge points: its midpoint is within 1.5 px of some point.
     for (const auto& l : v.lines.lines) {
       const cv::Point2f mid = (l.a + l.b) * 0.5f - v.lines.origin;
