@@ -11,8 +11,9 @@ namespace mfcd::vision {
 
 // Tangent angle ([0, pi), image axes) of every edge pixel of `edges` (non-zero = edge): the
 // principal axis of the edge pixels within a (2 radius + 1)^2 window, i.e. the local direction
-// of the pixel chain. 0 off edges.
-void edge_tangents(const cv::Mat1b& edges, cv::Mat1f& direction, int radius = 3);
+// of the pixel chain. 0 off edges. With `shadow` (DepthEdges::shadow, the edges' size) each is
+// oriented by it (oriented_tangent): [0, 2 pi), the left normal pointing into the shadow.
+void edge_tangents(const cv::Mat1b& edges, cv::Mat1f& direction, int radius = 3, const cv::Mat1f* shadow = nullptr);
 float edge_tangent_at(const cv::Mat1b& edges, int x, int y, int radius = 3);
 
 }  // namespace mfcd::vision

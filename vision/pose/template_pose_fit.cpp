@@ -35,22 +35,13 @@ void TemplatePoseFit::prepare(const DepthEdges& edges) {
     throw std::invalid_argument("template fit: the edge map must be a non-empty 8-bit image");
   chain_edges_.edges = edges.edges;  // shared, not copied
   edges_ = edges.edges;
-  edge_tangents(edges.edges, chain_edges_.direction);
   // Depth edges say which side is the occluder; the templates' points carry it too
   // (TemplateEdgePoint::direction), so a point only pairs with an edge whose near side is the
   // part's. Intensity edges (no shadow map) are matched undirected.
   const bool oriented = !edges.shadow.empty();
-  if (oriented) {
-    if (edges.shadow.size() != edges.edges.size())
-      throw std::invalid_argument("template fit: the shadow map does not match the edge map");
-    for (int y = 0; y < edges.edges.rows; ++y) {
-      const uint8_t* e = edges.edges.ptr<uint8_t>(y);
-      const float* sh = edges.shadow.ptr<float>(y);
-      float* d = chain_edges_.direction.ptr<float>(y);
-      for (int x = 0; x < edges.edges.cols; ++x)
-        if (e[x]) d[x] = oriented_tangent(d[x], sh[x]);
-    }
-  }
+  if (oriented && edges.shadow.size() != edges.edges.size())
+    throw std::invalid_argument("template fit: the shadow map does not match the edge map");
+  edge_tangents(edges.edges, chain_edges_.direction, 3, oriented ? &edges.shadow : nullptr);
   index_.build(chain_edges_, "template fit: edge map", oriented);
 }
 

@@ -112,8 +112,8 @@ void trace_points(const DepthEdges& edges, const MfcRender& render, const Pinhol
                   const cv::Vec3d& t, const cv::Point2f& origin, TemplateView& view) {
   const cv::Matx33d Rt = R.t();
   // Chain directions, the estimator the pose fits use on the query's edges too.
-  cv::Mat1f tangents;
-  edge_tangents(edges.edges, tangents);
+  cv::Mat1f tangents;  // oriented by the shadow side (TemplateEdgePoint::direction)
+  edge_tangents(edges.edges, tangents, 3, &edges.shadow);
   for (int y = 0; y < edges.edges.rows; ++y)
     for (int x = 0; x < edges.edges.cols; ++x) {
       if (!edges.edges(y, x)) continue;
@@ -132,7 +132,7 @@ void trace_points(const DepthEdges& edges, const MfcRender& render, const Pinhol
       const cv::Vec3d pm = Rt * (pc - t);
       TemplateEdgePoint p;
       p.pixel = cv::Point2f(static_cast<float>(x), static_cast<float>(y)) - origin;
-      p.direction = oriented_tangent(tangents(y, x), edges.shadow(y, x));
+      p.direction = tangents(y, x);
       p.model_mm = cv::Vec3f(static_cast<float>(pm[0]), static_cast<float>(pm[1]), static_cast<float>(pm[2]));
       view.points.push_back(p);
     }
