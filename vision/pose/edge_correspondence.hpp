@@ -2,8 +2,10 @@
 // Correspondences by the directional chamfer criterion (paper Sec. 4.5, Eq. 21): for a model
 // edge point u with image direction phi(u), the detected edge pixel
 //   v* = argmin_v |u - v| + lambda * |phi(u) - phi(v)|
-// where the orientation difference is undirected (modulo pi) and lambda is in px per radian.
-// Orientations are used unquantised, so the index returns the exact argmin of Eq. 21.
+// where the orientation difference is undirected (modulo pi) and lambda is in px per radian;
+// or, in an oriented index (depth edges with their shadow side), modulo 2 pi, so that an edge
+// whose near side is the other one is never paired. Orientations are used unquantised, so the
+// index returns the exact argmin of Eq. 21.
 //
 // The index buckets the edge pixels of one DepthEdges map into square cells; a query scans
 // rings of cells around u, skips a cell whose nearest pixel is farther than the best cost found

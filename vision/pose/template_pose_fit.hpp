@@ -3,7 +3,8 @@
 // rendering): the matched template view carries, for every edge pixel, the visible model point
 // it images, so a hypothesis can be moved off the sampled views continuously. Each iteration
 // projects the view's points at the current pose, pairs them with the image's edge pixels by the
-// directional chamfer criterion (Eq. 21, DirectionalEdgeIndex) and takes one Gauss-Newton step
+// directional chamfer criterion (Eq. 21, DirectionalEdgeIndex; with depth edges, only edges
+// whose near side is the part's: edge polarity) and takes one Gauss-Newton step
 // of the point-to-line error with a Huber weight. When the pose has turned closer to another
 // template view (symmetry-aware), that view's points are used from then on.
 //
