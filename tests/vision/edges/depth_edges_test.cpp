@@ -103,6 +103,19 @@ struct Rendered {
   DepthEdges edges;
 };
 
+// A random bin of the development parts (scenes.hpp, seed `seed`) rendered by the simulated MFC,
+// and its depth edges.
+Rendered rendered_bin(unsigned seed) {
+  const CameraConfig cfg = sim_config();
+  MfcRenderer r(cfg);
+  const SceneMeshes meshes(r);
+  DepthEdgeExtractor extractor(cfg.camera, cfg.flashes);
+  Rendered out;
+  r.render(random_scene(meshes, seed, false), out.render);
+  extractor.extract(out.render.frames, out.edges);
+  return out;
+}
+
 }  // namespace
 
 TEST(DepthEdges, MatchesReferenceOnRandomImages) {
@@ -200,14 +213,9 @@ TEST(DepthEdges, PaintedPatternsDoNotAppear) {
 }
 
 TEST(DepthEdges, DirectionIsTheTangentOfTheDiscontinuity) {
-  const CameraConfig cfg = sim_config();
-  MfcRenderer r(cfg);
-  const SceneMeshes meshes(r);
-  DepthEdgeExtractor extractor(cfg.camera, cfg.flashes);
-  MfcRender out;
-  r.render(random_scene(meshes, 5, false), out);
-  DepthEdges edges;
-  extractor.extract(out.frames, edges);
+  const Rendered bin = rendered_bin(5);
+  const MfcRender& out = bin.render;
+  const DepthEdges& edges = bin.edges;
   // Tangent of the true outline: perpendicular to the gradient of the smoothed
   // foreground mask (parts vs floor).
   cv::Mat1f mask, gx, gy;
@@ -233,14 +241,9 @@ TEST(DepthEdges, DirectionIsTheTangentOfTheDiscontinuity) {
 // The shadow side: the normal DepthEdges::shadow gives points away from the occluder, so the
 // rendered depth a few pixels along it is farther than a few pixels against it.
 TEST(DepthEdges, ShadowSideIsTheFartherSurface) {
-  const CameraConfig cfg = sim_config();
-  MfcRenderer r(cfg);
-  const SceneMeshes meshes(r);
-  DepthEdgeExtractor extractor(cfg.camera, cfg.flashes);
-  MfcRender out;
-  r.render(random_scene(meshes, 5, false), out);
-  DepthEdges edges;
-  extractor.extract(out.frames, edges);
+  const Rendered bin = rendered_bin(5);
+  const MfcRender& out = bin.render;
+  const DepthEdges& edges = bin.edges;
   ASSERT_EQ(edges.shadow.size(), edges.edges.size());
   int compared = 0, right = 0;
   const cv::Rect image(cv::Point(0, 0), out.depth_mm.size());
