@@ -9,12 +9,25 @@
 // paper's q = 60 a step is 3 degrees, so lambda = 0.5 px/step means 6 degrees cost as much as one
 // pixel, which is the paper's choice ("6 deg error ... same penalty as a 1-pixel distance").
 // In radians that is lambda_rad = lambda * q / pi = 9.55 px/rad.
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <stdexcept>
 #include <string>
 
 namespace mfcd::vision {
+
+// Undirected angle difference in [0, pi/2] of two angles given modulo pi.
+inline double undirected_angle_difference(double a, double b) {
+  const double d = std::fmod(std::abs(a - b), std::numbers::pi);
+  return std::min(d, std::numbers::pi - d);
+}
+// Difference in [0, pi] of two oriented angles (given modulo 2 pi: an edge tangent that also says
+// which side is the occluder, oriented_tangent in vision/edges).
+inline double oriented_angle_difference(double a, double b) {
+  const double d = std::fmod(std::abs(a - b), 2 * std::numbers::pi);
+  return std::min(d, 2 * std::numbers::pi - d);
+}
 
 // Costs are stored in fixed point: one unit is 1/kCostScale pixel. 8 gives 1/8 px resolution
 // and lets a truncated per-pixel cost (<= 31.875 px) live in one byte.

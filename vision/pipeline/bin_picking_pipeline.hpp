@@ -115,8 +115,7 @@ struct PipelineConfig {
   int round_hypotheses = 16;
   // Escalation: when the first search's best fitted hypothesis ranks below `escalate_below` (the
   // cycle has nothing a cell would pick: config pick.min_score is 0.08-0.1, and 0.08, the lower,
-  // is the default), the search runs again
-  // wide: every view of the part types, escalate_query_guides query guides, two placements per
+  // is the default), the search runs again wide: every view of the part types, escalate_query_guides query guides, two placements per
   // view at least 40 px apart, and escalate_hypotheses hypotheses fitted and ranked with the
   // first search's. With the shipped search most failed trials have no correct hypothesis fitted
   // at all (capped-occlusion set: a correct one in 213 of 238 trials, against 230 with the wide

@@ -7,16 +7,6 @@
 
 namespace mfcd::vision {
 
-double undirected_angle_difference(double a, double b) {
-  double d = std::fmod(std::abs(a - b), std::numbers::pi);
-  return std::min(d, std::numbers::pi - d);
-}
-
-double oriented_angle_difference(double a, double b) {
-  double d = std::fmod(std::abs(a - b), 2 * std::numbers::pi);
-  return std::min(d, 2 * std::numbers::pi - d);
-}
-
 namespace {
 // An angle in [0, period): nearest() relies on its entries' range.
 float modulo(float angle, double period) {

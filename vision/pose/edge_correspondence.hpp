@@ -12,6 +12,7 @@
 // (or the gate), and stops as soon as a whole ring is. Built once per view image and shared by
 // every candidate refined against it; the buffers are reused between builds.
 
+#include "vision/common/orientation.hpp"
 #include "vision/edges/depth_edges.hpp"
 
 #include <opencv2/core.hpp>
@@ -25,11 +26,6 @@ namespace mfcd::vision {
 // The paper's orientation weight: 6 degrees of orientation error cost as much as 1 px
 // (orientation.hpp: lambda = 0.5 px per 3-degree channel step at q = 60).
 inline constexpr double kDefaultLambdaPxPerRad = 30.0 / std::numbers::pi;
-
-// Undirected angle difference in [0, pi/2] of two angles given modulo pi.
-double undirected_angle_difference(double a, double b);
-// Difference in [0, pi] of two oriented angles (given modulo 2 pi).
-double oriented_angle_difference(double a, double b);
 
 struct EdgeMatch {
   bool found = false;

@@ -38,9 +38,8 @@ void TemplatePoseFit::prepare(const DepthEdges& edges) {
   // Depth edges say which side is the occluder; the templates' points carry it too
   // (TemplateEdgePoint::direction), so a point only pairs with an edge whose near side is the
   // part's. Intensity edges (no shadow map) are matched undirected.
+  // (edge_tangents refuses a shadow map of another size.)
   const bool oriented = !edges.shadow.empty();
-  if (oriented && edges.shadow.size() != edges.edges.size())
-    throw std::invalid_argument("template fit: the shadow map does not match the edge map");
   edge_tangents(edges.edges, chain_edges_.direction, 3, oriented ? &edges.shadow : nullptr);
   index_.build(chain_edges_, "template fit: edge map", oriented);
 }

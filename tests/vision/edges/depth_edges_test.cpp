@@ -1,3 +1,4 @@
+#include "vision/common/orientation.hpp"
 #include "vision/edges/depth_edges.hpp"
 #include "vision/edges/edge_evaluation.hpp"
 
@@ -93,10 +94,6 @@ DepthEdges reference_depth_edges(const MfcFrames& frames, const PinholeCamera& c
   return out;
 }
 
-double angle_difference(double a, double b) {  // between two undirected angles
-  const double d = std::fmod(std::abs(a - b), std::numbers::pi);
-  return std::min(d, std::numbers::pi - d);
-}
 
 struct Rendered {
   MfcRender render;
@@ -148,10 +145,9 @@ TEST(DepthEdges, MatchesReferenceOnRandomImages) {
     for (int y = 0; y < got.edges.rows; ++y)
       for (int x = 0; x < got.edges.cols; ++x)
         if (got.edges(y, x) && want.edges(y, x)) {
-          EXPECT_LT(angle_difference(got.direction(y, x), want.direction(y, x)), 1e-4);
+          EXPECT_LT(undirected_angle_difference(got.direction(y, x), want.direction(y, x)), 1e-4);
           // The shadow side: the same normal, modulo 2 pi.
-          const double d = std::fmod(std::abs(got.shadow(y, x) - want.shadow(y, x)), 2 * std::numbers::pi);
-          EXPECT_LT(std::min(d, 2 * std::numbers::pi - d), 1e-4);
+          EXPECT_LT(oriented_angle_difference(got.shadow(y, x), want.shadow(y, x)), 1e-4);
         }
   }
 }
@@ -230,7 +226,7 @@ TEST(DepthEdges, DirectionIsTheTangentOfTheDiscontinuity) {
       if (!edges.edges(y, x) || std::hypot(gx(y, x), gy(y, x)) < 0.3) continue;
       const double truth = std::atan2(gy(y, x), gx(y, x)) + std::numbers::pi / 2;
       ++compared;
-      close += angle_difference(edges.direction(y, x), truth) < 20 * std::numbers::pi / 180;
+      close += undirected_angle_difference(edges.direction(y, x), truth) < 20 * std::numbers::pi / 180;
       ASSERT_GE(edges.direction(y, x), 0.f);
       ASSERT_LT(edges.direction(y, x), std::numbers::pi_v<float>);
     }
@@ -275,7 +271,7 @@ TEST(DepthEdges, OrientedTangentPointsItsLeftNormalIntoTheShadow) {
     const float o = oriented_tangent(t, s);
     ASSERT_GE(o, 0.f);
     ASSERT_LT(o, 2 * std::numbers::pi_v<float>);
-    ASSERT_LT(angle_difference(o, t), 1e-5);
+    ASSERT_LT(undirected_angle_difference(o, t), 1e-5);
     ASSERT_GE(-std::sin(o) * std::cos(s) + std::cos(o) * std::sin(s), -1e-5f) << t << " " << s;
   }
 }
@@ -332,8 +328,8 @@ TEST(CannyEdges, FindsASquareWithItsDirections) {
       const bool on_side = (std::abs(x - 40) <= 1 || std::abs(x - 99) <= 1) && y > 32 && y < 77;
       const bool on_top = (std::abs(y - 30) <= 1 || std::abs(y - 79) <= 1) && x > 42 && x < 97;
       ASSERT_TRUE(on_side || on_top || (std::abs(x - 40) <= 2 || std::abs(x - 99) <= 2)) << x << "," << y;
-      if (on_side) vertical += angle_difference(out.direction(y, x), std::numbers::pi / 2) < 0.01;
-      if (on_top) horizontal += angle_difference(out.direction(y, x), 0) < 0.01;
+      if (on_side) vertical += undirected_angle_difference(out.direction(y, x), std::numbers::pi / 2) < 0.01;
+      if (on_top) horizontal += undirected_angle_difference(out.direction(y, x), 0) < 0.01;
     }
   EXPECT_GT(vertical, 80);
   EXPECT_GT(horizontal, 100);

@@ -1,6 +1,7 @@
 // edge_tangents: the chain direction of every edge pixel against its obviously-right twin (the
 // principal axis of the window's pixels by an eigen decomposition of their covariance), on
 // straight chains of known direction, and oriented by a shadow map.
+#include "vision/common/orientation.hpp"
 #include "vision/edges/depth_edges.hpp"
 #include "vision/edges/edge_tangents.hpp"
 
@@ -16,11 +17,6 @@
 using namespace mfcd::vision;
 
 namespace {
-
-double undirected_difference(double a, double b) {
-  const double d = std::fmod(std::abs(a - b), std::numbers::pi);
-  return std::min(d, std::numbers::pi - d);
-}
 
 // The twin: the window's edge pixels, their covariance, its major eigenvector's angle.
 double reference_tangent(const cv::Mat1b& edges, int x, int y, int radius) {
@@ -78,7 +74,7 @@ TEST(EdgeTangents, MatchReferenceOnRandomEdgeMaps) {
           const double spread = std::sqrt((a - b) * (a - b) + 4 * c * c);
           if (spread < 0.2) continue;
           ++compared;
-          ASSERT_LT(undirected_difference(d(y, x), reference_tangent(e, x, y, radius)), 1e-4)
+          ASSERT_LT(undirected_angle_difference(d(y, x), reference_tangent(e, x, y, radius)), 1e-4)
               << "trial " << trial << " radius " << radius << " at " << x << "," << y;
         }
       EXPECT_GT(compared, 300) << "trial " << trial;
@@ -101,7 +97,7 @@ TEST(EdgeTangents, StraightChainsHaveTheirDirection) {
     for (int y = 0; y < e.rows; ++y)
       for (int x = 0; x < e.cols; ++x)
         if (e(y, x) && std::hypot(x - 50, y - 50) < 40) {
-          const double err = undirected_difference(d(y, x), a);
+          const double err = undirected_angle_difference(d(y, x), a);
           sum += err, worst = std::max(worst, err), ++n;
         }
     ASSERT_GT(n, 50);
