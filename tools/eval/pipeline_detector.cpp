@@ -101,7 +101,8 @@ void apply_pipeline_setting(vision::PipelineConfig& c, const std::string& settin
   static constexpr std::pair<const char*, double Config::*> kNumbers[] = {
       {"max_cost_px", &Config::max_cost_px},
       {"min_guide_overlap", &Config::min_guide_overlap},
-      {"evidence_weight", &Config::evidence_weight}, {"escalate_below", &Config::escalate_below}};
+      {"evidence_weight", &Config::evidence_weight}, {"escalate_below", &Config::escalate_below},
+      {"search_polarity_penalty_px", &Config::search_polarity_penalty_px}};
   static constexpr std::pair<const char*, int Config::*> kIntegers[] = {
       {"template_guides", &Config::template_guides}, {"query_guides", &Config::query_guides},
       {"view_stride", &Config::view_stride},         {"coarse_seeds", &Config::coarse_seeds},
@@ -114,7 +115,7 @@ void apply_pipeline_setting(vision::PipelineConfig& c, const std::string& settin
       {"escalate_hypotheses", &Config::escalate_hypotheses}};
   static constexpr std::pair<const char*, bool Config::*> kSwitches[] = {
       {"share_search_bound", &Config::share_search_bound}, {"trace", &Config::trace},
-      {"edge_polarity", &Config::edge_polarity}};
+      {"edge_polarity", &Config::edge_polarity},         {"search_polarity", &Config::search_polarity}};
   const auto eq = setting.find('=');
   if (eq == std::string::npos) throw std::invalid_argument("'" + setting + "' is not key=value");
   const std::string key = setting.substr(0, eq), value = setting.substr(eq + 1);

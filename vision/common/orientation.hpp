@@ -1,6 +1,9 @@
 #pragma once
 // Orientation channels (paper Sec. 3.4): edge directions are undirected, modulo pi, and are
 // quantised into q evenly spaced channels; channel c is centred on the angle c*pi/q.
+// Oriented channels (an extension: the search with edge polarity, docs/fdcm.md) span 2 pi
+// instead: channel c is centred on c*2pi/q, and c and c + q/2 are the two polarities of one
+// undirected direction.
 //
 // Angle convention everywhere in vision/: image coordinates (x right, y down), an angle is
 // atan2(dy, dx) in those coordinates, reduced to [0, pi).
@@ -37,19 +40,26 @@ inline constexpr unsigned char kNoChannel = 255;
 
 class OrientationChannels {
 public:
-  explicit OrientationChannels(int q) : q_(q) {
+  // `oriented`: the q channels span a full turn [0, 2 pi) instead of [0, pi): an oriented edge
+  // also says which of its sides is the occluder (edge polarity, oriented_tangent in
+  // vision/edges), and channel c + q/2 is channel c's direction reversed. q must then be even.
+  explicit OrientationChannels(int q, bool oriented = false) : q_(q), oriented_(oriented) {
     if (q <= 0 || q > kMaxChannels)
       throw std::invalid_argument("orientation channels: q must be in 1.." + std::to_string(kMaxChannels) +
                                   ", got " + std::to_string(q));
+    if (oriented && q % 2 != 0)
+      throw std::invalid_argument("orientation channels: oriented channels need an even q, got " + std::to_string(q));
   }
   int q() const { return q_; }
-  double step() const { return std::numbers::pi / q_; }
+  bool oriented() const { return oriented_; }
+  double period() const { return oriented_ ? 2 * std::numbers::pi : std::numbers::pi; }
+  double step() const { return period() / q_; }
   double angleOf(int channel) const { return channel * step(); }
 
-  // Channel whose centre is nearest to the (undirected) angle.
+  // Channel whose centre is nearest to the angle (taken modulo the period).
   int channelOf(double angle) const {
-    double a = std::fmod(angle, std::numbers::pi);
-    if (a < 0) a += std::numbers::pi;
+    double a = std::fmod(angle, period());
+    if (a < 0) a += period();
     int c = static_cast<int>(std::lround(a / step()));
     return c % q_;
   }
@@ -63,17 +73,26 @@ public:
     return c < 0 ? c + q_ : c;
   }
   // A channel is "x-major" when its direction is closer to the x axis than to the y axis
-  // (the 45-degree channels count as x-major). Decided on integers so it never flickers.
-  bool xMajor(int channel) const { return 4 * channel <= q_ || 4 * channel >= 3 * q_; }
+  // (the 45-degree channels count as x-major). Decided on integers so it never flickers; a
+  // channel and its reverse (oriented) have the same axis.
+  bool xMajor(int channel) const {
+    const int half = oriented_ ? q_ / 2 : q_;  // channels per half turn
+    const int c = channel % half;
+    return 4 * c <= half || 4 * c >= 3 * half;
+  }
   // Minor-axis change per major-axis step of the channel's direction (|slope| <= 1 by the choice
-  // of major axis): tan(phi) for x-major channels, cot(phi) for y-major ones.
+  // of major axis): tan(phi) for x-major channels, cot(phi) for y-major ones. The same for a
+  // channel and its reverse.
   double minorSlope(int channel) const {
-    const double phi = angleOf(channel);
+    // From the undirected angle, so that a channel and its reverse share one digital pattern
+    // bit for bit (tan(phi + pi) need not round like tan(phi)).
+    const double phi = angleOf(oriented_ ? channel % (q_ / 2) : channel);
     return xMajor(channel) ? std::tan(phi) : std::cos(phi) / std::sin(phi);
   }
 
 private:
   int q_;
+  bool oriented_;
 };
 
 }  // namespace mfcd::vision

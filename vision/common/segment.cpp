@@ -36,6 +36,15 @@ void sortLongestFirst(std::vector<LineSegment>& lines, std::vector<std::pair<flo
   lines.assign(scratch.begin(), scratch.end());
 }
 
+LineSet withoutPolarity(const LineSet& set) {
+  if (!set.oriented) return set;
+  LineSet out = set;
+  out.oriented = false;
+  out.q = set.q / 2;
+  for (LineSegment& l : out.lines) l.channel %= out.q;
+  return out;
+}
+
 namespace {
 
 [[noreturn]] void fail(const std::string& source, int line, const std::string& what) {
@@ -108,6 +117,10 @@ LineSet parseLineText(const std::string& text, const std::string& source) {
         fail(source, lineNo, "size must be two positive integers");
       set.size = cv::Size(static_cast<int>(v[0]), static_cast<int>(v[1]));
       sawSize = true;
+    } else if (key == "oriented") {
+      const auto v = numbers(rest, 1, source, lineNo, "oriented");
+      if (v[0] != 0 && v[0] != 1) fail(source, lineNo, "oriented must be 0 or 1");
+      set.oriented = v[0] == 1;
     } else if (key == "origin") {
       const auto v = numbers(rest, 2, source, lineNo, "origin");
       set.origin = cv::Point2f(static_cast<float>(v[0]), static_cast<float>(v[1]));
@@ -120,7 +133,8 @@ LineSet parseLineText(const std::string& text, const std::string& source) {
   if (!sawQ) fail(source, lineNo, "missing 'q <channels>'");
   if (!sawSize) fail(source, lineNo, "missing 'size <width> <height>'");
   if (pending.empty()) fail(source, lineNo, "no segments");
-  const OrientationChannels channels(set.q);
+  if (set.oriented && set.q % 2 != 0) fail(source, lineNo, "oriented lines need an even q");
+  const OrientationChannels channels(set.q, set.oriented);
   for (const auto& [no, v] : pending) {
     LineSegment seg;
     seg.a = cv::Point2f(static_cast<float>(v[0]), static_cast<float>(v[1]));
@@ -146,7 +160,9 @@ void writeLineFile(const std::filesystem::path& path, const LineSet& set) {
   std::ofstream out(path);
   if (!out) throw std::runtime_error(path.string() + ": cannot write line file");
   out << "mfcd-lines 1\n# x1 y1 x2 y2 per segment, image pixels, longest first\n";
-  out << "q " << set.q << "\nsize " << set.size.width << ' ' << set.size.height << "\n";
+  out << "q " << set.q << "\n";
+  if (set.oriented) out << "oriented 1\n";
+  out << "size " << set.size.width << ' ' << set.size.height << "\n";
   out << "origin " << set.origin.x << ' ' << set.origin.y << "\n";
   out.precision(7);
   for (const auto& l : set.lines) out << l.a.x << ' ' << l.a.y << ' ' << l.b.x << ' ' << l.b.y << "\n";

@@ -12,7 +12,9 @@
 namespace mfcd::vision {
 
 // A fitted segment. Its direction is exactly the centre of `channel` (the fitter enforces this),
-// a and b lie on the fitted line, and `support` counts the edge pixels it explains.
+// a and b lie on the fitted line, and `support` counts the edge pixels it explains. In an
+// oriented set (LineSet::oriented) the direction from a to b is the edge's oriented direction:
+// its left normal (-sin, cos) points into the shadow side, away from the occluder.
 struct LineSegment {
   cv::Point2f a, b;
   int channel = 0;
@@ -24,6 +26,7 @@ struct LineSegment {
 // (detections report where the origin lands), `size` the edge map the lines came from.
 struct LineSet {
   int q = 60;
+  bool oriented = false;  // channels span 2 pi (OrientationChannels); a -> b says the polarity
   cv::Size size;
   cv::Point2f origin;
   std::vector<LineSegment> lines;  // longest first
@@ -32,6 +35,9 @@ struct LineSet {
 };
 
 void sortLongestFirst(std::vector<LineSegment>& lines);
+// The set without polarity: q/2 channels over pi, each line's channel modulo q/2 (its endpoints
+// unchanged). An undirected set is returned as it is.
+LineSet withoutPolarity(const LineSet& set);
 // The same order (longest first, equal lengths in their order) through kept buffers: no
 // allocation once they have grown (std::stable_sort allocates a temporary buffer each call).
 void sortLongestFirst(std::vector<LineSegment>& lines, std::vector<std::pair<float, int>>& order,
@@ -40,6 +46,7 @@ void sortLongestFirst(std::vector<LineSegment>& lines, std::vector<std::pair<flo
 // Text line files (format in docs/line-file.md):
 //   mfcd-lines 1
 //   q 60
+//   oriented 1                 optional: channels span 2 pi, a -> b is the oriented direction
 //   size <width> <height>
 //   origin <x> <y>
 //   <x1> <y1> <x2> <y2>        one segment per line, any count; '#' starts a comment

@@ -96,7 +96,8 @@ ShapeTemplate loadTemplate(const std::filesystem::path& path, const LineFitParam
   if (path.extension() == ".lines") {
     ShapeTemplate t;
     t.name = path.stem().string();
-    t.lines = readLineFile(path);
+    // Canny edges (the detector's query) have no polarity: an oriented file is matched without it.
+    t.lines = withoutPolarity(readLineFile(path));
     if (t.lines.q != params.q)
       throw std::runtime_error(path.string() + ": line file has q = " + std::to_string(t.lines.q) +
                                " but the detector uses q = " + std::to_string(params.q));
@@ -117,6 +118,7 @@ void ShapeDetector::addTemplate(ShapeTemplate t) {
   if (t.lines.q != params_.dt3.q)
     throw std::invalid_argument("template '" + t.name + "' has q = " + std::to_string(t.lines.q) +
                                 ", detector q = " + std::to_string(params_.dt3.q));
+  if (t.lines.oriented) throw std::invalid_argument("template '" + t.name + "' has oriented lines (withoutPolarity)");
   if (t.lines.lines.empty()) throw std::invalid_argument("template '" + t.name + "' has no lines");
   templates_.push_back(std::move(t));
 }

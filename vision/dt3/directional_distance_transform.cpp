@@ -15,12 +15,18 @@ namespace mfcd::vision {
 
 void Dt3Params::validate() const {
   if (q <= 0 || q > kMaxChannels) throw std::invalid_argument("DT3: q must be in 1..180");
+  if (oriented && q % 2 != 0) throw std::invalid_argument("DT3: oriented channels need an even q");
+  if (!(polarityPenalty >= 0)) throw std::invalid_argument("DT3: polarityPenalty must be >= 0 px");
   if (!(lambda >= 0 && lambda <= 30)) throw std::invalid_argument("DT3: lambda must be in [0, 30] px per channel step");
   if (!(maxCost > 0 && maxCost * kCostScale <= 255.0))
     throw std::invalid_argument("DT3: maxCost must be in (0, 31.875] px (one byte at 1/8 px)");
 }
 int Dt3Params::lambdaUnits() const { return static_cast<int>(std::lround(lambda * kCostScale)); }
 int Dt3Params::capUnits() const { return static_cast<int>(std::lround(maxCost * kCostScale)); }
+int Dt3Params::polarityPenaltyUnits() const {
+  if (polarityPenalty >= maxCost) return capUnits();
+  return std::min(capUnits(), static_cast<int>(std::lround(polarityPenalty * kCostScale)));
+}
 
 void DirectionalDistanceTransform::compute(const cv::Mat1b& channelMap, const Dt3Params& params) {
   params.validate();
@@ -162,6 +168,26 @@ void DirectionalDistanceTransform::channelDistance(int channel, std::span<const 
 }
 
 namespace {
+// a[i], b[i] = min(a[i], b[i] + penalty), min(b[i], a[i] + penalty) from the old values, with
+// saturation, over one row: a channel and its reverse (the polarity penalty).
+inline void relaxPair(uint8_t* a, uint8_t* b, int n, uint8_t penalty) {
+  int i = 0;
+#if defined(__SSE2__)
+  const __m128i p = _mm_set1_epi8(static_cast<char>(penalty));
+  for (; i + 16 <= n; i += 16) {
+    const __m128i va = _mm_loadu_si128(reinterpret_cast<const __m128i*>(a + i));
+    const __m128i vb = _mm_loadu_si128(reinterpret_cast<const __m128i*>(b + i));
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(a + i), _mm_min_epu8(va, _mm_adds_epu8(vb, p)));
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(b + i), _mm_min_epu8(vb, _mm_adds_epu8(va, p)));
+  }
+#endif
+  for (; i < n; ++i) {
+    const int va = a[i], vb = b[i];
+    a[i] = static_cast<uint8_t>(std::min(va, vb + penalty));
+    b[i] = static_cast<uint8_t>(std::min(vb, va + penalty));
+  }
+}
+
 // a[i] = min(a[i], b[i] + lambda) with saturation, over one row.
 inline void relax(uint8_t* a, const uint8_t* b, int n, uint8_t lambda) {
   int i = 0;
@@ -194,6 +220,13 @@ void DirectionalDistanceTransform::orientationRecursion(int row) {
     const int c = ((q_ - 2 - s) % q_ + q_) % q_, n = (c + 1) % q_;
     relax(base + c * planeSize, base + n * planeSize, width_, lam);
   }
+  // The polarity penalty: every entry now holds min over edges of distance + lambda * oriented
+  // channel distance; the same with the edges reversed is the reverse channel's entry, so one
+  // pass over the pairs gives min(lambda * d, lambda * d(reverse) + penalty).
+  const int penalty = params_.polarityPenaltyUnits();
+  if (params_.oriented && penalty < params_.capUnits())
+    for (int c = 0; c < q_ / 2; ++c)
+      relaxPair(base + c * planeSize, base + (c + q_ / 2) * planeSize, width_, static_cast<uint8_t>(penalty));
 }
 
 }  // namespace mfcd::vision

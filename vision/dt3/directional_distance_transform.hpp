@@ -7,6 +7,7 @@
 // Storage: one byte per entry in fixed point (1/kCostScale px), channel-major planes of
 // width x height. At 640x480 and q = 60 that is 18.4 MB; see docs/benchmarks.md.
 #include <cstdint>
+#include <limits>
 #include <span>
 #include <vector>
 
@@ -18,12 +19,23 @@ namespace mfcd::vision {
 
 struct Dt3Params {
   int q = 60;
+  // Channels span 2 pi (edge polarity, OrientationChannels): the transform itself only sees
+  // channel ids and their circular distance, so this only tells IDT3 and the matchers the
+  // channels' directions. q must then be even.
+  bool oriented = false;
+  // Oriented only: what an edge of the other polarity costs beyond its undirected orientation
+  // difference, px. With oriented channels alone an edge's reverse is q/2 steps away (lambda *
+  // q/2, the truncation at the paper's settings); a finite penalty makes the cost
+  //   min(lambda * d(c, c'), lambda * d(c + q/2, c') + polarityPenalty)
+  // (0 gives the undirected transform, infinity the oriented one). Quantised to 1/8 px.
+  double polarityPenalty = std::numeric_limits<double>::infinity();
   double lambda = 0.5;    // px per channel step (q = 60: 6 degrees ~ 1 px); quantised to 1/8 px
   double maxCost = 30.0;  // truncation, px; at most 255/kCostScale = 31.875
 
   void validate() const;  // throws std::invalid_argument naming the field
   int lambdaUnits() const;
   int capUnits() const;
+  int polarityPenaltyUnits() const;  // capped at capUnits() (no smaller cost can come of it)
 };
 
 class DirectionalDistanceTransform {
@@ -35,6 +47,7 @@ public:
   int width() const { return width_; }
   int height() const { return height_; }
   int q() const { return q_; }
+  OrientationChannels channels() const { return OrientationChannels(q_, params_.oriented); }
   const Dt3Params& params() const { return params_; }
   const uint8_t* plane(int channel) const { return data_.data() + static_cast<size_t>(channel) * width_ * height_; }
   uint8_t at(int channel, int x, int y) const { return plane(channel)[static_cast<size_t>(y) * width_ + x]; }

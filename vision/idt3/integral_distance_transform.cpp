@@ -7,15 +7,17 @@
 namespace mfcd::vision {
 
 void IntegralDistanceTransform::compute(const DirectionalDistanceTransform& dt3) {
-  const bool resized = width_ != dt3.width() || height_ != dt3.height() || q_ != dt3.q();
+  const bool resized = width_ != dt3.width() || height_ != dt3.height() || q_ != dt3.q() ||
+                       oriented_ != dt3.params().oriented;
   width_ = dt3.width();
   height_ = dt3.height();
   q_ = dt3.q();
+  oriented_ = dt3.params().oriented;
   const int s = stride(), rows = height_ + 2;
   const size_t planeSize = static_cast<size_t>(s) * rows;
   if (resized) {
     data_.assign(planeSize * q_, 0);  // guards stay zero from here on
-    lines_ = DigitalLineTable(OrientationChannels(q_), s, rows);
+    lines_ = DigitalLineTable(dt3.channels(), s, rows);
     hops_.assign(static_cast<size_t>(q_), {});
     for (int c = 0; c < q_; ++c) {
       if (!lines_.xMajor(c)) continue;

@@ -56,6 +56,7 @@ public:
 
 private:
   int width_ = 0, height_ = 0, q_ = 0;
+  bool oriented_ = false;
   std::vector<uint16_t> data_;
   DigitalLineTable lines_;
   // x-major channels: per column X, whether the predecessor is on the neighbouring row (depends

@@ -18,6 +18,9 @@ void LineFitParams::validate() const {
     throw std::invalid_argument("line fitting: channelSpread must be in 0..q/4");
   if (refineIterations < 0 || refineIterations > 10)
     throw std::invalid_argument("line fitting: refineIterations must be in 0..10");
+  if (oriented && 2 * q > kMaxChannels)
+    throw std::invalid_argument("line fitting: oriented lines have 2q channels, at most " +
+                                std::to_string(kMaxChannels));
 }
 
 namespace {
@@ -98,23 +101,29 @@ std::vector<float> localDirections(const std::vector<cv::Point>& pts, const cv::
 
 }  // namespace
 
-LineFitResult fitLines(const cv::Mat1b& edges, const LineFitParams& params, const cv::Mat1f* direction) {
+LineFitResult fitLines(const cv::Mat1b& edges, const LineFitParams& params, const cv::Mat1f* direction,
+                       const cv::Mat1f* shadow) {
   LineFitter fitter(params);
   LineFitResult result;
-  fitter.fit(edges, direction, result);
+  fitter.fit(edges, direction, result, shadow);
   return result;
 }
 
 LineFitter::LineFitter(const LineFitParams& params) : params_(params) { params_.validate(); }
 
-void LineFitter::fit(const cv::Mat1b& edges, const cv::Mat1f* direction, LineFitResult& result) {
+void LineFitter::fit(const cv::Mat1b& edges, const cv::Mat1f* direction, LineFitResult& result,
+                     const cv::Mat1f* shadow) {
   const LineFitParams& params = params_;
   if (edges.empty()) throw std::invalid_argument("line fitting: empty edge image");
   if (direction && direction->size() != edges.size())
     throw std::invalid_argument("line fitting: direction map size differs from the edge map");
+  if (params.oriented && !shadow) throw std::invalid_argument("line fitting: oriented lines need the shadow map");
+  if (params.oriented && shadow->size() != edges.size())
+    throw std::invalid_argument("line fitting: shadow map size differs from the edge map");
   const OrientationChannels ch(params.q);
 
-  result.set.q = params.q;
+  result.set.q = params.oriented ? 2 * params.q : params.q;
+  result.set.oriented = params.oriented;
   result.set.size = edges.size();
   result.set.origin = cv::Point2f(edges.cols / 2.0f, edges.rows / 2.0f);
   result.set.lines.clear();
@@ -237,6 +246,21 @@ void LineFitter::fit(const cv::Mat1b& edges, const cv::Mat1f* direction, LineFit
     seg.b = cv::Point2f(p0 + d * tmax);
     seg.channel = ch.channelOf(phi);
     seg.support = static_cast<int>(hi - lo);
+    if (params.oriented) {
+      // The majority of the support's shadow normals says which side of the line is the shadow.
+      // Oriented channel c (the same direction) or c + q (reversed), decided against the
+      // channel's centre so that it is always the undirected channel modulo q.
+      int votes = 0;
+      for (size_t i = lo; i < hi; ++i) {
+        const float side = (*shadow)(support[i]);
+        votes += -std::sin(phi) * std::cos(side) + std::cos(phi) * std::sin(side) >= 0 ? 1 : -1;
+      }
+      const bool reversed = votes < 0;
+      if (reversed) std::swap(seg.a, seg.b);
+      const double oriented = reversed ? phi + CV_PI : phi;
+      const double centre = ch.angleOf(seg.channel);
+      seg.channel += std::cos(oriented - centre) >= 0 ? 0 : params.q;
+    }
     for (size_t i = lo; i < hi; ++i) {
       alive(support[i]) = 0;
       result.channelMap(support[i]) = static_cast<uchar>(seg.channel);
@@ -264,6 +288,7 @@ void reduceQuery(const LineSet& lines, const cv::Mat1b& channelMap, int factor, 
     }
   const float s = 1.0f / static_cast<float>(factor);
   reducedLines.q = lines.q;
+  reducedLines.oriented = lines.oriented;
   reducedLines.size = small;
   reducedLines.origin = lines.origin * s;
   reducedLines.lines.clear();

@@ -25,6 +25,12 @@ struct LineFitParams {
   int directionRadius = 2;   // neighbourhood (2r+1)^2 for local edge directions
   int channelSpread = 1;     // hypotheses per seed: its local channel +- this many channels
   int refineIterations = 2;  // re-centre the line on its support this many times
+  // Edge polarity (docs/fdcm.md "Search with edge polarity"): each fitted segment is also
+  // oriented so that its left normal points into the shadow side, by the majority of its support
+  // pixels' shadow normals. The fit itself is the undirected one (same segments, same pixels);
+  // the result then has 2q channels over 2 pi (LineSet::oriented), and its channel map holds
+  // them. Needs the shadow map.
+  bool oriented = false;
 
   void validate() const;  // throws std::invalid_argument naming the bad field
 };
@@ -40,9 +46,11 @@ struct LineFitResult {
 
 // `edges`: nonzero = edge pixel. `direction` (optional, same size, radians): the edge tangent per
 // pixel, e.g. from the depth-edge extractor; without it local directions come from the
-// neighbourhood's principal axis. Throws std::invalid_argument on an empty image.
+// neighbourhood's principal axis. `shadow` (params.oriented only, same size): per pixel the
+// angle of the normal into the shadow side (DepthEdges::shadow). Throws std::invalid_argument on
+// an empty image, a map of another size, or an oriented fit without a shadow map.
 LineFitResult fitLines(const cv::Mat1b& edges, const LineFitParams& params = {},
-                       const cv::Mat1f* direction = nullptr);
+                       const cv::Mat1f* direction = nullptr, const cv::Mat1f* shadow = nullptr);
 
 // fitLines with its buffers kept between calls, for the pick cycle: once they (and `out`'s)
 // have grown to an image's needs, fitting an image of that size and no more edges allocates
@@ -51,7 +59,9 @@ LineFitResult fitLines(const cv::Mat1b& edges, const LineFitParams& params = {},
 class LineFitter {
  public:
   explicit LineFitter(const LineFitParams& params = {});  // throws std::invalid_argument (validate)
-  void fit(const cv::Mat1b& edges, const cv::Mat1f* direction, LineFitResult& out);
+  void fit(const cv::Mat1b& edges, const cv::Mat1f* direction, LineFitResult& out,
+           const cv::Mat1f* shadow = nullptr);
+  const LineFitParams& params() const { return params_; }
 
   struct Hypothesis {
     int score;

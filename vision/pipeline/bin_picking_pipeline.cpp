@@ -257,7 +257,7 @@ struct alignas(64) DistanceFitWorkspace {
 struct BinPickingPipeline::Impl {
   CameraConfig camera;
   PipelineConfig config;
-  LineFitter line_fitter;  // default LineFitParams
+  LineFitter line_fitter;  // default LineFitParams, oriented as the templates' lines
   LineFitResult lines;  // this cycle's query lines (buffers reused)
   Dt3Params dt3_params;
   std::vector<PartModel> parts;
@@ -439,7 +439,7 @@ double fit_distance(const LineSet& lines, const IntegralDistanceTransform& idt, 
   TemplatePlacement pl = full;
   pl.scale /= down;
   pl.origin_px *= 1.0 / down;
-  const double step = CV_PI / lines.q;
+  const double step = OrientationChannels(lines.q, lines.oriented).step();
   double best_cost = std::numeric_limits<double>::infinity();
   TemplatePlacement best = pl;
   uint64_t segments = 0;
@@ -506,9 +506,25 @@ BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfi
       if (other.db.obj_id == part.db.obj_id)
         throw std::runtime_error(part.file + ": obj_id " + std::to_string(part.db.obj_id) + " is also used by " +
                                  other.file);
-    if (part.db.q != m.dt3_params.q)
-      throw std::runtime_error(part.file + ": templates have q = " + std::to_string(part.db.q) + ", the pipeline " +
-                               std::to_string(m.dt3_params.q));
+    // The search's channels: the templates' own (oriented) ones when the search uses polarity,
+    // else the same lines without it. The first part decides; every other must agree.
+    if (part.db.oriented && !(m.config.search_polarity && m.config.cost == PipelineConfig::Cost::fdcm)) {
+      for (TemplateView& view : part.db.views) view.lines = withoutPolarity(view.lines);
+      part.db.q /= 2;
+      part.db.oriented = false;
+    }
+    if (m.parts.empty()) {
+      m.dt3_params.q = part.db.q;
+      m.dt3_params.oriented = part.db.oriented;
+      LineFitParams query = m.line_fitter.params();
+      query.q = part.db.oriented ? part.db.q / 2 : part.db.q;
+      query.oriented = part.db.oriented;
+      m.line_fitter = LineFitter(query);
+    }
+    if (part.db.q != m.dt3_params.q || part.db.oriented != m.dt3_params.oriented)
+      throw std::runtime_error(part.file + ": templates have q = " + std::to_string(part.db.q) +
+                               (part.db.oriented ? " oriented" : "") + ", the pipeline " +
+                               std::to_string(m.dt3_params.q) + (m.dt3_params.oriented ? " oriented" : ""));
     WarpGrid grid;
     grid.scales.clear();
     if (m.config.distances_mm.empty()) grid.scales.push_back(1.0);
@@ -516,7 +532,7 @@ BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfi
       if (!(d > 0)) throw std::runtime_error("pipeline: distances_mm must be positive");
       grid.scales.push_back(part.db.distance_mm / d);
     }
-    part.warps = grid.warps(m.dt3_params.q);
+    part.warps = grid.warps(m.dt3_params.q, m.dt3_params.oriented);
     part.oriented.resize(part.db.views.size());
     for (size_t v = 0; v < part.db.views.size(); ++v) {
       auto& list = part.oriented[v];
@@ -553,9 +569,13 @@ BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfi
   if (m.config.escalate_query_guides < 1 || m.config.escalate_hypotheses < 1)
     throw std::runtime_error("pipeline: escalate_query_guides and escalate_hypotheses must be >= 1");
   if (!(m.config.evidence_weight >= 0)) throw std::runtime_error("pipeline: evidence_weight must be >= 0");
+  if (!(m.config.search_polarity_penalty_px >= 0))
+    throw std::runtime_error("pipeline: search_polarity_penalty_px must be >= 0");
+  m.dt3_params.polarityPenalty = m.config.search_polarity_penalty_px;
   m.search_dt3 = m.dt3_params;
   m.search_dt3.lambda /= m.config.search_downsample;
   m.search_dt3.maxCost /= m.config.search_downsample;
+  m.search_dt3.polarityPenalty /= m.config.search_downsample;
   const int threads = m.config.threads > 0 ? m.config.threads : omp_get_max_threads();
   m.thread_hits.resize(static_cast<size_t>(threads));
   m.thread_hypotheses.resize(static_cast<size_t>(threads));
@@ -975,6 +995,7 @@ void BinPickingPipeline::Impl::query_without_best(int best) {
   }
   const LineSet& all = m.lines.set;
   round_query.set.q = all.q;
+  round_query.set.oriented = all.oriented;
   round_query.set.size = all.size;
   round_query.set.origin = all.origin;
   round_query.set.lines.clear();
@@ -1015,7 +1036,7 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
   auto t = Clock::now();
   out.times.edges_ms = ms_between(t0, t);
 
-  m.line_fitter.fit(m.edges.edges, &m.edges.direction, m.lines);
+  m.line_fitter.fit(m.edges.edges, &m.edges.direction, m.lines, m.dt3_params.oriented ? &m.edges.shadow : nullptr);
   const LineFitResult& fit = m.lines;
   out.edge_pixels = fit.inputEdgePixels;
   out.query_lines = static_cast<int>(fit.set.lines.size());

@@ -92,6 +92,18 @@ struct PipelineConfig {
   // the fit"): instances found among the top k 41 more, 21 fewer over the dev, capped and bench
   // sets; best-pick failures 162 -> 159. false = undirected, as before.
   bool edge_polarity = true;
+  // Edge polarity in the FDCM search (docs/fdcm.md "Search with edge polarity"): query and
+  // template lines are oriented by their shadow side and DT3/IDT3 have 2q channels over 2 pi, so
+  // a template line only matches image edges whose near side is on the same side. FDCM only
+  // (the baselines CM and OCM stay the paper's). false = undirected channels, as before.
+  bool search_polarity = true;
+  // What an image edge of the other polarity costs the search beyond its undirected orientation
+  // difference, px (Dt3Params::polarityPenalty; infinity: such an edge is as good as none). Parts
+  // in a bin touch: where a lower part's outline meets the upper one's, the depth edge there is
+  // the upper part's, and the lower part's template sees it reversed. Measured (docs/fdcm.md
+  // "Search with edge polarity"), failures over the capped, bench and three dev sets: 283
+  // undirected, 286 at infinity, 277 at 6 px; 3 and 10 px on three of the sets: 147 and 144 against 140.
+  double search_polarity_penalty_px = 6.0;
   // The bin floor (BinFloor): no part reaches below it. A fitted hypothesis reaching more than
   // its tolerance below is dropped; an unfitted one (the baselines) is slid onto the floor. Not
   // known by default (distance 0): no check. Measured on three dev sets (mfc-sim seeds 7, 13, 19;

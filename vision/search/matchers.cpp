@@ -57,6 +57,7 @@ void FdcmMatcher::beginRow(State& s, int ty) const {
 void ChamferCosts::compute(const cv::Mat1b& channelMap, const Dt3Params& params) {
   params.validate();
   q = params.q;
+  oriented = params.oriented;
   lambdaUnits = params.lambdaUnits();
   capUnits = params.capUnits();
   cv::Mat1b sites = channelMap != kNoChannel;
@@ -74,9 +75,9 @@ void ChamferCosts::compute(const cv::Mat1b& channelMap, const Dt3Params& params)
 }
 
 ChamferMatcher::ChamferMatcher(const ChamferCosts& costs, Kind kind)
-    : costs_(costs), kind_(kind), pattern_(OrientationChannels(costs.q), kMaxSegmentSpan + 1, kMaxSegmentSpan + 1) {
+    : costs_(costs), kind_(kind), pattern_(OrientationChannels(costs.q, costs.oriented), kMaxSegmentSpan + 1, kMaxSegmentSpan + 1) {
   const int q = costs.q;
-  const OrientationChannels ch(q);
+  const OrientationChannels ch(q, costs.oriented);
   orientationCost_.assign(static_cast<size_t>(q) * 256, 0);
   for (int a = 0; a < q; ++a)
     for (int b = 0; b < 256; ++b)
@@ -131,7 +132,7 @@ uint32_t ChamferMatcher::evaluate(const State& s, int tx, uint32_t stop, uint64_
 }
 
 DirectDcmMatcher::DirectDcmMatcher(const DirectionalDistanceTransform& dt3)
-    : dt3_(dt3), lines_(OrientationChannels(dt3.q()), dt3.width() + 2, dt3.height() + 2) {}
+    : dt3_(dt3), lines_(dt3.channels(), dt3.width() + 2, dt3.height() + 2) {}
 
 uint32_t DirectDcmMatcher::evaluate(const State& s, int tx, uint32_t stop, uint64_t& segments) const {
   uint32_t sum = 0;

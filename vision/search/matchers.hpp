@@ -112,6 +112,7 @@ struct ChamferCosts {
   cv::Mat1b distance;        // min(maxCost, Euclidean distance to the nearest edge pixel), fixed point
   cv::Mat1b nearestChannel;  // channel of that nearest edge pixel (OCM), kNoChannel without edges
   int q = 0;
+  bool oriented = false;  // Dt3Params::oriented
   int lambdaUnits = 0, capUnits = 0;
   void compute(const cv::Mat1b& channelMap, const Dt3Params& params);
 };

@@ -22,7 +22,7 @@ OrientedTemplate orientTemplate(const LineSet& set, int templateIndex, const War
 
 void orientTemplate(const LineSet& set, int templateIndex, const Warp& warp, OrientedTemplate& t,
                     std::vector<DigitalSegment>& scratch) {
-  const OrientationChannels ch(set.q);
+  const OrientationChannels ch(set.q, set.oriented);
   const cv::Matx22d A = warp.matrix();
   t.templateIndex = templateIndex;
   t.warp = warp;
@@ -124,14 +124,14 @@ std::vector<double> WarpGrid::series(double centre, double ratio, int count) {
   return v;
 }
 
-std::vector<Warp> WarpGrid::warps(int q) const {
+std::vector<Warp> WarpGrid::warps(int q, bool oriented) const {
   if (angleStepChannels <= 0) throw std::invalid_argument("warp grid: angleStepChannels must be >= 1");
   if (scales.empty() || aspects.empty()) throw std::invalid_argument("warp grid: needs at least one scale and aspect");
   for (double s : scales)
     if (!(s > 0.05 && s < 20)) throw std::invalid_argument("warp grid: scale out of range (0.05, 20)");
   for (double a : aspects)
     if (!(a > 0.2 && a < 5)) throw std::invalid_argument("warp grid: aspect out of range (0.2, 5)");
-  const double step = std::numbers::pi / q * angleStepChannels;
+  const double step = OrientationChannels(q, oriented).step() * angleStepChannels;
   std::vector<Warp> out;
   const int first = static_cast<int>(std::ceil(angleMin / step - 1e-9));
   for (int r = first; r * step < angleMax - 1e-9; ++r)

@@ -53,13 +53,13 @@ void reserveOrientedTemplate(const LineSet& set, double max_stretch, OrientedTem
 struct WarpGrid {
   double angleMin = 0;                  // radians; full turn by default
   double angleMax = 2 * 3.14159265358979323846;
-  int angleStepChannels = 1;            // rotation step in channel steps (pi/q); 1 keeps channels exact
+  int angleStepChannels = 1;            // rotation step in channel steps (OrientationChannels::step); 1 keeps channels exact
   std::vector<double> scales{1.0};
   std::vector<double> aspects{1.0};
 
   // Geometric series helpers for the paper's Sec. 5.2 setup (ratio 1.2 scales, 1.1 aspects).
   static std::vector<double> series(double centre, double ratio, int count);
-  std::vector<Warp> warps(int q) const;
+  std::vector<Warp> warps(int q, bool oriented = false) const;
 };
 
 }  // namespace mfcd::vision

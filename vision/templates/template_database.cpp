@@ -121,8 +121,9 @@ void put_lines(Writer& w, const LineSet& s) {
   }
 }
 
-LineSet get_lines(Reader& r, int q) {
+LineSet get_lines(Reader& r, int q, bool oriented) {
   LineSet s;
+  s.oriented = oriented;
   s.q = r.get<int32_t>("line set q");
   if (s.q != q) r.fail("a view's lines have q = " + std::to_string(s.q) + ", the database q = " + std::to_string(q));
   s.size.width = r.get<int32_t>("line set width");
@@ -214,6 +215,7 @@ void save_template_database(const TemplateDatabase& db, const std::filesystem::p
   w.put<double>(db.diameter_mm);
   w.put<int32_t>(db.sphere_samples);
   w.put<int32_t>(db.q);
+  w.put<uint8_t>(db.oriented ? 1 : 0);
   w.str(db.mesh.name);
   w.put(static_cast<uint32_t>(db.mesh.vertices.size()));
   for (const auto& v : db.mesh.vertices) w.put(v[0]), w.put(v[1]), w.put(v[2]);
@@ -312,7 +314,11 @@ TemplateDatabase load_template_database(const std::filesystem::path& file) {
   db.diameter_mm = r.finite("diameter");
   db.sphere_samples = r.get<int32_t>("sphere samples");
   db.q = r.get<int32_t>("q");
-  if (db.q < 1 || db.q > 360) r.fail("q = " + std::to_string(db.q) + " out of range");
+  if (db.q < 1 || db.q > kMaxChannels) r.fail("q = " + std::to_string(db.q) + " out of range");
+  const auto oriented = r.get<uint8_t>("oriented");
+  if (oriented > 1) r.fail("oriented flag " + std::to_string(oriented) + " is neither 0 nor 1");
+  db.oriented = oriented == 1;
+  if (db.oriented && db.q % 2 != 0) r.fail("oriented lines with an odd q = " + std::to_string(db.q));
   db.mesh.name = r.str("mesh name");
   db.mesh.vertices.resize(r.count("vertex count", 12));
   for (auto& v : db.mesh.vertices)
@@ -329,7 +335,7 @@ TemplateDatabase load_template_database(const std::filesystem::path& file) {
     for (int i = 0; i < 3; ++i) v.view_direction[i] = r.finite("view direction");
     for (int i = 0; i < 9; ++i) v.R_m2c.val[i] = r.finite("view rotation");
     for (int i = 0; i < 3; ++i) v.t_m2c_mm[i] = r.finite("view translation");
-    v.lines = get_lines(r, db.q);
+    v.lines = get_lines(r, db.q, db.oriented);
     v.points.resize(r.count("edge point count", 24));
     for (auto& p : v.points) {
       p.pixel.x = r.get<float>("edge point"), p.pixel.y = r.get<float>("edge point");

@@ -56,7 +56,7 @@ struct TemplateView {
 };
 
 struct TemplateDatabase {
-  static constexpr uint32_t kVersion = 2;
+  static constexpr uint32_t kVersion = 3;
 
   std::string part_name;
   int obj_id = 0;                  // BOP object id
@@ -66,7 +66,8 @@ struct TemplateDatabase {
   cv::Vec3d center_mm{0, 0, 0};    // model-frame point placed on the optical axis (bounding-box centre)
   double diameter_mm = 0;          // largest distance between two model vertices (BOP models_info)
   int sphere_samples = 0;          // K: views over the whole sphere before the symmetry reduction
-  int q = 60;                      // orientation channels the lines were fitted with
+  int q = 120;                     // orientation channels the lines were fitted with
+  bool oriented = true;            // lines carry edge polarity: q channels over 2 pi (LineSet::oriented)
   Mesh mesh;                       // the part model (mm), for refinement and overlays
   std::vector<TemplateView> views;
 };

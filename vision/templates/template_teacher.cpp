@@ -143,7 +143,11 @@ void trace_points(const DepthEdges& edges, const MfcRender& render, const Pinhol
 TemplateDatabase teach_templates(const Mesh& mesh, const CameraConfig& camera, const std::string& part_name,
                                  int obj_id, const TeachParams& params, const TeachProgress& progress) {
   validate_camera_config(camera, "teach camera");
-  params.lines.validate();
+  // Templates always carry edge polarity (the view's shadow side is known exactly); a pipeline
+  // that searches without it drops it when it loads them (withoutPolarity).
+  LineFitParams line_params = params.lines;
+  line_params.oriented = true;
+  line_params.validate();
   if (params.sphere_samples < 1 || params.sphere_samples > 100000)
     throw std::invalid_argument("sphere samples K = " + std::to_string(params.sphere_samples) +
                                 " out of range [1, 100000]");
@@ -157,7 +161,8 @@ TemplateDatabase teach_templates(const Mesh& mesh, const CameraConfig& camera, c
   db.center_mm = part_center(mesh);
   db.diameter_mm = mesh_diameter(mesh);
   db.sphere_samples = params.sphere_samples;
-  db.q = params.lines.q;
+  db.q = 2 * line_params.q;
+  db.oriented = true;
   db.mesh = mesh;
   const double radius = part_radius(mesh, db.center_mm);
   db.distance_mm = params.distance_mm > 0 ? params.distance_mm : camera.working_distance_mm;
@@ -204,7 +209,7 @@ TemplateDatabase teach_templates(const Mesh& mesh, const CameraConfig& camera, c
         // another distance would not show them, so they are removed before line fitting.
         drop_background_edges(edges, render);
         if (cv::countNonZero(edges.edges) >= params.min_edge_pixels) {
-          LineFitResult fit = fitLines(edges.edges, params.lines, &edges.direction);
+          LineFitResult fit = fitLines(edges.edges, line_params, &edges.direction, &edges.shadow);
           if (!fit.set.lines.empty()) {
             view.lines = std::move(fit.set);
             view.lines.origin = origin;

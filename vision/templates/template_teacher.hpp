@@ -22,7 +22,7 @@ struct TeachParams {
   double background_gap_mm = 15; // background plane this far behind the part's far side
   int min_edge_pixels = 30;      // views with fewer depth-edge pixels are dropped (degenerate)
   int threads = 0;               // rendering threads, each with its own GL context; 0 = cores
-  LineFitParams lines;
+  LineFitParams lines;           // `oriented` is always set: templates carry edge polarity
   DepthEdgeParams edges;
 };
 

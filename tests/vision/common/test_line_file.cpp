@@ -40,6 +40,35 @@ TEST(LineFile, RoundTrips) {
   std::filesystem::remove(path);
 }
 
+// An oriented set (edge polarity): the flag survives, and each channel comes back from its
+// endpoints' direction over the full turn (a reversed segment is the other polarity).
+TEST(LineFile, OrientedSetRoundTripsWithItsPolarity) {
+  LineSet set;
+  set.q = 120;
+  set.oriented = true;
+  set.size = cv::Size(120, 90);
+  set.lines.push_back({cv::Point2f(10, 10), cv::Point2f(70, 10), 0, 61});
+  set.lines.push_back({cv::Point2f(20, 80), cv::Point2f(20, 30), 90, 51});  // pointing up: 270 degrees
+  const auto path = std::filesystem::temp_directory_path() / "mfcd_oriented.lines";
+  writeLineFile(path, set);
+  const LineSet back = readLineFile(path);
+  EXPECT_TRUE(back.oriented);
+  EXPECT_EQ(back.q, 120);
+  ASSERT_EQ(back.lines.size(), 2u);
+  EXPECT_EQ(back.lines[0].channel, 0);
+  EXPECT_EQ(back.lines[1].channel, 90);
+  // Without the polarity: 60 channels over pi, the endpoints as they were.
+  const LineSet undirected = withoutPolarity(back);
+  EXPECT_FALSE(undirected.oriented);
+  EXPECT_EQ(undirected.q, 60);
+  EXPECT_EQ(undirected.lines[1].channel, 30);
+  EXPECT_EQ(undirected.lines[1].a, back.lines[1].a);
+  std::filesystem::remove(path);
+  EXPECT_NE(errorOf("mfcd-lines 1\nq 61\noriented 1\nsize 100 100\n1 1 9 9\n").find("even q"), std::string::npos);
+  EXPECT_NE(errorOf("mfcd-lines 1\nq 60\noriented 2\n").find("t.lines:3: oriented must be 0 or 1"),
+            std::string::npos);
+}
+
 TEST(LineFile, MalformedInputNamesFileLineAndReason) {
   EXPECT_NE(errorOf("").find("empty line file"), std::string::npos);
   EXPECT_NE(errorOf("hello 1\n").find("t.lines:1: not an mfcd line file"), std::string::npos);

@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <numbers>
 
 #include "vision/common/digital_line.hpp"
@@ -56,4 +57,41 @@ TEST(DigitalLineTable, PatternFollowsTheChannelSlope) {
       EXPECT_LE(std::abs(m[k] - k * slope), 0.5 + 1e-9);
     }
   }
+}
+
+// Oriented channels (edge polarity): q channels over a full turn; c and c + q/2 are one
+// undirected direction with its two polarities, sharing one digital pattern.
+TEST(OrientationChannels, OrientedChannelsSpanAFullTurn) {
+  const OrientationChannels ch(120, true);
+  const OrientationChannels undirected(60);
+  EXPECT_TRUE(ch.oriented());
+  EXPECT_DOUBLE_EQ(ch.period(), 2 * std::numbers::pi);
+  EXPECT_EQ(ch.step(), undirected.step()) << "the same angular resolution, bit for bit";
+  for (int c = 0; c < 120; ++c) {
+    EXPECT_EQ(ch.channelOf(ch.angleOf(c)), c);
+    EXPECT_EQ(ch.channelOf(ch.angleOf(c) + 2 * std::numbers::pi), c) << "directions are modulo 2 pi";
+    EXPECT_EQ(ch.channelOf(ch.angleOf(c) + std::numbers::pi), (c + 60) % 120) << "reversed is the other polarity";
+    EXPECT_EQ(ch.channelOf(ch.angleOf(c)) % 60, undirected.channelOf(ch.angleOf(c)));
+    EXPECT_EQ(ch.xMajor(c), undirected.xMajor(c % 60));
+    EXPECT_EQ(ch.minorSlope(c), undirected.minorSlope(c % 60)) << "one pattern for both polarities";
+  }
+  EXPECT_EQ(ch.distance(0, 60), 60) << "opposite polarities are half a turn apart";
+  EXPECT_EQ(ch.distance(1, 119), 2);
+  EXPECT_EQ(ch.channelOf(2 * std::numbers::pi - 0.1 * ch.step()), 0) << "wraps to channel 0 near 2 pi";
+  EXPECT_THROW(OrientationChannels(59, true), std::invalid_argument);
+}
+
+// The x-major choice is the direction's, whatever the period: |cos| >= |sin| at the centre
+// (45-degree channels x-major).
+TEST(OrientationChannels, XMajorFollowsTheDirection) {
+  for (const bool oriented : {false, true})
+    for (const int q : {8, 12, 60, 120, 180}) {
+      const OrientationChannels ch(q, oriented);
+      for (int c = 0; c < q; ++c) {
+        const double phi = ch.angleOf(c);
+        const double ac = std::abs(std::cos(phi)), as = std::abs(std::sin(phi));
+        if (std::abs(ac - as) < 1e-9) EXPECT_TRUE(ch.xMajor(c)) << "q " << q << " c " << c;
+        else EXPECT_EQ(ch.xMajor(c), ac > as) << "q " << q << " oriented " << oriented << " c " << c;
+      }
+    }
 }

@@ -17,18 +17,25 @@ TEST(Idt3, SegmentSumsEqualDirectSums) {
   IntegralDistanceTransform idt;
   cv::Size last_size;
   int last_q = 60;
-  for (int trial = 0; trial < 12; ++trial) {
+  bool last_oriented = false;
+  for (int trial = 0; trial < 16; ++trial) {
     Dt3Params p;
     p.q = trial % 3 == 0 ? 60 : 8 + trial;
+    // Oriented channels (q over 2 pi, edge polarity): their own digital patterns, a channel and
+    // its reverse sharing one. Trial 15 keeps trial 14's size and q = 120 but drops the
+    // orientation: the table must be rebuilt for it.
+    p.oriented = trial >= 12;
+    if (p.oriented) p.q = 120;
     const cv::Size fresh(120 + static_cast<int>(rng() % 200), 90 + static_cast<int>(rng() % 200));
     const bool reuse = trial % 2 == 1;  // odd trials keep the previous size and q: the reuse path
     const cv::Size size = reuse ? last_size : fresh;
-    if (reuse) p.q = last_q;
-    const cv::Mat1b map = randomChannelMap(rng, size, p.q, 15, 30);
+    if (reuse) p.q = last_q, p.oriented = trial == 15 ? !last_oriented : last_oriented;
+    const cv::Mat1b map = randomChannelMap(rng, size, p.q, 15, 30, p.oriented);
     dt3.compute(map, p);
     idt.compute(dt3);
     last_size = size;
     last_q = p.q;
+    last_oriented = p.oriented;
     int checked = 0;
     while (checked < 3000) {
       const int c = static_cast<int>(rng() % p.q);

@@ -97,6 +97,64 @@ TEST(LineFitter, RecoversRandomPolygons) {
   std::printf("worst endpoint distance from its polygon edge line: %.3f px\n", worstPerpendicular);
 }
 
+// Edge polarity: the oriented fit is the undirected fit (same segments, same pixels), each
+// segment turned so that its left normal points into the shadow side, which the majority of its
+// pixels' shadow normals decides. Convex polygons, shadow outside (a part occludes what lies
+// around it), a fifth of the pixels' shadow normals reversed as noise.
+TEST(LineFitter, OrientedLinesAreTheUndirectedOnesTurnedTowardsTheShadow) {
+  std::mt19937 rng(31);
+  const OrientationChannels oriented(120, true);
+  LineFitParams up, op;
+  op.oriented = true;
+  for (int trial = 0; trial < 12; ++trial) {
+    cv::Mat1b img(300, 300, uchar(0));
+    const cv::Point2d centre(150, 150);
+    const auto poly = randomPolygon(rng, centre, 120, 3 + trial % 6);
+    std::vector<cv::Point> ipoly;
+    for (const auto& p : poly) ipoly.emplace_back(cvRound(p.x), cvRound(p.y));
+    cv::polylines(img, ipoly, true, 255, 1, cv::LINE_8);
+    cv::Mat1f shadow(img.size(), 0.f);
+    const bool flipped = trial % 3 == 2;  // shadow inside: a hole's rim, every segment reversed
+    for (int y = 0; y < img.rows; ++y)
+      for (int x = 0; x < img.cols; ++x) {
+        double a = std::atan2(y - centre.y, x - centre.x);
+        if (flipped) a += CV_PI;
+        if (rng() % 5 == 0) a += CV_PI;
+        shadow(y, x) = static_cast<float>(a < 0 ? a + 2 * CV_PI : a >= 2 * CV_PI ? a - 2 * CV_PI : a);
+      }
+    const LineFitResult u = fitLines(img, up);
+    const LineFitResult o = fitLines(img, op, nullptr, &shadow);
+    EXPECT_FALSE(u.set.oriented);
+    ASSERT_TRUE(o.set.oriented);
+    ASSERT_EQ(o.set.q, 120);
+    ASSERT_EQ(o.set.lines.size(), u.set.lines.size()) << "trial " << trial;
+    ASSERT_FALSE(o.set.lines.empty());
+    EXPECT_EQ(o.explainedEdgePixels, u.explainedEdgePixels);
+    for (size_t i = 0; i < o.set.lines.size(); ++i) {
+      const LineSegment &ol = o.set.lines[i], &ul = u.set.lines[i];
+      EXPECT_EQ(ol.channel % 60, ul.channel) << "trial " << trial << " line " << i;
+      EXPECT_EQ(ol.support, ul.support);
+      const bool same = ol.a == ul.a && ol.b == ul.b, swapped = ol.a == ul.b && ol.b == ul.a;
+      EXPECT_TRUE(same || swapped) << "the same endpoints, maybe swapped";
+      const cv::Point2d d(ol.b - ol.a), left(-d.y, d.x), mid = (cv::Point2d(ol.a) + cv::Point2d(ol.b)) * 0.5;
+      EXPECT_EQ(left.dot(mid - centre) > 0, !flipped) << "trial " << trial << ": left normal on the shadow side";
+      EXPECT_EQ(oriented.channelOf(std::atan2(d.y, d.x)), ol.channel) << "a -> b is the channel's direction";
+    }
+    for (int y = 0; y < img.rows; ++y)
+      for (int x = 0; x < img.cols; ++x) {
+        const uchar oc = o.channelMap(y, x), uc = u.channelMap(y, x);
+        ASSERT_EQ(oc == kNoChannel, uc == kNoChannel);
+        if (oc != kNoChannel) {
+          ASSERT_EQ(oc % 60, uc);
+        }
+      }
+  }
+  const cv::Mat1b some(20, 20, uchar(0));
+  EXPECT_THROW(fitLines(some, op), std::invalid_argument) << "an oriented fit needs the shadow map";
+  const cv::Mat1f small(10, 10, 0.f);
+  EXPECT_THROW(fitLines(some, op, nullptr, &small), std::invalid_argument) << "of the edge map's size";
+}
+
 TEST(LineFitter, ChannelAlignedSegmentsComeBackWhole) {
   // A segment drawn exactly along a channel direction is one fitted segment with that channel,
   // its endpoints within 1 px of the drawn ones.

@@ -2,6 +2,8 @@
 
 #include <random>
 
+#include <opencv2/imgproc.hpp>
+
 #include "tests/vision/support/synthetic.hpp"
 #include "vision/lines/line_fitter.hpp"
 #include "vision/search/exhaustive_search.hpp"
@@ -21,27 +23,39 @@ struct PlantedScene {
   std::vector<OrientedTemplate> templates;
 };
 
-PlantedScene plantedScene(std::mt19937& rng) {
-  const OrientationChannels ch(60);
+// `oriented`: edge polarity (120 channels over 2 pi): the clutter's and the template's lines are
+// oriented, and the query is fitted with a shadow map saying each pixel's shadow side (the left
+// normal of its channel's direction).
+PlantedScene plantedScene(std::mt19937& rng, bool oriented = false) {
+  const OrientationChannels ch(oriented ? 120 : 60, oriented);
   Dt3Params p;
+  p.q = ch.q();
+  p.oriented = oriented;
   PlantedScene scene;
-  const LineSet set = randomLineSet(rng, p.q, 8, 15, 60, 35);
+  const LineSet set = randomLineSet(rng, p.q, 8, 15, 60, 35, oriented);
   scene.rotation = static_cast<int>(rng() % 120);
   const OrientedTemplate planted = orientTemplate(set, 0, Warp{scene.rotation * ch.step(), 1, 1});
   LineSet drawn;
   drawn.q = p.q;
+  drawn.oriented = oriented;
   drawn.lines = planted.lines;
   cv::Mat1b edges(240, 320, uchar(0));
-  cv::Mat1b map = randomChannelMap(rng, edges.size(), p.q, 30, 50);
+  cv::Mat1b map = randomChannelMap(rng, edges.size(), p.q, 30, 50, oriented);
   drawLineSet(map, drawn, {160, 120});
+  cv::Mat1f shadow(edges.size(), 0.f);
   for (int y = 0; y < map.rows; ++y)
-    for (int x = 0; x < map.cols; ++x) edges(y, x) = map(y, x) != kNoChannel ? 255 : 0;
-  scene.fit = fitLines(edges);
+    for (int x = 0; x < map.cols; ++x) {
+      edges(y, x) = map(y, x) != kNoChannel ? 255 : 0;
+      if (edges(y, x)) shadow(y, x) = static_cast<float>(std::fmod(ch.angleOf(map(y, x)) + CV_PI / 2, 2 * CV_PI));
+    }
+  LineFitParams lp;
+  lp.oriented = oriented;
+  scene.fit = fitLines(edges, lp, nullptr, oriented ? &shadow : nullptr);
   DirectionalDistanceTransform dt3;
   dt3.compute(scene.fit.channelMap, p);
   scene.idt.compute(dt3);
   WarpGrid grid;
-  for (const Warp& w : grid.warps(p.q)) scene.templates.push_back(orientTemplate(set, 0, w));
+  for (const Warp& w : grid.warps(p.q, oriented)) scene.templates.push_back(orientTemplate(set, 0, w));
   return scene;
 }
 
@@ -77,6 +91,113 @@ TEST(LineSearch, FindsPlantedTemplateWithFewHypotheses) {
     }
   }
   EXPECT_GE(found, 7) << "planted template found in most trials";
+}
+
+// The same with edge polarity: the oriented 1-D search pairs a guide only with query lines of
+// its own polarity (half the slides) and still lands on the planted copy, at the exhaustive
+// search's optimum within rounding.
+TEST(LineSearch, OrientedSearchFindsPlantedTemplateWithFewHypotheses) {
+  std::mt19937 rng(43);
+  const OrientationChannels ch(120, true);
+  int found = 0;
+  for (int trial = 0; trial < 8; ++trial) {
+    const PlantedScene scene = plantedScene(rng, true);
+    ASSERT_TRUE(scene.fit.set.oriented);
+    ASSERT_EQ(scene.templates.size(), 120u) << "one template per channel step over the full turn, as undirected";
+    const FdcmMatcher m(scene.idt);
+    const SearchResult r = lineSearch(m, scene.templates, scene.fit.set.lines, LineSearchParams{});
+    const SearchResult e = exhaustiveSearch(m, scene.templates, SearchParams{});
+    ASSERT_EQ(e.candidates.size(), 1u);
+    EXPECT_LT(r.stats.hypotheses * 20, e.stats.hypotheses);
+    if (r.candidates.empty()) continue;
+    const auto& c = r.candidates[0];
+    const bool right =
+        std::abs(c.tx - 160) <= 2 && std::abs(c.ty - 120) <= 2 &&
+        std::abs(std::remainder(scene.templates[c.oriented].warp.angle - scene.rotation * ch.step(), 2 * CV_PI)) <
+            2.5 * ch.step();
+    found += right;
+    if (right) {
+      EXPECT_LE(c.cost(), e.candidates[0].cost() + 0.35);
+    }
+  }
+  EXPECT_GE(found, 7) << "planted template found in most trials";
+}
+
+// What polarity buys: a part's outline (shadow outside) and a hole of the same shape (shadow
+// inside, as at a pocket's rim) give the same undirected edges. With oriented channels the
+// outline template costs nothing on the outline and a lot on the hole, at every rotation;
+// undirected it costs nothing on both.
+TEST(LineSearch, OrientedCostsTellAnOutlineFromAHole) {
+  std::mt19937 rng(5);
+  for (int trial = 0; trial < 6; ++trial) {
+    const auto poly = randomPolygon(rng, {0, 0}, 60, 4 + trial % 2);
+    const cv::Point2d outline(100, 120), hole(300, 120);
+    cv::Mat1b edges(240, 400, uchar(0));
+    cv::Mat1f shadow(edges.size(), 0.f);
+    for (const cv::Point2d at : {outline, hole}) {
+      cv::Mat1b one(edges.size(), uchar(0));
+      std::vector<cv::Point> ip;
+      for (const auto& v : poly) ip.emplace_back(cvRound(v.x + at.x), cvRound(v.y + at.y));
+      cv::polylines(one, ip, true, 255, 1, cv::LINE_8);
+      for (int y = 0; y < one.rows; ++y)
+        for (int x = 0; x < one.cols; ++x)
+          if (one(y, x)) {
+            edges(y, x) = 255;
+            double a = std::atan2(y - at.y, x - at.x) + (at == hole ? CV_PI : 0.0);
+            shadow(y, x) = static_cast<float>(a < 0 ? a + 2 * CV_PI : a >= 2 * CV_PI ? a - 2 * CV_PI : a);
+          }
+    }
+    // The template: the polygon's edges, each running with its left normal outwards.
+    LineSet tpl;
+    tpl.q = 120;
+    tpl.oriented = true;
+    const OrientationChannels ch(120, true);
+    for (size_t i = 0; i < poly.size(); ++i) {
+      cv::Point2d a = poly[i], b = poly[(i + 1) % poly.size()];
+      const cv::Point2d d = b - a;
+      if (cv::Point2d(-d.y, d.x).dot((a + b) * 0.5) < 0) std::swap(a, b);
+      LineSegment l;
+      l.a = cv::Point2f(a);
+      l.b = cv::Point2f(b);
+      l.channel = ch.channelOf(std::atan2(l.b.y - l.a.y, l.b.x - l.a.x));
+      tpl.lines.push_back(l);
+    }
+    for (const bool oriented : {true, false}) {
+      LineFitParams lp;
+      lp.oriented = oriented;
+      const LineFitResult fit = fitLines(edges, lp, nullptr, &shadow);
+      Dt3Params p;
+      p.q = oriented ? 120 : 60;
+      p.oriented = oriented;
+      DirectionalDistanceTransform dt3;
+      dt3.compute(fit.channelMap, p);
+      IntegralDistanceTransform idt;
+      idt.compute(dt3);
+      const FdcmMatcher m(idt);
+      const LineSet set = oriented ? tpl : withoutPolarity(tpl);
+      // The lowest cost near each place over every rotation and +-2 px.
+      double atOutline = 1e9, atHole = 1e9;
+      for (const Warp& w : WarpGrid{}.warps(p.q, oriented)) {
+        const OrientedTemplate t = orientTemplate(set, 0, w);
+        for (int dy = -2; dy <= 2; ++dy)
+          for (int dx = -2; dx <= 2; ++dx) {
+            uint64_t segs = 0;
+            const auto cost = [&](cv::Point2d at) {
+              return m.evaluateAt(t, cvRound(at.x) + dx, cvRound(at.y) + dy, UINT32_MAX, segs) /
+                     double(kCostScale * t.pixels);
+            };
+            atOutline = std::min(atOutline, cost(outline));
+            atHole = std::min(atHole, cost(hole));
+          }
+      }
+      EXPECT_LT(atOutline, 1.0) << "trial " << trial << " oriented " << oriented;
+      if (oriented) {
+        EXPECT_GT(atHole, 10.0) << "trial " << trial << ": the hole's edges have the other polarity";
+      } else {
+        EXPECT_LT(atHole, 1.0) << "trial " << trial << ": undirected, the hole matches as well";
+      }
+    }
+  }
 }
 
 // Best mode keeping several hypotheses: against the same search in Detect mode (every visited

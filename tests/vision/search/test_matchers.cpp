@@ -35,14 +35,15 @@ uint32_t fullCost(const M& m, const OrientedTemplate& t, int tx, int ty) {
 // for random templates under random rotations, scales and aspects, at random translations.
 TEST(FdcmMatcher, EqualsDirectDcmSum) {
   std::mt19937 rng(1);
-  for (int trial = 0; trial < 10; ++trial) {
+  for (int trial = 0; trial < 14; ++trial) {
     Dt3Params p;
+    if (trial >= 10) p.q = 120, p.oriented = true;  // edge polarity: 120 channels over 2 pi
     Query q;
-    q.map = randomChannelMap(rng, {200, 160}, p.q, 25, 40);
+    q.map = randomChannelMap(rng, {200, 160}, p.q, 25, 40, p.oriented);
     build(q, p);
     const FdcmMatcher fdcm(q.idt);
     const DirectDcmMatcher direct(q.dt3);
-    const LineSet set = randomLineSet(rng, p.q, 12, 3, 60, 40);
+    const LineSet set = randomLineSet(rng, p.q, 12, 3, 60, 40, p.oriented);
     std::uniform_real_distribution<double> ua(0, 6.283), us(0.7, 1.3), uas(0.85, 1.15);
     for (int w = 0; w < 10; ++w) {
       const OrientedTemplate t = orientTemplate(set, 0, Warp{ua(rng), us(rng), uas(rng)});
@@ -64,32 +65,38 @@ TEST(FdcmMatcher, EqualsDirectDcmSum) {
 // distance + lambda * orientation difference (floating point, within the storage rounding).
 TEST(DirectDcmMatcher, EqualsEquationSixOnTemplatePixels) {
   std::mt19937 rng(4);
-  Dt3Params p;
-  Query q;
-  q.map = randomChannelMap(rng, {80, 70}, p.q, 6, 5);
-  build(q, p);
-  const OrientationChannels ch(p.q);
-  const auto edges = labelledPixels(q.map);
-  const DirectDcmMatcher direct(q.dt3);
-  const DigitalLineTable lines(ch, 82, 72);
-  for (int trial = 0; trial < 20; ++trial) {
-    const LineSet set = randomLineSet(rng, p.q, 4, 3, 20, 12);
-    const OrientedTemplate t = orientTemplate(set, 0, Warp{});
-    const int tx = 20 + static_cast<int>(rng() % 40), ty = 20 + static_cast<int>(rng() % 30);
-    double sum = 0;
-    int n = 0;
-    for (const auto& seg : t.segments)
-      forEachPixel(lines, seg.channel, seg.x + tx, seg.y + ty, seg.span, 1, [&](int x, int y) {
-        double best = p.maxCost;
-        for (const auto& e : edges)
-          best = std::min(best, std::hypot(e[0] - x, e[1] - y) + p.lambda * ch.distance(seg.channel, e[2]));
-        sum += best;
-        ++n;
-      });
-    ASSERT_EQ(n, t.pixels);
-    const double dcm = sum / n;
-    const double viaMatcher = fullCost(direct, t, tx, ty) / double(kCostScale * t.pixels);
-    EXPECT_NEAR(viaMatcher, dcm, 0.5 / kCostScale + 1e-9);
+  // Undirected (the paper's) and oriented channels (edge polarity: 120 over 2 pi, where a
+  // template line next to the same edge reversed pays lambda * 60).
+  for (const bool oriented : {false, true}) {
+    Dt3Params p;
+    p.oriented = oriented;
+    if (oriented) p.q = 120;
+    Query q;
+    q.map = randomChannelMap(rng, {80, 70}, p.q, 6, 5, oriented);
+    build(q, p);
+    const OrientationChannels ch(p.q, oriented);
+    const auto edges = labelledPixels(q.map);
+    const DirectDcmMatcher direct(q.dt3);
+    const DigitalLineTable lines(ch, 82, 72);
+    for (int trial = 0; trial < 20; ++trial) {
+      const LineSet set = randomLineSet(rng, p.q, 4, 3, 20, 12, oriented);
+      const OrientedTemplate t = orientTemplate(set, 0, Warp{});
+      const int tx = 20 + static_cast<int>(rng() % 40), ty = 20 + static_cast<int>(rng() % 30);
+      double sum = 0;
+      int n = 0;
+      for (const auto& seg : t.segments)
+        forEachPixel(lines, seg.channel, seg.x + tx, seg.y + ty, seg.span, 1, [&](int x, int y) {
+          double best = p.maxCost;
+          for (const auto& e : edges)
+            best = std::min(best, std::hypot(e[0] - x, e[1] - y) + p.lambda * ch.distance(seg.channel, e[2]));
+          sum += best;
+          ++n;
+        });
+      ASSERT_EQ(n, t.pixels);
+      const double dcm = sum / n;
+      const double viaMatcher = fullCost(direct, t, tx, ty) / double(kCostScale * t.pixels);
+      EXPECT_NEAR(viaMatcher, dcm, 0.5 / kCostScale + 1e-9) << "oriented " << oriented;
+    }
   }
 }
 

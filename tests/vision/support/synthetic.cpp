@@ -15,9 +15,9 @@ void drawSegment(cv::Mat1b& map, cv::Point2d a, cv::Point2d b, int channel) {
 }
 }  // namespace
 
-cv::Mat1b randomChannelMap(std::mt19937& rng, cv::Size size, int q, int segments, int noise) {
+cv::Mat1b randomChannelMap(std::mt19937& rng, cv::Size size, int q, int segments, int noise, bool oriented) {
   cv::Mat1b map(size, kNoChannel);
-  const OrientationChannels ch(q);
+  const OrientationChannels ch(q, oriented);
   std::uniform_real_distribution<double> ux(0, size.width - 1), uy(0, size.height - 1), len(3, 40);
   std::uniform_int_distribution<int> uc(0, q - 1);
   for (int i = 0; i < segments; ++i) {
@@ -30,12 +30,14 @@ cv::Mat1b randomChannelMap(std::mt19937& rng, cv::Size size, int q, int segments
   return map;
 }
 
-LineSet randomLineSet(std::mt19937& rng, int q, int count, double minLen, double maxLen, double extent) {
+LineSet randomLineSet(std::mt19937& rng, int q, int count, double minLen, double maxLen, double extent,
+                      bool oriented) {
   LineSet set;
   set.q = q;
+  set.oriented = oriented;
   set.size = cv::Size(static_cast<int>(2 * extent + 1), static_cast<int>(2 * extent + 1));
   set.origin = cv::Point2f(0, 0);
-  const OrientationChannels ch(q);
+  const OrientationChannels ch(q, oriented);
   std::uniform_real_distribution<double> u(-extent, extent), len(minLen, maxLen);
   std::uniform_int_distribution<int> uc(0, q - 1);
   while (static_cast<int>(set.lines.size()) < count) {

@@ -11,12 +11,15 @@
 namespace mfcd::vision::testing {
 
 // Random segments rasterised into a channel map (each pixel labelled with its segment's
-// channel), plus `noise` isolated pixels with random channels.
-cv::Mat1b randomChannelMap(std::mt19937& rng, cv::Size size, int q, int segments, int noise);
+// channel), plus `noise` isolated pixels with random channels. `oriented`: the q channels span
+// 2 pi (OrientationChannels).
+cv::Mat1b randomChannelMap(std::mt19937& rng, cv::Size size, int q, int segments, int noise, bool oriented = false);
 
 // Random line set: `count` channel-aligned segments of length [minLen, maxLen] inside a box of
-// half-size `extent` around the origin (0, 0).
-LineSet randomLineSet(std::mt19937& rng, int q, int count, double minLen, double maxLen, double extent);
+// half-size `extent` around the origin (0, 0). `oriented`: an oriented set (a -> b along the
+// channel's direction over 2 pi).
+LineSet randomLineSet(std::mt19937& rng, int q, int count, double minLen, double maxLen, double extent,
+                      bool oriented = false);
 
 // Rasterises a line set into a channel map, origin placed at `at`, using the line fitter's
 // convention (pixels of each segment labelled with its channel).

@@ -103,6 +103,21 @@ TEST(TemplateTeacher, EveryViewHasLinesAndPointsThatReprojectOntoTheirPixels) {
       for (const auto& p : v.points) best = std::min(best, double(cv::norm(p.pixel - mid)));
       EXPECT_LT(best, 1.5);
     }
+    // The lines carry the polarity too (oriented, 120 channels over 2 pi): a line on the outline
+    // runs with its left normal away from the centre; by length, at least 90 % of the outline's.
+    ASSERT_TRUE(v.lines.oriented);
+    ASSERT_EQ(v.lines.q, 120);
+    const OrientationChannels channels(120, true);
+    double outline_length = 0, outward_length = 0;
+    for (const auto& l : v.lines.lines) {
+      const cv::Point2f a = l.a - v.lines.origin, b = l.b - v.lines.origin, mid = (a + b) * 0.5f, d = b - a;
+      EXPECT_EQ(channels.channelOf(std::atan2(d.y, d.x)), l.channel) << "a -> b is the channel's direction";
+      if (cv::pointPolygonTest(hull, a, true) > 2 || cv::pointPolygonTest(hull, b, true) > 2) continue;
+      outline_length += l.length();
+      outward_length += -d.y * mid.x + d.x * mid.y > 0 ? l.length() : 0;
+    }
+    EXPECT_GT(outline_length, 50) << "view " << v.index;
+    EXPECT_GE(outward_length, 0.9 * outline_length) << "view " << v.index;
   }
 }
 
@@ -140,6 +155,8 @@ TEST(TemplateFile, RoundTripKeepsEverything) {
   EXPECT_EQ(r.camera.flashes.positions_mm, db.camera.flashes.positions_mm);
   EXPECT_EQ(r.mesh.vertices.size(), db.mesh.vertices.size());
   EXPECT_EQ(r.mesh.triangles, db.mesh.triangles);
+  EXPECT_EQ(r.q, db.q);
+  EXPECT_TRUE(r.oriented);
   ASSERT_EQ(r.views.size(), db.views.size());
   for (size_t i = 0; i < db.views.size(); ++i) {
     EXPECT_EQ(r.views[i].R_m2c, db.views[i].R_m2c);
@@ -147,11 +164,14 @@ TEST(TemplateFile, RoundTripKeepsEverything) {
     ASSERT_EQ(r.views[i].lines.lines.size(), db.views[i].lines.lines.size());
     for (size_t k = 0; k < db.views[i].lines.lines.size(); ++k) {
       EXPECT_EQ(r.views[i].lines.lines[k].a, db.views[i].lines.lines[k].a);
+      EXPECT_EQ(r.views[i].lines.lines[k].b, db.views[i].lines.lines[k].b);
       EXPECT_EQ(r.views[i].lines.lines[k].channel, db.views[i].lines.lines[k].channel);
     }
     ASSERT_EQ(r.views[i].points.size(), db.views[i].points.size());
     EXPECT_EQ(r.views[i].points.back().model_mm, db.views[i].points.back().model_mm);
     EXPECT_EQ(r.views[i].lines.origin, db.views[i].lines.origin);
+    EXPECT_TRUE(r.views[i].lines.oriented);
+    EXPECT_EQ(r.views[i].lines.q, db.q);
   }
   EXPECT_NO_THROW(check_template_camera(r, sim_camera(), f.string()));
 }
