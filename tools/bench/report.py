@@ -75,6 +75,22 @@ def main(bench_dir, docs_dir):
             if r:
                 w("| %s | %d | %d | %.1f ms | <= 25 ms | %.1f MB (8-bit) | %.1f MB (16-bit) |" % (
                     "dense" if d else "typical", r["explained_pixels"], t, ms(r), r["dt3_MB"], r["idt3_MB"]))
+    oriented = [(d, t, pen, b.get("BM_Dt3Idt3BuildOriented/threads:%d/dense:%d/penalty:%d/real_time" % (t, d, pen)))
+                for d in (0, 1) for t in (1, 2) for pen in (0, 1)]
+    if any(r for *_, r in oriented):
+        w("\nThe same build with **oriented channels** (edge polarity, docs/fdcm.md \"Search with edge polarity\"): q = 120 "
+          "over 2 pi, each query pixel's channel c or c + 60 in alternating 16 px tiles (Canny edges have no shadow "
+          "side), strict (no penalty) or with the pipeline's 6 px polarity penalty; *ratio* = against the undirected "
+          "build of the same query and threads in this run.\n")
+        w("| query | threads | penalty | wall time | ratio | DT3 tensor | IDT3 tensor |")
+        w("|---|---:|---|---:|---:|---:|---:|")
+        for d, t, pen, r in oriented:
+            if not r:
+                continue
+            base = b.get("BM_Dt3Idt3Build/threads:%d/dense:%d/real_time" % (t, d))
+            ratio = "%.2f" % (ms(r) / ms(base)) if base else "-"
+            w("| %s | %d | %s | %.1f ms | %s | %.1f MB (8-bit) | %.1f MB (16-bit) |" % (
+                "dense" if d else "typical", t, "6 px" if pen else "none", ms(r), ratio, r["dt3_MB"], r["idt3_MB"]))
     w("\nMemory is bounded by q x W x H: one byte per DT3 entry (1/8 px fixed point, truncated at 31.875 px) and "
       "two bytes per IDT3 entry (sums wrap modulo 2^16; segments are split at 256 pixels so every segment sum is "
       "exact). DT3 is kept for the CM/OCM/direct-DCM reference paths; FDCM itself only reads IDT3.\n")
