@@ -168,26 +168,6 @@ void DirectionalDistanceTransform::channelDistance(int channel, std::span<const 
 }
 
 namespace {
-// a[i], b[i] = min(a[i], b[i] + penalty), min(b[i], a[i] + penalty) from the old values, with
-// saturation, over one row: a channel and its reverse (the polarity penalty).
-inline void relaxPair(uint8_t* a, uint8_t* b, int n, uint8_t penalty) {
-  int i = 0;
-#if defined(__SSE2__)
-  const __m128i p = _mm_set1_epi8(static_cast<char>(penalty));
-  for (; i + 16 <= n; i += 16) {
-    const __m128i va = _mm_loadu_si128(reinterpret_cast<const __m128i*>(a + i));
-    const __m128i vb = _mm_loadu_si128(reinterpret_cast<const __m128i*>(b + i));
-    _mm_storeu_si128(reinterpret_cast<__m128i*>(a + i), _mm_min_epu8(va, _mm_adds_epu8(vb, p)));
-    _mm_storeu_si128(reinterpret_cast<__m128i*>(b + i), _mm_min_epu8(vb, _mm_adds_epu8(va, p)));
-  }
-#endif
-  for (; i < n; ++i) {
-    const int va = a[i], vb = b[i];
-    a[i] = static_cast<uint8_t>(std::min(va, vb + penalty));
-    b[i] = static_cast<uint8_t>(std::min(vb, va + penalty));
-  }
-}
-
 // a[i] = min(a[i], b[i] + lambda) with saturation, over one row.
 inline void relax(uint8_t* a, const uint8_t* b, int n, uint8_t lambda) {
   int i = 0;
@@ -221,12 +201,17 @@ void DirectionalDistanceTransform::orientationRecursion(int row) {
     relax(base + c * planeSize, base + n * planeSize, width_, lam);
   }
   // The polarity penalty: every entry now holds min over edges of distance + lambda * oriented
-  // channel distance; the same with the edges reversed is the reverse channel's entry, so one
-  // pass over the pairs gives min(lambda * d, lambda * d(reverse) + penalty).
+  // channel distance; the same with the edges reversed is the reverse channel's entry, so
+  // relaxing each pair both ways gives min(lambda * d, lambda * d(reverse) + penalty). (The second
+  // relax sees the first's result: min(b, min(a, b + p) + p) = min(b, a + p), saturation included.)
   const int penalty = params_.polarityPenaltyUnits();
   if (params_.oriented && penalty < params_.capUnits())
-    for (int c = 0; c < q_ / 2; ++c)
-      relaxPair(base + c * planeSize, base + (c + q_ / 2) * planeSize, width_, static_cast<uint8_t>(penalty));
+    for (int c = 0; c < q_ / 2; ++c) {
+      uint8_t* forward = base + c * planeSize;
+      uint8_t* reverse = base + (c + q_ / 2) * planeSize;
+      relax(forward, reverse, width_, static_cast<uint8_t>(penalty));
+      relax(reverse, forward, width_, static_cast<uint8_t>(penalty));
+    }
 }
 
 }  // namespace mfcd::vision
