@@ -32,6 +32,18 @@ inline double oriented_angle_difference(double a, double b) {
   return std::min(d, 2 * std::numbers::pi - d);
 }
 
+// Whether the shadow side `shadow` (an angle in [0, 2 pi) as in DepthEdges::shadow: the edge
+// normal pointing into the shadow) lies on the left of the direction `tangent` (in [-pi, 2 pi)),
+// i.e. sin(shadow - tangent) >= 0: their difference, brought into [0, 2 pi), is at most pi.
+// Without trigonometry: the line fitter asks it of every claimed pixel of every cycle.
+inline bool shadow_left_of(double tangent, double shadow) {
+  constexpr double kTurn = 2 * std::numbers::pi;
+  double turn = shadow - tangent;
+  if (turn < 0) turn += kTurn;
+  if (turn >= kTurn) turn -= kTurn;
+  return turn <= kTurn / 2;
+}
+
 // Costs are stored in fixed point: one unit is 1/kCostScale pixel. 8 gives 1/8 px resolution
 // and lets a truncated per-pixel cost (<= 31.875 px) live in one byte.
 inline constexpr int kCostScale = 8;

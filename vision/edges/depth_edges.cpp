@@ -1,5 +1,7 @@
 #include "vision/edges/depth_edges.hpp"
 
+#include "vision/common/orientation.hpp"
+
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
@@ -38,8 +40,7 @@ float full_angle(float nx, float ny) {
 }  // namespace
 
 float oriented_tangent(float tangent, float shadow) {
-  const float left = -std::sin(tangent) * std::cos(shadow) + std::cos(tangent) * std::sin(shadow);
-  float a = left >= 0 ? tangent : tangent + std::numbers::pi_v<float>;
+  float a = shadow_left_of(tangent, shadow) ? tangent : tangent + std::numbers::pi_v<float>;
   if (a >= 2 * std::numbers::pi_v<float>) a -= 2 * std::numbers::pi_v<float>;
   if (a < 0) a += 2 * std::numbers::pi_v<float>;
   return a;

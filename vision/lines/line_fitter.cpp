@@ -250,16 +250,9 @@ void LineFitter::fit(const cv::Mat1b& edges, const cv::Mat1f* direction, LineFit
       // The majority of the support's shadow normals says which side of the line is the shadow.
       // Oriented channel c (the same direction) or c + q (reversed), decided against the
       // channel's centre so that it is always the undirected channel modulo q.
-      // A pixel votes for phi when its shadow normal is on the left of phi's direction, i.e.
-      // sin(shadow - phi) >= 0: the difference, brought into [0, 2 pi), is at most pi. (No
-      // trigonometry per pixel: this runs over every claimed pixel of every cycle.)
+      // A pixel votes for phi when its shadow normal lies on the left of phi's direction.
       int votes = 0;
-      for (size_t i = lo; i < hi; ++i) {
-        double turn = (*shadow)(support[i]) - phi;
-        if (turn < 0) turn += 2 * CV_PI;
-        if (turn >= 2 * CV_PI) turn -= 2 * CV_PI;
-        votes += turn <= CV_PI ? 1 : -1;
-      }
+      for (size_t i = lo; i < hi; ++i) votes += shadow_left_of(phi, (*shadow)(support[i])) ? 1 : -1;
       const bool reversed = votes < 0;
       if (reversed) std::swap(seg.a, seg.b);
       const double oriented = reversed ? phi + CV_PI : phi;
