@@ -110,7 +110,8 @@ void apply_pipeline_setting(vision::PipelineConfig& c, const std::string& settin
       {"keep_separation_px", &Config::keep_separation_px},
       {"search_downsample", &Config::search_downsample}, {"fit_candidates", &Config::fit_candidates},
       {"max_candidates", &Config::max_candidates},   {"flip_checks", &Config::flip_checks},
-      {"floor_starts", &Config::floor_starts},       {"search_rounds", &Config::search_rounds},
+      {"floor_starts", &Config::floor_starts},       {"rescore_hypotheses", &Config::rescore_hypotheses},
+      {"search_rounds", &Config::search_rounds},
       {"round_hypotheses", &Config::round_hypotheses}, {"escalate_query_guides", &Config::escalate_query_guides},
       {"escalate_hypotheses", &Config::escalate_hypotheses}};
   static constexpr std::pair<const char*, bool Config::*> kSwitches[] = {

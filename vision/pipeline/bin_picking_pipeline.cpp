@@ -560,6 +560,7 @@ BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfi
     throw std::runtime_error(std::string("pipeline: ") + e.what());
   }
   if (m.config.floor_starts < 0) throw std::runtime_error("pipeline: floor_starts must be >= 0");
+  if (m.config.rescore_hypotheses < 0) throw std::runtime_error("pipeline: rescore_hypotheses must be >= 0");
   if (m.config.coarse_seeds < 0) throw std::runtime_error("pipeline: coarse_seeds must be >= 0");
   if (m.config.search_rounds < 1 || m.config.search_rounds > PipelineConfig::kMaxSearchRounds)
     throw std::runtime_error("pipeline: search_rounds must be 1.." + std::to_string(PipelineConfig::kMaxSearchRounds));
@@ -885,6 +886,23 @@ void BinPickingPipeline::Impl::rank(const Cycle& cycle, size_t first) {
   const BinFloor& floor = m.config.floor;
   const int begin = static_cast<int>(first);
   const int count = static_cast<int>(m.verified.size()) - begin;
+  // Rescoring: the fit scores a pose with at most TemplateFitParams::max_points of its view's
+  // points (160 of up to ~1100), so two poses a few hundredths apart are ordered partly by which
+  // points the subsample kept. The best few are scored again with every point before the checks
+  // below and the choice of the cycle's picks (PipelineConfig::rescore_hypotheses).
+  const int rescored = std::min(m.config.rescore_hypotheses, count);
+  if (rescored > 0) {
+#pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
+    for (int i = begin; i < begin + rescored; ++i) {
+      Verified& v = m.verified[i];
+      if (v.fit_score <= 0 || Clock::now() > cycle.deadline) continue;
+      const PartModel& part = m.parts[v.hit.part];
+      const TemplateFitResult f = m.fitter.evaluate(part.db, v.view, v.fitted, m.camera.camera,
+                                                    m.fit_workspaces[omp_get_thread_num()], TemplatePoseFit::kAllPoints);
+      v.take(f, fitted_rank(f, part.db, m.config.evidence_weight));
+    }
+    sort_verified(first);
+  }
   // Floor starts: one view measures a part's distance poorly, and the fit converges to the
   // depth nearest its start. Parts low in the bin mostly rest on its floor, so the best few
   // hypotheses whose lowest point hovers above the floor are fitted again from the pose slid

@@ -272,11 +272,11 @@ double explained_edge_fraction(const cv::Mat1b& edges, const std::vector<cv::Poi
 }
 
 TemplateFitResult TemplatePoseFit::evaluate(const TemplateDatabase& db, int view, const RigidPose& pose,
-                                            const PinholeCamera& camera, Workspace& ws) const {
+                                            const PinholeCamera& camera, Workspace& ws, int max_points) const {
   TemplateFitResult r;
   r.pose = pose;
   r.view = view;
-  load_view(db, view, camera, ws);
+  load_view(db, view, camera, ws, max_points);
   score(db, view, camera, ws, r);
   return r;
 }
@@ -351,10 +351,9 @@ TemplatePoseFit::Difference TemplatePoseFit::compare(const TemplateDatabase& db,
                                                      Workspace& ws, const std::vector<uint8_t>* differs_a,
                                                      const std::vector<uint8_t>* differs_b, double apart_px) const {
   // Every point of both views (the fit's subsample is too sparse to say which points coincide).
-  constexpr int kAll = std::numeric_limits<int>::max();
-  load_view(db, a.view, camera, ws, kAll);
+  load_view(db, a.view, camera, ws, kAllPoints);
   place_points(db, a.view, a.pose, camera, ws, ws.seen_a, ws.angle_a);
-  load_view(db, b.view, camera, ws, kAll);
+  load_view(db, b.view, camera, ws, kAllPoints);
   place_points(db, b.view, b.pose, camera, ws, ws.seen_b, ws.angle_b);
   if ((differs_a && differs_a->size() != ws.seen_a.size()) || (differs_b && differs_b->size() != ws.seen_b.size()))
     throw std::invalid_argument("template fit: compare's point flags do not match the views");

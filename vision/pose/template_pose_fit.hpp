@@ -25,6 +25,7 @@
 #include "vision/templates/template_database.hpp"
 
 #include <cstdint>
+#include <limits>
 #include <numbers>
 #include <vector>
 
@@ -86,9 +87,11 @@ class TemplatePoseFit {
 
   TemplateFitResult fit(const TemplateDatabase& db, int view, const RigidPose& initial, const PinholeCamera& camera,
                         Workspace& ws) const;
-  // The score of a pose with the given view's points, without moving it.
+  // The score of a pose with the given view's points, without moving it: at most `max_points` of
+  // them, evenly subsampled (0: params().max_points, as fit() uses; kAllPoints: every one).
+  static constexpr int kAllPoints = std::numeric_limits<int>::max();
   TemplateFitResult evaluate(const TemplateDatabase& db, int view, const RigidPose& pose, const PinholeCamera& camera,
-                             Workspace& ws) const;
+                             Workspace& ws, int max_points = 0) const;
 
   // The template view nearest to `pose` (by the direction the camera sees the part from) over
   // the part's discrete symmetries; `pose` is replaced by the symmetric copy that view belongs

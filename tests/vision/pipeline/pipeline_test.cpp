@@ -221,6 +221,7 @@ TEST(Pipeline, RefusesBadConfiguration) {
   refuses("round_hypotheses", &PipelineConfig::round_hypotheses, {0});
   refuses("escalate_query_guides", &PipelineConfig::escalate_query_guides, {0});
   refuses("escalate_hypotheses", &PipelineConfig::escalate_hypotheses, {0});
+  refuses("rescore_hypotheses", &PipelineConfig::rescore_hypotheses, {-1});
   for (const double bad : {-0.1, std::numeric_limits<double>::quiet_NaN()}) {
     pc.escalate_below = bad;
     try {

@@ -231,6 +231,59 @@ TEST_P(TemplatePoseFitOnRenders, PointsPairOnlyWithEdgesWhoseNearSideIsThePart) 
 INSTANTIATE_TEST_SUITE_P(Parts, TemplatePoseFitOnRenders,
                          ::testing::Values("breaker", "diamond", "ellipse", "tnut", "knob", "wheel"));
 
+// evaluate() with a point budget: by default the fit's evenly spread subsample, on request every
+// point of the view. The two routes to every point (kAllPoints, and a fitter whose own budget
+// holds the whole view) give the same measures; the subsample's score lies near the whole
+// view's at the truth and at a pose 1.5 degrees off it, and both prefer the truth.
+TEST(TemplatePoseFit, EvaluatesEveryPointWhenAsked) {
+  const fs::path tdb = fs::path(MFC_BINARY_DIR) / "templates" / "diamond.tdb";
+  if (!fs::exists(tdb)) GTEST_SKIP() << tdb << " not built (needs OpenSCAD)";
+  FloorScene scene(tdb);
+  const TemplateDatabase& db = scene.db;
+  const CameraConfig& cam = scene.cam;
+  const RigidPose truth = scene.from_above(20, 0.3, 1.1, cv::Vec3d(-8, 6, 288));
+  scene.show(truth, 21);
+  RigidPose at = truth;
+  const int view = TemplatePoseFit::nearest_view(db, cam.camera, at);
+  const int n = static_cast<int>(db.views[static_cast<size_t>(view)].points.size());
+  const int budget = scene.fitter.params().max_points;
+  ASSERT_GT(n, 2 * budget) << "the test needs a view with more points than the fit uses";
+
+  TemplateFitParams whole;
+  whole.max_points = n;
+  TemplatePoseFit whole_fitter(whole);
+  whole_fitter.prepare(scene.edges);
+  const TemplatePoseFit& fitter = scene.fitter;
+  RigidPose off = at;
+  off.R = rotation_from_angle_axis(cv::Vec3d(0.6, -0.8, 0) * (1.5 * CV_PI / 180)) * at.R;
+  double full_at_truth = 0, sub_at_truth = 0;
+  for (const RigidPose& pose : {at, off}) {
+    const TemplateFitResult all = fitter.evaluate(db, view, pose, cam.camera, scene.ws, TemplatePoseFit::kAllPoints);
+    const TemplateFitResult twin = whole_fitter.evaluate(db, view, pose, cam.camera, scene.ws);
+    const TemplateFitResult sub = fitter.evaluate(db, view, pose, cam.camera, scene.ws);
+    const TemplateFitResult few = fitter.evaluate(db, view, pose, cam.camera, scene.ws, 40);
+    std::printf("%d points: every point %.3f (inliers %.2f), subsample of %d %.3f (%.2f), of 40 %.3f\n", n,
+                all.score, all.inlier_fraction, sub.points, sub.score, sub.inlier_fraction, few.score);
+    EXPECT_EQ(all.points, n);
+    EXPECT_EQ(twin.points, n);
+    EXPECT_EQ(all.score, twin.score);
+    EXPECT_EQ(all.mean_cost_px, twin.mean_cost_px);
+    EXPECT_EQ(all.inlier_fraction, twin.inlier_fraction);
+    EXPECT_EQ(all.coverage, twin.coverage);
+    EXPECT_EQ(sub.points, budget);
+    EXPECT_EQ(few.points, 40);
+    EXPECT_NEAR(sub.score, all.score, 0.1);
+    if (pose.R == at.R) {
+      full_at_truth = all.score;
+      sub_at_truth = sub.score;
+      EXPECT_GT(all.inlier_fraction, 0.6);
+    } else {
+      EXPECT_LT(all.score, full_at_truth);
+      EXPECT_LT(sub.score, sub_at_truth);
+    }
+  }
+}
+
 // compare(): the breaker is 2-fold symmetric but for its tilted toggle. Fitted at the truth and
 // turned by 180 degrees about z (both fit the outline equally), the edges where the two poses
 // differ favour the truth, also when only the toggle's points (asymmetric_points) are compared;
