@@ -303,6 +303,14 @@ struct BinPickingPipeline::Impl {
   };
   TemplatePoseFit fitter;
   bool fitter_prepared = false;  // the fitter indexes this cycle's edges (score_pose reuses them)
+  // A new fit (floor start, turned over) of the hypothesis ranked `index` in its search, scored as
+  // that hypothesis is, so that the two compare like for like: with every point of its view when
+  // the rescoring reached it, else with the fit's subsample.
+  TemplateFitResult scored_like(int index, const TemplateDatabase& db, const TemplateFitResult& f) {
+    if (index >= config.rescore_hypotheses) return f;
+    return fitter.evaluate(db, f.view, f.pose, camera.camera, fit_workspaces[omp_get_thread_num()],
+                           TemplatePoseFit::kAllPoints);
+  }
   void prepare_fitter() {
     if (fitter_prepared) return;
     // Without polarity: the same edges, no shadow map (Mat headers, no allocation).
@@ -917,7 +925,8 @@ void BinPickingPipeline::Impl::rank(const Cycle& cycle, size_t first) {
     if (height <= floor.tolerance_mm || height > kFloorStartHeightMm) continue;
     RigidPose start = floor.onto(part.db.mesh, v.fitted, part.db.center_mm);
     const int view = TemplatePoseFit::nearest_view(part.db, m.camera.camera, start);
-    const TemplateFitResult f = m.fitter.fit(part.db, view, start, m.camera.camera, m.fit_workspaces[omp_get_thread_num()]);
+    const TemplateFitResult f = m.scored_like(i - begin, part.db,
+        m.fitter.fit(part.db, view, start, m.camera.camera, m.fit_workspaces[omp_get_thread_num()]));
     if (f.score < kFloorStartMinScoreRatio * v.fit_score || floor.below(part.db.mesh, f.pose) ||
         moved_too_far_in_depth(part.db, v.coarse, f.pose))
       continue;
@@ -945,7 +954,7 @@ void BinPickingPipeline::Impl::rank(const Cycle& cycle, size_t first) {
       turned.R = current.pose.R * S;
       turned.t_mm = current.pose.t_mm + current.pose.R * (turn.pivot_mm - S * turn.pivot_mm);
       const int view = TemplatePoseFit::nearest_view(part.db, m.camera.camera, turned);
-      const TemplateFitResult f = m.fitter.fit(part.db, view, turned, m.camera.camera, ws);
+      const TemplateFitResult f = m.scored_like(i - begin, part.db, m.fitter.fit(part.db, view, turned, m.camera.camera, ws));
       if (moved_too_far_in_depth(part.db, v.coarse, f.pose) || f.score < kFlipMinScoreRatio * current.score ||
           floor.below(part.db.mesh, f.pose))
         continue;

@@ -73,11 +73,13 @@ struct PipelineConfig {
   // and ranked by the fitted score (TemplatePoseFit); false = ranked by the search cost.
   int fit_candidates = 48;
   // The best this many fitted hypotheses are scored again with every point of their view (the fit
-  // uses at most 160, evenly subsampled) and ranked by that, before the checks below. The scores of
-  // competing poses often differ by a few hundredths, about the subsample's own scatter. Measured
-  // on the capped, bench and three dev sets (1241 trials): failures 277 -> 267 (16 trials fixed,
-  // 6 broken), instances among the top k 1175 -> 1188; 24 or 48: the same failures, top k 1190;
-  // median detection +2 ms (docs/pose.md "Rescoring with every point"). 0 = off.
+  // uses at most 160, evenly subsampled) and ranked by that, before the checks below, whose new
+  // fits of them (floor starts, turned over) are then scored the same way. The scores of competing
+  // poses often differ by a few hundredths, about the subsample's own scatter. Measured on the
+  // capped, bench and three dev sets (1241 trials): failures 277 -> 267 with the ranking alone
+  // (24 or 48: the same), 257 with the checks' fits scored alike; instances among the top k
+  // 1175 -> 1198; median detection of the bench set 59 -> 68 ms (docs/pose.md "Rescoring with
+  // every point"). 0 = off.
   int rescore_hypotheses = 12;
   // The best this many fitted hypotheses are also fitted turned over (by 180 degrees about each
   // model axis that is not a symmetry) and, for an N-fold symmetry about z (N >= 3), turned about z
