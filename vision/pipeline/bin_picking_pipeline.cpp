@@ -1256,7 +1256,9 @@ PoseScore BinPickingPipeline::score_pose(int obj_id, const cv::Matx33d& R_m2c, c
   out.rank_px = out.cost_px + kUnexplainedPenaltyPx * (1.0 - out.coverage);
   m.prepare_fitter();
   const RigidPose start = coarse_pose(part->db, placement, m.camera.camera);
-  const TemplateFitResult f = m.fitter.fit(part->db, out.view, start, m.camera.camera, m.fit_workspaces[0]);
+  // Scored as a best hypothesis of the cycle is (PipelineConfig::rescore_hypotheses).
+  const TemplateFitResult f =
+      m.scored_like(0, part->db, m.fitter.fit(part->db, out.view, start, m.camera.camera, m.fit_workspaces[0]));
   out.fit_score = fitted_rank(f, part->db, m.config.evidence_weight);
   return out;
 }
