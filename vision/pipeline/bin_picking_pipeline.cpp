@@ -303,9 +303,10 @@ struct BinPickingPipeline::Impl {
   };
   TemplatePoseFit fitter;
   bool fitter_prepared = false;  // the fitter indexes this cycle's edges (score_pose reuses them)
-  // A new fit (floor start, turned over) of the hypothesis ranked `index` in its search, scored as
-  // that hypothesis is, so that the two compare like for like: with every point of its view when
-  // the rescoring reached it, else with the fit's subsample.
+  // A fit of the hypothesis ranked `index` in its search scored as that rank is scored: with every
+  // point of its view when the rescoring reaches it (PipelineConfig::rescore_hypotheses), else as
+  // the fit's subsample scored it. The rescoring itself, and the new fits the floor starts and the
+  // turned-over check make, go through here, so that they compare like for like.
   TemplateFitResult scored_like(int index, const TemplateDatabase& db, const TemplateFitResult& f) {
     if (index >= config.rescore_hypotheses) return f;
     return fitter.evaluate(db, f.view, f.pose, camera.camera, fit_workspaces[omp_get_thread_num()],
@@ -905,8 +906,7 @@ void BinPickingPipeline::Impl::rank(const Cycle& cycle, size_t first) {
       Verified& v = m.verified[i];
       if (v.fit_score <= 0 || Clock::now() > cycle.deadline) continue;
       const PartModel& part = m.parts[v.hit.part];
-      const TemplateFitResult f = m.fitter.evaluate(part.db, v.view, v.fitted, m.camera.camera,
-                                                    m.fit_workspaces[omp_get_thread_num()], TemplatePoseFit::kAllPoints);
+      const TemplateFitResult f = m.scored_like(i - begin, part.db, v.fit);
       v.take(f, fitted_rank(f, part.db, m.config.evidence_weight));
     }
     sort_verified(first);
