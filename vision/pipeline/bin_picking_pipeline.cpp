@@ -210,11 +210,31 @@ constexpr double kFloorStartHeightMm = 30;
 constexpr double kFloorStartMinScoreRatio = 0.8;
 
 // Turned-over check: the turned pose is considered when its fit scores at least this share of
-// the pose's, and taken when at least kFlipMinPoints of its points differ from the pose's and a
-// larger share of those (by kFlipMargin) lie on image edges than of the pose's own differing ones.
+// the pose's, and taken (turn_is_better) when at least kFlipMinPoints of its points differ from
+// the pose's and a larger share of those (by kFlipMargin) lie on image edges than of the pose's
+// own differing ones ...
 constexpr double kFlipMinScoreRatio = 0.6;
 constexpr int kFlipMinPoints = 6;
 constexpr double kFlipMargin = 0.2;
+// ... or when both have kFlipMinPoints differing and the turned pose's lie nearer edges by this
+// much of mean cost (TemplatePoseFit::Difference::cost_b, truncated at 10 px). The breaker's toggle
+// fitted from a template view a few degrees off lands 2-5 px beside its edges: 2 of 31 points
+// found, against 0 of 34 for the turned twin's toggle over bare bin, yet mean costs of 5.3 and
+// 9.5 px ...
+constexpr double kFlipCostMarginPx = 2;
+// ... or when the turned pose hides the feature (at most one point differs: the toggle faces
+// away) while the pose shows it where no edge lies near (mean cost at least this): the missing
+// edges of a feature the pose says is in view are the evidence. A part lying over the feature
+// would bring its own edges near.
+constexpr int kFlipHiddenMaxPoints = 1;
+constexpr double kFlipAbsentCostPx = 7;
+
+bool turn_is_better(const TemplatePoseFit::Difference& d) {
+  if (d.only_b >= kFlipMinPoints)
+    return d.found_b >= d.found_a + kFlipMargin ||
+           (d.only_a >= kFlipMinPoints && d.cost_b + kFlipCostMarginPx <= d.cost_a);
+  return d.only_b <= kFlipHiddenMaxPoints && d.only_a >= kFlipMinPoints && d.cost_a >= kFlipAbsentCostPx;
+}
 
 // Search rounds (PipelineConfig::search_rounds): a later round takes out the image edges within
 // this many pixels of the best candidates' points.
@@ -963,7 +983,7 @@ void BinPickingPipeline::Impl::rank(const Cycle& cycle, size_t first) {
           m.fitter.compare(part.db, current, f, m.camera.camera, ws,
                            feature ? &turn.differs[static_cast<size_t>(current.view)] : nullptr,
                            feature ? &turn.differs[static_cast<size_t>(f.view)] : nullptr);
-      if (d.only_b < kFlipMinPoints || d.found_b < d.found_a + kFlipMargin) continue;
+      if (!turn_is_better(d)) continue;
       current = f;
       // The turned pose replaces the fit, but never lowers the rank the hypothesis was sorted by.
       v.take(f, std::max(v.fit_rank, fitted_rank(f, part.db, m.config.evidence_weight)));

@@ -361,9 +361,11 @@ TemplatePoseFit::Difference TemplatePoseFit::compare(const TemplateDatabase& db,
   if (ws.explained.size() != size) ws.explained = cv::Mat1b::zeros(size);
   const cv::Rect image(cv::Point(0, 0), size);
   const int r = std::max(0, static_cast<int>(std::lround(apart_px)));
+  const double gate = std::max(kCompareGatePx, params_.inlier_cost_px);
   // The other pose's points, widened by apart_px, as a mask (ws.explained, cleared again after).
   auto only = [&](const std::vector<cv::Point2d>& mine, const std::vector<double>& angle,
-                  const std::vector<cv::Point2d>& other, const std::vector<uint8_t>* differs, int& count, double& found) {
+                  const std::vector<cv::Point2d>& other, const std::vector<uint8_t>* differs, int& count, double& found,
+                  double& cost) {
     cv::Rect touched;
     for (const auto& q : other) {
       const cv::Point c(cvRound(q.x), cvRound(q.y));
@@ -372,21 +374,26 @@ TemplatePoseFit::Difference TemplatePoseFit::compare(const TemplateDatabase& db,
       touched |= cv::Rect(c.x - r, c.y - r, 2 * r + 1, 2 * r + 1);
     }
     int n = 0, on = 0;
+    double sum = 0;
     for (size_t i = 0; i < mine.size(); ++i) {
       const cv::Point c(cvRound(mine[i].x), cvRound(mine[i].y));
       if (!image.contains(c)) continue;
       if (ws.explained(c) != 0 || (differs && !(*differs)[i])) continue;
       ++n;
-      const EdgeMatch m = index_.nearest(mine[i], angle[i], params_.lambda_px_per_rad, params_.score_gate_px);
+      // One query with the wider gate: the index returns the exact argmin, so the inlier test
+      // gives what a query gated at score_gate_px would.
+      const EdgeMatch m = index_.nearest(mine[i], angle[i], params_.lambda_px_per_rad, gate);
       on += m.found && m.cost <= params_.inlier_cost_px;
+      sum += m.found ? std::min(m.cost, kCompareGatePx) : kCompareGatePx;
     }
+    cost = n ? sum / n : kCompareGatePx;
     ws.explained(touched & image).setTo(0);
     count = n;
     found = n ? double(on) / n : 0;
   };
   Difference d;
-  only(ws.seen_a, ws.angle_a, ws.seen_b, differs_a, d.only_a, d.found_a);
-  only(ws.seen_b, ws.angle_b, ws.seen_a, differs_b, d.only_b, d.found_b);
+  only(ws.seen_a, ws.angle_a, ws.seen_b, differs_a, d.only_a, d.found_a, d.cost_a);
+  only(ws.seen_b, ws.angle_b, ws.seen_a, differs_b, d.only_b, d.found_b, d.cost_b);
   return d;
 }
 

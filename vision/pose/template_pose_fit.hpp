@@ -100,13 +100,20 @@ class TemplatePoseFit {
 
   // Two fitted poses of one part at one place (e.g. a pose and its turn by 180 degrees about a
   // near-symmetry axis) judged where they differ: only the points of each that have no point of
-  // the other within `apart_px` in the image, and the share of those that find an image edge
-  // (Eq. 21 cost <= inlier_cost_px). Where the poses agree, the edges cannot tell them apart.
+  // the other within `apart_px` in the image, the share of those that find an image edge
+  // (Eq. 21 cost <= inlier_cost_px) and their mean cost. Where the poses agree, the edges cannot
+  // tell them apart.
   // `differs_a` / `differs_b` (per point of a's / b's view, e.g. from asymmetric_points) narrow
   // each side further to its flagged points.
+  static constexpr double kCompareGatePx = 10;
   struct Difference {
     int only_a = 0, only_b = 0;         // points of each with no counterpart in the other
     double found_a = 0, found_b = 0;    // share of those on image edges
+    // Their mean Eq. 21 cost, truncated at kCompareGatePx (kCompareGatePx when there are none):
+    // how near edges they lie, also when few lie on one. A small feature fitted from a template
+    // view a few degrees off its pose lands 2-5 px beside its edges, where the share found says
+    // as little as for a feature with no edge near at all.
+    double cost_a = kCompareGatePx, cost_b = kCompareGatePx;
   };
   Difference compare(const TemplateDatabase& db, const TemplateFitResult& a, const TemplateFitResult& b,
                      const PinholeCamera& camera, Workspace& ws, const std::vector<uint8_t>* differs_a = nullptr,

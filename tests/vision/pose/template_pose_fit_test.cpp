@@ -286,8 +286,8 @@ TEST(TemplatePoseFit, EvaluatesEveryPointWhenAsked) {
 
 // compare(): the breaker is 2-fold symmetric but for its tilted toggle. Fitted at the truth and
 // turned by 180 degrees about z (both fit the outline equally), the edges where the two poses
-// differ favour the truth, also when only the toggle's points (asymmetric_points) are compared;
-// a pose compared with itself differs nowhere.
+// differ favour the truth, by the share found on edges and by their mean cost, also when only the
+// toggle's points (asymmetric_points) are compared; a pose compared with itself differs nowhere.
 TEST(TemplatePoseFit, CompareFavoursTheTruthOverItsTurnedOverTwin) {
   const fs::path tdb = fs::path(MFC_BINARY_DIR) / "templates" / "breaker.tdb";
   if (!fs::exists(tdb)) GTEST_SKIP() << tdb << " not built (needs OpenSCAD)";
@@ -300,7 +300,7 @@ TEST(TemplatePoseFit, CompareFavoursTheTruthOverItsTurnedOverTwin) {
   std::uniform_real_distribution<double> u(-1, 1);
   const cv::Matx33d half_turn_z(-1, 0, 0, 0, -1, 0, 0, 0, 1);
   const auto toggle = asymmetric_points(db, part_surface(db), half_turn_z);
-  int favoured = 0, favoured_on_toggle = 0;
+  int favoured = 0, favoured_on_toggle = 0, favoured_by_cost = 0, favoured_on_toggle_by_cost = 0;
   const int trials = 5;
   for (int trial = 0; trial < trials; ++trial) {
     // Seen from above within 35 degrees (the toggle in view), turned at random in the image.
@@ -317,25 +317,82 @@ TEST(TemplatePoseFit, CompareFavoursTheTruthOverItsTurnedOverTwin) {
     const auto same = fitter.compare(db, right, right, cam.camera, ws);
     EXPECT_EQ(same.only_a, 0);
     EXPECT_EQ(same.only_b, 0);
+    // With no differing points there is nothing near an edge: the cost is the gate.
+    EXPECT_EQ(same.cost_a, TemplatePoseFit::kCompareGatePx);
+    EXPECT_EQ(same.cost_b, TemplatePoseFit::kCompareGatePx);
     const auto d = fitter.compare(db, right, wrong, cam.camera, ws);
-    std::printf("trial %d: scores %.3f / %.3f, differing points %d / %d, on edges %.2f / %.2f\n", trial, right.score,
-                wrong.score, d.only_a, d.only_b, d.found_a, d.found_b);
+    std::printf("trial %d: scores %.3f / %.3f, differing points %d / %d, on edges %.2f / %.2f, mean cost %.2f / %.2f px\n",
+                trial, right.score, wrong.score, d.only_a, d.only_b, d.found_a, d.found_b, d.cost_a, d.cost_b);
     EXPECT_GT(d.only_a, 5);
     favoured += d.found_a > d.found_b + 0.2;
+    favoured_by_cost += d.cost_a + 2 < d.cost_b;
+    for (const double c : {d.cost_a, d.cost_b}) {
+      EXPECT_GE(c, 0);
+      EXPECT_LE(c, TemplatePoseFit::kCompareGatePx);
+    }
     const auto t = fitter.compare(db, right, wrong, cam.camera, ws, &toggle[static_cast<size_t>(right.view)],
                                   &toggle[static_cast<size_t>(wrong.view)]);
-    std::printf("  toggle only: differing points %d / %d, on edges %.2f / %.2f\n", t.only_a, t.only_b, t.found_a, t.found_b);
+    std::printf("  toggle only: differing points %d / %d, on edges %.2f / %.2f, mean cost %.2f / %.2f px\n", t.only_a,
+                t.only_b, t.found_a, t.found_b, t.cost_a, t.cost_b);
     EXPECT_GT(t.only_a + t.only_b, 5);
     EXPECT_LE(t.only_a, d.only_a);
     EXPECT_LE(t.only_b, d.only_b);
     favoured_on_toggle += t.found_a > t.found_b + 0.2;
+    favoured_on_toggle_by_cost += t.cost_a + 2 < t.cost_b;
   }
   EXPECT_GE(favoured, trials - 1);
   EXPECT_GE(favoured_on_toggle, trials - 1);
+  EXPECT_GE(favoured_by_cost, trials - 1);
+  EXPECT_GE(favoured_on_toggle_by_cost, trials - 1);
   // Flags that do not fit the views are refused.
   const TemplateFitResult any = fitter.evaluate(db, 0, RigidPose{db.views[0].R_m2c, db.views[0].t_m2c_mm}, cam.camera, ws);
   const std::vector<uint8_t> short_flags(3, 1);
   EXPECT_THROW(fitter.compare(db, any, any, cam.camera, ws, &short_flags, nullptr), std::invalid_argument);
+}
+
+// compare() where the truth's view hides the breaker's toggle (seen steeply from the side it leans
+// away from) and its turned twin's shows it: the twin's toggle lies over bare floor, where no edge
+// is near, and its mean cost says so (near the gate) while the truth has no toggle point to judge.
+// This is what the pipeline's turned-over check takes as evidence for the pose whose feature is out
+// of view (bin_picking_pipeline.cpp, kFlipAbsentCostPx = 7 px).
+TEST(TemplatePoseFit, CompareFindsNoEdgeNearAToggleThatIsNotThere) {
+  const fs::path tdb = fs::path(MFC_BINARY_DIR) / "templates" / "breaker.tdb";
+  if (!fs::exists(tdb)) GTEST_SKIP() << tdb << " not built (needs OpenSCAD)";
+  FloorScene scene(tdb);
+  const TemplateDatabase& db = scene.db;
+  const cv::Matx33d half_turn_z(-1, 0, 0, 0, -1, 0, 0, 0, 1);
+  const auto toggle = asymmetric_points(db, part_surface(db), half_turn_z);
+  auto toggle_points = [&](RigidPose pose) {
+    const int view = TemplatePoseFit::nearest_view(db, scene.cam.camera, pose);
+    int n = 0;
+    for (const uint8_t f : toggle[static_cast<size_t>(view)]) n += f;
+    return n;
+  };
+  int cases = 0;
+  for (const double tilt : {70.0, 80.0}) {
+    for (int dir = 0; dir < 24; ++dir) {
+      RigidPose truth = scene.from_above(tilt, dir * CV_PI / 12, 0.3, cv::Vec3d(10, -5, 285));
+      RigidPose twin;
+      twin.R = truth.R * half_turn_z;
+      twin.t_mm = truth.t_mm + truth.R * (db.center_mm - half_turn_z * db.center_mm);
+      // The pose shown is the one whose view has (next to) no toggle point; 4 of these 48 poses
+      // have one (seen from the side the toggle leans away from).
+      if (toggle_points(truth) > toggle_points(twin)) std::swap(truth, twin);
+      if (toggle_points(truth) > 3 || toggle_points(twin) < 20) continue;
+      scene.show(truth, 700 + cases);
+      const TemplateFitResult right = scene.fit_from(truth), wrong = scene.fit_from(twin);
+      const auto d = scene.fitter.compare(db, right, wrong, scene.cam.camera, scene.ws,
+                                          &toggle[static_cast<size_t>(right.view)], &toggle[static_cast<size_t>(wrong.view)]);
+      std::printf("tilt %.0f, direction %d: scores %.3f / %.3f, toggle points differing %d / %d, on edges %.2f / %.2f, "
+                  "mean cost %.2f / %.2f px\n",
+                  tilt, dir, right.score, wrong.score, d.only_a, d.only_b, d.found_a, d.found_b, d.cost_a, d.cost_b);
+      EXPECT_LE(d.only_a, 1);
+      EXPECT_GE(d.only_b, 6);
+      EXPECT_GE(d.cost_b, 7.0);
+      ++cases;
+    }
+  }
+  EXPECT_GE(cases, 2);
 }
 
 // compare() on the knob's phase twin: its ten flutes are ~22 degrees wide in a 36 degree period, so
