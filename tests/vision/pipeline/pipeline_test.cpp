@@ -98,6 +98,22 @@ PipelineResult process_once(const CameraConfig& cam, const PipelineConfig& pc, c
   return r;
 }
 
+// A pose between template views: `view`'s coarse pose at the template distance, turned in the
+// image at random and shifted from the image centre by up to `spread` px, then tilted about the
+// part centre by up to 4 degrees.
+RigidPose pose_between_views(const TemplateDatabase& db, const CameraConfig& cam, int view, cv::Point2d spread,
+                             std::mt19937& rng) {
+  std::uniform_real_distribution<double> u(-1, 1);
+  TemplatePlacement pl{view, u(rng) * CV_PI, 1.0, {320 + spread.x * u(rng), 240 + spread.y * u(rng)}};
+  RigidPose pose = coarse_pose(db, pl, cam.camera);
+  cv::Matx33d tilt;
+  cv::Rodrigues(cv::Vec3d(u(rng), u(rng), u(rng)) * (4 * CV_PI / 180 / std::sqrt(3.0)), tilt);
+  const cv::Vec3d centre = pose.R * db.center_mm + pose.t_mm;
+  pose.R = tilt * pose.R;
+  pose.t_mm = centre - pose.R * db.center_mm;
+  return pose;
+}
+
 struct SceneCase {
   const char* part;
 };
@@ -125,7 +141,6 @@ TEST_P(PipelineOnRenderedPart, FindsThePartWithinFiveMillimetresAndTenDegrees) {
   const int part_id = renderer.add_mesh(db.mesh);
   const int floor_id = renderer.add_mesh(make_plane(600));
   std::mt19937 rng(std::hash<std::string>{}(part()) % 1000);
-  std::uniform_real_distribution<double> u(-1, 1);
   int found = 0, trials = 3;
   for (int trial = 0; trial < trials; ++trial) {
     // A pose between template views: a random view, tilted by up to 4 degrees, turned in plane,
@@ -136,13 +151,8 @@ TEST_P(PipelineOnRenderedPart, FindsThePartWithinFiveMillimetresAndTenDegrees) {
     int view = 0;
     do view = std::uniform_int_distribution<int>(0, static_cast<int>(db.views.size()) - 1)(rng);
     while (db.views[view].view_direction[2] < 0.2);
-    TemplatePlacement pl{view, u(rng) * CV_PI, 1.0, {320 + 150 * u(rng), 240 + 100 * u(rng)}};
-    RigidPose truth = coarse_pose(db, pl, cam.camera);
-    cv::Matx33d tilt;
-    cv::Rodrigues(cv::Vec3d(u(rng), u(rng), u(rng)) * (4 * CV_PI / 180 / std::sqrt(3.0)), tilt);
+    const RigidPose truth = pose_between_views(db, cam, view, {150, 100}, rng);
     const cv::Vec3d centre = truth.R * db.center_mm + truth.t_mm;
-    truth.R = tilt * truth.R;
-    truth.t_mm = centre - truth.R * db.center_mm;
     const MfcRender render = render_on_floor(renderer, part_id, floor_id, db, truth, 100 + trial);
     PipelineResult result;
     pipeline.process(render.frames, 0, std::chrono::steady_clock::now() + std::chrono::seconds(30), result);
@@ -582,20 +592,14 @@ TEST(Pipeline, FindsAPlateStandingOnItsRim) {
     const int part_id = renderer.add_mesh(db.mesh);
     const int floor_id = renderer.add_mesh(make_plane(600));
     std::mt19937 rng(std::hash<std::string>{}(part) % 1000 + 7);
-    std::uniform_real_distribution<double> u(-1, 1);
     std::vector<int> rim_views;
     for (int v = 0; v < static_cast<int>(db.views.size()); ++v)
       if (std::abs(db.views[static_cast<size_t>(v)].view_direction[2]) < 0.25) rim_views.push_back(v);
     ASSERT_FALSE(rim_views.empty());
     for (int trial = 0; trial < 3; ++trial) {
       const int view = rim_views[std::uniform_int_distribution<size_t>(0, rim_views.size() - 1)(rng)];
-      TemplatePlacement pl{view, u(rng) * CV_PI, 1.0, {320 + 120 * u(rng), 240 + 80 * u(rng)}};
-      RigidPose truth = coarse_pose(db, pl, cam.camera);
-      cv::Matx33d tilt;
-      cv::Rodrigues(cv::Vec3d(u(rng), u(rng), u(rng)) * (4 * CV_PI / 180 / std::sqrt(3.0)), tilt);
+      const RigidPose truth = pose_between_views(db, cam, view, {120, 80}, rng);
       const cv::Vec3d centre = truth.R * db.center_mm + truth.t_mm;
-      truth.R = tilt * truth.R;
-      truth.t_mm = centre - truth.R * db.center_mm;
       const MfcRender render = render_on_floor(renderer, part_id, floor_id, db, truth, 200 + trial);
       PipelineResult result;
       pipeline.process(render.frames, 0, std::chrono::steady_clock::now() + std::chrono::seconds(30), result);
