@@ -328,25 +328,32 @@ TEST(Pipeline, DeadlineCutsTheSearchAndTheFitShort) {
   const int part_id = renderer.add_mesh(db.mesh);
   const int floor_id = renderer.add_mesh(make_plane(600));
   const MfcRender render = render_on_floor(renderer, part_id, floor_id, db, upper_view_pose(db, cam, 0.3, {330, 230}), 11);
-  PipelineResult full;
-  pipeline.process(render.frames, 0, std::chrono::steady_clock::now() + std::chrono::seconds(60), full);
-  EXPECT_FALSE(full.degraded);
-  const double budget_ms = full.times.total_ms / 4;
-  // The machine is shared: another tenant can stall any single cycle, so the fastest of up to
-  // three cut cycles is compared (each must be cut short and give picks).
-  PipelineResult cut;
-  double took_ms = std::numeric_limits<double>::infinity();
-  for (int attempt = 0; attempt < 3 && !(took_ms < 0.75 * full.times.total_ms); ++attempt) {
+  // The machine is shared, and the load on it changes within a test (ctest runs two at a time,
+  // each with its own threads): a cut cycle is compared with a full cycle run just before it,
+  // and the best of up to three such pairs counts. Each cut cycle must be cut short and give
+  // picks. (CI once failed with one full cycle of 76 ms measured while the machine was quiet
+  // and three cut cycles of at least 93 ms after load arrived.)
+  PipelineResult full, cut;
+  double ratio = std::numeric_limits<double>::infinity(), took_ms = 0, full_ms = 0;
+  for (int attempt = 0; attempt < 3 && !(ratio < 0.75); ++attempt) {
+    pipeline.process(render.frames, 0, std::chrono::steady_clock::now() + std::chrono::seconds(60), full);
+    EXPECT_FALSE(full.degraded);
+    const double budget_ms = full.times.total_ms / 4;
     const auto start = std::chrono::steady_clock::now();
     pipeline.process(render.frames, 0, start + std::chrono::microseconds(static_cast<int64_t>(budget_ms * 1000)), cut);
-    took_ms = std::min(took_ms, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
+    const double took = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    EXPECT_TRUE(cut.degraded);
+    EXPECT_LT(cut.views_searched, full.views_searched);
+    EXPECT_FALSE(cut.candidates.empty()) << "a late cycle still gives its best-so-far picks";
+    for (const auto& c : cut.candidates) EXPECT_GT(c.t_m2c_mm[2], 100.0) << "an unfitted (identity) pose came out";
+    if (took / full.times.total_ms < ratio) {
+      ratio = took / full.times.total_ms;
+      took_ms = took;
+      full_ms = full.times.total_ms;
+    }
   }
-  EXPECT_TRUE(cut.degraded);
-  EXPECT_LT(cut.views_searched, full.views_searched);
-  EXPECT_FALSE(cut.candidates.empty()) << "a late cycle still gives its best-so-far picks";
-  // Cut short: well under the full run measured just before (a ratio within one run, not a time).
-  EXPECT_LT(took_ms, 0.75 * full.times.total_ms) << "full " << full.times.total_ms << " ms";
-  for (const auto& c : cut.candidates) EXPECT_GT(c.t_m2c_mm[2], 100.0) << "an unfitted (identity) pose came out";
+  // Cut short: well under the full cycle run just before it (a ratio within one run, not a time).
+  EXPECT_LT(ratio, 0.75) << "cut " << took_ms << " ms, full " << full_ms << " ms";
   PipelineResult late;
   pipeline.process(render.frames, 0, std::chrono::steady_clock::now() - std::chrono::seconds(1), late);
   EXPECT_TRUE(late.degraded);
