@@ -365,6 +365,14 @@ struct BinPickingPipeline::Impl {
       fit = f;
       fit_rank = rank;
     }
+    // The hypothesis as a fit (pose, view and score as it stands), for TemplatePoseFit::compare.
+    TemplateFitResult as_fit() const {
+      TemplateFitResult f = fit;
+      f.pose = fitted;
+      f.view = view;
+      f.score = fit_score;
+      return f;
+    }
   };
   TemplatePoseFit fitter;
   bool fitter_prepared = false;  // the fitter indexes this cycle's edges (score_pose reuses them)
@@ -1011,10 +1019,7 @@ void BinPickingPipeline::Impl::rank(const Cycle& cycle, size_t first) {
     if (v.fit_score <= 0 || Clock::now() > cycle.deadline) continue;
     const PartModel& part = m.parts[v.hit.part];
     auto& ws = m.fit_workspaces[omp_get_thread_num()];
-    TemplateFitResult current;
-    current.pose = v.fitted;
-    current.view = v.view;
-    current.score = v.fit_score;
+    TemplateFitResult current = v.as_fit();
     for (const PartModel::Turn& turn : part.flips) {
       const cv::Matx33d& S = turn.S;
       RigidPose turned;
@@ -1057,10 +1062,7 @@ void BinPickingPipeline::Impl::check_spins(const Cycle& cycle, size_t first, int
     const PartModel& part = m.parts[v.hit.part];
     const PartSymmetry& sym = part.db.symmetry;
     if (sym.kind != PartSymmetry::Kind::discrete_z || sym.order != 2) continue;
-    TemplateFitResult current = v.fit;
-    current.pose = v.fitted;
-    current.view = v.view;
-    current.score = v.fit_score;
+    TemplateFitResult current = v.as_fit();
     const cv::Vec3d centre = current.pose.R * part.db.center_mm + current.pose.t_mm;
     const cv::Vec3d n = normal(current.pose);
     const double tilt = degrees(std::acos(std::min(1.0, std::abs(n.dot(centre / cv::norm(centre))))));
@@ -1079,10 +1081,7 @@ void BinPickingPipeline::Impl::check_spins(const Cycle& cycle, size_t first, int
         spin = std::min(spin, degrees(rotation_angle(current.pose.R.t() * r.fitted.R *
                                                      rotation_about_z(2 * CV_PI * k / sym.order))));
       if (spin < kSpinCheckMinSpinDeg) continue;
-      TemplateFitResult rival = r.fit;
-      rival.pose = r.fitted;
-      rival.view = r.view;
-      rival.score = r.fit_score;
+      const TemplateFitResult rival = r.as_fit();
       if (!turn_is_better(m.fitter.compare(part.db, current, rival, m.camera.camera, ws))) continue;
       current = rival;
       // As a turn: the hypothesis takes the rival's pose and keeps its own rank.
