@@ -116,7 +116,8 @@ void apply_pipeline_setting(vision::PipelineConfig& c, const std::string& settin
       {"escalate_hypotheses", &Config::escalate_hypotheses}};
   static constexpr std::pair<const char*, bool Config::*> kSwitches[] = {
       {"share_search_bound", &Config::share_search_bound}, {"trace", &Config::trace},
-      {"edge_polarity", &Config::edge_polarity},         {"search_polarity", &Config::search_polarity}};
+      {"edge_polarity", &Config::edge_polarity},         {"search_polarity", &Config::search_polarity},
+      {"edge_offset_correction", &Config::edge_offset_correction}};
   const auto eq = setting.find('=');
   if (eq == std::string::npos) throw std::invalid_argument("'" + setting + "' is not key=value");
   const std::string key = setting.substr(0, eq), value = setting.substr(eq + 1);

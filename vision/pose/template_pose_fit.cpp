@@ -44,6 +44,12 @@ void TemplatePoseFit::prepare(const DepthEdges& edges) {
   index_.build(chain_edges_, "template fit: edge map", oriented);
 }
 
+void TemplatePoseFit::share_prepared(const TemplatePoseFit& other) {
+  chain_edges_ = other.chain_edges_;  // cv::Mat headers
+  edges_ = other.edges_;
+  index_ = other.index_;
+}
+
 namespace {
 
 // The in-plane angle by which the image of the part at `pose` is turned relative to the
@@ -54,15 +60,25 @@ double in_plane_angle(const TemplateDatabase& db, int view, const RigidPose& pos
   return std::atan2(Rz(1, 0), Rz(0, 0));
 }
 
+// The offset `profile` gives an edge of oriented tangent `direction` (image radians), as a vector
+// along the edge's normal into the shadow.
+cv::Vec2d outline_shift(const EdgeOffsetProfile& profile, double direction) {
+  const double d = profile.at(direction + std::numbers::pi / 2);
+  return cv::Vec2d(-std::sin(direction) * d, std::cos(direction) * d);
+}
+
 // The loaded view's points at a pose, in the image (score, fit and compare all place them so):
 // each point's projection plus its detected-edge offset, and its tangent angle, both turned by the
 // in-plane angle between the view and the pose.
 class PointPlacer {
  public:
   // `period`: 2 pi with oriented tangents (an oriented index), else pi.
+  // `query_offset`: the query's edge offset profile when the fit corrects for it (load_view took
+  // the views' own profile out of the offsets), else null.
   PointPlacer(const TemplatePoseFit::Workspace& ws, const RigidPose& pose, const PinholeCamera& camera, double turn,
-              double period)
-      : ws_(ws), pose_(pose), camera_(camera), turn_(turn), period_(period), ct_(std::cos(turn)), st_(std::sin(turn)) {}
+              double period, const EdgeOffsetProfile* query_offset)
+      : ws_(ws), pose_(pose), camera_(camera), turn_(turn), period_(period), ct_(std::cos(turn)), st_(std::sin(turn)),
+        query_offset_(query_offset) {}
   // Point i's image position `at`, its offset there `shift` (at = projection + shift) and its
   // tangent angle in [0, period); false when it lies behind the camera.
   bool place(size_t i, cv::Point2d& at, cv::Point2d& shift, double& angle) const {
@@ -72,6 +88,12 @@ class PointPlacer {
     if (angle < 0) angle += period_;
     const cv::Vec2d& o = ws_.offset[i];
     shift = cv::Point2d(ct_ * o[0] - st_ * o[1], st_ * o[0] + ct_ * o[1]);
+    if (query_offset_) {
+      // Where the query's extractor puts an edge of this direction: along the normal into the
+      // shadow (the oriented tangent's left normal, at angle + pi/2).
+      const double d = query_offset_->at(angle + std::numbers::pi / 2);
+      shift += cv::Point2d(-std::sin(angle), std::cos(angle)) * d;
+    }
     at = camera_.project(p) + shift;
     return true;
   }
@@ -81,6 +103,7 @@ class PointPlacer {
   const RigidPose& pose_;
   const PinholeCamera& camera_;
   double turn_, period_, ct_, st_;
+  const EdgeOffsetProfile* query_offset_;
 };
 
 }  // namespace
@@ -132,6 +155,14 @@ int TemplatePoseFit::nearest_view(const TemplateDatabase& db, const PinholeCamer
   return best_view;
 }
 
+const EdgeOffsetProfile* TemplatePoseFit::query_offset(const TemplateDatabase& db) const {
+  // Depth edges only (the profiles are the depth-edge extractor's; intensity edges are matched
+  // undirected), and only with both profiles (version 3 files have none).
+  if (!params_.edge_offset_correction || !index_.oriented()) return nullptr;
+  if (db.template_edge_offset.empty() || db.query_edge_offset.empty()) return nullptr;
+  return &db.query_edge_offset;
+}
+
 void TemplatePoseFit::reserve(const TemplateDatabase& db, cv::Size image, Workspace& ws) const {
   size_t points = 0;
   for (const auto& v : db.views) points = std::max(points, v.points.size());
@@ -160,6 +191,7 @@ void TemplatePoseFit::load_view(const TemplateDatabase& db, int view, const Pinh
   const cv::Point2d origin(camera.cx(), camera.cy());
   const size_t n = pts.size();
   const size_t keep = std::min<size_t>(n, static_cast<size_t>(max_points > 0 ? max_points : params_.max_points));
+  const bool corrected = query_offset(db) != nullptr;
   for (size_t k = 0; k < keep; ++k) {
     const auto& p = pts[k * n / keep];
     ws.model.emplace_back(p.model_mm[0], p.model_mm[1], p.model_mm[2]);
@@ -169,6 +201,10 @@ void TemplatePoseFit::load_view(const TemplateDatabase& db, int view, const Pinh
     // part (i.e. move it in depth) to close that gap.
     const cv::Point2d seen = camera.project(tv.R_m2c * ws.model.back() + tv.t_m2c_mm) - origin;
     ws.offset.emplace_back(p.pixel.x - seen.x, p.pixel.y - seen.y);
+    // With the edge offset correction, the offset is taken to the true outline here (the view's
+    // own extractor bias for the point's direction removed) and the query's is added where the
+    // point lands (PointPlacer): the two differ by up to ~0.4 px when the part turns in the image.
+    if (corrected) ws.offset.back() -= outline_shift(db.template_edge_offset, p.direction);
   }
 }
 
@@ -202,7 +238,7 @@ RigidPose apply_pose_update(const RigidPose& pose, const cv::Vec3d& centre_model
 
 void TemplatePoseFit::score(const TemplateDatabase& db, int view, const PinholeCamera& camera, Workspace& ws,
                             TemplateFitResult& r) const {
-  const PointPlacer placer(ws, r.pose, camera, in_plane_angle(db, view, r.pose, camera), period());
+  const PointPlacer placer(ws, r.pose, camera, in_plane_angle(db, view, r.pose, camera), period(), query_offset(db));
   const double gate = params_.score_gate_px;
   double sum = 0;
   int inliers = 0, count = 0;
@@ -234,6 +270,7 @@ double TemplatePoseFit::coverage(const TemplateDatabase& db, int view, const Rig
   const double ct = std::cos(turn), st = std::sin(turn);
   const cv::Point2d origin(camera.cx(), camera.cy());
   const cv::Rect image(cv::Point(0, 0), size);
+  const EdgeOffsetProfile* profile = query_offset(db);
   ws.placed.clear();
   for (const auto& p : tv.points) {
     const cv::Vec3d X(p.model_mm[0], p.model_mm[1], p.model_mm[2]);
@@ -241,8 +278,15 @@ double TemplatePoseFit::coverage(const TemplateDatabase& db, int view, const Rig
     if (c[2] <= 1e-6) continue;
     // The same edge offset as the fit (template pixel minus the model point's projection there).
     const cv::Point2d seen = camera.project(tv.R_m2c * X + tv.t_m2c_mm) - origin;
-    const double ox = p.pixel.x - seen.x, oy = p.pixel.y - seen.y;
-    const cv::Point2d q = camera.project(c) + cv::Point2d(ct * ox - st * oy, st * ox + ct * oy);
+    double ox = p.pixel.x - seen.x, oy = p.pixel.y - seen.y;
+    cv::Point2d extra(0, 0);
+    if (profile) {
+      const cv::Vec2d own = outline_shift(db.template_edge_offset, p.direction);
+      ox -= own[0], oy -= own[1];
+      const cv::Vec2d theirs = outline_shift(*profile, p.direction + turn);
+      extra = cv::Point2d(theirs[0], theirs[1]);
+    }
+    const cv::Point2d q = camera.project(c) + cv::Point2d(ct * ox - st * oy, st * ox + ct * oy) + extra;
     const cv::Point r(cvRound(q.x), cvRound(q.y));
     if (image.contains(r)) ws.placed.push_back(r);
   }
@@ -291,7 +335,7 @@ TemplateFitResult TemplatePoseFit::fit(const TemplateDatabase& db, int view, con
   for (int it = 0; it < steps; ++it) {
     const double f = steps > 1 ? double(it) / (steps - 1) : 1.0;
     const double gate = params_.initial_gate_px * std::pow(params_.final_gate_px / params_.initial_gate_px, f);
-    const PointPlacer placer(ws, r.pose, camera, in_plane_angle(db, r.view, r.pose, camera), period());
+    const PointPlacer placer(ws, r.pose, camera, in_plane_angle(db, r.view, r.pose, camera), period(), query_offset(db));
     const cv::Vec3d centre = r.pose.R * db.center_mm + r.pose.t_mm;
     cv::Matx66d H = cv::Matx66d::zeros();
     cv::Vec6d g(0, 0, 0, 0, 0, 0);
@@ -333,7 +377,7 @@ TemplateFitResult TemplatePoseFit::fit(const TemplateDatabase& db, int view, con
 void TemplatePoseFit::place_points(const TemplateDatabase& db, int view, const RigidPose& pose,
                                    const PinholeCamera& camera, const Workspace& ws, std::vector<cv::Point2d>& seen,
                                    std::vector<double>& angle) const {
-  const PointPlacer placer(ws, pose, camera, in_plane_angle(db, view, pose, camera), period());
+  const PointPlacer placer(ws, pose, camera, in_plane_angle(db, view, pose, camera), period(), query_offset(db));
   seen.clear();
   angle.clear();
   for (size_t i = 0; i < ws.model.size(); ++i) {

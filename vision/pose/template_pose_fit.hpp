@@ -42,6 +42,11 @@ struct TemplateFitParams {
   double inlier_cost_px = 2;     // ... and a point is an inlier at or below this
   double lambda_px_per_rad = kDefaultLambdaPxPerRad;
   int min_correspondences = 12;  // fewer: the step is skipped and the fit ends
+  // Move each placed point by the difference between the query's and the views' edge offset
+  // profiles for its direction (TemplateDatabase::query_edge_offset, EdgeOffsetProfile): without
+  // it a part turned in the image is fitted up to ~2 mm too near (docs/pose.md, "Edge offset
+  // profiles"). No effect on databases without profiles or on intensity (Canny) edges.
+  bool edge_offset_correction = true;
   void validate() const;         // throws std::invalid_argument naming the field
 };
 
@@ -84,6 +89,10 @@ class TemplatePoseFit {
   // Indexes the image's edge pixels with tangent directions from their pixel chains (the
   // estimator the templates' directions come from). Throws std::invalid_argument on an empty map.
   void prepare(const DepthEdges& edges);
+  // Takes `other`'s prepared image (its indexed edges) instead of preparing again: the same image
+  // fitted with other params. Copies the index into this fitter's buffers (no allocation once
+  // they have grown).
+  void share_prepared(const TemplatePoseFit& other);
 
   TemplateFitResult fit(const TemplateDatabase& db, int view, const RigidPose& initial, const PinholeCamera& camera,
                         Workspace& ws) const;
@@ -132,6 +141,10 @@ class TemplatePoseFit {
              TemplateFitResult& r) const;
   double coverage(const TemplateDatabase& db, int view, const RigidPose& pose, const PinholeCamera& camera,
                   Workspace& ws) const;
+
+  // The query's edge offset profile when the correction applies to `db` (params, depth edges,
+  // profiles present), else null.
+  const EdgeOffsetProfile* query_offset(const TemplateDatabase& db) const;
 
   // The period of the tangent angles the index compares: 2 pi when oriented.
   double period() const { return index_.oriented() ? 2 * std::numbers::pi : std::numbers::pi; }

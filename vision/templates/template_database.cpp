@@ -235,6 +235,10 @@ void save_template_database(const TemplateDatabase& db, const std::filesystem::p
     }
     w.put(v.box.x), w.put(v.box.y), w.put(v.box.width), w.put(v.box.height);
   }
+  for (const auto* profile : {&db.template_edge_offset, &db.query_edge_offset}) {
+    w.put(static_cast<uint32_t>(profile->offset_px.size()));
+    for (float o : profile->offset_px) w.put(o);
+  }
 
   Writer h;
   for (char c : kMagic) h.put(c);
@@ -276,10 +280,10 @@ TemplateDatabase load_template_database(const std::filesystem::path& file) {
   const auto header_bytes = hr.get<uint32_t>("header size");
   const auto payload_bytes = hr.get<uint64_t>("payload size");
   const auto crc = hr.get<uint32_t>("checksum");
-  if (version != TemplateDatabase::kVersion)
+  if (version < TemplateDatabase::kOldestVersion || version > TemplateDatabase::kVersion)
     throw TemplateFileError(src + ": template database version " + std::to_string(version) +
-                            ", this build reads version " + std::to_string(TemplateDatabase::kVersion) +
-                            " (re-run mfc-teach)");
+                            ", this build reads versions " + std::to_string(TemplateDatabase::kOldestVersion) + " to " +
+                            std::to_string(TemplateDatabase::kVersion) + " (re-run mfc-teach)");
   if (header_bytes != kHeaderBytes)
     throw TemplateFileError(src + ": header size " + std::to_string(header_bytes) + ", expected " +
                             std::to_string(kHeaderBytes));
@@ -345,6 +349,19 @@ TemplateDatabase load_template_database(const std::filesystem::path& file) {
     v.box.x = r.get<float>("box"), v.box.y = r.get<float>("box");
     v.box.width = r.get<float>("box"), v.box.height = r.get<float>("box");
   }
+  if (version >= 4)
+    for (auto* profile : {&db.template_edge_offset, &db.query_edge_offset}) {
+      const uint32_t n = r.count("edge offset profile size", 4);
+      if (n != 0 && n != EdgeOffsetProfile::kBins)
+        r.fail("edge offset profile of " + std::to_string(n) + " bins, expected 0 or " +
+               std::to_string(EdgeOffsetProfile::kBins));
+      profile->offset_px.resize(n);
+      for (float& o : profile->offset_px) {
+        o = r.get<float>("edge offset");
+        // A detected edge pixel lies within a few pixels of the outline; anything else is corruption.
+        if (!std::isfinite(o) || std::abs(o) > 3) r.fail("edge offset " + std::to_string(o) + " px out of range");
+      }
+    }
   if (r.remaining() != 0) r.fail(std::to_string(r.remaining()) + " bytes left after the last view");
   return db;
 }

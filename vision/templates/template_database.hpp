@@ -12,6 +12,7 @@
 #include "vision/camera/camera.hpp"
 #include "vision/common/segment.hpp"
 #include "vision/model/mesh.hpp"
+#include "vision/templates/edge_offset_profile.hpp"
 
 #include <opencv2/core.hpp>
 
@@ -56,7 +57,8 @@ struct TemplateView {
 };
 
 struct TemplateDatabase {
-  static constexpr uint32_t kVersion = 3;
+  static constexpr uint32_t kVersion = 4;
+  static constexpr uint32_t kOldestVersion = 3;  // read too: version 3 has no edge offset profiles
 
   std::string part_name;
   int obj_id = 0;                  // BOP object id
@@ -70,6 +72,11 @@ struct TemplateDatabase {
   bool oriented = true;            // lines carry edge polarity: q channels over 2 pi (LineSet::oriented)
   Mesh mesh;                       // the part model (mm), for refinement and overlays
   std::vector<TemplateView> views;
+  // Where the extractor puts edge pixels relative to the true outline, by the outline's direction
+  // (EdgeOffsetProfile): under the views' own rendering conditions (noise off, background plane)
+  // and under the query's (sensor noise, parts over a floor). Empty (version 3 files): the pose fit
+  // makes no correction.
+  EdgeOffsetProfile template_edge_offset, query_edge_offset;
 };
 
 // Why a template file is refused.

@@ -251,6 +251,14 @@ TemplateDatabase teach_templates(const Mesh& mesh, const CameraConfig& camera, c
     }
   if (db.views.empty())
     throw std::runtime_error("teach '" + part_name + "': no view produced depth edges (is the part inside the image?)");
+  if (params.edge_offset_profiles) {
+    // The views are rendered without noise over a plane background_gap_mm behind the part.
+    EdgeProfileConditions views_conditions;
+    views_conditions.noise = false;
+    views_conditions.floor_gap_mm = params.background_gap_mm;
+    db.template_edge_offset = measure_edge_offset_profile(camera, db.distance_mm, views_conditions, params.edges);
+    db.query_edge_offset = measure_edge_offset_profile(camera, db.distance_mm, params.query_conditions, params.edges);
+  }
   return db;
 }
 

@@ -9,6 +9,7 @@
 #include "vision/edges/depth_edges.hpp"
 #include "vision/lines/line_fitter.hpp"
 #include "vision/render/mfc_renderer.hpp"
+#include "vision/templates/edge_offset_profile.hpp"
 #include "vision/templates/template_database.hpp"
 
 #include <functional>
@@ -24,6 +25,10 @@ struct TeachParams {
   int threads = 0;               // rendering threads, each with its own GL context; 0 = cores
   LineFitParams lines;           // `oriented` is always set: templates carry edge polarity
   DepthEdgeParams edges;
+  // Measure the extractor's edge offset profiles (EdgeOffsetProfile) for the views' rendering
+  // conditions and for the query's, stored with the views; ~2 s more per part.
+  bool edge_offset_profiles = true;
+  EdgeProfileConditions query_conditions;  // sensor noise on, parts ~7 mm above what is behind them
 };
 
 // Called after each view with (views done, views total); may be called from worker threads

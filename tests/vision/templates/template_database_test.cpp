@@ -7,8 +7,10 @@
 #include <opencv2/imgproc.hpp>
 
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 
 using namespace mfcd::vision;
 namespace fs = std::filesystem;
@@ -41,6 +43,30 @@ std::vector<char> read_bytes(const fs::path& f) {
 void write_bytes(const fs::path& f, const std::vector<char>& b) {
   std::ofstream out(f, std::ios::binary | std::ios::trunc);
   out.write(b.data(), static_cast<std::streamsize>(b.size()));
+}
+
+// CRC-32 (zlib's polynomial), bit by bit: the header's checksum for hand-edited payloads.
+uint32_t crc32_bitwise(const char* data, size_t n) {
+  uint32_t crc = 0xffffffffu;
+  for (size_t i = 0; i < n; ++i) {
+    crc ^= static_cast<uint8_t>(data[i]);
+    for (int k = 0; k < 8; ++k) crc = (crc >> 1) ^ (0xedb88320u & (0u - (crc & 1u)));
+  }
+  return ~crc;
+}
+
+// A file of `version` holding `payload`, with a correct header.
+std::vector<char> with_header(const std::vector<char>& payload, uint32_t version) {
+  std::vector<char> out(32, 0);
+  std::memcpy(out.data(), "MFCD-TDB", 8);
+  const uint32_t header = 32, crc = crc32_bitwise(payload.data(), payload.size());
+  const uint64_t size = payload.size();
+  std::memcpy(out.data() + 8, &version, 4);
+  std::memcpy(out.data() + 12, &header, 4);
+  std::memcpy(out.data() + 16, &size, 8);
+  std::memcpy(out.data() + 24, &crc, 4);
+  out.insert(out.end(), payload.begin(), payload.end());
+  return out;
 }
 
 std::string load_error(const fs::path& f) {
@@ -173,7 +199,68 @@ TEST(TemplateFile, RoundTripKeepsEverything) {
     EXPECT_TRUE(r.views[i].lines.oriented);
     EXPECT_EQ(r.views[i].lines.q, db.q);
   }
+  EXPECT_EQ(r.template_edge_offset.offset_px, db.template_edge_offset.offset_px);
+  EXPECT_EQ(r.query_edge_offset.offset_px, db.query_edge_offset.offset_px);
   EXPECT_NO_THROW(check_template_camera(r, sim_camera(), f.string()));
+}
+
+TEST(TemplateTeacher, StoresBothEdgeOffsetProfiles) {
+  const auto& db = box_db();
+  ASSERT_EQ(db.template_edge_offset.offset_px.size(), static_cast<size_t>(EdgeOffsetProfile::kBins));
+  ASSERT_EQ(db.query_edge_offset.offset_px.size(), static_cast<size_t>(EdgeOffsetProfile::kBins));
+  // The views are rendered without noise, so ties across axis-aligned edges go to the occluding
+  // pixel: their edges lie further inside than the noisy query's (edge_offset_profile_test).
+  EXPECT_LT(db.template_edge_offset.at(0), db.query_edge_offset.at(0) - 0.1);
+}
+
+TEST(TemplateFile, Version3FilesLoadWithoutEdgeOffsetProfiles) {
+  const fs::path f = temp_file("v4.tdb");
+  save_template_database(box_db(), f);
+  const std::vector<char> v4 = read_bytes(f);
+  // Version 3's payload is version 4's without the two profiles at its end (4 + 72 x 4 bytes each).
+  const size_t profiles = 2 * (4 + 4 * EdgeOffsetProfile::kBins);
+  const std::vector<char> payload(v4.begin() + 32, v4.end() - static_cast<long>(profiles));
+  const fs::path old = temp_file("v3.tdb");
+  write_bytes(old, with_header(payload, 3));
+  const TemplateDatabase r = load_template_database(old);
+  EXPECT_EQ(r.views.size(), box_db().views.size());
+  EXPECT_TRUE(r.template_edge_offset.empty());
+  EXPECT_TRUE(r.query_edge_offset.empty());
+  // The same payload claimed as version 4 lacks its profiles.
+  write_bytes(old, with_header(payload, 4));
+  EXPECT_NE(load_error(old).find("payload ends inside edge offset profile size"), std::string::npos)
+      << load_error(old);
+}
+
+TEST(TemplateFile, CorruptEdgeOffsetProfilesAreRefused) {
+  const fs::path f = temp_file("profiles.tdb");
+  save_template_database(box_db(), f);
+  const std::vector<char> good = read_bytes(f);
+  const size_t profile = 4 + 4 * EdgeOffsetProfile::kBins;
+  // The query profile is the last one: its bin count, then its bins.
+  std::vector<char> payload(good.begin() + 32, good.end());
+  const size_t at = payload.size() - profile;
+  uint32_t bins = 0;
+  std::memcpy(&bins, payload.data() + at, 4);
+  ASSERT_EQ(bins, static_cast<uint32_t>(EdgeOffsetProfile::kBins));
+  std::vector<char> b = payload;
+  const uint32_t five = 5;
+  std::memcpy(b.data() + at, &five, 4);
+  write_bytes(f, with_header(b, 4));
+  EXPECT_NE(load_error(f).find("edge offset profile of 5 bins"), std::string::npos) << load_error(f);
+  b = payload;
+  const float far = 40.0f;
+  std::memcpy(b.data() + at + 4 + 4 * 10, &far, 4);
+  write_bytes(f, with_header(b, 4));
+  EXPECT_NE(load_error(f).find("edge offset 40"), std::string::npos) << load_error(f);
+  b = payload;
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  std::memcpy(b.data() + at + 4, &nan, 4);
+  write_bytes(f, with_header(b, 4));
+  EXPECT_NE(load_error(f).find("out of range"), std::string::npos) << load_error(f);
+  // The header helper itself writes loadable files.
+  write_bytes(f, with_header(payload, 4));
+  EXPECT_EQ(load_error(f), "");
 }
 
 TEST(TemplateFile, CorruptFilesAreRefusedWithTheReason) {
