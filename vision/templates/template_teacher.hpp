@@ -26,7 +26,7 @@ struct TeachParams {
   LineFitParams lines;           // `oriented` is always set: templates carry edge polarity
   DepthEdgeParams edges;
   // Measure the extractor's edge offset profiles (EdgeOffsetProfile) for the views' rendering
-  // conditions and for the query's, stored with the views; ~2 s more per part.
+  // conditions and for the query's, stored with the views; ~4 s more per part.
   bool edge_offset_profiles = true;
   EdgeProfileConditions query_conditions;  // sensor noise on, parts ~7 mm above what is behind them
 };
