@@ -377,7 +377,7 @@ struct BinPickingPipeline::Impl {
   // The hypotheses are fitted, checked and ranked without the edge offset correction; each pick
   // candidate's pose is then fitted once more with it (PipelineConfig::edge_offset_correction).
   // Why both: the correction removes a depth bias of ~2 mm for parts turned in the image, but
-  // ranking with it changed which hypothesis won in as many trials as it fixed (docs/pose.md, "Edge
+  // ranking with it broke more trials than it fixed, 20 to 11 over six sets (docs/pose.md, "Edge
   // offset profiles"), and the checks' thresholds were measured without it.
   TemplatePoseFit fitter;
   TemplatePoseFit final_fitter;
@@ -458,10 +458,20 @@ struct BinPickingPipeline::Impl {
 
   Impl(const CameraConfig& cam, PipelineConfig cfg)
       : camera(cam), config(std::move(cfg)), extractor(cam.camera, cam.flashes, config.depth_edges),
-        fitter(fit_params(false)), final_fitter(fit_params(true)) {}
-  static TemplateFitParams fit_params(bool edge_offset_correction) {
+        fitter(ranking_fit_params()), final_fitter(final_fit_params()) {}
+  static TemplateFitParams ranking_fit_params() {
     TemplateFitParams p;
-    p.edge_offset_correction = edge_offset_correction;
+    p.edge_offset_correction = false;
+    return p;
+  }
+  // A polish of a converged fit: the correction moves points by at most ~0.4 px, so the final
+  // gate from the start (no far edges to pair with) and a few steps; the score is not read.
+  static TemplateFitParams final_fit_params() {
+    TemplateFitParams p;
+    p.edge_offset_correction = true;
+    p.iterations = 3;
+    p.initial_gate_px = p.final_gate_px;
+    p.score_result = false;
     return p;
   }
 };
@@ -1303,7 +1313,7 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
     // unrefined match of a large part (3-4 px) still ranks above nothing.
     c.score = v.fit_score >= 0 ? std::clamp(v.fit_rank, 0.0, 1.0) : 1.0 / (1.0 + v.combined / 2.0);
     c.box = h.box;
-    // (Past the deadline the candidate keeps the ranking fit's pose: ~0.3 ms each.)
+    // (Past the deadline the candidate keeps the ranking fit's pose.)
     if (v.fit_score >= 0 && m.config.edge_offset_correction && Clock::now() < deadline) {
       if (!final_prepared) m.final_fitter.share_prepared(m.fitter), final_prepared = true;
       const TemplateFitResult f = m.final_fitter.fit(part.db, v.view, v.fitted, m.camera.camera, m.fit_workspaces[0]);

@@ -101,7 +101,7 @@ struct PipelineConfig {
   // the fit"): instances found among the top k 41 more, 21 fewer over the dev, capped and bench
   // sets; best-pick failures 162 -> 159. false = undirected, as before.
   bool edge_polarity = true;
-  // Each pick candidate's fitted pose is fitted once more with the templates' edge offset
+  // Each pick candidate's fitted pose is polished once more with the templates' edge offset
   // profiles (TemplateFitParams::edge_offset_correction): parts turned in the image are otherwise
   // reported up to ~2 mm too near the camera (docs/pose.md, "Edge offset profiles"). The
   // hypotheses are ranked without it either way.

@@ -370,7 +370,7 @@ TemplateFitResult TemplatePoseFit::fit(const TemplateDatabase& db, int view, con
       load_view(db, r.view, camera, ws);
     }
   }
-  score(db, r.view, camera, ws, r);
+  if (params_.score_result) score(db, r.view, camera, ws, r);
   return r;
 }
 

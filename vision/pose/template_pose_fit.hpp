@@ -47,6 +47,9 @@ struct TemplateFitParams {
   // it a part turned in the image is fitted up to ~2 mm too near (docs/pose.md, "Edge offset
   // profiles"). No effect on databases without profiles or on intensity (Canny) edges.
   bool edge_offset_correction = true;
+  // fit() scores its result (mean cost, inliers, coverage); false leaves those at 0, for a refit
+  // whose pose alone is wanted.
+  bool score_result = true;
   void validate() const;         // throws std::invalid_argument naming the field
 };
 
