@@ -667,8 +667,8 @@ TEST(Pipeline, FindsAPlateStandingOnItsRim) {
 // The two poses are mfc-sim's (single parts on an empty floor, seed 3001, scene 2, images 13 and
 // 25), with the floor at 300 mm as there, each rendered with 4 noise seeds (RimDiamonds). Measured:
 // 4 of the 8 within 5 mm and 10 degrees (5 with the edge offset correction, one of them at 9.9
-// degrees), 0 of 8 with the check off (kSpinCheckLeaders 0: 11-54 degrees off). The other 3-4
-// stay 17-54 degrees off: the check helps, it does not settle every case.
+// degrees), 0 of 8 with the check off (kSpinCheckLeaders 0: 11-54 degrees off). The others stay
+// 10-54 degrees off: the check helps, it does not settle every case.
 TEST(Pipeline, TellsTheSpinOfADiamondOnItsRim) {
   ASSERT_TRUE(fs::exists(kTemplates / "diamond.tdb"));
   RimDiamonds scene;
