@@ -67,6 +67,22 @@ cv::Vec2d outline_shift(const EdgeOffsetProfile& profile, double direction) {
   return cv::Vec2d(-std::sin(direction) * d, std::cos(direction) * d);
 }
 
+// A template point's detected-edge offset in its view: its pixel minus its model point's projection
+// at the view's pose. A detected depth edge lies off the projected silhouette point by a fraction
+// of a pixel to about one (on the shadow side); carried along so that the fit does not shrink or
+// grow the part (i.e. move it in depth) to close that gap. With `views_profile` (the edge offset
+// correction) the offset is taken to the true outline: the view's own extractor bias for the
+// point's direction removed, the query's then added where the point lands (PointPlacer); the two
+// differ by up to ~0.4 px when the part turns in the image.
+cv::Vec2d view_edge_offset(const TemplateView& tv, const TemplateEdgePoint& p, const PinholeCamera& camera,
+                           const EdgeOffsetProfile* views_profile) {
+  const cv::Vec3d X(p.model_mm[0], p.model_mm[1], p.model_mm[2]);
+  const cv::Point2d seen = camera.project(tv.R_m2c * X + tv.t_m2c_mm) - cv::Point2d(camera.cx(), camera.cy());
+  cv::Vec2d offset(p.pixel.x - seen.x, p.pixel.y - seen.y);
+  if (views_profile) offset -= outline_shift(*views_profile, p.direction);
+  return offset;
+}
+
 // The loaded view's points at a pose, in the image (score, fit and compare all place them so):
 // each point's projection plus its detected-edge offset, and its tangent angle, both turned by the
 // in-plane angle between the view and the pose.
@@ -89,10 +105,9 @@ class PointPlacer {
     const cv::Vec2d& o = ws_.offset[i];
     shift = cv::Point2d(ct_ * o[0] - st_ * o[1], st_ * o[0] + ct_ * o[1]);
     if (query_offset_) {
-      // Where the query's extractor puts an edge of this direction: along the normal into the
-      // shadow (the oriented tangent's left normal, at angle + pi/2).
-      const double d = query_offset_->at(angle + std::numbers::pi / 2);
-      shift += cv::Point2d(-std::sin(angle), std::cos(angle)) * d;
+      // Where the query's extractor puts an edge of this direction.
+      const cv::Vec2d q = outline_shift(*query_offset_, angle);
+      shift += cv::Point2d(q[0], q[1]);
     }
     at = camera_.project(p) + shift;
     return true;
@@ -188,23 +203,14 @@ void TemplatePoseFit::load_view(const TemplateDatabase& db, int view, const Pinh
   ws.model.clear();
   ws.angle.clear();
   ws.offset.clear();
-  const cv::Point2d origin(camera.cx(), camera.cy());
   const size_t n = pts.size();
   const size_t keep = std::min<size_t>(n, static_cast<size_t>(max_points > 0 ? max_points : params_.max_points));
-  const bool corrected = query_offset(db) != nullptr;
+  const EdgeOffsetProfile* views_profile = query_offset(db) ? &db.template_edge_offset : nullptr;
   for (size_t k = 0; k < keep; ++k) {
     const auto& p = pts[k * n / keep];
     ws.model.emplace_back(p.model_mm[0], p.model_mm[1], p.model_mm[2]);
     ws.angle.push_back(p.direction);
-    // A detected depth edge lies off the projected silhouette point by a fraction of a pixel to
-    // about one (on the shadow side); carried along so that the fit does not shrink or grow the
-    // part (i.e. move it in depth) to close that gap.
-    const cv::Point2d seen = camera.project(tv.R_m2c * ws.model.back() + tv.t_m2c_mm) - origin;
-    ws.offset.emplace_back(p.pixel.x - seen.x, p.pixel.y - seen.y);
-    // With the edge offset correction, the offset is taken to the true outline here (the view's
-    // own extractor bias for the point's direction removed) and the query's is added where the
-    // point lands (PointPlacer): the two differ by up to ~0.4 px when the part turns in the image.
-    if (corrected) ws.offset.back() -= outline_shift(db.template_edge_offset, p.direction);
+    ws.offset.push_back(view_edge_offset(tv, p, camera, views_profile));
   }
 }
 
@@ -268,25 +274,22 @@ double TemplatePoseFit::coverage(const TemplateDatabase& db, int view, const Rig
   const TemplateView& tv = db.views[static_cast<size_t>(view)];
   const double turn = in_plane_angle(db, view, pose, camera);
   const double ct = std::cos(turn), st = std::sin(turn);
-  const cv::Point2d origin(camera.cx(), camera.cy());
   const cv::Rect image(cv::Point(0, 0), size);
   const EdgeOffsetProfile* profile = query_offset(db);
+  const EdgeOffsetProfile* views_profile = profile ? &db.template_edge_offset : nullptr;
   ws.placed.clear();
   for (const auto& p : tv.points) {
     const cv::Vec3d X(p.model_mm[0], p.model_mm[1], p.model_mm[2]);
     const cv::Vec3d c = pose.R * X + pose.t_mm;
     if (c[2] <= 1e-6) continue;
-    // The same edge offset as the fit (template pixel minus the model point's projection there).
-    const cv::Point2d seen = camera.project(tv.R_m2c * X + tv.t_m2c_mm) - origin;
-    double ox = p.pixel.x - seen.x, oy = p.pixel.y - seen.y;
+    // The same edge offsets as the fit's points (view_edge_offset, PointPlacer).
+    const cv::Vec2d o = view_edge_offset(tv, p, camera, views_profile);
     cv::Point2d extra(0, 0);
     if (profile) {
-      const cv::Vec2d own = outline_shift(db.template_edge_offset, p.direction);
-      ox -= own[0], oy -= own[1];
       const cv::Vec2d theirs = outline_shift(*profile, p.direction + turn);
       extra = cv::Point2d(theirs[0], theirs[1]);
     }
-    const cv::Point2d q = camera.project(c) + cv::Point2d(ct * ox - st * oy, st * ox + ct * oy) + extra;
+    const cv::Point2d q = camera.project(c) + cv::Point2d(ct * o[0] - st * o[1], st * o[0] + ct * o[1]) + extra;
     const cv::Point r(cvRound(q.x), cvRound(q.y));
     if (image.contains(r)) ws.placed.push_back(r);
   }

@@ -3,6 +3,7 @@
 #include "vision/edges/depth_edges.hpp"
 #include "vision/model/mesh.hpp"
 #include "vision/render/mfc_renderer.hpp"
+#include "vision/templates/render_window.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -32,15 +33,9 @@ EdgeOffsetProfile measure_edge_offset_profile(const CameraConfig& camera, double
   const double f = std::max(cam.fx(), cam.fy());
   // Window around the principal point holding the turned plate, its sub-pixel shifts and the
   // widest shadow on the floor (as the teacher's view windows): ~5x fewer pixels than the image.
-  double baseline = 0;
-  for (const auto& p : camera.flashes.positions_mm) baseline = std::max(baseline, std::hypot(p[0], p[1]));
   const double floor_z = distance_mm + kHeight + conditions.floor_gap_mm;
-  const double shadow = baseline * f * (floor_z - distance_mm) / (distance_mm * floor_z);
-  const int half = static_cast<int>(std::ceil(f * (kSide / std::numbers::sqrt2 + 3) / distance_mm + shadow + 8));
-  const cv::Point c(static_cast<int>(std::lround(cam.cx())), static_cast<int>(std::lround(cam.cy())));
-  const cv::Rect window = cv::Rect(c.x - half, c.y - half, 2 * half + 1, 2 * half + 1) &
-                          cv::Rect(cv::Point(0, 0), cam.image_size);
-  const PinholeCamera view = cam.cropped(window);
+  const int half = window_half_px(camera, f * (kSide / std::numbers::sqrt2 + 3) / distance_mm, distance_mm, floor_z);
+  const PinholeCamera view = cam.cropped(window_on_axis(cam, half));
 
   RenderOptions options;
   options.noise.enabled = conditions.noise;

@@ -1,6 +1,7 @@
 #include "vision/templates/template_teacher.hpp"
 
 #include "vision/edges/edge_tangents.hpp"
+#include "vision/templates/render_window.hpp"
 #include "vision/templates/view_sampling.hpp"
 
 #include <opencv2/imgproc.hpp>
@@ -72,15 +73,10 @@ ViewGeometry view_geometry(const CameraConfig& config, double distance, double r
   const double f = std::max(cam.fx(), cam.fy());
   const double near = distance - radius;
   // Image radius of the sphere holding the part, plus the widest shadow any flash can cast on
-  // the background: baseline * f * (Zb - Zo) / (Zo Zb) for the farthest LED.
-  double baseline = 0;
-  for (const auto& p : config.flashes.positions_mm) baseline = std::max(baseline, std::hypot(p[0], p[1]));
+  // the background.
   const double zb = distance + radius + gap;
-  const double shadow = baseline * f * (zb - near) / (near * zb);
-  const int half = static_cast<int>(std::ceil(f * radius / near + shadow + 8));
-  const cv::Point c(static_cast<int>(std::lround(cam.cx())), static_cast<int>(std::lround(cam.cy())));
-  cv::Rect window(c.x - half, c.y - half, 2 * half + 1, 2 * half + 1);
-  window &= cv::Rect(cv::Point(0, 0), cam.image_size);
+  const int half = window_half_px(config, f * radius / near, near, zb);
+  const cv::Rect window = window_on_axis(cam, half);
   ViewGeometry g;
   g.window = window;
   g.cropped = cam.cropped(window);
