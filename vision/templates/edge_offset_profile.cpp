@@ -23,6 +23,17 @@ double EdgeOffsetProfile::at(double normal_angle) const {
   return offset_px[i] * (1 - w) + offset_px[(i + 1) % n] * w;
 }
 
+double EdgeOffsetProfile::mean_near(double centre_deg, double half_width_deg) const {
+  double sum = 0;
+  int n = 0;
+  for (size_t k = 0; k < offset_px.size(); ++k) {
+    double d = std::fmod(360.0 / offset_px.size() * k - centre_deg, 90.0);
+    if (d < 0) d += 90;
+    if (std::min(d, 90 - d) <= half_width_deg) sum += offset_px[k], ++n;
+  }
+  return n > 0 ? sum / n : 0;
+}
+
 EdgeOffsetProfile measure_edge_offset_profile(const CameraConfig& camera, double distance_mm,
                                               const EdgeProfileConditions& conditions,
                                               const DepthEdgeParams& edge_params) {

@@ -34,6 +34,11 @@ struct EdgeOffsetProfile {
   // Linear interpolation between the bins, periodic; `normal_angle` in radians, any range.
   // 0 when empty.
   double at(double normal_angle) const;
+  // Mean of the bins within `half_width_deg` of `centre_deg` + k x 90 degrees, all four quarters
+  // (centre 0: the image axes, 45: the diagonals). A summary for reports and tests: one bin holds
+  // only a couple of turns, so its value moves with sub-pixel ties that the mean averages out.
+  // 0 when empty.
+  double mean_near(double centre_deg, double half_width_deg) const;
 };
 
 // What a profile is measured under: the template renders' conditions or the query's.

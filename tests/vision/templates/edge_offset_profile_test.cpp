@@ -18,18 +18,6 @@ CameraConfig sim_camera() { return load_camera_config(fs::path(MFC_SOURCE_DIR) /
 
 double deg(double d) { return d * std::numbers::pi / 180; }
 
-// Mean of the bins within `half_width` degrees of `centre` degrees (modulo 90: all four quarters).
-double mean_near(const EdgeOffsetProfile& p, double centre, double half_width) {
-  double sum = 0;
-  int n = 0;
-  for (int k = 0; k < EdgeOffsetProfile::kBins; ++k) {
-    double d = std::fmod(5.0 * k - centre, 90.0);
-    if (d < 0) d += 90;
-    if (std::min(d, 90 - d) <= half_width) sum += p.offset_px[k], ++n;
-  }
-  return sum / n;
-}
-
 }  // namespace
 
 TEST(EdgeOffsetProfile, InterpolatesBetweenBinsAroundTheTurn) {
@@ -46,6 +34,20 @@ TEST(EdgeOffsetProfile, InterpolatesBetweenBinsAroundTheTurn) {
   EXPECT_NEAR(p.at(deg(725)), 0.01, 1e-6);
 }
 
+TEST(EdgeOffsetProfile, MeanNearTakesTheSameBandInAllFourQuarters) {
+  EdgeOffsetProfile p;
+  EXPECT_EQ(p.mean_near(0, 10), 0.0);
+  p.offset_px.assign(EdgeOffsetProfile::kBins, 0.0f);
+  // Bins 0-2 and 70-71 (within 10 degrees of 0) and their copies a quarter, half and three
+  // quarters round: 20 bins; bin 3 (15 degrees) is outside.
+  for (int q = 0; q < 4; ++q)
+    for (int k : {-2, -1, 0, 1, 2, 3}) p.offset_px[(18 * q + k + 72) % 72] = k == 3 ? 9.0f : 1.0f + q;
+  EXPECT_NEAR(p.mean_near(0, 10), 2.5, 1e-6);
+  EXPECT_NEAR(p.mean_near(15, 0), 9.0, 1e-6);       // exactly the four bins at 15 + k x 90 degrees
+  EXPECT_NEAR(p.mean_near(45, 10), 0.0, 1e-6);
+  EXPECT_NEAR(p.mean_near(90, 10), 2.5, 1e-6);      // 90 is 0 a quarter round
+}
+
 TEST(EdgeOffsetProfile, AxisAlignedEdgesLieInsideTheOutlineDiagonalOnesOnIt) {
   const CameraConfig cam = sim_camera();
   EdgeProfileConditions views;  // as the template views are rendered
@@ -55,7 +57,7 @@ TEST(EdgeOffsetProfile, AxisAlignedEdgesLieInsideTheOutlineDiagonalOnesOnIt) {
   const EdgeOffsetProfile on = measure_edge_offset_profile(cam, 300, EdgeProfileConditions{});
   ASSERT_EQ(off.offset_px.size(), static_cast<size_t>(EdgeOffsetProfile::kBins));
   for (const auto* p : {&off, &on}) {
-    const double axis = mean_near(*p, 0, 10), diagonal = mean_near(*p, 45, 10);
+    const double axis = p->mean_near(0, 10), diagonal = p->mean_near(45, 10);
     EXPECT_LT(axis, -0.05);
     EXPECT_LT(axis, diagonal - 0.05);
     EXPECT_NEAR(diagonal, 0, 0.05);
@@ -71,7 +73,7 @@ TEST(EdgeOffsetProfile, AxisAlignedEdgesLieInsideTheOutlineDiagonalOnesOnIt) {
     }
   }
   // Without noise a tie across an axis-aligned edge always goes to the occluding pixel.
-  EXPECT_LT(mean_near(off, 0, 10), mean_near(on, 0, 10) - 0.1);
+  EXPECT_LT(off.mean_near(0, 10), on.mean_near(0, 10) - 0.1);
 }
 
 TEST(EdgeOffsetProfile, RefusesBadArguments) {

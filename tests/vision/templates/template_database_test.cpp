@@ -210,8 +210,11 @@ TEST(TemplateTeacher, StoresBothEdgeOffsetProfiles) {
   ASSERT_EQ(db.template_edge_offset.offset_px.size(), static_cast<size_t>(EdgeOffsetProfile::kBins));
   ASSERT_EQ(db.query_edge_offset.offset_px.size(), static_cast<size_t>(EdgeOffsetProfile::kBins));
   // The views are rendered without noise, so ties across axis-aligned edges go to the occluding
-  // pixel: their edges lie further inside than the noisy query's (edge_offset_profile_test).
-  EXPECT_LT(db.template_edge_offset.at(0), db.query_edge_offset.at(0) - 0.1);
+  // pixel: their edges lie further inside than the noisy query's (edge_offset_profile_test). Over
+  // the bins within 10 degrees of the axes: one bin holds only two turns, and on one CI machine
+  // bin 0 alone did not show it.
+  const double views = db.template_edge_offset.mean_near(0, 10), query = db.query_edge_offset.mean_near(0, 10);
+  EXPECT_LT(views, query - 0.1) << "views " << views << " px, query " << query << " px";
 }
 
 TEST(TemplateFile, Version3FilesLoadWithoutEdgeOffsetProfiles) {
