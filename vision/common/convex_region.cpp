@@ -21,7 +21,32 @@ void ConvexRegion::build(std::span<const cv::Point> points) {
   top_ = 0;
   bottom_ = -1;
   if (points.empty()) return;
-  sorted_.assign(points.begin(), points.end());
+  // Only the leftmost and rightmost point of each row can be a hull vertex (any other lies
+  // between two of its row), so when the points fill their rows densely (a placed template: ~1000
+  // points over ~100 rows) the sort gets those two per row instead of all of them. The hull, its
+  // first vertex (the leftmost, lowest-y point, which is its row's leftmost) and its order are the
+  // same either way.
+  int ylo = points[0].y, yhi = points[0].y;
+  for (const auto& p : points) ylo = std::min(ylo, p.y), yhi = std::max(yhi, p.y);
+  const size_t span = static_cast<size_t>(int64_t(yhi) - ylo + 1);
+  if (span <= points.size() / 2) {
+    row_left_.assign(span, std::numeric_limits<int>::max());
+    row_right_.assign(span, std::numeric_limits<int>::min());
+    for (const auto& p : points) {
+      const size_t r = static_cast<size_t>(p.y - ylo);
+      row_left_[r] = std::min(row_left_[r], p.x);
+      row_right_[r] = std::max(row_right_[r], p.x);
+    }
+    sorted_.clear();
+    for (size_t r = 0; r < span; ++r) {
+      if (row_left_[r] > row_right_[r]) continue;  // no point in this row
+      const int y = ylo + static_cast<int>(r);
+      sorted_.emplace_back(row_left_[r], y);
+      if (row_right_[r] != row_left_[r]) sorted_.emplace_back(row_right_[r], y);
+    }
+  } else {
+    sorted_.assign(points.begin(), points.end());
+  }
   std::sort(sorted_.begin(), sorted_.end(),
             [](cv::Point a, cv::Point b) { return a.x != b.x ? a.x < b.x : a.y < b.y; });
   sorted_.erase(std::unique(sorted_.begin(), sorted_.end()), sorted_.end());
@@ -67,6 +92,8 @@ void ConvexRegion::reserve(size_t points, int rows) {
   high_.reserve(r);
   first_.reserve(r);
   last_.reserve(r);
+  row_left_.reserve(r);
+  row_right_.reserve(r);
 }
 
 void ConvexRegion::cover_edge(cv::Point a, cv::Point b) {

@@ -35,6 +35,7 @@ class ConvexRegion {
   std::vector<cv::Point> sorted_, hull_;
   std::vector<double> low_, high_;  // per row: x extent of the hull within the row's band
   std::vector<int> first_, last_;
+  std::vector<int> row_left_, row_right_;  // build scratch: per row, the extreme x of the points
   int top_ = 0, bottom_ = -1;
 };
 

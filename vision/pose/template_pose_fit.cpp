@@ -296,11 +296,45 @@ double TemplatePoseFit::coverage(const TemplateDatabase& db, int view, const Rig
   return explained_edge_fraction(edges_, ws.placed, ws.region, ws.explained);
 }
 
+namespace {
+// The pixels cv::circle(image, c, 2, 255, cv::FILLED) sets around c, as offsets from c: drawn once
+// by cv::circle itself, so the stamp is its disc exactly. Stamping them by hand costs a tenth of
+// what a thousand cv::circle calls per hypothesis did (argument checks, colour conversion, trace
+// regions: ~2 % of a cycle).
+struct DiscStamp {
+  static constexpr int kRadius = 2;
+  int count = 0;
+  cv::Point offset[(2 * kRadius + 1) * (2 * kRadius + 1)];
+};
+const DiscStamp& radius_two_disc() {
+  static const DiscStamp disc = [] {
+    constexpr int r = DiscStamp::kRadius, side = 2 * r + 1;
+    cv::Mat1b m = cv::Mat1b::zeros(side, side);
+    cv::circle(m, cv::Point(r, r), r, cv::Scalar(255), cv::FILLED);
+    DiscStamp d;
+    for (int y = 0; y < side; ++y)
+      for (int x = 0; x < side; ++x)
+        if (m(y, x)) d.offset[d.count++] = cv::Point(x - r, y - r);
+    return d;
+  }();
+  return disc;
+}
+}  // namespace
+
 double explained_edge_fraction(const cv::Mat1b& edges, const std::vector<cv::Point>& placed, ConvexRegion& region,
                                cv::Mat1b& explained) {
   if (placed.size() < 3) return 0;
   region.build(placed);
-  for (const auto& r : placed) cv::circle(explained, r, 2, cv::Scalar(255), cv::FILLED);
+  const DiscStamp& disc = radius_two_disc();
+  constexpr int r = DiscStamp::kRadius;
+  for (const auto& c : placed) {
+    // The disc clipped to the image, as cv::circle clips it.
+    const bool inside = c.x >= r && c.y >= r && c.x < explained.cols - r && c.y < explained.rows - r;
+    for (int k = 0; k < disc.count; ++k) {
+      const cv::Point p = c + disc.offset[k];
+      if (inside || (p.x >= 0 && p.y >= 0 && p.x < explained.cols && p.y < explained.rows)) explained(p) = 255;
+    }
+  }
   int total = 0, covered = 0;
   for (int y = std::max(region.top(), 0); y <= std::min(region.bottom(), edges.rows - 1); ++y) {
     const uint8_t* e = edges.ptr<uint8_t>(y);

@@ -13,11 +13,12 @@ using namespace mfcd::vision;
 namespace {
 
 // Random point sets of the shapes the converse check meets, and the degenerate ones: clusters,
-// repeats, points on one line, a single point.
+// repeats, points on one line, a single point; and dense sets (more than two points per row, as
+// a placed template's), which build() first reduces to each row's two extremes.
 std::vector<cv::Point> random_points(std::mt19937& rng, int trial) {
   std::vector<cv::Point> pts;
-  const int kind = trial % 5;
-  const int n = kind == 4 ? 1 : 2 + static_cast<int>(rng() % 60);
+  const int kind = trial % 6;
+  const int n = kind == 4 ? 1 : kind == 5 ? 200 + static_cast<int>(rng() % 800) : 2 + static_cast<int>(rng() % 60);
   const cv::Point c(static_cast<int>(rng() % 200), static_cast<int>(rng() % 200));
   const int spread = 1 + static_cast<int>(rng() % 40);
   for (int i = 0; i < n; ++i) {

@@ -11,7 +11,9 @@
 #include <gtest/gtest.h>
 
 #include <opencv2/calib3d.hpp>
+#include <opencv2/imgproc.hpp>
 
+#include <algorithm>
 #include <filesystem>
 #include <random>
 
@@ -103,6 +105,45 @@ TEST(TemplatePoseFit, JacobianMatchesFiniteDifferences) {
       const double numeric = (rp - rm) / (2 * h);
       EXPECT_NEAR(J(0, k), numeric, 1e-4 * std::max(1.0, std::abs(numeric))) << "trial " << trial << " k " << k;
     }
+  }
+}
+
+// Twin of the converse check: the discs drawn with cv::circle (radius 2, filled), the region from
+// ConvexRegion (tested against cv::convexHull in its own test), every edge pixel counted. Random
+// edge maps and point sets, many of them over the image border, where the discs are clipped.
+TEST(ExplainedEdgeFraction, MatchesCirclesDrawnByOpenCv) {
+  std::mt19937 rng(23);
+  const cv::Size size(64, 48);
+  ConvexRegion region;
+  cv::Mat1b explained = cv::Mat1b::zeros(size);
+  for (int trial = 0; trial < 300; ++trial) {
+    cv::Mat1b edges(size);
+    cv::randu(edges, 0, 256);
+    edges.setTo(0, edges < 200);
+    std::vector<cv::Point> placed;
+    const int n = 3 + static_cast<int>(rng() % 60);
+    const cv::Point c(static_cast<int>(rng() % size.width), static_cast<int>(rng() % size.height));
+    const int spread = 2 + static_cast<int>(rng() % 20);
+    for (int i = 0; i < n; ++i) {
+      const cv::Point p(c.x + static_cast<int>(rng() % (2 * spread + 1)) - spread,
+                        c.y + static_cast<int>(rng() % (2 * spread + 1)) - spread);
+      // Placed points lie in the image (TemplatePoseFit::coverage keeps only those).
+      placed.emplace_back(std::clamp(p.x, 0, size.width - 1), std::clamp(p.y, 0, size.height - 1));
+    }
+    cv::Mat1b discs = cv::Mat1b::zeros(size);
+    for (const auto& p : placed) cv::circle(discs, p, 2, cv::Scalar(255), cv::FILLED);
+    ConvexRegion twin_region;
+    twin_region.build(placed);
+    int total = 0, covered = 0;
+    for (int y = 0; y < size.height; ++y)
+      for (int x = 0; x < size.width; ++x) {
+        const bool in = y >= twin_region.top() && y <= twin_region.bottom() && x >= twin_region.first(y) &&
+                        x <= twin_region.last(y);
+        if (in && edges(y, x)) ++total, covered += discs(y, x) != 0;
+      }
+    const double expected = total > 0 ? double(covered) / total : 0;
+    EXPECT_EQ(explained_edge_fraction(edges, placed, region, explained), expected) << "trial " << trial;
+    ASSERT_EQ(cv::countNonZero(explained), 0) << "the scratch mask must be left zero, trial " << trial;
   }
 }
 
