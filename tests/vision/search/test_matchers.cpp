@@ -1,5 +1,7 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <cmath>
 #include <random>
 
@@ -56,6 +58,17 @@ TEST(FdcmMatcher, EqualsDirectDcmSum) {
         // The scattered-translation entry point (1-D line search) is the same sum.
         uint64_t segs = 0;
         ASSERT_EQ(fdcm.evaluateAt(t, tx, ty, std::numeric_limits<uint32_t>::max(), segs), reference);
+        // And from the entries a prefetch located (the line search's slides), for any count of them.
+        const uint16_t* ends[2 * 64];
+        const size_t count = static_cast<size_t>(h % 9) * 8;  // 0..64: none, some, all of them
+        const size_t known = fdcm.prefetchAt(t, tx, ty, count, ends);
+        ASSERT_EQ(known, std::min(count, t.segments.size()));
+        ASSERT_EQ(fdcm.evaluateFrom(t, tx, ty, std::numeric_limits<uint32_t>::max(), segs, ends, known), reference);
+        // Stopped early, it stops where evaluateAt does.
+        uint64_t at_segs = 0, from_segs = 0;
+        const uint32_t stop = reference / 3;
+        ASSERT_EQ(fdcm.evaluateFrom(t, tx, ty, stop, from_segs, ends, known), fdcm.evaluateAt(t, tx, ty, stop, at_segs));
+        ASSERT_EQ(from_segs, at_segs);
       }
     }
   }
