@@ -68,15 +68,7 @@ public:
   // are located directly. For searches that visit scattered translations (the 1-D line search),
   // where preparing whole rows would cost more than the evaluations.
   uint32_t evaluateAt(const OrientedTemplate& t, int tx, int ty, uint32_t stop, uint64_t& segments) const {
-    uint32_t sum = 0;
-    for (const auto& seg : t.segments) {
-      const auto e = idt_.ends(seg.channel, seg.x + tx, seg.y + ty, seg.span);
-      const uint16_t* plane = idt_.plane(seg.channel);
-      sum += static_cast<uint16_t>(plane[e.end] - plane[e.before]);
-      ++segments;
-      if (sum > stop) break;
-    }
-    return sum;
+    return evaluateFrom(t, tx, ty, stop, segments, nullptr, 0);
   }
 
   // Asks the memory system for the entries the first `count` segments of an evaluateAt() at this
@@ -100,7 +92,8 @@ public:
 
   // evaluateAt() for the translation a prefetchAt() with `ends` was just issued for: its first
   // `known` segments' entries are read where that found them (locating an entry costs as much
-  // as reading it once it is in cache), the rest located as evaluateAt() does. The same sum.
+  // as reading it once it is in cache), the rest located directly. The same sum (known = 0 is
+  // evaluateAt()).
   uint32_t evaluateFrom(const OrientedTemplate& t, int tx, int ty, uint32_t stop, uint64_t& segments,
                         const uint16_t* const* ends, size_t known) const {
     uint32_t sum = 0;
