@@ -11,6 +11,7 @@ namespace {
 // FDCM locates each segment's two IDT3 entries directly for a scattered translation; the
 // point-wise baselines use their translation-invariant pixel offsets, prepared once per template.
 struct FdcmAt {
+  explicit FdcmAt(const FdcmMatcher& matcher) : m(matcher) {}
   const FdcmMatcher& m;
   static constexpr size_t kPrefetchSegments = 16;  // measured: 16 beats 8 (an evaluation reads ~15)
   // The entries the last two prefetches located, and for which translations: a slide prefetches
@@ -21,7 +22,7 @@ struct FdcmAt {
     size_t count = 0;
     int tx = 0, ty = 0;
   };
-  Located slot[2];
+  Located slot[2]{};
   int newest = 0;
   void prepare(const OrientedTemplate&) { slot[0].count = slot[1].count = 0; }
   uint32_t operator()(const OrientedTemplate& t, int tx, int ty, uint32_t stop, uint64_t& segs) {
@@ -212,14 +213,14 @@ SearchResult lineSearch(const FdcmMatcher& matcher, const std::vector<OrientedTe
                         const std::vector<LineSegment>& queryLines, const LineSearchParams& params) {
   LineSearchWorkspace ws;
   SearchResult result;
-  lineSearchWith(matcher, FdcmAt{matcher, {}, 0}, templates, queryLines, params, ws, result);
+  lineSearchWith(matcher, FdcmAt{matcher}, templates, queryLines, params, ws, result);
   return result;
 }
 
 void lineSearch(const FdcmMatcher& matcher, const std::vector<OrientedTemplate>& templates,
                 const std::vector<LineSegment>& queryLines, const LineSearchParams& params, LineSearchWorkspace& ws,
                 SearchResult& out) {
-  lineSearchWith(matcher, FdcmAt{matcher, {}, 0}, templates, queryLines, params, ws, out);
+  lineSearchWith(matcher, FdcmAt{matcher}, templates, queryLines, params, ws, out);
 }
 
 SearchResult lineSearch(const ChamferMatcher& matcher, const std::vector<OrientedTemplate>& templates,
