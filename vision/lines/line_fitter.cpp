@@ -33,13 +33,14 @@ public:
   // within the residual band, as long as gaps stay <= maxGap. Returns the support count; when
   // `out` is given, appends the support pixels.
   int trace(cv::Point2d origin, double phi, std::vector<cv::Point>* out) const {
-    const bool xm = std::abs(std::cos(phi)) >= std::abs(std::sin(phi));
-    // minor = minor0 + slope * (major - major0)
-    const double slope = xm ? std::tan(phi) : std::cos(phi) / std::sin(phi);
+    return trace(origin, TraceDirection(phi, p_.residual), out);
+  }
+  int trace(cv::Point2d origin, const TraceDirection& walk, std::vector<cv::Point>* out) const {
+    const bool xm = walk.xm;
+    const double slope = walk.slope;
     const double major0 = xm ? origin.x : origin.y;
     const double minor0 = xm ? origin.y : origin.x;
-    // Perpendicular residual r corresponds to a minor-axis band of r * sqrt(1 + slope^2).
-    const double band = p_.residual * std::sqrt(1.0 + slope * slope);
+    const double band = walk.band;
     const int majorLimit = xm ? alive_.cols : alive_.rows;
     const int minorLimit = xm ? alive_.rows : alive_.cols;
     int count = 0;
@@ -158,9 +159,13 @@ void LineFitter::fit(const cv::Mat1b& edges, const cv::Mat1f* direction, LineFit
   }
 
   const Tracer tracer(alive, params);
+  // Every channel's walk, once (the seeds' hypotheses all lie on channel directions).
+  std::vector<TraceDirection>& walks = walks_;
+  walks.resize(static_cast<size_t>(params.q));
+  for (int c = 0; c < params.q; ++c) walks[static_cast<size_t>(c)] = TraceDirection(ch.angleOf(c), params.residual);
   // Every seed's hypotheses are scored on the untouched edge map, so independently: shared out
   // among the threads (more than half of the stage's time before). Hypothesis's order is total
-  // (score, then seed, then channel), so the heap pops them in the same order however it was
+  // (score, then seed, then channel), so the queue pops them in the same order however it was
   // built, and the result is the one-thread result.
   const int spread = params.channelSpread, per_seed = 2 * spread + 1;
   const int n = static_cast<int>(pts.size());
@@ -171,35 +176,29 @@ void LineFitter::fit(const cv::Mat1b& edges, const cv::Mat1f* direction, LineFit
     const int c0 = ch.channelOf(dir[i]);
     for (int s = -spread; s <= spread; ++s)
       scores[static_cast<size_t>(i) * per_seed + (s + spread)] =
-          tracer.trace(cv::Point2d(pts[i]), ch.angleOf(ch.wrap(c0 + s)), nullptr);
+          tracer.trace(cv::Point2d(pts[i]), walks[static_cast<size_t>(ch.wrap(c0 + s))], nullptr);
   }
-  // A max-heap by score (std::push_heap/pop_heap with Hypothesis::operator<) in a kept vector.
-  std::vector<Hypothesis>& queue = heap_;
+  HypothesisQueue& queue = queue_;
   queue.clear();
-  auto push = [&](const Hypothesis& h) {
-    queue.push_back(h);
-    std::push_heap(queue.begin(), queue.end());
-  };
   for (int i = 0; i < n; ++i) {
     const int c0 = ch.channelOf(dir[i]);
     for (int s = -spread; s <= spread; ++s) {
       const int score = scores[static_cast<size_t>(i) * per_seed + (s + spread)];
-      if (score >= params.minSupport) queue.push_back({score, i, ch.wrap(c0 + s)});
+      if (score >= params.minSupport) queue.add({score, i, ch.wrap(c0 + s)});
     }
   }
-  std::make_heap(queue.begin(), queue.end());
+  queue.build();
 
   std::vector<cv::Point>& support = support_;
   while (!queue.empty()) {
-    std::pop_heap(queue.begin(), queue.end());
-    Hypothesis h = queue.back();
-    queue.pop_back();
+    const HypothesisQueue::Entry popped = queue.pop();
+    Hypothesis h{popped.score, popped.seed, popped.channel};
     // Lazy greedy: supports only shrink as points are claimed, so a re-scored hypothesis that
     // still beats every stored (optimistic) score is the true best.
-    h.score = tracer.trace(cv::Point2d(pts[h.seed]), ch.angleOf(h.channel), nullptr);
+    h.score = tracer.trace(cv::Point2d(pts[h.seed]), walks[static_cast<size_t>(h.channel)], nullptr);
     if (h.score < params.minSupport) continue;
-    if (!queue.empty() && h.score < queue.front().score) {
-      push(h);
+    if (!queue.empty() && h.score < queue.top_score()) {
+      queue.push({h.score, h.seed, h.channel});
       continue;
     }
     // Accept, then refine: the channel direction only found the group of points; the segment
@@ -208,7 +207,7 @@ void LineFitter::fit(const cv::Mat1b& edges, const cv::Mat1f* direction, LineFit
     double phi = ch.angleOf(h.channel);
     cv::Point2d p0(pts[h.seed]);
     support.clear();
-    tracer.trace(p0, phi, &support);
+    tracer.trace(p0, walks[static_cast<size_t>(h.channel)], &support);
     for (int it = 0; it < params.refineIterations && static_cast<int>(support.size()) >= 2; ++it) {
       cv::Point2d mean(0, 0);
       for (const auto& sp : support) mean += cv::Point2d(sp);
@@ -267,6 +266,51 @@ void LineFitter::fit(const cv::Mat1b& edges, const cv::Mat1f* direction, LineFit
     result.set.lines.push_back(seg);
   }
   sortLongestFirst(result.set.lines, order_, sorted_);
+}
+
+void HypothesisQueue::clear() {
+  for (auto& b : buckets_) b.clear();
+  top_ = -1;
+}
+
+void HypothesisQueue::add(const Entry& e) {
+  if (e.score < 0) throw std::invalid_argument("HypothesisQueue: negative score");
+  if (static_cast<size_t>(e.score) >= buckets_.size()) buckets_.resize(static_cast<size_t>(e.score) + 1);
+  buckets_[static_cast<size_t>(e.score)].push_back({e.seed, e.channel});
+  top_ = std::max(top_, e.score);
+}
+
+void HypothesisQueue::order_top() {
+  if (top_ >= 0) std::sort(buckets_[static_cast<size_t>(top_)].begin(), buckets_[static_cast<size_t>(top_)].end());
+}
+
+void HypothesisQueue::build() { order_top(); }
+
+void HypothesisQueue::push(const Entry& e) {
+  if (e.score < top_) {
+    add(e);  // below the top: ordered when the top comes down to it
+    return;
+  }
+  const bool above = e.score > top_;
+  add(e);
+  auto& b = buckets_[static_cast<size_t>(e.score)];
+  if (above) return;  // alone in its bucket
+  // Into the ordered top bucket, at its place.
+  const Key k = b.back();
+  b.pop_back();
+  b.insert(std::upper_bound(b.begin(), b.end(), k), k);
+}
+
+HypothesisQueue::Entry HypothesisQueue::pop() {
+  auto& b = buckets_[static_cast<size_t>(top_)];
+  const Key k = b.back();
+  b.pop_back();
+  const Entry e{top_, k.seed, k.channel};
+  if (b.empty()) {
+    while (top_ >= 0 && buckets_[static_cast<size_t>(top_)].empty()) --top_;
+    order_top();
+  }
+  return e;
 }
 
 void reduceQuery(const LineSet& lines, const cv::Mat1b& channelMap, int factor, LineSet& reducedLines,

@@ -10,6 +10,7 @@
 // segment whose true direction is between channels into pieces that stay within half a pixel.
 #include <opencv2/core/mat.hpp>
 
+#include <cmath>
 #include <utility>
 #include <vector>
 
@@ -52,6 +53,57 @@ struct LineFitResult {
 LineFitResult fitLines(const cv::Mat1b& edges, const LineFitParams& params = {},
                        const cv::Mat1f* direction = nullptr, const cv::Mat1f* shadow = nullptr);
 
+// How a trace walks a direction: along its major image axis, the minor coordinate moving by
+// `slope` per step, collecting a band of +-`band` around it. Depends on the direction only, so
+// the fit computes it once per channel: most traces are a few pixels long, and the
+// trigonometry of each cost more than its walk.
+struct TraceDirection {
+  bool xm = true;    // x is the major axis
+  double slope = 0;  // minor = minor0 + slope * (major - major0)
+  double band = 0;   // the perpendicular residual as a minor-axis half width: r * sqrt(1 + slope^2)
+
+  TraceDirection() = default;
+  TraceDirection(double phi, double residual)
+      : xm(std::abs(std::cos(phi)) >= std::abs(std::sin(phi))),
+        slope(xm ? std::tan(phi) : std::cos(phi) / std::sin(phi)),
+        band(residual * std::sqrt(1.0 + slope * slope)) {}
+};
+
+// The line fit's pending hypotheses (LineFitter::Hypothesis), popped highest score first and,
+// among equal scores, lowest seed then lowest channel: the order of one binary heap over all of
+// them, which it replaces. There are 2 * channelSpread + 1 per edge pixel and the lazy greedy
+// pops each at least once: the binary heap's sifts over ~10^4-10^5 entries were a sixth of the
+// greedy loop. Here each score has its own bucket, ordered only when it becomes the top one (a
+// sort); the greedy pushes a re-scored hypothesis only below the top score, into an unordered
+// bucket in O(1), and pops from the ordered top bucket in O(1). A push at or above the top score
+// stays correct (ordered insertion). Scores are support counts (>= 0). Buffers are kept: no
+// allocation once they have grown.
+class HypothesisQueue {
+ public:
+  struct Entry {
+    int score, seed, channel;
+  };
+  void clear();
+  // Adds without ordering (the initial fill); build() then orders the queue.
+  void add(const Entry& e);
+  void build();
+  // Insertion after build().
+  void push(const Entry& e);
+  Entry pop();  // the first entry; the queue must not be empty
+  bool empty() const { return top_ < 0; }
+  int top_score() const { return top_; }  // the first entry's score; -1 when empty
+
+ private:
+  struct Key {
+    int seed, channel;
+    // Buckets are sorted so that their first entry (lowest seed, then channel) is the last.
+    bool operator<(const Key& o) const { return seed != o.seed ? seed > o.seed : channel > o.channel; }
+  };
+  void order_top();
+  std::vector<std::vector<Key>> buckets_;  // by score
+  int top_ = -1;                            // highest non-empty score
+};
+
 // fitLines with its buffers kept between calls, for the pick cycle: once they (and `out`'s)
 // have grown to an image's needs, fitting an image of that size and no more edges allocates
 // nothing (with a direction map; without one the local directions are computed into a new
@@ -79,7 +131,8 @@ class LineFitter {
   cv::Mat1b alive_;
   std::vector<float> dir_;
   std::vector<int> seed_scores_;  // per edge pixel, its 2 * channelSpread + 1 hypotheses' support
-  std::vector<Hypothesis> heap_;
+  std::vector<TraceDirection> walks_;  // per channel, how a trace walks it
+  HypothesisQueue queue_;
   std::vector<cv::Point> support_, next_;
   std::vector<std::pair<float, int>> order_;  // sortLongestFirst's buffers
   std::vector<LineSegment> sorted_;

@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <queue>
 #include <random>
+#include <stdexcept>
 #include <vector>
 
 #include <omp.h>
@@ -358,4 +360,58 @@ TEST(LineFitter, OneThreadAndSeveralGiveTheSameLines) {
     EXPECT_GT(one.set.lines.size(), 20u) << "image " << k;
     EXPECT_TRUE(same(one, several)) << "image " << k;
   }
+}
+
+// The bucket queue against the obviously-right twin, one binary heap over LineFitter::Hypothesis
+// (std::priority_queue, the fit's queue before): the same pops in the same order, for a bulk
+// fill and then the greedy's pattern (pop, sometimes push back with a lower score), plus pushes
+// at and above the top score, which the greedy never makes but the queue must get right.
+TEST(HypothesisQueue, PopsInTheOrderOfOneBinaryHeap) {
+  std::mt19937 rng(7);
+  for (int trial = 0; trial < 200; ++trial) {
+    HypothesisQueue queue;
+    std::priority_queue<LineFitter::Hypothesis> twin;
+    const int seeds = std::uniform_int_distribution<int>(1, 400)(rng);
+    const int max_score = std::uniform_int_distribution<int>(1, trial % 3 == 0 ? 5 : 300)(rng);
+    std::uniform_int_distribution<int> score(0, max_score);
+    // Unique (seed, channel) pairs, as the fit's: three channels per seed.
+    for (int s = 0; s < seeds; ++s)
+      for (int c : {s % 7, s % 7 + 7, s % 7 + 14}) {
+        const int sc = score(rng);
+        queue.add({sc, s, c});
+        twin.push({sc, s, c});
+      }
+    queue.build();
+    int pushes = 0;
+    while (!twin.empty()) {
+      ASSERT_FALSE(queue.empty());
+      ASSERT_EQ(queue.top_score(), twin.top().score);
+      const LineFitter::Hypothesis want = twin.top();
+      twin.pop();
+      const HypothesisQueue::Entry got = queue.pop();
+      ASSERT_EQ(got.score, want.score);
+      ASSERT_EQ(got.seed, want.seed);
+      ASSERT_EQ(got.channel, want.channel);
+      const int roll = std::uniform_int_distribution<int>(0, 9)(rng);
+      if (roll < 5 && got.score > 0) {  // the greedy's re-scored hypothesis, below its old score
+        const int lower = std::uniform_int_distribution<int>(0, got.score - 1)(rng);
+        queue.push({lower, got.seed, got.channel});
+        twin.push({lower, got.seed, got.channel});
+        ++pushes;
+      } else if (roll == 5 && pushes < 50) {  // at or above the top: ordered insertion
+        const int top = twin.empty() ? 0 : twin.top().score;
+        const int at = top + std::uniform_int_distribution<int>(0, 2)(rng);
+        queue.push({at, got.seed, got.channel});
+        twin.push({at, got.seed, got.channel});
+        ++pushes;
+      }
+    }
+    EXPECT_TRUE(queue.empty());
+    EXPECT_EQ(queue.top_score(), -1);
+  }
+}
+
+TEST(HypothesisQueue, NegativeScoreIsRefused) {
+  HypothesisQueue queue;
+  EXPECT_THROW(queue.add({-1, 0, 0}), std::invalid_argument);
 }
