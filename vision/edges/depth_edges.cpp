@@ -77,6 +77,36 @@ void DepthEdgeExtractor::check_input(const MfcFrames& frames) const {
   if (frames.ambient.size() != size) throw std::invalid_argument("depth edges: ambient image has the wrong size");
 }
 
+namespace {
+
+// Step 2 of extract() for one flash and one image row y: adds the flash's directional response
+// (the Sobel derivative of its ratio image rows r0, r1, r2 = y - 1, y, y + 1 along the shadow
+// direction, clipped at 0) to `response`, and the response-weighted gradient to `normal_x/y`.
+// The shadow direction at x is (ez x - ex, dy_raw), of length 1 / inv_row when it is the same
+// for every pixel (`PerPixel` false: the LED lies in the lens plane). A function with restrict
+// parameters (the rows never overlap) so that GCC vectorises the loop: the same IEEE operations
+// per pixel in the same order, so the same values as the scalar loop.
+template <bool PerPixel>
+void accumulate_flash_row(const float* __restrict r0, const float* __restrict r1, const float* __restrict r2,
+                          float* __restrict response, float* __restrict normal_x, float* __restrict normal_y, int W,
+                          float ex, float ez, float dy_raw, float inv_row) {
+  for (int x = 1; x + 1 < W; ++x) {
+    const float gx = 0.25f * ((r0[x + 1] - r0[x - 1]) + 2.f * (r1[x + 1] - r1[x - 1]) + (r2[x + 1] - r2[x - 1]));
+    const float gy = 0.25f * ((r2[x - 1] + 2.f * r2[x] + r2[x + 1]) - (r0[x - 1] + 2.f * r0[x] + r0[x + 1]));
+    const float dx_raw = ez * static_cast<float>(x) - ex;
+    const float inv = PerPixel ? 1.f / std::sqrt(dx_raw * dx_raw + dy_raw * dy_raw + 1e-20f) : inv_row;
+    const float along = -(gx * dx_raw + gy * dy_raw) * inv;
+    const float r = std::max(along, 0.f);
+    // Weighting by the response keeps the normal continuous in the inputs: a flash
+    // barely seeing the edge barely contributes.
+    response[x] += r;
+    normal_x[x] -= r * gx;
+    normal_y[x] -= r * gy;
+  }
+}
+
+}  // namespace
+
 void DepthEdgeExtractor::extract(const MfcFrames& frames, DepthEdges& out) {
   check_input(frames);
   const int W = camera_.image_size.width, H = camera_.image_size.height;
@@ -87,22 +117,30 @@ void DepthEdgeExtractor::extract(const MfcFrames& frames, DepthEdges& out) {
   // Rows are independent in steps 1 and 2: shared among the cores.
 #pragma omp parallel for schedule(static)
   for (int y = 0; y < H; ++y) {
-    const uint8_t* amb = frames.ambient.ptr<uint8_t>(y);
-    float* mx = max_image_.ptr<float>(y);
+    // Restrict-qualified row pointers: the rows never overlap, and saying so lets the compiler
+    // vectorise these loops (per-lane IEEE arithmetic in the same order: the same values).
+    const uint8_t* __restrict amb = frames.ambient.ptr<uint8_t>(y);
+    float* __restrict mx = max_image_.ptr<float>(y);
     for (int x = 0; x < W; ++x) mx[x] = 0.f;
     for (size_t i = 0; i < n; ++i) {
-      const uint8_t* f = frames.flash[i].ptr<uint8_t>(y);
-      float* r = ratio_[i].ptr<float>(y);
+      const uint8_t* __restrict f = frames.flash[i].ptr<uint8_t>(y);
+      float* __restrict r = ratio_[i].ptr<float>(y);
       for (int x = 0; x < W; ++x) {
         const float v = std::max(static_cast<float>(f[x]) - static_cast<float>(amb[x]), 0.f);
         r[x] = v;
         mx[x] = std::max(mx[x], v);
       }
     }
-    float* inv = inv_max_.ptr<float>(y);
-    for (int x = 0; x < W; ++x) inv[x] = mx[x] >= min_flash ? 1.f / mx[x] : 0.f;
+    float* __restrict inv = inv_max_.ptr<float>(y);
+    // The division on a select's other arm would be a possible trap the compiler may not
+    // speculate: divide by 1 there instead, so that the loop has no branch.
+    for (int x = 0; x < W; ++x) {
+      const bool lit = mx[x] >= min_flash;
+      const float q = 1.f / (lit ? mx[x] : 1.f);
+      inv[x] = lit ? q : 0.f;
+    }
     for (size_t i = 0; i < n; ++i) {
-      float* r = ratio_[i].ptr<float>(y);
+      float* __restrict r = ratio_[i].ptr<float>(y);
       for (int x = 0; x < W; ++x) r[x] = inv[x] > 0.f ? r[x] * inv[x] : 1.f;
     }
   }
@@ -118,14 +156,14 @@ void DepthEdgeExtractor::extract(const MfcFrames& frames, DepthEdges& out) {
   const float dim2 = params_.dim_flash_dn * params_.dim_flash_dn;
 #pragma omp parallel for schedule(static)
   for (int y = 1; y < H - 1; ++y) {
-    float* s = response_.ptr<float>(y);
-    float* gx_sum = normal_x_.ptr<float>(y);
-    float* gy_sum = normal_y_.ptr<float>(y);
-    const float* mx = max_image_.ptr<float>(y);
+    float* __restrict s = response_.ptr<float>(y);
+    float* __restrict gx_sum = normal_x_.ptr<float>(y);
+    float* __restrict gy_sum = normal_y_.ptr<float>(y);
+    const float* __restrict mx = max_image_.ptr<float>(y);
     for (size_t i = 0; i < n; ++i) {
-      const float* r0 = ratio_[i].ptr<float>(y - 1);
-      const float* r1 = ratio_[i].ptr<float>(y);
-      const float* r2 = ratio_[i].ptr<float>(y + 1);
+      const float* __restrict r0 = ratio_[i].ptr<float>(y - 1);
+      const float* __restrict r1 = ratio_[i].ptr<float>(y);
+      const float* __restrict r2 = ratio_[i].ptr<float>(y + 1);
       const auto ex = static_cast<float>(epipoles_[i].ex), ey = static_cast<float>(epipoles_[i].ey),
                  ez = static_cast<float>(epipoles_[i].ez);
       const float dy_raw = ez * static_cast<float>(y) - ey;
@@ -133,19 +171,10 @@ void DepthEdgeExtractor::extract(const MfcFrames& frames, DepthEdges& out) {
       // the whole image, normalised once per row instead of per pixel.
       const bool constant = ez == 0.f;
       const float inv_row = constant ? 1.f / std::sqrt(ex * ex + ey * ey + 1e-20f) : 0.f;
-      for (int x = 1; x + 1 < W; ++x) {
-        const float gx = 0.25f * ((r0[x + 1] - r0[x - 1]) + 2.f * (r1[x + 1] - r1[x - 1]) + (r2[x + 1] - r2[x - 1]));
-        const float gy = 0.25f * ((r2[x - 1] + 2.f * r2[x] + r2[x + 1]) - (r0[x - 1] + 2.f * r0[x] + r0[x + 1]));
-        const float dx_raw = ez * static_cast<float>(x) - ex;
-        const float inv = constant ? inv_row : 1.f / std::sqrt(dx_raw * dx_raw + dy_raw * dy_raw + 1e-20f);
-        const float along = -(gx * dx_raw + gy * dy_raw) * inv;
-        const float r = std::max(along, 0.f);
-        // Weighting by the response keeps the normal continuous in the inputs: a flash
-        // barely seeing the edge barely contributes.
-        s[x] += r;
-        gx_sum[x] -= r * gx;
-        gy_sum[x] -= r * gy;
-      }
+      if (constant)
+        accumulate_flash_row<false>(r0, r1, r2, s, gx_sum, gy_sum, W, ex, ez, dy_raw, inv_row);
+      else
+        accumulate_flash_row<true>(r0, r1, r2, s, gx_sum, gy_sum, W, ex, ez, dy_raw, inv_row);
     }
     for (int x = 1; x + 1 < W; ++x) s[x] *= mx[x] * mx[x] / (mx[x] * mx[x] + dim2);
   }
