@@ -1,6 +1,7 @@
 #include "vision/pose/edge_correspondence.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -48,12 +49,19 @@ void DirectionalEdgeIndex::build(const DepthEdges& edges, const char* source, bo
   for (size_t c = 0; c < cells; ++c) cell_start_[c + 1] += cell_start_[c];
   points_.resize(cell_start_[cells]);
   fill_.assign(cell_start_.begin(), cell_start_.end() - 1);
+  cell_angles_.assign(cells, 0);
+  const double bins_per_radian = kAngleBins / period;
   for (int y = 0; y < size_.height; ++y) {
     const uint8_t* e = edges.edges.ptr<uint8_t>(y);
     const float* d = edges.direction.ptr<float>(y);
     const uint32_t row = static_cast<uint32_t>(y / cell_) * grid_w_;
     for (int x = 0; x < size_.width; ++x)
-      if (e[x]) points_[fill_[row + static_cast<uint32_t>(x / cell_)]++] = {static_cast<float>(x), static_cast<float>(y), modulo(d[x], period)};
+      if (e[x]) {
+        const uint32_t c = row + static_cast<uint32_t>(x / cell_);
+        const float a = modulo(d[x], period);
+        points_[fill_[c]++] = {static_cast<float>(x), static_cast<float>(y), a};
+        cell_angles_[c] |= 1u << std::min(kAngleBins - 1, static_cast<int>(a * bins_per_radian));
+      }
   }
 }
 
@@ -77,11 +85,31 @@ EdgeMatch DirectionalEdgeIndex::nearest(cv::Point2d u, double angle, double lamb
   const int max_ring = std::max(grid_w_, grid_h_);
   // The distance from the clamped u to the nearest pixel of cell c along one axis.
   auto gap = [this](double v, int c) { return std::max({0.0, c * cell_ - v, v - ((c + 1) * cell_ - 1)}); };
+  // The least orientation difference between the query's angle and any angle of bin b: 0 when
+  // the bin holds it, else the circular distance to the nearer end of the bin.
+  const double bin_width = period / kAngleBins;
+  const int own_bin = std::min(kAngleBins - 1, static_cast<int>(a / bin_width));
+  auto turn_bound = [&](uint32_t bins) {
+    if (bins & (1u << own_bin)) return 0.0;
+    double least = period;
+    while (bins) {
+      const int b = std::countr_zero(bins);
+      bins &= bins - 1;
+      for (double end : {b * bin_width, (b + 1) * bin_width}) {
+        const double d = std::abs(a - end);
+        least = std::min(least, std::min(d, period - d));
+      }
+    }
+    return least;
+  };
   auto scan_cell = [&](int cx, int cy) {
     // A cell all of whose pixels are farther than the best cost so far cannot hold the argmin.
     const double bx = gap(cxu, cx), by = gap(cyu, cy);
     if (bx * bx + by * by > best_cost * best_cost) return;
     const size_t c = static_cast<size_t>(cy) * grid_w_ + cx;
+    // Nor can one whose pixels are all turned too far: a lower bound of their cost, less a
+    // margin for the float angles' binning, so that no pixel that could win is skipped.
+    if (std::sqrt(bx * bx + by * by) + lambda * turn_bound(cell_angles_[c]) - 1e-6 > best_cost) return;
     for (uint32_t i = cell_start_[c]; i < cell_start_[c + 1]; ++i) {
       const Entry& p = points_[i];
       const double dx = p.x - u.x, dy = p.y - u.y;

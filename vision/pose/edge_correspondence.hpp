@@ -64,6 +64,12 @@ class DirectionalEdgeIndex {
   cv::Size size_;
   int grid_w_ = 0, grid_h_ = 0;
   std::vector<uint32_t> cell_start_;  // grid_w * grid_h + 1 offsets into points_
+  // Per cell, which of kAngleBins equal bins of the period its pixels' angles fall in: a query
+  // skips a cell whose pixels are all turned too far from its angle (a lower bound on their
+  // cost), not only one that lies too far away. Clutter near a part's outline is mostly edges of
+  // other orientations; this is where most scanned pixels were rejected.
+  static constexpr int kAngleBins = 32;
+  std::vector<uint32_t> cell_angles_;
   std::vector<Entry> points_;
   std::vector<uint32_t> fill_;  // build scratch
 };
