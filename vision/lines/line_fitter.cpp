@@ -179,7 +179,9 @@ void LineFitter::fit(const cv::Mat1b& edges, const cv::Mat1f* direction, LineFit
           tracer.trace(cv::Point2d(pts[i]), walks[static_cast<size_t>(ch.wrap(c0 + s))], nullptr);
   }
   HypothesisQueue& queue = queue_;
-  queue.clear();
+  // A support is at most the pixels of one band across the image: scores stay below this.
+  const int longest = std::max(edges.cols, edges.rows);
+  queue.reset(longest * (2 * static_cast<int>(std::ceil(params.residual * std::sqrt(2.0))) + 1));
   for (int i = 0; i < n; ++i) {
     const int c0 = ch.channelOf(dir[i]);
     for (int s = -spread; s <= spread; ++s) {
@@ -268,47 +270,67 @@ void LineFitter::fit(const cv::Mat1b& edges, const cv::Mat1f* direction, LineFit
   sortLongestFirst(result.set.lines, order_, sorted_);
 }
 
-void HypothesisQueue::clear() {
-  for (auto& b : buckets_) b.clear();
+void HypothesisQueue::reset(int max_score) {
+  heads_.assign(static_cast<size_t>(std::max(max_score, 0)) + 1, -1);  // within capacity: no allocation
+  pool_.clear();
+  free_.clear();
+  order_.clear();
   top_ = -1;
 }
 
+void HypothesisQueue::link(int score, const Key& key) {
+  if (score < 0) throw std::invalid_argument("HypothesisQueue: negative score");
+  if (static_cast<size_t>(score) >= heads_.size()) heads_.resize(static_cast<size_t>(score) + 1, -1);
+  int slot;
+  if (!free_.empty()) {
+    slot = free_.back();
+    free_.pop_back();
+    pool_[static_cast<size_t>(slot)] = {key, heads_[static_cast<size_t>(score)]};
+  } else {
+    slot = static_cast<int>(pool_.size());
+    pool_.push_back({key, heads_[static_cast<size_t>(score)]});
+  }
+  heads_[static_cast<size_t>(score)] = slot;
+}
+
 void HypothesisQueue::add(const Entry& e) {
-  if (e.score < 0) throw std::invalid_argument("HypothesisQueue: negative score");
-  if (static_cast<size_t>(e.score) >= buckets_.size()) buckets_.resize(static_cast<size_t>(e.score) + 1);
-  buckets_[static_cast<size_t>(e.score)].push_back({e.seed, e.channel});
+  link(e.score, {e.seed, e.channel});
   top_ = std::max(top_, e.score);
 }
 
-void HypothesisQueue::order_top() {
-  if (top_ >= 0) std::sort(buckets_[static_cast<size_t>(top_)].begin(), buckets_[static_cast<size_t>(top_)].end());
+void HypothesisQueue::collect_top() {
+  order_.clear();
+  if (top_ < 0) return;
+  int& head = heads_[static_cast<size_t>(top_)];
+  for (int i = head; i >= 0; i = pool_[static_cast<size_t>(i)].next) {
+    order_.push_back(pool_[static_cast<size_t>(i)].key);
+    free_.push_back(i);
+  }
+  head = -1;
+  std::sort(order_.begin(), order_.end());
 }
 
-void HypothesisQueue::build() { order_top(); }
+void HypothesisQueue::build() {
+  // Room for every entry's slot to come back free, and for the largest score's list.
+  free_.reserve(pool_.size());
+  order_.reserve(pool_.size());
+  collect_top();
+}
 
 void HypothesisQueue::push(const Entry& e) {
-  if (e.score < top_) {
-    add(e);  // below the top: ordered when the top comes down to it
-    return;
-  }
-  const bool above = e.score > top_;
-  add(e);
-  auto& b = buckets_[static_cast<size_t>(e.score)];
-  if (above) return;  // alone in its bucket
-  // Into the ordered top bucket, at its place.
-  const Key k = b.back();
-  b.pop_back();
-  b.insert(std::upper_bound(b.begin(), b.end(), k), k);
+  if (e.score >= top_) throw std::invalid_argument("HypothesisQueue: push at or above the top score");
+  link(e.score, {e.seed, e.channel});
 }
 
 HypothesisQueue::Entry HypothesisQueue::pop() {
-  auto& b = buckets_[static_cast<size_t>(top_)];
-  const Key k = b.back();
-  b.pop_back();
+  if (top_ < 0) throw std::logic_error("HypothesisQueue: pop from an empty queue");
+  const Key k = order_.back();
+  order_.pop_back();
   const Entry e{top_, k.seed, k.channel};
-  if (b.empty()) {
-    while (top_ >= 0 && buckets_[static_cast<size_t>(top_)].empty()) --top_;
-    order_top();
+  if (order_.empty()) {
+    do --top_;
+    while (top_ >= 0 && heads_[static_cast<size_t>(top_)] < 0);
+    collect_top();
   }
   return e;
 }

@@ -73,35 +73,46 @@ struct TraceDirection {
 // among equal scores, lowest seed then lowest channel: the order of one binary heap over all of
 // them, which it replaces. There are 2 * channelSpread + 1 per edge pixel and the lazy greedy
 // pops each at least once: the binary heap's sifts over ~10^4-10^5 entries were a sixth of the
-// greedy loop. Here each score has its own bucket, ordered only when it becomes the top one (a
-// sort); the greedy pushes a re-scored hypothesis only below the top score, into an unordered
-// bucket in O(1), and pops from the ordered top bucket in O(1). A push at or above the top score
-// stays correct (ordered insertion). Scores are support counts (>= 0). Buffers are kept: no
-// allocation once they have grown.
+// greedy loop. Here each score has a list of its entries, ordered only when it becomes the top
+// score (one sort); pops then take the next of that order in O(1), and the greedy's pushes (a
+// re-scored hypothesis, always below the top score) prepend to a list in O(1).
+// Entries live in one pool, a pushed entry in the slot its pop freed: once the pool, the per
+// score heads (reserve) and the sort buffer have grown, nothing allocates (the pick cycle).
 class HypothesisQueue {
  public:
   struct Entry {
     int score, seed, channel;
   };
-  void clear();
-  // Adds without ordering (the initial fill); build() then orders the queue.
+  // Empties the queue; scores up to max_score then need no allocation.
+  void reset(int max_score);
+  // The initial fill, in any order (score >= 0); build() then orders it.
   void add(const Entry& e);
   void build();
-  // Insertion after build().
+  // After build(): an entry scored below the top score (a popped one, re-scored lower); throws
+  // std::invalid_argument otherwise (the greedy never does that, and the order of the top score
+  // is fixed when it is reached).
   void push(const Entry& e);
-  Entry pop();  // the first entry; the queue must not be empty
+  Entry pop();  // the first entry; throws std::logic_error when empty
   bool empty() const { return top_ < 0; }
   int top_score() const { return top_; }  // the first entry's score; -1 when empty
 
  private:
   struct Key {
     int seed, channel;
-    // Buckets are sorted so that their first entry (lowest seed, then channel) is the last.
+    // Sorted so that the first entry (lowest seed, then channel) is the last.
     bool operator<(const Key& o) const { return seed != o.seed ? seed > o.seed : channel > o.channel; }
   };
-  void order_top();
-  std::vector<std::vector<Key>> buckets_;  // by score
-  int top_ = -1;                            // highest non-empty score
+  struct Node {
+    Key key;
+    int next;  // the next node of its score's list, -1 at the end
+  };
+  void link(int score, const Key& key);
+  void collect_top();  // moves the top score's list into `order_`, sorted
+  std::vector<Node> pool_;
+  std::vector<int> free_;    // pool slots of entries popped (their list nodes were collected)
+  std::vector<int> heads_;   // per score, the first node of its list, -1 when empty
+  std::vector<Key> order_;   // the top score's entries, sorted; popped from the back
+  int top_ = -1;             // highest score with an entry, -1 when empty
 };
 
 // fitLines with its buffers kept between calls, for the pick cycle: once they (and `out`'s)

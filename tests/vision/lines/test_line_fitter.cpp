@@ -364,15 +364,16 @@ TEST(LineFitter, OneThreadAndSeveralGiveTheSameLines) {
 
 // The bucket queue against the obviously-right twin, one binary heap over LineFitter::Hypothesis
 // (std::priority_queue, the fit's queue before): the same pops in the same order, for a bulk
-// fill and then the greedy's pattern (pop, sometimes push back with a lower score), plus pushes
-// at and above the top score, which the greedy never makes but the queue must get right.
+// fill and then the greedy's pattern (pop, sometimes push the popped entry back with a lower
+// score than the top's), with scores beyond the reserved range too.
 TEST(HypothesisQueue, PopsInTheOrderOfOneBinaryHeap) {
   std::mt19937 rng(7);
+  HypothesisQueue queue;  // reused, as the fit reuses it
   for (int trial = 0; trial < 200; ++trial) {
-    HypothesisQueue queue;
     std::priority_queue<LineFitter::Hypothesis> twin;
     const int seeds = std::uniform_int_distribution<int>(1, 400)(rng);
     const int max_score = std::uniform_int_distribution<int>(1, trial % 3 == 0 ? 5 : 300)(rng);
+    queue.reset(trial % 4 == 0 ? max_score / 2 : max_score);
     std::uniform_int_distribution<int> score(0, max_score);
     // Unique (seed, channel) pairs, as the fit's: three channels per seed.
     for (int s = 0; s < seeds; ++s)
@@ -382,7 +383,6 @@ TEST(HypothesisQueue, PopsInTheOrderOfOneBinaryHeap) {
         twin.push({sc, s, c});
       }
     queue.build();
-    int pushes = 0;
     while (!twin.empty()) {
       ASSERT_FALSE(queue.empty());
       ASSERT_EQ(queue.top_score(), twin.top().score);
@@ -392,18 +392,11 @@ TEST(HypothesisQueue, PopsInTheOrderOfOneBinaryHeap) {
       ASSERT_EQ(got.score, want.score);
       ASSERT_EQ(got.seed, want.seed);
       ASSERT_EQ(got.channel, want.channel);
-      const int roll = std::uniform_int_distribution<int>(0, 9)(rng);
-      if (roll < 5 && got.score > 0) {  // the greedy's re-scored hypothesis, below its old score
-        const int lower = std::uniform_int_distribution<int>(0, got.score - 1)(rng);
+      // The greedy's re-scored hypothesis: lower than the top that is left.
+      if (!twin.empty() && twin.top().score > 0 && std::uniform_int_distribution<int>(0, 1)(rng)) {
+        const int lower = std::uniform_int_distribution<int>(0, twin.top().score - 1)(rng);
         queue.push({lower, got.seed, got.channel});
         twin.push({lower, got.seed, got.channel});
-        ++pushes;
-      } else if (roll == 5 && pushes < 50) {  // at or above the top: ordered insertion
-        const int top = twin.empty() ? 0 : twin.top().score;
-        const int at = top + std::uniform_int_distribution<int>(0, 2)(rng);
-        queue.push({at, got.seed, got.channel});
-        twin.push({at, got.seed, got.channel});
-        ++pushes;
       }
     }
     EXPECT_TRUE(queue.empty());
@@ -411,7 +404,16 @@ TEST(HypothesisQueue, PopsInTheOrderOfOneBinaryHeap) {
   }
 }
 
-TEST(HypothesisQueue, NegativeScoreIsRefused) {
+TEST(HypothesisQueue, RefusesWhatWouldBreakItsOrder) {
   HypothesisQueue queue;
+  queue.reset(10);
   EXPECT_THROW(queue.add({-1, 0, 0}), std::invalid_argument);
+  queue.add({5, 0, 0});
+  queue.add({3, 1, 0});
+  queue.build();
+  EXPECT_THROW(queue.push({5, 2, 0}), std::invalid_argument);  // at the top score
+  EXPECT_THROW(queue.push({7, 2, 0}), std::invalid_argument);  // above it
+  EXPECT_EQ(queue.pop().seed, 0);
+  EXPECT_EQ(queue.pop().seed, 1);
+  EXPECT_THROW(queue.pop(), std::logic_error);
 }
