@@ -110,7 +110,12 @@ LineFitResult fitLines(const cv::Mat1b& edges, const LineFitParams& params, cons
   return result;
 }
 
-LineFitter::LineFitter(const LineFitParams& params) : params_(params) { params_.validate(); }
+LineFitter::LineFitter(const LineFitParams& params) : params_(params) {
+  params_.validate();
+  // Every channel's walk, once: the seeds' hypotheses all lie on channel directions.
+  const OrientationChannels ch(params_.q);
+  for (int c = 0; c < params_.q; ++c) walks_.emplace_back(ch.angleOf(c), params_.residual);
+}
 
 void LineFitter::fit(const cv::Mat1b& edges, const cv::Mat1f* direction, LineFitResult& result,
                      const cv::Mat1f* shadow) {
@@ -159,10 +164,7 @@ void LineFitter::fit(const cv::Mat1b& edges, const cv::Mat1f* direction, LineFit
   }
 
   const Tracer tracer(alive, params);
-  // Every channel's walk, once (the seeds' hypotheses all lie on channel directions).
-  std::vector<TraceDirection>& walks = walks_;
-  walks.resize(static_cast<size_t>(params.q));
-  for (int c = 0; c < params.q; ++c) walks[static_cast<size_t>(c)] = TraceDirection(ch.angleOf(c), params.residual);
+  const std::vector<TraceDirection>& walks = walks_;
   // Every seed's hypotheses are scored on the untouched edge map, so independently: shared out
   // among the threads (more than half of the stage's time before). Hypothesis's order is total
   // (score, then seed, then channel), so the queue pops them in the same order however it was
@@ -193,14 +195,13 @@ void LineFitter::fit(const cv::Mat1b& edges, const cv::Mat1f* direction, LineFit
 
   std::vector<cv::Point>& support = support_;
   while (!queue.empty()) {
-    const HypothesisQueue::Entry popped = queue.pop();
-    Hypothesis h{popped.score, popped.seed, popped.channel};
+    Hypothesis h = queue.pop();
     // Lazy greedy: supports only shrink as points are claimed, so a re-scored hypothesis that
     // still beats every stored (optimistic) score is the true best.
     h.score = tracer.trace(cv::Point2d(pts[h.seed]), walks[static_cast<size_t>(h.channel)], nullptr);
     if (h.score < params.minSupport) continue;
     if (!queue.empty() && h.score < queue.top_score()) {
-      queue.push({h.score, h.seed, h.channel});
+      queue.push(h);
       continue;
     }
     // Accept, then refine: the channel direction only found the group of points; the segment
@@ -293,9 +294,9 @@ void HypothesisQueue::link(int score, const Key& key) {
   heads_[static_cast<size_t>(score)] = slot;
 }
 
-void HypothesisQueue::add(const Entry& e) {
-  link(e.score, {e.seed, e.channel});
-  top_ = std::max(top_, e.score);
+void HypothesisQueue::add(const LineHypothesis& h) {
+  link(h.score, {h.seed, h.channel});
+  top_ = std::max(top_, h.score);
 }
 
 void HypothesisQueue::collect_top() {
@@ -317,22 +318,22 @@ void HypothesisQueue::build() {
   collect_top();
 }
 
-void HypothesisQueue::push(const Entry& e) {
-  if (e.score >= top_) throw std::invalid_argument("HypothesisQueue: push at or above the top score");
-  link(e.score, {e.seed, e.channel});
+void HypothesisQueue::push(const LineHypothesis& h) {
+  if (h.score >= top_) throw std::invalid_argument("HypothesisQueue: push at or above the top score");
+  link(h.score, {h.seed, h.channel});
 }
 
-HypothesisQueue::Entry HypothesisQueue::pop() {
+LineHypothesis HypothesisQueue::pop() {
   if (top_ < 0) throw std::logic_error("HypothesisQueue: pop from an empty queue");
   const Key k = order_.back();
   order_.pop_back();
-  const Entry e{top_, k.seed, k.channel};
+  const LineHypothesis h{top_, k.seed, k.channel};
   if (order_.empty()) {
     do --top_;
     while (top_ >= 0 && heads_[static_cast<size_t>(top_)] < 0);
     collect_top();
   }
-  return e;
+  return h;
 }
 
 void reduceQuery(const LineSet& lines, const cv::Mat1b& channelMap, int factor, LineSet& reducedLines,

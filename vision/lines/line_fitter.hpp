@@ -69,7 +69,18 @@ struct TraceDirection {
         band(residual * std::sqrt(1.0 + slope * slope)) {}
 };
 
-// The line fit's pending hypotheses (LineFitter::Hypothesis), popped highest score first and,
+// One hypothesis of the line fit: a line of channel `channel` through edge pixel `seed`.
+struct LineHypothesis {
+  int score;    // its support (edge pixels in its band), >= 0
+  int seed;     // index into the edge pixel list
+  int channel;  // hypothesised direction
+  // Priority order: higher score first, then lower seed, then lower channel (a max-heap's order).
+  bool operator<(const LineHypothesis& o) const {
+    return score != o.score ? score < o.score : seed != o.seed ? seed > o.seed : channel > o.channel;
+  }
+};
+
+// The line fit's pending hypotheses, popped highest score first and,
 // among equal scores, lowest seed then lowest channel: the order of one binary heap over all of
 // them, which it replaces. There are 2 * channelSpread + 1 per edge pixel and the lazy greedy
 // pops each at least once: the binary heap's sifts over ~10^4-10^5 entries were a sixth of the
@@ -80,19 +91,16 @@ struct TraceDirection {
 // score heads (reserve) and the sort buffer have grown, nothing allocates (the pick cycle).
 class HypothesisQueue {
  public:
-  struct Entry {
-    int score, seed, channel;
-  };
   // Empties the queue; scores up to max_score then need no allocation.
   void reset(int max_score);
   // The initial fill, in any order (score >= 0); build() then orders it.
-  void add(const Entry& e);
+  void add(const LineHypothesis& h);
   void build();
   // After build(): an entry scored below the top score (a popped one, re-scored lower); throws
   // std::invalid_argument otherwise (the greedy never does that, and the order of the top score
   // is fixed when it is reached).
-  void push(const Entry& e);
-  Entry pop();  // the first entry; throws std::logic_error when empty
+  void push(const LineHypothesis& h);
+  LineHypothesis pop();  // the first entry; throws std::logic_error when empty
   bool empty() const { return top_ < 0; }
   int top_score() const { return top_; }  // the first entry's score; -1 when empty
 
@@ -126,15 +134,7 @@ class LineFitter {
            const cv::Mat1f* shadow = nullptr);
   const LineFitParams& params() const { return params_; }
 
-  struct Hypothesis {
-    int score;
-    int seed;     // index into the edge pixel list
-    int channel;  // hypothesised direction
-    // Heap order: higher score first, then lower seed, then lower channel.
-    bool operator<(const Hypothesis& o) const {
-      return score != o.score ? score < o.score : seed != o.seed ? seed > o.seed : channel > o.channel;
-    }
-  };
+  using Hypothesis = LineHypothesis;
 
  private:
   LineFitParams params_;
@@ -142,7 +142,7 @@ class LineFitter {
   cv::Mat1b alive_;
   std::vector<float> dir_;
   std::vector<int> seed_scores_;  // per edge pixel, its 2 * channelSpread + 1 hypotheses' support
-  std::vector<TraceDirection> walks_;  // per channel, how a trace walks it
+  std::vector<TraceDirection> walks_;  // per channel, how a trace walks it (from the params)
   HypothesisQueue queue_;
   std::vector<cv::Point> support_, next_;
   std::vector<std::pair<float, int>> order_;  // sortLongestFirst's buffers

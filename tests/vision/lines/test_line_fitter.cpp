@@ -388,7 +388,7 @@ TEST(HypothesisQueue, PopsInTheOrderOfOneBinaryHeap) {
       ASSERT_EQ(queue.top_score(), twin.top().score);
       const LineFitter::Hypothesis want = twin.top();
       twin.pop();
-      const HypothesisQueue::Entry got = queue.pop();
+      const LineHypothesis got = queue.pop();
       ASSERT_EQ(got.score, want.score);
       ASSERT_EQ(got.seed, want.seed);
       ASSERT_EQ(got.channel, want.channel);
