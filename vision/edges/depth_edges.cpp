@@ -117,21 +117,19 @@ void DepthEdgeExtractor::extract(const MfcFrames& frames, DepthEdges& out) {
   // Rows are independent in steps 1 and 2: shared among the cores.
 #pragma omp parallel for schedule(static)
   for (int y = 0; y < H; ++y) {
-    // Restrict-qualified row pointers: the rows never overlap, and saying so lets the compiler
-    // vectorise these loops (per-lane IEEE arithmetic in the same order: the same values).
-    const uint8_t* __restrict amb = frames.ambient.ptr<uint8_t>(y);
-    float* __restrict mx = max_image_.ptr<float>(y);
+    const uint8_t* amb = frames.ambient.ptr<uint8_t>(y);
+    float* mx = max_image_.ptr<float>(y);
     for (int x = 0; x < W; ++x) mx[x] = 0.f;
     for (size_t i = 0; i < n; ++i) {
-      const uint8_t* __restrict f = frames.flash[i].ptr<uint8_t>(y);
-      float* __restrict r = ratio_[i].ptr<float>(y);
+      const uint8_t* f = frames.flash[i].ptr<uint8_t>(y);
+      float* r = ratio_[i].ptr<float>(y);
       for (int x = 0; x < W; ++x) {
         const float v = std::max(static_cast<float>(f[x]) - static_cast<float>(amb[x]), 0.f);
         r[x] = v;
         mx[x] = std::max(mx[x], v);
       }
     }
-    float* __restrict inv = inv_max_.ptr<float>(y);
+    float* inv = inv_max_.ptr<float>(y);
     // The division on a select's other arm would be a possible trap the compiler may not
     // speculate: divide by 1 there instead, so that the loop has no branch.
     for (int x = 0; x < W; ++x) {
@@ -140,7 +138,7 @@ void DepthEdgeExtractor::extract(const MfcFrames& frames, DepthEdges& out) {
       inv[x] = lit ? q : 0.f;
     }
     for (size_t i = 0; i < n; ++i) {
-      float* __restrict r = ratio_[i].ptr<float>(y);
+      float* r = ratio_[i].ptr<float>(y);
       for (int x = 0; x < W; ++x) r[x] = inv[x] > 0.f ? r[x] * inv[x] : 1.f;
     }
   }
@@ -156,14 +154,14 @@ void DepthEdgeExtractor::extract(const MfcFrames& frames, DepthEdges& out) {
   const float dim2 = params_.dim_flash_dn * params_.dim_flash_dn;
 #pragma omp parallel for schedule(static)
   for (int y = 1; y < H - 1; ++y) {
-    float* __restrict s = response_.ptr<float>(y);
-    float* __restrict gx_sum = normal_x_.ptr<float>(y);
-    float* __restrict gy_sum = normal_y_.ptr<float>(y);
-    const float* __restrict mx = max_image_.ptr<float>(y);
+    float* s = response_.ptr<float>(y);
+    float* gx_sum = normal_x_.ptr<float>(y);
+    float* gy_sum = normal_y_.ptr<float>(y);
+    const float* mx = max_image_.ptr<float>(y);
     for (size_t i = 0; i < n; ++i) {
-      const float* __restrict r0 = ratio_[i].ptr<float>(y - 1);
-      const float* __restrict r1 = ratio_[i].ptr<float>(y);
-      const float* __restrict r2 = ratio_[i].ptr<float>(y + 1);
+      const float* r0 = ratio_[i].ptr<float>(y - 1);
+      const float* r1 = ratio_[i].ptr<float>(y);
+      const float* r2 = ratio_[i].ptr<float>(y + 1);
       const auto ex = static_cast<float>(epipoles_[i].ex), ey = static_cast<float>(epipoles_[i].ey),
                  ez = static_cast<float>(epipoles_[i].ez);
       const float dy_raw = ez * static_cast<float>(y) - ey;
