@@ -17,6 +17,12 @@ float modulo(float angle, double period) {
   const float wrapped = static_cast<float>(r < 0 ? r + period : r);
   return wrapped < top ? wrapped : 0.f;  // the period rounds up in float
 }
+
+// The bin of the angle bins (`bins` equal parts of [0, period)) that angle a, in [0, period), falls
+// in: one formula for the cells' masks and the queries.
+int angle_bin(double a, double period, int bins) {
+  return std::min(bins - 1, static_cast<int>(a * (bins / period)));
+}
 }  // namespace
 
 DirectionalEdgeIndex::DirectionalEdgeIndex(int cell_px) : cell_(cell_px) {
@@ -50,7 +56,6 @@ void DirectionalEdgeIndex::build(const DepthEdges& edges, const char* source, bo
   points_.resize(cell_start_[cells]);
   fill_.assign(cell_start_.begin(), cell_start_.end() - 1);
   cell_angles_.assign(cells, 0);
-  const double bins_per_radian = kAngleBins / period;
   for (int y = 0; y < size_.height; ++y) {
     const uint8_t* e = edges.edges.ptr<uint8_t>(y);
     const float* d = edges.direction.ptr<float>(y);
@@ -60,7 +65,7 @@ void DirectionalEdgeIndex::build(const DepthEdges& edges, const char* source, bo
         const uint32_t c = row + static_cast<uint32_t>(x / cell_);
         const float a = modulo(d[x], period);
         points_[fill_[c]++] = {static_cast<float>(x), static_cast<float>(y), a};
-        cell_angles_[c] |= 1u << std::min(kAngleBins - 1, static_cast<int>(a * bins_per_radian));
+        cell_angles_[c] |= 1u << angle_bin(a, period, kAngleBins);
       }
   }
 }
@@ -88,7 +93,7 @@ EdgeMatch DirectionalEdgeIndex::nearest(cv::Point2d u, double angle, double lamb
   // The least orientation difference between the query's angle and any angle of bin b: 0 when
   // the bin holds it, else the circular distance to the nearer end of the bin.
   const double bin_width = period / kAngleBins;
-  const int own_bin = std::min(kAngleBins - 1, static_cast<int>(a / bin_width));
+  const int own_bin = angle_bin(a, period, kAngleBins);
   auto turn_bound = [&](uint32_t bins) {
     if (bins & (1u << own_bin)) return 0.0;
     double least = period;
