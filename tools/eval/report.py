@@ -400,7 +400,7 @@ def main(bench_dir, docs_dir):
         over_two = [rounds[(x["scene"], x["image"], x["instance"])]["topk"] for x in over
                     if (x["scene"], x["image"], x["instance"]) in rounds]
         w("Every ground-truth instance is binned by its occlusion (1 - `visib_fract` of `scene_gt_info.json`: "
-          "occluders are other parts, clutter rods and the bin walls). An instance counts as detected when one of the "
+          "occluders are other parts, clutter rods, the bin walls and the image border, as in the BOP toolkit). An instance counts as detected when one of the "
           "first k estimates of its type's detection run matches it (k = the number of instances of that type in the "
           "image, so several instances of one type can all be found); *best only* counts only the best estimate. "
           "*95 %*: the Wilson score interval of the top-k rate (how well a bin of this many instances pins the rate "

@@ -9,6 +9,7 @@
 #include <limits>
 #include <numbers>
 #include <stdexcept>
+#include <utility>
 
 namespace mfcd::vision {
 
@@ -98,7 +99,7 @@ bool BinSimulator::occlusion_ok(const BinLayout& layout, std::vector<int>& px_al
   while (px_alone.size() < layout.parts.size()) {
     const ScenePart& p = parts[static_cast<size_t>(first_part_index() - 1) + px_alone.size()];
     renderer_->render_depth(std::span(&p, 1), depth, index);
-    px_alone.push_back(cv::countNonZero(index));
+    px_alone.push_back(whole_silhouette(p, index, nullptr));
   }
   renderer_->render_depth(parts, depth, index);
   std::vector<int> visible(parts.size() + 1, 0);
@@ -110,6 +111,32 @@ bool BinSimulator::occlusion_ok(const BinLayout& layout, std::vector<int>& px_al
     if (all == 0 || 1.0 - static_cast<double>(vis) / all > options_.max_occlusion) return false;
   }
   return true;
+}
+
+int BinSimulator::whole_silhouette(const ScenePart& part, const cv::Mat1b& in_image, cv::Rect* bbox) {
+  const int w = in_image.cols, h = in_image.rows;
+  const bool touches = cv::countNonZero(in_image.row(0)) || cv::countNonZero(in_image.row(h - 1)) ||
+                       cv::countNonZero(in_image.col(0)) || cv::countNonZero(in_image.col(w - 1));
+  // A part's silhouette is connected: one that touches no border lies wholly inside the image.
+  if (!touches && cv::countNonZero(in_image)) {
+    if (bbox) *bbox = cv::boundingRect(in_image);
+    return cv::countNonZero(in_image);
+  }
+  if (!wide_renderer_) {
+    CameraConfig wide = camera_;
+    wide.camera = camera_.camera.cropped(cv::Rect(-w, -h, 3 * w, 3 * h));
+    wide_renderer_ = std::make_unique<MfcRenderer>(wide, options_.render);
+    wide_renderer_->add_mesh(make_plane(2000));
+    wide_renderer_->add_mesh(bin_, 10.0);
+    for (const auto& m : models_) wide_renderer_->add_mesh(m.mesh);
+    for (const auto& r : rods_) wide_renderer_->add_mesh(r, 10.0);
+  }
+  cv::Mat1f depth;
+  cv::Mat1b index;
+  wide_renderer_->render_depth(std::span(&part, 1), depth, index);
+  const int n = cv::countNonZero(index);
+  if (bbox) *bbox = n ? cv::boundingRect(index) - cv::Point(w, h) : cv::Rect(-1, -1, -1, -1);
+  return n;
 }
 
 bool BinSimulator::drop(BinLayout& layout, bool is_part, HeightMap& top, std::vector<int>& px_alone,
@@ -234,9 +261,11 @@ BinLayout BinSimulator::layout(uint64_t seed) {
   return layout;
 }
 
-SimulatedImage BinSimulator::simulate(uint64_t seed) {
+SimulatedImage BinSimulator::simulate(uint64_t seed) { return simulate(layout(seed), seed); }
+
+SimulatedImage BinSimulator::simulate(BinLayout layout, uint64_t seed) {
   SimulatedImage im;
-  im.layout = layout(seed);
+  im.layout = std::move(layout);
   const auto parts = scene_parts(im.layout);
   MfcRender render;
   renderer_->render(parts, render, seed);
@@ -255,12 +284,11 @@ SimulatedImage BinSimulator::simulate(uint64_t seed) {
     renderer_->render_depth(std::span(&sp, 1), depth, index);
     inst.mask_all = index > 0;
     inst.mask_visib = render.part_index == static_cast<int>(k) + first_part_index();
-    inst.px_count_all = cv::countNonZero(inst.mask_all);
+    inst.px_count_all = whole_silhouette(sp, index, &inst.bbox_obj);
     // The simulated depth is valid wherever the table or bin is seen, i.e. everywhere.
     inst.px_count_valid = cv::countNonZero(inst.mask_all & (im.depth_mm > 0));
     inst.px_count_visib = cv::countNonZero(inst.mask_visib);
     inst.visib_fract = inst.px_count_all ? static_cast<double>(inst.px_count_visib) / inst.px_count_all : 0;
-    inst.bbox_obj = bbox_of(inst.mask_all);
     inst.bbox_visib = bbox_of(inst.mask_visib);
     im.instances.push_back(std::move(inst));
   }

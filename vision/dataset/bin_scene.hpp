@@ -122,8 +122,11 @@ struct PartInstance {
   int obj_id = 0;
   cv::Matx33d R;
   cv::Vec3d t_mm;
-  cv::Mat1b mask_all;    // silhouette of the part rendered alone
+  cv::Mat1b mask_all;    // silhouette of the part rendered alone (image pixels)
   cv::Mat1b mask_visib;  // its visible pixels in the scene
+  // As BOP's calc_gt_info: bbox_obj and px_count_all are of the whole silhouette, also where it
+  // lies outside the image (the box may then extend beyond it), so a part cut by the image
+  // border counts as partly hidden in visib_fract.
   cv::Rect bbox_obj, bbox_visib;
   int px_count_all = 0, px_count_valid = 0, px_count_visib = 0;
   double visib_fract = 0;
@@ -149,6 +152,8 @@ class BinSimulator {
   BinLayout layout(uint64_t seed);
   // Layout, render, ground truth and corruptions.
   SimulatedImage simulate(uint64_t seed);
+  // Render, ground truth and corruptions of a given layout (e.g. one of layout(), edited).
+  SimulatedImage simulate(BinLayout layout, uint64_t seed);
 
   // The render list of a layout: table, bin, parts (in order), rods. The rendered
   // part_index of parts[k] is k + first_part_index().
@@ -168,6 +173,10 @@ class BinSimulator {
   bool drop(BinLayout& layout, bool is_part, HeightMap& top, std::vector<int>& px_alone, std::mt19937_64& rng);
   // True when no part of the layout is more occluded than options_.max_occlusion.
   bool occlusion_ok(const BinLayout& layout, std::vector<int>& px_alone);
+  // The pixel count and bounding box of a part's whole silhouette, given its silhouette in the
+  // image (`in_image`, rendered alone): the same when that touches no image border, else
+  // rendered again on a canvas three times the image's size each way, centred on it.
+  int whole_silhouette(const ScenePart& part, const cv::Mat1b& in_image, cv::Rect* bbox);
   void corrupt(SimulatedImage& image, uint64_t seed);
   CameraConfig camera_;
   std::vector<PartModel> models_;
@@ -177,6 +186,9 @@ class BinSimulator {
   Mesh bin_;
   std::vector<Mesh> rods_;
   std::unique_ptr<MfcRenderer> renderer_;
+  // whole_silhouette's renderer, made when first needed: the same meshes added in the same order,
+  // so a ScenePart's mesh id means the same mesh in both.
+  std::unique_ptr<MfcRenderer> wide_renderer_;
   std::unique_ptr<DepthEdgeExtractor> extractor_;
   int table_id_ = -1, bin_id_ = -1;
   std::vector<int> model_ids_, rod_ids_;
