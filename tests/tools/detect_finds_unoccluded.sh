@@ -18,7 +18,7 @@ out, parts_csv = sys.argv[1], sys.argv[2]
 sym = {}
 for row in open(parts_csv):
     if row.startswith("#") or row.startswith("name"): continue
-    name, oid, s = row.strip().split(",")[:3]
+    name, oid, s = row.strip().split(",")
     sym[int(oid)] = s
 def mat(v): return [v[0:3], v[3:6], v[6:9]]
 def mul(a, b): return [[sum(a[i][k] * b[k][j] for k in range(3)) for j in range(3)] for i in range(3)]

@@ -16,13 +16,12 @@ namespace mfcd::eval {
 struct PartEntry {
   std::string name;
   int obj_id = 0;
-  vision::PartSymmetry symmetry;        // the same pose: pose errors, the pick
-  vision::PartSymmetry views_symmetry;  // what the template views are folded by (mfc-teach); = symmetry when not given
+  vision::PartSymmetry symmetry;
 };
 
-// Reads config/parts/parts.csv ('#' comments, header "name,obj_id,symmetry,views_symmetry", the
-// 4th column optional). Throws std::runtime_error naming the file, line and reason (missing file,
-// wrong field count, bad obj_id, bad symmetry, duplicate name or obj_id).
+// Reads config/parts/parts.csv ('#' comments, header "name,obj_id,symmetry"). Throws
+// std::runtime_error naming the file, line and reason (missing file, wrong field count, bad
+// obj_id, bad symmetry, duplicate name or obj_id).
 std::vector<PartEntry> read_parts_csv(const std::filesystem::path& file);
 // The entry with this obj_id; throws std::runtime_error naming `source` when there is none.
 const PartEntry& part_by_id(const std::vector<PartEntry>& parts, int obj_id, const std::string& source);

@@ -107,8 +107,7 @@ std::vector<PartModel::Turn> turned_over(const TemplateDatabase& db) {
 // same orientation) all find edges and only the flutes' bottoms do not. The fit score alone
 // prefers that twin in clutter (measured: 0.26 against 0.31 for a fully visible knob); the
 // points where the two differ do not (TemplatePoseFit::compare). Turning by +-0.4 of the period
-// starts the fit in the other basin from either twin. (Since session 23 the knob's views are
-// folded 2-fold, by its pointer groove, so it has no phase turns; the wheel, z:5, has.)
+// starts the fit in the other basin from either twin.
 constexpr double kPhaseTurnShare = 0.4;
 
 std::vector<PartModel::Turn> phase_turns(const TemplateDatabase& db) {
