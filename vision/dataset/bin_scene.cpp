@@ -118,9 +118,10 @@ int BinSimulator::whole_silhouette(const ScenePart& part, const cv::Mat1b& in_im
   const bool touches = cv::countNonZero(in_image.row(0)) || cv::countNonZero(in_image.row(h - 1)) ||
                        cv::countNonZero(in_image.col(0)) || cv::countNonZero(in_image.col(w - 1));
   // A part's silhouette is connected: one that touches no border lies wholly inside the image.
-  if (!touches && cv::countNonZero(in_image)) {
+  const int inside = cv::countNonZero(in_image);
+  if (!touches && inside) {
     if (bbox) *bbox = cv::boundingRect(in_image);
-    return cv::countNonZero(in_image);
+    return inside;
   }
   if (!wide_renderer_) {
     CameraConfig wide = camera_;
