@@ -18,7 +18,7 @@ out, parts_csv = sys.argv[1], sys.argv[2]
 sym = {}
 for row in open(parts_csv):
     if row.startswith("#") or row.startswith("name"): continue
-    name, oid, s = row.strip().split(",")
+    name, oid, s = row.strip().split(",")[:3]
     sym[int(oid)] = s
 def mat(v): return [v[0:3], v[3:6], v[6:9]]
 def mul(a, b): return [[sum(a[i][k] * b[k][j] for k in range(3)) for j in range(3)] for i in range(3)]
@@ -80,5 +80,7 @@ msg="$("$BUILD/tools/teach/mfc-teach" "$OUT/none.stl" --camera "$SRC/config/came
 [[ $? -ne 0 && "$msg" == *"none.stl"* ]] || { echo "missing model not refused clearly: $msg"; exit 1; }
 msg="$("$BUILD/tools/teach/mfc-teach" "$BUILD/parts/tnut.stl" --camera "$SRC/config/camera-sim.yaml" --out "$OUT/x.tdb" --symmetry z:0 2>&1)"
 [[ $? -ne 0 && "$msg" == *"symmetry"* ]] || { echo "bad symmetry not refused clearly: $msg"; exit 1; }
+msg="$("$BUILD/tools/teach/mfc-teach" "$BUILD/parts/knob.stl" --camera "$SRC/config/camera-sim.yaml" --out "$OUT/x.tdb" --symmetry z:10 --views-symmetry z:3 2>&1)"
+[[ $? -ne 0 && "$msg" == *"--views-symmetry z:3 is not a symmetry of the part"* ]] || { echo "views folded by a turn the part lacks not refused clearly: $msg"; exit 1; }
 [[ ! -e "$OUT/x.tdb" ]] || { echo "a refused teach left a file"; exit 1; }
 echo "bad input refused"

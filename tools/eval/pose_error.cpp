@@ -39,7 +39,9 @@ std::vector<PartEntry> read_parts_csv(const std::filesystem::path& file) {
     std::vector<std::string> f;
     std::stringstream ss(line);
     for (std::string x; std::getline(ss, x, ',');) f.push_back(trim(x));
-    if (f.size() != 3) throw std::runtime_error(where + "expected 3 fields name,obj_id,symmetry, got " + std::to_string(f.size()));
+    if (f.size() != 3 && f.size() != 4)
+      throw std::runtime_error(where + "expected 3 or 4 fields name,obj_id,symmetry[,views_symmetry], got " +
+                               std::to_string(f.size()));
     if (!header && f[0] == "name") {
       header = true;
       continue;
@@ -59,6 +61,16 @@ std::vector<PartEntry> read_parts_csv(const std::filesystem::path& file) {
       p.symmetry = vision::PartSymmetry::parse(f[2]);
     } catch (const std::exception& e) {
       throw std::runtime_error(where + "symmetry '" + f[2] + "': " + e.what());
+    }
+    p.views_symmetry = p.symmetry;
+    if (f.size() == 4) {
+      try {
+        p.views_symmetry = vision::PartSymmetry::parse(f[3]);
+      } catch (const std::exception& e) {
+        throw std::runtime_error(where + "views_symmetry '" + f[3] + "': " + e.what());
+      }
+      if (!p.symmetry.includes(p.views_symmetry))
+        throw std::runtime_error(where + "views_symmetry " + f[3] + " is not a symmetry of the part (" + f[2] + ")");
     }
     for (const auto& q : parts) {
       if (q.name == p.name) throw std::runtime_error(where + "part '" + p.name + "' listed twice");

@@ -1,7 +1,7 @@
 // mfc-teach: builds a part's template database (*.tdb) from its CAD model (paper Sec. 4.3).
 //   mfc-teach MODEL --camera CAMERA.yaml --out PART.tdb [--obj-id N] [--name NAME]
 //             [--unit mm|cm|m|in|<mm per unit>] [--views K] [--symmetry none|z:N|z:inf]
-//             [--distance MM] [--threads N] [--quiet]
+//             [--views-symmetry none|z:N|z:inf] [--distance MM] [--threads N] [--quiet]
 #include "tools/common/cli_numbers.hpp"
 #include "vision/model/mesh.hpp"
 #include "vision/templates/template_teacher.hpp"
@@ -31,7 +31,11 @@ void usage(std::FILE* to) {
                "  --name NAME        part name (default: the model file's stem)\n"
                "  --unit U           model unit: mm (default), cm, m, in, or mm per unit\n"
                "  --views K          views over the whole sphere (default 300)\n"
-               "  --symmetry S       none (default), z:N (N-fold about the model z axis), z:inf\n"
+               "  --symmetry S       none (default), z:N (N-fold about the model z axis), z:inf:\n"
+               "                     the turns that leave the part the same to the gripper\n"
+               "  --views-symmetry S the symmetry the views are folded by, when the part's edges\n"
+               "                     have a finer one (a small orienting feature); a subgroup of\n"
+               "                     --symmetry (default: --symmetry)\n"
                "  --distance MM      part centre to lens (default: the camera's working_distance_mm)\n"
                "  --threads N        rendering threads (default: all cores)\n"
                "  --preview PNG      also write a contact sheet of up to 64 views (lines over edge points)\n"
@@ -79,7 +83,7 @@ void write_preview(const TemplateDatabase& db, const std::string& file) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string model, camera, out, name, unit = "mm", symmetry = "none";
+  std::string model, camera, out, name, unit = "mm", symmetry = "none", views_symmetry;
   int obj_id = -1, views = 300, threads = 0;
   double distance = 0;
   bool quiet = false;
@@ -102,6 +106,7 @@ int main(int argc, char** argv) {
       else if (a == "--unit") unit = value("--unit");
       else if (a == "--views") views = integer("--views");
       else if (a == "--symmetry") symmetry = value("--symmetry");
+      else if (a == "--views-symmetry") views_symmetry = value("--views-symmetry");
       else if (a == "--threads") threads = integer("--threads");
       else if (a == "--distance") {
         const std::string v = value("--distance");
@@ -131,6 +136,12 @@ int main(int argc, char** argv) {
     TeachParams tp;
     tp.sphere_samples = views;
     tp.symmetry = PartSymmetry::parse(symmetry);
+    if (!views_symmetry.empty()) {
+      tp.views_symmetry = PartSymmetry::parse(views_symmetry);
+      if (!tp.symmetry.includes(*tp.views_symmetry))
+        throw std::invalid_argument("--views-symmetry " + views_symmetry + " is not a symmetry of the part (--symmetry " +
+                                    tp.symmetry.str() + ")");
+    }
     tp.distance_mm = distance;
     tp.threads = threads;
     const auto t0 = std::chrono::steady_clock::now();
@@ -152,9 +163,9 @@ int main(int argc, char** argv) {
     for (const auto& v : db.views) lines += v.lines.lines.size(), points += v.points.size();
     // The edge offset profiles within 10 degrees of the image axes (docs/template-database.md): the
     // views' and the query's differ by a few tenths of a pixel there, which the pose fit corrects.
-    std::printf("%s: part %s obj_id %d symmetry %s: %zu views (K = %d), %.1f lines and %.0f edge points per view, "
+    std::printf("%s: part %s obj_id %d symmetry %s, views folded by %s: %zu views (K = %d), %.1f lines and %.0f edge points per view, "
                 "distance %.1f mm, edge offset near image axes %.2f px (views) / %.2f px (query), %.1f s\n",
-                out.c_str(), name.c_str(), obj_id, db.symmetry.str().c_str(), db.views.size(), views,
+                out.c_str(), name.c_str(), obj_id, db.symmetry.str().c_str(), db.views_symmetry.str().c_str(), db.views.size(), views,
                 double(lines) / db.views.size(), double(points) / db.views.size(), db.distance_mm,
                 db.template_edge_offset.mean_near(0, 10), db.query_edge_offset.mean_near(0, 10), seconds());
     return 0;

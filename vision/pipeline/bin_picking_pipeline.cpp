@@ -107,7 +107,9 @@ std::vector<PartModel::Turn> turned_over(const TemplateDatabase& db) {
 // same orientation) all find edges and only the flutes' bottoms do not. The fit score alone
 // prefers that twin in clutter (measured: 0.26 against 0.31 for a fully visible knob); the
 // points where the two differ do not (TemplatePoseFit::compare). Turning by +-0.4 of the period
-// starts the fit in the other basin from either twin.
+// starts the fit in the other basin from either twin. The part's symmetry decides, not the views'
+// fold: the knob's views are folded 2-fold by its pointer groove (db.views_symmetry), its flutes
+// still make it 10-fold.
 constexpr double kPhaseTurnShare = 0.4;
 
 std::vector<PartModel::Turn> phase_turns(const TemplateDatabase& db) {
@@ -164,7 +166,8 @@ constexpr double kSpinCheckMaxAxisDeg = 10;
 constexpr double kSpinCheckMinSpinDeg = 20;
 constexpr double kSpinCheckPlace = 0.25;
 
-// Angle between two viewing directions of a part, the smallest over its symmetric copies.
+// Angle between two viewing directions of a part, the smallest over the copies under `sym` (the
+// views' fold: views a coarser symmetry would call the same still show different edges).
 double view_angle(const PartSymmetry& sym, const cv::Vec3d& a, const cv::Vec3d& b) {
   auto angle = [](const cv::Vec3d& u, const cv::Vec3d& v) { return std::acos(std::clamp(u.dot(v), -1.0, 1.0)); };
   if (sym.kind == PartSymmetry::Kind::continuous_z)
@@ -189,7 +192,7 @@ std::vector<std::vector<int>> view_neighbours(const TemplateDatabase& db, int st
     near.clear();
     for (size_t u = 0; u < n; ++u) {
       if (u == v) continue;
-      const double a = view_angle(db.symmetry, db.views[v].view_direction, db.views[u].view_direction);
+      const double a = view_angle(db.views_symmetry, db.views[v].view_direction, db.views[u].view_direction);
       if (a <= radius) near.emplace_back(a, static_cast<int>(u));
     }
     std::sort(near.begin(), near.end());

@@ -130,12 +130,13 @@ int TemplatePoseFit::nearest_view(const TemplateDatabase& db, const PinholeCamer
   if (!(n > 0)) throw std::invalid_argument("template fit: the part centre is at the camera");
   // Direction from the part centre towards the camera, in the model frame.
   const cv::Vec3d d = pose.R.t() * (-c / n);
-  // The symmetric copies R S of the pose, S a turn about z: continuous symmetry, the one turn that
-  // puts d in the views' meridian; discrete, the order's turns (computed, not listed: this runs
-  // per fit iteration on the frame path).
+  // The symmetric copies R S of the pose, S a turn about z the views were folded by (which may be
+  // finer than the part's symmetry): continuous, the one turn that puts d in the views' meridian;
+  // discrete, the order's turns (computed, not listed: this runs per fit iteration on the frame
+  // path).
   int turns = 1;
   double first = 0, step = 0;
-  if (db.symmetry.kind == PartSymmetry::Kind::continuous_z) {
+  if (db.views_symmetry.kind == PartSymmetry::Kind::continuous_z) {
     double meridian = 0;
     for (const auto& v : db.views)
       if (std::hypot(v.view_direction[0], v.view_direction[1]) > 1e-6) {
@@ -143,8 +144,8 @@ int TemplatePoseFit::nearest_view(const TemplateDatabase& db, const PinholeCamer
         break;
       }
     first = std::atan2(d[1], d[0]) - meridian;
-  } else if (db.symmetry.kind == PartSymmetry::Kind::discrete_z) {
-    turns = std::max(1, db.symmetry.order);
+  } else if (db.views_symmetry.kind == PartSymmetry::Kind::discrete_z) {
+    turns = std::max(1, db.views_symmetry.order);
     step = 2 * std::numbers::pi / turns;
   }
   int best_view = 0;

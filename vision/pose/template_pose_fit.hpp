@@ -106,8 +106,8 @@ class TemplatePoseFit {
                              Workspace& ws, int max_points = 0) const;
 
   // The template view nearest to `pose` (by the direction the camera sees the part from) over
-  // the part's discrete symmetries; `pose` is replaced by the symmetric copy that view belongs
-  // to (the same placed part). Continuous symmetry: the views' meridian.
+  // the turns the views were folded by (db.views_symmetry); `pose` is replaced by the symmetric
+  // copy that view belongs to (the same placed part). Continuous symmetry: the views' meridian.
   static int nearest_view(const TemplateDatabase& db, const PinholeCamera& camera, RigidPose& pose);
 
   // Two fitted poses of one part at one place (e.g. a pose and its turn by 180 degrees about a

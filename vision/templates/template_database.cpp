@@ -203,7 +203,16 @@ std::vector<cv::Matx33d> PartSymmetry::discrete_rotations() const {
   return out;
 }
 
+bool PartSymmetry::includes(const PartSymmetry& other) const {
+  if (other.kind == Kind::none || kind == Kind::continuous_z) return true;
+  if (kind == Kind::discrete_z && other.kind == Kind::discrete_z) return order % other.order == 0;
+  return false;
+}
+
 void save_template_database(const TemplateDatabase& db, const std::filesystem::path& file) {
+  if (!db.symmetry.includes(db.views_symmetry))
+    throw std::invalid_argument(file.string() + ": views folded by " + db.views_symmetry.str() +
+                                ", which is not a symmetry of the part (" + db.symmetry.str() + ")");
   Writer w;
   w.str(db.part_name);
   w.put<int32_t>(db.obj_id);
@@ -239,6 +248,8 @@ void save_template_database(const TemplateDatabase& db, const std::filesystem::p
     w.put(static_cast<uint32_t>(profile->offset_px.size()));
     for (float o : profile->offset_px) w.put(o);
   }
+  w.put<uint8_t>(static_cast<uint8_t>(db.views_symmetry.kind));
+  w.put<int32_t>(db.views_symmetry.order);
 
   Writer h;
   for (char c : kMagic) h.put(c);
@@ -362,6 +373,17 @@ TemplateDatabase load_template_database(const std::filesystem::path& file) {
         if (!std::isfinite(o) || std::abs(o) > 3) r.fail("edge offset " + std::to_string(o) + " px out of range");
       }
     }
+  db.views_symmetry = db.symmetry;
+  if (version >= 5) {
+    const auto views_kind = r.get<uint8_t>("views symmetry");
+    if (views_kind > 2) r.fail("unknown views symmetry kind " + std::to_string(views_kind));
+    db.views_symmetry.kind = static_cast<PartSymmetry::Kind>(views_kind);
+    db.views_symmetry.order = r.get<int32_t>("views symmetry order");
+    if (db.views_symmetry.order < 1 || db.views_symmetry.order > 360) r.fail("views symmetry order out of range");
+    if (!db.symmetry.includes(db.views_symmetry))
+      r.fail("views folded by " + db.views_symmetry.str() + ", which is not a symmetry of the part (" +
+             db.symmetry.str() + ")");
+  }
   if (r.remaining() != 0) r.fail(std::to_string(r.remaining()) + " bytes left after the last view");
   return db;
 }

@@ -34,6 +34,8 @@ struct PartSymmetry {
   std::string str() const;
   // The rotations (model frame) that map the part onto itself; continuous: none listed.
   std::vector<cv::Matx33d> discrete_rotations() const;
+  // Whether every turn of `other` is one of this symmetry's (a coarser fold of the same part).
+  bool includes(const PartSymmetry& other) const;
 };
 
 // One edge pixel of a template view and the model point it images.
@@ -57,12 +59,19 @@ struct TemplateView {
 };
 
 struct TemplateDatabase {
-  static constexpr uint32_t kVersion = 4;
-  static constexpr uint32_t kOldestVersion = 3;  // read too: version 3 has no edge offset profiles
+  static constexpr uint32_t kVersion = 5;
+  // Read too: version 3 has no edge offset profiles, versions 3 and 4 no views_symmetry.
+  static constexpr uint32_t kOldestVersion = 3;
 
   std::string part_name;
   int obj_id = 0;                  // BOP object id
+  // What counts as the same pose of the part: the turns a gripper and the evaluation do not tell
+  // apart, and the pose checks' turns (phase turns for an N-fold part, N >= 3).
   PartSymmetry symmetry;
+  // The symmetry the views were folded by (view_sampling) and that finds a pose's nearest view:
+  // `symmetry` or a finer one its edges still show, as the knob's 2-fold pointer groove on its
+  // 10-fold flutes (docs/template-database.md). Always included in `symmetry`.
+  PartSymmetry views_symmetry;
   CameraConfig camera;             // the camera and flash geometry the views were rendered with
   double distance_mm = 0;          // distance of the part centre from the lens along the optical axis
   cv::Vec3d center_mm{0, 0, 0};    // model-frame point placed on the optical axis (bounding-box centre)

@@ -153,6 +153,10 @@ TemplateDatabase teach_templates(const Mesh& mesh, const CameraConfig& camera, c
   db.part_name = part_name;
   db.obj_id = obj_id;
   db.symmetry = params.symmetry;
+  db.views_symmetry = params.views_symmetry.value_or(params.symmetry);
+  if (!db.symmetry.includes(db.views_symmetry))
+    throw std::invalid_argument("teach: views symmetry " + db.views_symmetry.str() + " is not a symmetry of the part (" +
+                                db.symmetry.str() + ")");
   db.camera = camera;
   db.center_mm = part_center(mesh);
   db.diameter_mm = mesh_diameter(mesh);
@@ -166,7 +170,7 @@ TemplateDatabase teach_templates(const Mesh& mesh, const CameraConfig& camera, c
     throw std::invalid_argument("teach: distance " + std::to_string(db.distance_mm) + " mm is too close for a part of radius " +
                                 std::to_string(radius) + " mm");
 
-  const std::vector<cv::Vec3d> directions = template_view_directions(params.sphere_samples, params.symmetry);
+  const std::vector<cv::Vec3d> directions = template_view_directions(params.sphere_samples, db.views_symmetry);
   const ViewGeometry geo = view_geometry(camera, db.distance_mm, radius, params.background_gap_mm);
   const cv::Point2f origin(static_cast<float>(geo.cropped.cx()), static_cast<float>(geo.cropped.cy()));
   const Mesh plane = make_plane(geo.plane_size_mm);

@@ -13,12 +13,16 @@
 #include "vision/templates/template_database.hpp"
 
 #include <functional>
+#include <optional>
 
 namespace mfcd::vision {
 
 struct TeachParams {
   int sphere_samples = 300;      // K, over the whole sphere (docs/template-database.md)
-  PartSymmetry symmetry;
+  PartSymmetry symmetry;          // the part's: what counts as the same pose
+  // The symmetry the views are folded by, when the part's edges break `symmetry` (a feature too
+  // small to grip by, e.g. the knob's pointer groove): one of its subgroups. Unset: `symmetry`.
+  std::optional<PartSymmetry> views_symmetry;
   double distance_mm = 0;        // part centre to lens; 0 = the camera's working distance
   double background_gap_mm = 15; // background plane this far behind the part's far side
   int min_edge_pixels = 30;      // views with fewer depth-edge pixels are dropped (degenerate)

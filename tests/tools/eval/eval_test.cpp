@@ -165,6 +165,8 @@ TEST_F(EvalFiles, ReadsTheProjectPartsTable) {
   EXPECT_EQ(parts[0].name, "breaker");
   EXPECT_EQ(parts[3].obj_id, 4);
   EXPECT_EQ(part_by_id(parts, 5, "x").symmetry.order, 10);
+  EXPECT_EQ(part_by_id(parts, 5, "x").views_symmetry.order, 2);  // the knob's pointer groove
+  EXPECT_EQ(part_by_id(parts, 6, "x").views_symmetry.order, part_by_id(parts, 6, "x").symmetry.order);
   EXPECT_EQ(part_by_id(parts, 6, "x").symmetry.kind, PartSymmetry::Kind::discrete_z);
 }
 
@@ -178,7 +180,10 @@ TEST_F(EvalFiles, RefusesMalformedPartsTables) {
       EXPECT_NE(std::string(e.what()).find(fragment), std::string::npos) << e.what();
     }
   };
-  refused("name,obj_id,symmetry\nknob,5\n", "parts.csv:2: expected 3 fields");
+  refused("name,obj_id,symmetry\nknob,5\n", "parts.csv:2: expected 3 or 4 fields");
+  refused("knob,5,z:10,z:2,x\n", "parts.csv:1: expected 3 or 4 fields");
+  refused("knob,5,z:10,z:pear\n", "parts.csv:1: views_symmetry 'z:pear'");
+  refused("knob,5,z:10,z:3\n", "parts.csv:1: views_symmetry z:3 is not a symmetry of the part (z:10)");
   refused("knob,five,z:10\n", "parts.csv:1: obj_id 'five' is not a positive integer");
   refused("knob,5,z:banana\n", "parts.csv:1: symmetry 'z:banana'");
   refused("knob,5,none\nwheel,5,none\n", "obj_id 5 used by 'knob' and 'wheel'");
@@ -224,7 +229,7 @@ TEST_F(EvalFiles, CommandRefusesMalformedInput) {
   r = run("detect --dataset " + (dir_ / "ds").string() + " --templates " + dir_.string() + o + " --parts " +
           write("bad.csv", "knob,5\n").string());
   EXPECT_EQ(r.first, 1);
-  EXPECT_NE(r.second.find("bad.csv:1: expected 3 fields"), std::string::npos) << r.second;
+  EXPECT_NE(r.second.find("bad.csv:1: expected 3 or 4 fields"), std::string::npos) << r.second;
 
   r = run("detect --templates " + dir_.string() + o);
   EXPECT_EQ(r.first, 2);

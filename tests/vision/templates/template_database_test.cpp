@@ -2,6 +2,7 @@
 // pixels), the .tdb round trip, and every refusal reason.
 #include "vision/templates/template_database.hpp"
 #include "vision/templates/template_teacher.hpp"
+#include "vision/templates/view_sampling.hpp"
 
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
@@ -177,6 +178,7 @@ TEST(TemplateFile, RoundTripKeepsEverything) {
   EXPECT_EQ(r.part_name, db.part_name);
   EXPECT_EQ(r.obj_id, db.obj_id);
   EXPECT_EQ(r.symmetry.str(), db.symmetry.str());
+  EXPECT_EQ(r.views_symmetry.str(), db.views_symmetry.str());
   EXPECT_EQ(r.camera.camera.image_size, db.camera.camera.image_size);
   EXPECT_EQ(r.camera.camera.K, db.camera.camera.K);
   EXPECT_EQ(r.camera.flashes.positions_mm, db.camera.flashes.positions_mm);
@@ -217,23 +219,76 @@ TEST(TemplateTeacher, StoresBothEdgeOffsetProfiles) {
   EXPECT_LT(views, query - 0.1) << "views " << views << " px, query " << query << " px";
 }
 
-TEST(TemplateFile, Version3FilesLoadWithoutEdgeOffsetProfiles) {
-  const fs::path f = temp_file("v4.tdb");
-  save_template_database(box_db(), f);
-  const std::vector<char> v4 = read_bytes(f);
-  // Version 3's payload is version 4's without the two profiles at its end (4 + 72 x 4 bytes each).
+// Version 5 ends with the views' symmetry (kind byte + int32 order); version 4's payload is the
+// same without it, and version 3's also without the two edge offset profiles before it.
+constexpr size_t kViewsSymmetryBytes = 5;
+
+TEST(TemplateFile, Version3And4FilesLoadWithTheirViewsFoldedByThePartSymmetry) {
+  const fs::path f = temp_file("v5.tdb");
+  TemplateDatabase db = box_db();
+  db.symmetry = PartSymmetry::parse("z:4");
+  db.views_symmetry = PartSymmetry::parse("z:2");
+  save_template_database(db, f);
+  const std::vector<char> v5 = read_bytes(f);
+  const std::vector<char> v4(v5.begin() + 32, v5.end() - static_cast<long>(kViewsSymmetryBytes));
+  const fs::path old = temp_file("v4.tdb");
+  write_bytes(old, with_header(v4, 4));
+  TemplateDatabase r = load_template_database(old);
+  EXPECT_EQ(r.symmetry.str(), "z:4");
+  EXPECT_EQ(r.views_symmetry.str(), "z:4");
+  EXPECT_EQ(r.template_edge_offset.offset_px, db.template_edge_offset.offset_px);
+  // Version 3: the two profiles (4 + 72 x 4 bytes each) go too.
   const size_t profiles = 2 * (4 + 4 * EdgeOffsetProfile::kBins);
-  const std::vector<char> payload(v4.begin() + 32, v4.end() - static_cast<long>(profiles));
-  const fs::path old = temp_file("v3.tdb");
-  write_bytes(old, with_header(payload, 3));
-  const TemplateDatabase r = load_template_database(old);
+  const std::vector<char> v3(v4.begin(), v4.end() - static_cast<long>(profiles));
+  write_bytes(old, with_header(v3, 3));
+  r = load_template_database(old);
   EXPECT_EQ(r.views.size(), box_db().views.size());
   EXPECT_TRUE(r.template_edge_offset.empty());
   EXPECT_TRUE(r.query_edge_offset.empty());
-  // The same payload claimed as version 4 lacks its profiles.
-  write_bytes(old, with_header(payload, 4));
+  EXPECT_EQ(r.views_symmetry.str(), "z:4");
+  // The same payloads claimed as the next version lack what it adds.
+  write_bytes(old, with_header(v3, 4));
   EXPECT_NE(load_error(old).find("payload ends inside edge offset profile size"), std::string::npos)
       << load_error(old);
+  write_bytes(old, with_header(v4, 5));
+  EXPECT_NE(load_error(old).find("payload ends inside views symmetry"), std::string::npos) << load_error(old);
+}
+
+TEST(TemplateFile, ViewsFoldedByATurnThePartDoesNotHaveAreRefused) {
+  TemplateDatabase db = box_db();
+  db.symmetry = PartSymmetry::parse("z:4");
+  db.views_symmetry = PartSymmetry::parse("z:3");
+  const fs::path f = temp_file("fold.tdb");
+  EXPECT_THROW(save_template_database(db, f), std::invalid_argument);
+  EXPECT_FALSE(fs::exists(f));
+  // Written by hand: the last 5 bytes are the views' fold.
+  db.views_symmetry = PartSymmetry::parse("z:2");
+  save_template_database(db, f);
+  std::vector<char> payload = read_bytes(f);
+  payload.erase(payload.begin(), payload.begin() + 32);
+  const int32_t three = 3;
+  std::memcpy(payload.data() + payload.size() - 4, &three, 4);
+  write_bytes(f, with_header(payload, 5));
+  EXPECT_NE(load_error(f).find("views folded by z:3, which is not a symmetry of the part (z:4)"), std::string::npos)
+      << load_error(f);
+  payload[payload.size() - kViewsSymmetryBytes] = 7;
+  write_bytes(f, with_header(payload, 5));
+  EXPECT_NE(load_error(f).find("unknown views symmetry kind 7"), std::string::npos) << load_error(f);
+}
+
+TEST(TemplateTeacher, FoldsTheViewsByTheViewsSymmetry) {
+  TeachParams p;
+  p.sphere_samples = 24;
+  p.threads = 2;
+  p.symmetry = PartSymmetry::parse("z:4");
+  p.views_symmetry = PartSymmetry::parse("z:2");
+  const auto db = teach_templates(make_box(40, 40, 20), sim_camera(), "square", 1, p);
+  EXPECT_EQ(db.symmetry.str(), "z:4");
+  EXPECT_EQ(db.views_symmetry.str(), "z:2");
+  EXPECT_EQ(db.views.size(), template_view_directions(24, PartSymmetry::parse("z:2")).size());
+  EXPECT_GT(db.views.size(), template_view_directions(24, PartSymmetry::parse("z:4")).size());
+  p.views_symmetry = PartSymmetry::parse("z:3");
+  EXPECT_THROW(teach_templates(make_box(40, 40, 20), sim_camera(), "square", 1, p), std::invalid_argument);
 }
 
 TEST(TemplateFile, CorruptEdgeOffsetProfilesAreRefused) {
@@ -241,29 +296,29 @@ TEST(TemplateFile, CorruptEdgeOffsetProfilesAreRefused) {
   save_template_database(box_db(), f);
   const std::vector<char> good = read_bytes(f);
   const size_t profile = 4 + 4 * EdgeOffsetProfile::kBins;
-  // The query profile is the last one: its bin count, then its bins.
+  // The query profile comes last but the views' symmetry: its bin count, then its bins.
   std::vector<char> payload(good.begin() + 32, good.end());
-  const size_t at = payload.size() - profile;
+  const size_t at = payload.size() - kViewsSymmetryBytes - profile;
   uint32_t bins = 0;
   std::memcpy(&bins, payload.data() + at, 4);
   ASSERT_EQ(bins, static_cast<uint32_t>(EdgeOffsetProfile::kBins));
   std::vector<char> b = payload;
   const uint32_t five = 5;
   std::memcpy(b.data() + at, &five, 4);
-  write_bytes(f, with_header(b, 4));
+  write_bytes(f, with_header(b, 5));
   EXPECT_NE(load_error(f).find("edge offset profile of 5 bins"), std::string::npos) << load_error(f);
   b = payload;
   const float far = 40.0f;
   std::memcpy(b.data() + at + 4 + 4 * 10, &far, 4);
-  write_bytes(f, with_header(b, 4));
+  write_bytes(f, with_header(b, 5));
   EXPECT_NE(load_error(f).find("edge offset 40"), std::string::npos) << load_error(f);
   b = payload;
   const float nan = std::numeric_limits<float>::quiet_NaN();
   std::memcpy(b.data() + at + 4, &nan, 4);
-  write_bytes(f, with_header(b, 4));
+  write_bytes(f, with_header(b, 5));
   EXPECT_NE(load_error(f).find("out of range"), std::string::npos) << load_error(f);
   // The header helper itself writes loadable files.
-  write_bytes(f, with_header(payload, 4));
+  write_bytes(f, with_header(payload, 5));
   EXPECT_EQ(load_error(f), "");
 }
 
