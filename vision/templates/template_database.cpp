@@ -76,6 +76,22 @@ class Reader {
   std::string source_;
 };
 
+// A symmetry: its kind (uint8) and order (int32). `what` names it in a refusal.
+void put_symmetry(Writer& w, const PartSymmetry& s) {
+  w.put<uint8_t>(static_cast<uint8_t>(s.kind));
+  w.put<int32_t>(s.order);
+}
+
+PartSymmetry get_symmetry(Reader& r, const std::string& what) {
+  PartSymmetry s;
+  const auto kind = r.get<uint8_t>(what.c_str());
+  if (kind > 2) r.fail("unknown " + what + " kind " + std::to_string(kind));
+  s.kind = static_cast<PartSymmetry::Kind>(kind);
+  s.order = r.get<int32_t>((what + " order").c_str());
+  if (s.order < 1 || s.order > 360) r.fail(what + " order out of range");
+  return s;
+}
+
 void put_camera(Writer& w, const CameraConfig& c) {
   w.put<int32_t>(c.camera.image_size.width);
   w.put<int32_t>(c.camera.image_size.height);
@@ -216,8 +232,7 @@ void save_template_database(const TemplateDatabase& db, const std::filesystem::p
   Writer w;
   w.str(db.part_name);
   w.put<int32_t>(db.obj_id);
-  w.put<uint8_t>(static_cast<uint8_t>(db.symmetry.kind));
-  w.put<int32_t>(db.symmetry.order);
+  put_symmetry(w, db.symmetry);
   put_camera(w, db.camera);
   w.put<double>(db.distance_mm);
   for (int i = 0; i < 3; ++i) w.put<double>(db.center_mm[i]);
@@ -248,8 +263,7 @@ void save_template_database(const TemplateDatabase& db, const std::filesystem::p
     w.put(static_cast<uint32_t>(profile->offset_px.size()));
     for (float o : profile->offset_px) w.put(o);
   }
-  w.put<uint8_t>(static_cast<uint8_t>(db.views_symmetry.kind));
-  w.put<int32_t>(db.views_symmetry.order);
+  put_symmetry(w, db.views_symmetry);
 
   Writer h;
   for (char c : kMagic) h.put(c);
@@ -318,11 +332,7 @@ TemplateDatabase load_template_database(const std::filesystem::path& file) {
   TemplateDatabase db;
   db.part_name = r.str("part name");
   db.obj_id = r.get<int32_t>("obj_id");
-  const auto kind = r.get<uint8_t>("symmetry");
-  if (kind > 2) r.fail("unknown symmetry kind " + std::to_string(kind));
-  db.symmetry.kind = static_cast<PartSymmetry::Kind>(kind);
-  db.symmetry.order = r.get<int32_t>("symmetry order");
-  if (db.symmetry.order < 1 || db.symmetry.order > 360) r.fail("symmetry order out of range");
+  db.symmetry = get_symmetry(r, "symmetry");
   db.camera = get_camera(r);
   db.distance_mm = r.finite("distance");
   for (int i = 0; i < 3; ++i) db.center_mm[i] = r.finite("centre");
@@ -375,11 +385,7 @@ TemplateDatabase load_template_database(const std::filesystem::path& file) {
     }
   db.views_symmetry = db.symmetry;
   if (version >= 5) {
-    const auto views_kind = r.get<uint8_t>("views symmetry");
-    if (views_kind > 2) r.fail("unknown views symmetry kind " + std::to_string(views_kind));
-    db.views_symmetry.kind = static_cast<PartSymmetry::Kind>(views_kind);
-    db.views_symmetry.order = r.get<int32_t>("views symmetry order");
-    if (db.views_symmetry.order < 1 || db.views_symmetry.order > 360) r.fail("views symmetry order out of range");
+    db.views_symmetry = get_symmetry(r, "views symmetry");
     if (!db.symmetry.includes(db.views_symmetry))
       r.fail("views folded by " + db.views_symmetry.str() + ", which is not a symmetry of the part (" +
              db.symmetry.str() + ")");
