@@ -177,7 +177,7 @@ int main(int argc, char** argv) {
 
     const auto start = std::chrono::steady_clock::now();
     int total = 0, placed = 0, requested = 0;
-    double occl_sum = 0, occl_max = 0, removed_sum = 0;
+    double occl_sum = 0, occl_max = 0, removed_sum = 0, added_sum = 0;
     for (int s = 0; s < scenes; ++s) {
       std::vector<SimulatedImage> ims;
       for (int i = 0; i < images; ++i) {
@@ -192,6 +192,7 @@ int main(int argc, char** argv) {
           occl_max = std::max(occl_max, 1 - inst.visib_fract);
         }
         removed_sum += im.corruption.removed_fraction;
+        added_sum += im.corruption.added_fraction;
         ++total;
       }
       writer.write_scene(s + 1, camera, ims);
@@ -201,9 +202,9 @@ int main(int argc, char** argv) {
     std::printf("wrote %s: %zu models, %d scenes x %d images in %s/ (%.2f s per image)\n", out_dir.c_str(),
                 models.size(), scenes, images, split_name.c_str(), secs / total);
     std::printf("parts placed %d of %d requested; occlusion mean %.1f %%, max %.1f %%; "
-                "depth edges removed (measured) mean %.1f %%\n",
+                "depth edges removed (measured) mean %.1f %%, added by the removal mean %.1f %%\n",
                 placed, requested, placed ? 100 * occl_sum / placed : 0.0, 100 * occl_max,
-                100 * removed_sum / total);
+                100 * removed_sum / total, 100 * added_sum / total);
   } catch (const std::exception& e) {
     std::cerr << "\nmfc-sim: " << e.what() << '\n';
     return 1;

@@ -314,6 +314,10 @@ void BinSimulator::corrupt(SimulatedImage& im, uint64_t seed) {
   cv::Mat1f to_detected;
   cv::distanceTransform(255 - edges.edges, to_detected, cv::DIST_L2, cv::DIST_MASK_PRECISE);
   const cv::Mat1b found = truth & (to_detected <= tol);
+  const int clean_px = cv::countNonZero(edges.edges);
+  const auto added_fraction = [&](const cv::Mat1b& now) {
+    return clean_px ? cv::countNonZero(now & (to_detected > tol)) / static_cast<double>(clean_px) : 0.0;
+  };
   std::vector<cv::Point> candidates;
   cv::findNonZero(found, candidates);
   std::mt19937_64 rng(seed ^ 0x9e3779b97f4a7c15ULL);
@@ -322,13 +326,52 @@ void BinSimulator::corrupt(SimulatedImage& im, uint64_t seed) {
   const double want = options_.missing.fraction;
   const auto radius = static_cast<int>(std::lround(options_.missing.stretch_px / 2));
   cv::Mat1b stretches(truth.size(), 0);
+  // A stretch lifts every flash to the brightest one over a disc on the edge. A cast shadow
+  // wider than the disc would keep its lit-to-shadow step, only moved to the disc's rim, and
+  // the removal would draw a wavy false edge there instead of removing one (a 40 mm step casts
+  // shadows of 10-25 px here). So each flash's stretch also covers that flash's own shadow
+  // beyond the disc: the disc swept along the flash's shadow direction to where the shadow
+  // ends. The sweep's sides run along that direction, so they make no step for that flash.
+  const MfcFrames clean_frames = im.frames;
+  const size_t n_flash = clean_frames.flash.size();
+  std::vector<cv::Mat1f> clean_ratio(n_flash);
+  for (size_t i = 0; i < n_flash; ++i) clean_ratio[i] = extractor_->ratio(i).clone();
+  std::vector<FlashEpipole> epipoles;
+  for (const auto& led : camera_.flashes.positions_mm) epipoles.push_back(flash_epipole(camera_.camera, led));
+  std::vector<cv::Mat1b> shadow_sweeps(n_flash);
+  for (auto& m : shadow_sweeps) m = cv::Mat1b(truth.size(), 0);
+  const auto sweep_shadows = [&](cv::Point p) {
+    constexpr float kShadowRatio = 0.6f;  // below this share of the brightest flash: in shadow
+    constexpr int kMaxShadowPx = 60;
+    for (size_t i = 0; i < n_flash; ++i) {
+      cv::Vec2d d = epipoles[i].shadow_direction(p.x, p.y);
+      const double len = std::hypot(d[0], d[1]);
+      if (len <= 0) continue;
+      d /= len;
+      int last = 0;
+      for (int t = 1; t <= kMaxShadowPx; ++t) {
+        const cv::Point q(static_cast<int>(std::lround(p.x + t * d[0])), static_cast<int>(std::lround(p.y + t * d[1])));
+        if (q.x < 0 || q.y < 0 || q.x >= truth.cols || q.y >= truth.rows) break;
+        if (clean_ratio[i](q) < kShadowRatio)
+          last = t;
+        else if (last > 0 || t > radius + 2)
+          break;
+      }
+      if (last > radius)
+        cv::line(shadow_sweeps[i], p,
+                 cv::Point(static_cast<int>(std::lround(p.x + last * d[0])), static_cast<int>(std::lround(p.y + last * d[1]))),
+                 255, 2 * radius + 1);
+    }
+  };
   size_t next = 0;
   int covered = 0;  // found pixels inside the stretches
   // Blurring the blend weights keeps the ratio images smooth where an equalised stretch
   // begins, so the stretch's own border does not become an edge. The blur also removes a
-  // little beyond the disc, so the first goal aims slightly low and the loop tops up.
-  double goal = 0.8 * want * static_cast<double>(candidates.size());
-  const MfcFrames clean_frames = im.frames;
+  // little beyond the disc, and a flash's shadow sweep may cross other edges (together about
+  // 1.5-2 times what the discs cover), so the first goal aims low and the loop tops up by what
+  // a covered pixel has removed so far.
+  const auto n_candidates = static_cast<double>(candidates.size());
+  double goal = 0.4 * want * n_candidates;
   for (int round = 0; round < 8; ++round) {
     while (next < candidates.size() && covered < goal) {
       const cv::Point p = candidates[next++];
@@ -337,28 +380,36 @@ void BinSimulator::corrupt(SimulatedImage& im, uint64_t seed) {
                            cv::Rect(0, 0, truth.cols, truth.rows);
       const int before = cv::countNonZero(found(roi) & stretches(roi));
       cv::circle(stretches, p, radius, 255, cv::FILLED);
+      sweep_shadows(p);
       covered += cv::countNonZero(found(roi) & stretches(roi)) - before;
       ++rep.stretches;
     }
-    cv::Mat1b grown;
-    cv::dilate(stretches, grown, cv::getStructuringElement(cv::MORPH_ELLIPSE, {7, 7}));
-    cv::Mat1f w;
-    grown.convertTo(w, CV_32F, 1.0 / 255);
-    cv::GaussianBlur(w, w, {0, 0}, 2.5);
-    for (int y = 0; y < w.rows; ++y)
-      for (int x = 0; x < w.cols; ++x) {
-        const float a = std::min(1.f, 1.5f * w(y, x));
+    std::vector<cv::Mat1f> w(n_flash);
+    for (size_t i = 0; i < n_flash; ++i) {
+      cv::Mat1b grown;
+      cv::dilate(stretches | shadow_sweeps[i], grown, cv::getStructuringElement(cv::MORPH_ELLIPSE, {7, 7}));
+      grown.convertTo(w[i], CV_32F, 1.0 / 255);
+      cv::GaussianBlur(w[i], w[i], {0, 0}, 2.5);
+    }
+    for (int y = 0; y < truth.rows; ++y)
+      for (int x = 0; x < truth.cols; ++x) {
         uchar mx = 0;
         for (const auto& f : clean_frames.flash) mx = std::max(mx, f(y, x));
-        for (size_t i = 0; i < clean_frames.flash.size(); ++i)
+        for (size_t i = 0; i < n_flash; ++i) {
+          const float a = std::min(1.f, 1.5f * w[i](y, x));
           im.frames.flash[i](y, x) = cv::saturate_cast<uchar>((1 - a) * clean_frames.flash[i](y, x) + a * mx);
+        }
       }
     extractor_->extract(im.frames, edges);
     const EdgeScore now = score_edges(edges.edges, truth, options_.edge_tolerance_px);
     rep.recall_corrupted = now.recall;
     rep.removed_fraction = 1.0 - now.recall / clean.recall;
-    if (rep.removed_fraction >= want - 0.015 || next >= candidates.size()) break;
-    goal += (want - rep.removed_fraction) * static_cast<double>(candidates.size());
+    rep.added_fraction = added_fraction(edges.edges);
+    if (rep.removed_fraction >= want - 0.005 || next >= candidates.size()) break;
+    const double removed_per_covered = covered > 0 ? rep.removed_fraction * n_candidates / covered : 1.0;
+    // A new stretch removes more than the average so far (its sweeps join earlier ones): top up
+    // by part of the gap and measure again rather than overshoot.
+    goal += 0.6 * (want - rep.removed_fraction) / std::max(removed_per_covered, 0.5) * n_candidates;
   }
 }
 

@@ -113,6 +113,10 @@ struct CorruptionReport {
   double recall_corrupted = 0;   // ... in the stored (corrupted) images
   double removed_fraction = 0;   // 1 - recall_corrupted / recall_clean (measured)
   int stretches = 0;             // equalised stretches
+  // Edge pixels of the stored images farther than edge_tolerance_px from every edge pixel the
+  // extractor finds in the clean images, per clean edge pixel: edges the removal itself drew
+  // (a stretch that lifts a wide cast shadow only partly moves the edge instead of removing it).
+  double added_fraction = 0;
   int clutter_rods = 0;
 };
 

@@ -208,7 +208,8 @@ void BopWriter::write_scene(int scene_id, const CameraConfig& camera, const std:
     const CorruptionReport& c = im.corruption;
     corr[key] = {{"true_edge_px", c.true_edge_px},         {"recall_clean", c.recall_clean},
                  {"recall_corrupted", c.recall_corrupted}, {"removed_fraction", c.removed_fraction},
-                 {"stretches", c.stretches},               {"clutter_rods", c.clutter_rods}};
+                 {"stretches", c.stretches},               {"added_fraction", c.added_fraction},
+                 {"clutter_rods", c.clutter_rods}};
     if (im.frames.flash.size() != camera.flashes.positions_mm.size())
       fail(dir, "image " + key + " has " + std::to_string(im.frames.flash.size()) + " flash images for " +
                     std::to_string(camera.flashes.positions_mm.size()) + " LEDs");

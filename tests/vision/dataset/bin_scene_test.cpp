@@ -323,6 +323,11 @@ TEST_F(BinScenes, RemovedDepthEdgesAreInTheRequestedRangeAndReproducible) {
   EXPECT_LE(c.removed_fraction, want + 0.05);
   EXPECT_GT(c.stretches, 0);
   EXPECT_GT(c.recall_clean, 0.8);
+  // Removing edges must not draw new ones: a stretch that lifted a wide cast shadow only over
+  // its disc moved the shadow's step to the disc's rim (5.5 % of the clean edge pixels added
+  // on the capped-occlusion bins at full resolution, 2.8 % on this half-resolution image, before
+  // each flash's shadow was swept too; 0.8 % and 1.3 % after).
+  EXPECT_LT(c.added_fraction, 0.02) << "edges drawn by the removal";
   // A reader measuring on the stored images and depth finds the same share.
   const BopDataset ds(root());
   const CameraConfig cfg = ds.camera(1, 0).config();
@@ -334,6 +339,7 @@ TEST_F(BinScenes, RemovedDepthEdgesAreInTheRequestedRangeAndReproducible) {
   EXPECT_NEAR(s.recall, c.recall_corrupted, 0.01);
   const auto stored = nlohmann::json::parse(std::ifstream(ds.scene_dir(1) / "scene_mfc_corruption.json"));
   EXPECT_DOUBLE_EQ(stored["0"]["removed_fraction"].get<double>(), c.removed_fraction);
+  EXPECT_DOUBLE_EQ(stored["0"]["added_fraction"].get<double>(), c.added_fraction);
 }
 
 TEST_F(BinScenes, ClutterRodsAreDepthEdgesButNotGroundTruth) {
