@@ -348,19 +348,19 @@ void BinSimulator::corrupt(SimulatedImage& im, uint64_t seed) {
       const double len = std::hypot(d[0], d[1]);
       if (len <= 0) continue;
       d /= len;
+      const auto along = [&](int t) {
+        return cv::Point(static_cast<int>(std::lround(p.x + t * d[0])), static_cast<int>(std::lround(p.y + t * d[1])));
+      };
       int last = 0;
       for (int t = 1; t <= kMaxShadowPx; ++t) {
-        const cv::Point q(static_cast<int>(std::lround(p.x + t * d[0])), static_cast<int>(std::lround(p.y + t * d[1])));
+        const cv::Point q = along(t);
         if (q.x < 0 || q.y < 0 || q.x >= truth.cols || q.y >= truth.rows) break;
         if (clean_ratio[i](q) < kShadowRatio)
           last = t;
         else if (last > 0 || t > radius + 2)
           break;
       }
-      if (last > radius)
-        cv::line(shadow_sweeps[i], p,
-                 cv::Point(static_cast<int>(std::lround(p.x + last * d[0])), static_cast<int>(std::lround(p.y + last * d[1]))),
-                 255, 2 * radius + 1);
+      if (last > radius) cv::line(shadow_sweeps[i], p, along(last), 255, 2 * radius + 1);
     }
   };
   size_t next = 0;

@@ -92,6 +92,13 @@ PartSymmetry get_symmetry(Reader& r, const std::string& what) {
   return s;
 }
 
+// Why a database whose views are folded by a turn the part does not have is refused (on save
+// and on load alike).
+std::string unfolded_views(const TemplateDatabase& db) {
+  return "views folded by " + db.views_symmetry.str() + ", which is not a symmetry of the part (" + db.symmetry.str() +
+         ")";
+}
+
 void put_camera(Writer& w, const CameraConfig& c) {
   w.put<int32_t>(c.camera.image_size.width);
   w.put<int32_t>(c.camera.image_size.height);
@@ -226,9 +233,7 @@ bool PartSymmetry::includes(const PartSymmetry& other) const {
 }
 
 void save_template_database(const TemplateDatabase& db, const std::filesystem::path& file) {
-  if (!db.symmetry.includes(db.views_symmetry))
-    throw std::invalid_argument(file.string() + ": views folded by " + db.views_symmetry.str() +
-                                ", which is not a symmetry of the part (" + db.symmetry.str() + ")");
+  if (!db.symmetry.includes(db.views_symmetry)) throw std::invalid_argument(file.string() + ": " + unfolded_views(db));
   Writer w;
   w.str(db.part_name);
   w.put<int32_t>(db.obj_id);
@@ -386,9 +391,7 @@ TemplateDatabase load_template_database(const std::filesystem::path& file) {
   db.views_symmetry = db.symmetry;
   if (version >= 5) {
     db.views_symmetry = get_symmetry(r, "views symmetry");
-    if (!db.symmetry.includes(db.views_symmetry))
-      r.fail("views folded by " + db.views_symmetry.str() + ", which is not a symmetry of the part (" +
-             db.symmetry.str() + ")");
+    if (!db.symmetry.includes(db.views_symmetry)) r.fail(unfolded_views(db));
   }
   if (r.remaining() != 0) r.fail(std::to_string(r.remaining()) + " bytes left after the last view");
   return db;
