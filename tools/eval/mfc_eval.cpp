@@ -434,7 +434,7 @@ int run_detect(const Options& o) {
               truth.push_back({{"instance", j}, {"visib_fract", g.info[j].visib_fract}, {"view", ps->view},
                                {"view_angle_deg", ps->view_angle_deg}, {"cost_px", ps->cost_px},
                                {"coverage", ps->coverage}, {"rank_px", ps->rank_px},
-                               {"fit_score", ps->fit_score}});
+                               {"fit_score", ps->fit_score}, {"exact_score", ps->exact_score}});
           if (!truth.empty()) trial["truth_scores"] = truth;
           if (!d.estimates.empty()) trial["best_rank_px"] = d.estimates[0].rank_px, trial["best_score"] = d.estimates[0].rank;
         }

@@ -102,6 +102,8 @@ void apply_pipeline_setting(vision::PipelineConfig& c, const std::string& settin
       {"max_cost_px", &Config::max_cost_px},
       {"min_guide_overlap", &Config::min_guide_overlap},
       {"evidence_weight", &Config::evidence_weight}, {"escalate_below", &Config::escalate_below},
+      {"fit_score_gate_px", &Config::fit_score_gate_px}, {"fit_inlier_cost_px", &Config::fit_inlier_cost_px},
+      {"unexplained_weight", &Config::unexplained_weight}, {"escalate_max_cost_px", &Config::escalate_max_cost_px},
       {"search_polarity_penalty_px", &Config::search_polarity_penalty_px}};
   static constexpr std::pair<const char*, int Config::*> kIntegers[] = {
       {"template_guides", &Config::template_guides}, {"query_guides", &Config::query_guides},

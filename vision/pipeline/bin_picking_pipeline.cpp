@@ -419,12 +419,15 @@ struct BinPickingPipeline::Impl {
   // How a search is spread: the shipped settings (PipelineConfig) or escalation's wide ones.
   struct SearchSettings {
     int view_stride, query_guides, keep_per_view, keep_separation_px;
+    double max_cost_px;
   };
   SearchSettings shipped_search() const {
-    return {config.view_stride, config.query_guides, config.keep_per_view, config.keep_separation_px};
+    return {config.view_stride, config.query_guides, config.keep_per_view, config.keep_separation_px,
+            config.max_cost_px};
   }
   SearchSettings escalation_search() const {
-    return {1, config.escalate_query_guides, kEscalationPlacementsPerView, kEscalationSeparationPx};
+    return {1, config.escalate_query_guides, kEscalationPlacementsPerView, kEscalationSeparationPx,
+            config.escalate_max_cost_px > 0 ? config.escalate_max_cost_px : config.max_cost_px};
   }
 
   // One cycle's settings and outcomes shared by the stages below.
@@ -461,16 +464,18 @@ struct BinPickingPipeline::Impl {
 
   Impl(const CameraConfig& cam, PipelineConfig cfg)
       : camera(cam), config(std::move(cfg)), extractor(cam.camera, cam.flashes, config.depth_edges),
-        fitter(ranking_fit_params()), final_fitter(final_fit_params()) {}
-  static TemplateFitParams ranking_fit_params() {
+        fitter(ranking_fit_params(config)), final_fitter(final_fit_params(config)) {}
+  static TemplateFitParams ranking_fit_params(const PipelineConfig& c) {
     TemplateFitParams p;
     p.edge_offset_correction = false;
+    p.score_gate_px = c.fit_score_gate_px;
+    p.inlier_cost_px = c.fit_inlier_cost_px;
     return p;
   }
   // A polish of a converged fit: the correction moves points by at most ~0.4 px, so the final
   // gate from the start (no far edges to pair with) and a few steps; the score is not read.
-  static TemplateFitParams final_fit_params() {
-    TemplateFitParams p;
+  static TemplateFitParams final_fit_params(const PipelineConfig& c) {
+    TemplateFitParams p = ranking_fit_params(c);
     p.edge_offset_correction = true;
     p.iterations = 3;
     p.initial_gate_px = p.final_gate_px;
@@ -526,11 +531,11 @@ double view_points(const TemplateFitResult& f, const TemplateDatabase& db) {
 // outline it leaves unexplained, plus the evidence of the edge points it found (PipelineConfig::evidence_weight).
 // All of them unexplained costs 0.3, about the score a correct fit of a part in a full bin
 // reaches (measured on mfc-sim bins: correct picks score 0.1-0.5).
-double fitted_rank(const TemplateFitResult& f, const TemplateDatabase& db, double evidence_weight) {
-  constexpr double kUnexplainedWeight = 0.3;
+double fitted_rank(const TemplateFitResult& f, const TemplateDatabase& db, double evidence_weight,
+                   double unexplained_weight) {
   const double n = view_points(f, db);
   // n x inlier fraction: the points found, not those the view has (PipelineConfig::evidence_weight).
-  return f.score - kUnexplainedWeight * (1.0 - f.coverage) +
+  return f.score - unexplained_weight * (1.0 - f.coverage) +
          evidence_weight * std::log(std::max(n * f.inlier_fraction, 1.0) / 300.0);
 }
 
@@ -591,8 +596,25 @@ double fit_distance(const LineSet& lines, const IntegralDistanceTransform& idt, 
 
 }  // namespace
 
+namespace {
+
+// The ranking's settings, checked before the fitters are made from them (they would refuse them
+// in their own words, naming TemplateFitParams fields rather than the pipeline's).
+PipelineConfig checked_ranking_settings(PipelineConfig c) {
+  if (!(c.fit_score_gate_px > 0) || !(c.fit_inlier_cost_px > 0) || !(c.fit_inlier_cost_px <= c.fit_score_gate_px))
+    throw std::runtime_error("pipeline: fit_score_gate_px and fit_inlier_cost_px must be positive, "
+                             "fit_inlier_cost_px <= fit_score_gate_px");
+  if (!(c.unexplained_weight >= 0) || !std::isfinite(c.unexplained_weight))
+    throw std::runtime_error("pipeline: unexplained_weight must be >= 0");
+  if (!(c.escalate_max_cost_px >= 0) || !std::isfinite(c.escalate_max_cost_px))
+    throw std::runtime_error("pipeline: escalate_max_cost_px must be >= 0 (0 = max_cost_px)");
+  return c;
+}
+
+}  // namespace
+
 BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfig config)
-    : impl_(std::make_unique<Impl>(camera, std::move(config))) {
+    : impl_(std::make_unique<Impl>(camera, checked_ranking_settings(std::move(config)))) {
   Impl& m = *impl_;
   if (m.config.template_files.empty()) throw std::runtime_error("pipeline: no template files configured");
   if (m.config.max_candidates < 1) throw std::runtime_error("pipeline: max_candidates must be >= 1");
@@ -772,7 +794,7 @@ void BinPickingPipeline::Impl::search(Cycle& cycle, const LineSet& query, const 
   // improves, far cheaper than collecting every placement under the threshold. Several instances
   // of a part still come out, through different (neighbouring) views, after NMS.
   lp.mode = SearchMode::Best;
-  lp.threshold = m.config.max_cost_px / down;
+  lp.threshold = settings.max_cost_px / down;
   lp.templateLines = m.config.template_guides;
   lp.queryLines = settings.query_guides;
   lp.minOverlap = m.config.min_guide_overlap;
@@ -936,7 +958,7 @@ void BinPickingPipeline::Impl::fit(Cycle& cycle, size_t first, const IntegralDis
       // 555 of 1000); fitting them again from the floor cost ~5 ms a cycle for no measured gain.
       v.below_floor = floor.below(part.db.mesh, f.pose);
       if (v.below_floor) continue;
-      v.take(f, fitted_rank(f, part.db, m.config.evidence_weight));
+      v.take(f, fitted_rank(f, part.db, m.config.evidence_weight, m.config.unexplained_weight));
     } else {
       // The search's distance is one of a few guesses: a pose below the floor goes onto it.
       v.fitted = floor.onto_if_below(part.db.mesh, v.coarse, part.db.center_mm);
@@ -1007,7 +1029,7 @@ void BinPickingPipeline::Impl::rank(const Cycle& cycle, size_t first) {
       if (v.fit_score <= 0 || Clock::now() > cycle.deadline) continue;
       const PartModel& part = m.parts[v.hit.part];
       const TemplateFitResult f = m.scored_like(i - begin, part.db, v.fit);
-      v.take(f, fitted_rank(f, part.db, m.config.evidence_weight));
+      v.take(f, fitted_rank(f, part.db, m.config.evidence_weight, m.config.unexplained_weight));
     }
     sort_verified(first);
   }
@@ -1030,7 +1052,7 @@ void BinPickingPipeline::Impl::rank(const Cycle& cycle, size_t first) {
     if (f.score < kFloorStartMinScoreRatio * v.fit_score || floor.below(part.db.mesh, f.pose) ||
         moved_too_far_in_depth(part.db, v.coarse, f.pose))
       continue;
-    v.take(f, fitted_rank(f, part.db, m.config.evidence_weight));
+    v.take(f, fitted_rank(f, part.db, m.config.evidence_weight, m.config.unexplained_weight));
   }
   if (floor_starts > 0) sort_verified(first);
 
@@ -1056,7 +1078,7 @@ void BinPickingPipeline::Impl::rank(const Cycle& cycle, size_t first) {
           floor.below(part.db.mesh, f.pose))
         continue;
       if (turn.by_rank) {
-        if (v.fit_rank < kPlateTurnMinRank || fitted_rank(f, part.db, m.config.evidence_weight) <= v.fit_rank) continue;
+        if (v.fit_rank < kPlateTurnMinRank || fitted_rank(f, part.db, m.config.evidence_weight, m.config.unexplained_weight) <= v.fit_rank) continue;
       } else {
         const bool feature = !turn.differs.empty();
         const TemplatePoseFit::Difference d =
@@ -1067,7 +1089,7 @@ void BinPickingPipeline::Impl::rank(const Cycle& cycle, size_t first) {
       }
       current = f;
       // The turned pose replaces the fit, but never lowers the rank the hypothesis was sorted by.
-      v.take(f, std::max(v.fit_rank, fitted_rank(f, part.db, m.config.evidence_weight)));
+      v.take(f, std::max(v.fit_rank, fitted_rank(f, part.db, m.config.evidence_weight, m.config.unexplained_weight)));
     }
   }
   sort_verified(first);
@@ -1414,7 +1436,10 @@ PoseScore BinPickingPipeline::score_pose(int obj_id, const cv::Matx33d& R_m2c, c
   // Scored as a best hypothesis of the cycle is (PipelineConfig::rescore_hypotheses).
   const TemplateFitResult f =
       m.scored_like(0, part->db, m.fitter.fit(part->db, out.view, start, m.camera.camera, m.fit_workspaces[0]));
-  out.fit_score = fitted_rank(f, part->db, m.config.evidence_weight);
+  out.fit_score = fitted_rank(f, part->db, m.config.evidence_weight, m.config.unexplained_weight);
+  const TemplateFitResult exact = m.fitter.evaluate(part->db, out.view, pose, m.camera.camera, m.fit_workspaces[0],
+                                                    TemplatePoseFit::kAllPoints);
+  out.exact_score = fitted_rank(exact, part->db, m.config.evidence_weight, m.config.unexplained_weight);
   return out;
 }
 

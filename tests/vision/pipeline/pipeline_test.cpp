@@ -208,6 +208,13 @@ TEST_P(PipelineOnRenderedPart, FindsThePartWithinFiveMillimetresAndTenDegrees) {
                 part(), trial, view, best.view, best.cost_px, dt, dr, result.times.total_ms,
                 result.times.edges_ms, result.times.lines_ms, result.times.distance_ms, result.times.search_ms, result.times.refine_ms, result.hypotheses * 1e-6);
     found += dt <= 5 && dr <= 10;
+    // The truth scored where it is (PoseScore::exact_score, the fitted rank's measure unfitted)
+    // beats the same pose moved 10 mm sideways, where its edges are not.
+    const PoseScore at_truth = pipeline.score_pose(db.obj_id, truth.R, truth.t_mm);
+    const PoseScore beside = pipeline.score_pose(db.obj_id, truth.R, truth.t_mm + cv::Vec3d(10, 0, 0));
+    std::printf("%s trial %d: exact score %.3f at the truth, %.3f 10 mm beside, best candidate %.3f\n", part(), trial,
+                at_truth.exact_score, beside.exact_score, best.score);
+    EXPECT_GT(at_truth.exact_score, beside.exact_score + 0.2);
   }
   EXPECT_EQ(found, trials);
 }
@@ -270,6 +277,25 @@ TEST(Pipeline, RefusesBadConfiguration) {
   refuses("escalate_query_guides", &PipelineConfig::escalate_query_guides, {0});
   refuses("escalate_hypotheses", &PipelineConfig::escalate_hypotheses, {0});
   refuses("rescore_hypotheses", &PipelineConfig::rescore_hypotheses, {-1});
+  // A setting of the ranking out of its range is refused naming it; restored after.
+  auto refuses_number = [&](const char* name, double PipelineConfig::*field, std::initializer_list<double> bad) {
+    const double good = pc.*field;
+    for (double value : bad) {
+      pc.*field = value;
+      try {
+        BinPickingPipeline p(cam, pc);
+        ADD_FAILURE() << name << " " << value << " accepted";
+      } catch (const std::runtime_error& e) {
+        EXPECT_NE(std::string(e.what()).find(name), std::string::npos) << e.what();
+      }
+    }
+    pc.*field = good;
+  };
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  refuses_number("fit_score_gate_px", &PipelineConfig::fit_score_gate_px, {0, -1, nan, 1.5});  // 1.5 < inlier cost 2
+  refuses_number("fit_inlier_cost_px", &PipelineConfig::fit_inlier_cost_px, {0, nan, 5});     // 5 > score gate 4
+  refuses_number("unexplained_weight", &PipelineConfig::unexplained_weight, {-0.1, nan});
+  refuses_number("escalate_max_cost_px", &PipelineConfig::escalate_max_cost_px, {-1, nan});
   for (const double bad : {-0.1, std::numeric_limits<double>::quiet_NaN()}) {
     pc.escalate_below = bad;
     try {
