@@ -257,10 +257,10 @@ TEST(Pipeline, RefusesBadConfiguration) {
     EXPECT_NE(std::string(e.what()).find("normal"), std::string::npos) << e.what();
   }
   pc.floor = {};
-  // An integer setting out of its range is refused naming it; the setting is restored after.
-  auto refuses = [&](const char* name, int PipelineConfig::*field, std::initializer_list<int> bad) {
-    const int good = pc.*field;
-    for (int value : bad) {
+  // A setting out of its range is refused naming it; the setting is restored after.
+  auto refuses = [&]<class T>(const char* name, T PipelineConfig::*field, std::initializer_list<T> bad) {
+    const T good = pc.*field;
+    for (T value : bad) {
       pc.*field = value;
       try {
         BinPickingPipeline p(cam, pc);
@@ -277,34 +277,13 @@ TEST(Pipeline, RefusesBadConfiguration) {
   refuses("escalate_query_guides", &PipelineConfig::escalate_query_guides, {0});
   refuses("escalate_hypotheses", &PipelineConfig::escalate_hypotheses, {0});
   refuses("rescore_hypotheses", &PipelineConfig::rescore_hypotheses, {-1});
-  // A setting of the ranking out of its range is refused naming it; restored after.
-  auto refuses_number = [&](const char* name, double PipelineConfig::*field, std::initializer_list<double> bad) {
-    const double good = pc.*field;
-    for (double value : bad) {
-      pc.*field = value;
-      try {
-        BinPickingPipeline p(cam, pc);
-        ADD_FAILURE() << name << " " << value << " accepted";
-      } catch (const std::runtime_error& e) {
-        EXPECT_NE(std::string(e.what()).find(name), std::string::npos) << e.what();
-      }
-    }
-    pc.*field = good;
-  };
+  // The ranking's settings.
   const double nan = std::numeric_limits<double>::quiet_NaN();
-  refuses_number("fit_score_gate_px", &PipelineConfig::fit_score_gate_px, {0, -1, nan, 1.5});  // 1.5 < inlier cost 2
-  refuses_number("fit_inlier_cost_px", &PipelineConfig::fit_inlier_cost_px, {0, nan, 5});     // 5 > score gate 4
-  refuses_number("unexplained_weight", &PipelineConfig::unexplained_weight, {-0.1, nan});
-  refuses_number("escalate_max_cost_px", &PipelineConfig::escalate_max_cost_px, {-1, nan});
-  for (const double bad : {-0.1, std::numeric_limits<double>::quiet_NaN()}) {
-    pc.escalate_below = bad;
-    try {
-      BinPickingPipeline p(cam, pc);
-      ADD_FAILURE() << "escalate_below " << bad << " accepted";
-    } catch (const std::runtime_error& e) {
-      EXPECT_NE(std::string(e.what()).find("escalate_below"), std::string::npos) << e.what();
-    }
-  }
+  refuses("fit_score_gate_px", &PipelineConfig::fit_score_gate_px, {0.0, -1.0, nan, 1.5});  // 1.5 < inlier cost 2
+  refuses("fit_inlier_cost_px", &PipelineConfig::fit_inlier_cost_px, {0.0, nan, 5.0});     // 5 > score gate 4
+  refuses("unexplained_weight", &PipelineConfig::unexplained_weight, {-0.1, nan});
+  refuses("escalate_max_cost_px", &PipelineConfig::escalate_max_cost_px, {-1.0, nan});
+  refuses("escalate_below", &PipelineConfig::escalate_below, {-0.1, nan});
 }
 
 // The bin floor: with the floor where it is, the part is still found; with a floor placed above
