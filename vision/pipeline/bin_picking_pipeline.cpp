@@ -529,14 +529,13 @@ double view_points(const TemplateFitResult& f, const TemplateDatabase& db) {
 
 // The rank of a fitted hypothesis: its fit score, less a penalty for the image edges inside its
 // outline it leaves unexplained, plus the evidence of the edge points it found (PipelineConfig::evidence_weight).
-// All of them unexplained costs 0.3, about the score a correct fit of a part in a full bin
-// reaches (measured on mfc-sim bins: correct picks score 0.1-0.5).
-double fitted_rank(const TemplateFitResult& f, const TemplateDatabase& db, double evidence_weight,
-                   double unexplained_weight) {
+// All of them unexplained costs PipelineConfig::unexplained_weight (0.3), about the score a correct
+// fit of a part in a full bin reaches (measured on mfc-sim bins: correct picks score 0.1-0.5).
+double fitted_rank(const TemplateFitResult& f, const TemplateDatabase& db, const PipelineConfig& c) {
   const double n = view_points(f, db);
   // n x inlier fraction: the points found, not those the view has (PipelineConfig::evidence_weight).
-  return f.score - unexplained_weight * (1.0 - f.coverage) +
-         evidence_weight * std::log(std::max(n * f.inlier_fraction, 1.0) / 300.0);
+  return f.score - c.unexplained_weight * (1.0 - f.coverage) +
+         c.evidence_weight * std::log(std::max(n * f.inlier_fraction, 1.0) / 300.0);
 }
 
 // The search ran at the templates' own distance, but parts in a bin lie nearer (stacked, or
@@ -594,27 +593,19 @@ double fit_distance(const LineSet& lines, const IntegralDistanceTransform& idt, 
   return best_cost * down;
 }
 
-}  // namespace
-
-namespace {
-
-// The ranking's settings, checked before the fitters are made from them (they would refuse them
-// in their own words, naming TemplateFitParams fields rather than the pipeline's).
-PipelineConfig checked_ranking_settings(PipelineConfig c) {
+// The fit's gates, checked before the fitters are made from them (they would refuse them in
+// their own words, naming TemplateFitParams fields rather than the pipeline's).
+PipelineConfig checked_fit_gates(PipelineConfig c) {
   if (!(c.fit_score_gate_px > 0) || !(c.fit_inlier_cost_px > 0) || !(c.fit_inlier_cost_px <= c.fit_score_gate_px))
     throw std::runtime_error("pipeline: fit_score_gate_px and fit_inlier_cost_px must be positive, "
                              "fit_inlier_cost_px <= fit_score_gate_px");
-  if (!(c.unexplained_weight >= 0) || !std::isfinite(c.unexplained_weight))
-    throw std::runtime_error("pipeline: unexplained_weight must be >= 0");
-  if (!(c.escalate_max_cost_px >= 0) || !std::isfinite(c.escalate_max_cost_px))
-    throw std::runtime_error("pipeline: escalate_max_cost_px must be >= 0 (0 = max_cost_px)");
   return c;
 }
 
 }  // namespace
 
 BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfig config)
-    : impl_(std::make_unique<Impl>(camera, checked_ranking_settings(std::move(config)))) {
+    : impl_(std::make_unique<Impl>(camera, checked_fit_gates(std::move(config)))) {
   Impl& m = *impl_;
   if (m.config.template_files.empty()) throw std::runtime_error("pipeline: no template files configured");
   if (m.config.max_candidates < 1) throw std::runtime_error("pipeline: max_candidates must be >= 1");
@@ -698,9 +689,13 @@ BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfi
   if (m.config.round_hypotheses < 1) throw std::runtime_error("pipeline: round_hypotheses must be >= 1");
   if (!(m.config.escalate_below >= 0) || !std::isfinite(m.config.escalate_below))
     throw std::runtime_error("pipeline: escalate_below must be >= 0 (0 = off)");
+  if (!(m.config.escalate_max_cost_px >= 0) || !std::isfinite(m.config.escalate_max_cost_px))
+    throw std::runtime_error("pipeline: escalate_max_cost_px must be >= 0 (0 = max_cost_px)");
   if (m.config.escalate_query_guides < 1 || m.config.escalate_hypotheses < 1)
     throw std::runtime_error("pipeline: escalate_query_guides and escalate_hypotheses must be >= 1");
   if (!(m.config.evidence_weight >= 0)) throw std::runtime_error("pipeline: evidence_weight must be >= 0");
+  if (!(m.config.unexplained_weight >= 0) || !std::isfinite(m.config.unexplained_weight))
+    throw std::runtime_error("pipeline: unexplained_weight must be >= 0");
   if (!(m.config.search_polarity_penalty_px >= 0))
     throw std::runtime_error("pipeline: search_polarity_penalty_px must be >= 0");
   m.dt3_params.polarityPenalty = m.config.search_polarity_penalty_px;
@@ -958,7 +953,7 @@ void BinPickingPipeline::Impl::fit(Cycle& cycle, size_t first, const IntegralDis
       // 555 of 1000); fitting them again from the floor cost ~5 ms a cycle for no measured gain.
       v.below_floor = floor.below(part.db.mesh, f.pose);
       if (v.below_floor) continue;
-      v.take(f, fitted_rank(f, part.db, m.config.evidence_weight, m.config.unexplained_weight));
+      v.take(f, fitted_rank(f, part.db, m.config));
     } else {
       // The search's distance is one of a few guesses: a pose below the floor goes onto it.
       v.fitted = floor.onto_if_below(part.db.mesh, v.coarse, part.db.center_mm);
@@ -1029,7 +1024,7 @@ void BinPickingPipeline::Impl::rank(const Cycle& cycle, size_t first) {
       if (v.fit_score <= 0 || Clock::now() > cycle.deadline) continue;
       const PartModel& part = m.parts[v.hit.part];
       const TemplateFitResult f = m.scored_like(i - begin, part.db, v.fit);
-      v.take(f, fitted_rank(f, part.db, m.config.evidence_weight, m.config.unexplained_weight));
+      v.take(f, fitted_rank(f, part.db, m.config));
     }
     sort_verified(first);
   }
@@ -1052,7 +1047,7 @@ void BinPickingPipeline::Impl::rank(const Cycle& cycle, size_t first) {
     if (f.score < kFloorStartMinScoreRatio * v.fit_score || floor.below(part.db.mesh, f.pose) ||
         moved_too_far_in_depth(part.db, v.coarse, f.pose))
       continue;
-    v.take(f, fitted_rank(f, part.db, m.config.evidence_weight, m.config.unexplained_weight));
+    v.take(f, fitted_rank(f, part.db, m.config));
   }
   if (floor_starts > 0) sort_verified(first);
 
@@ -1078,7 +1073,7 @@ void BinPickingPipeline::Impl::rank(const Cycle& cycle, size_t first) {
           floor.below(part.db.mesh, f.pose))
         continue;
       if (turn.by_rank) {
-        if (v.fit_rank < kPlateTurnMinRank || fitted_rank(f, part.db, m.config.evidence_weight, m.config.unexplained_weight) <= v.fit_rank) continue;
+        if (v.fit_rank < kPlateTurnMinRank || fitted_rank(f, part.db, m.config) <= v.fit_rank) continue;
       } else {
         const bool feature = !turn.differs.empty();
         const TemplatePoseFit::Difference d =
@@ -1089,7 +1084,7 @@ void BinPickingPipeline::Impl::rank(const Cycle& cycle, size_t first) {
       }
       current = f;
       // The turned pose replaces the fit, but never lowers the rank the hypothesis was sorted by.
-      v.take(f, std::max(v.fit_rank, fitted_rank(f, part.db, m.config.evidence_weight, m.config.unexplained_weight)));
+      v.take(f, std::max(v.fit_rank, fitted_rank(f, part.db, m.config)));
     }
   }
   sort_verified(first);
@@ -1436,10 +1431,10 @@ PoseScore BinPickingPipeline::score_pose(int obj_id, const cv::Matx33d& R_m2c, c
   // Scored as a best hypothesis of the cycle is (PipelineConfig::rescore_hypotheses).
   const TemplateFitResult f =
       m.scored_like(0, part->db, m.fitter.fit(part->db, out.view, start, m.camera.camera, m.fit_workspaces[0]));
-  out.fit_score = fitted_rank(f, part->db, m.config.evidence_weight, m.config.unexplained_weight);
+  out.fit_score = fitted_rank(f, part->db, m.config);
   const TemplateFitResult exact = m.fitter.evaluate(part->db, out.view, pose, m.camera.camera, m.fit_workspaces[0],
                                                     TemplatePoseFit::kAllPoints);
-  out.exact_score = fitted_rank(exact, part->db, m.config.evidence_weight, m.config.unexplained_weight);
+  out.exact_score = fitted_rank(exact, part->db, m.config);
   return out;
 }
 
