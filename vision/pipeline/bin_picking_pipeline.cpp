@@ -682,6 +682,9 @@ BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfi
     throw std::runtime_error(std::string("pipeline: ") + e.what());
   }
   if (m.config.floor_starts < 0) throw std::runtime_error("pipeline: floor_starts must be >= 0");
+  if (m.config.depth_starts < 0) throw std::runtime_error("pipeline: depth_starts must be >= 0");
+  if (!(m.config.depth_start_mm > 0) || !std::isfinite(m.config.depth_start_mm))
+    throw std::runtime_error("pipeline: depth_start_mm must be positive");
   if (m.config.rescore_hypotheses < 0) throw std::runtime_error("pipeline: rescore_hypotheses must be >= 0");
   if (m.config.coarse_seeds < 0) throw std::runtime_error("pipeline: coarse_seeds must be >= 0");
   if (m.config.search_rounds < 1 || m.config.search_rounds > PipelineConfig::kMaxSearchRounds)
@@ -1050,6 +1053,30 @@ void BinPickingPipeline::Impl::rank(const Cycle& cycle, size_t first) {
     v.take(f, fitted_rank(f, part.db, m.config));
   }
   if (floor_starts > 0) sort_verified(first);
+
+  // Depth starts (PipelineConfig::depth_starts): the fit settles on the depth nearest its start,
+  // so the best few are fitted again from a little further and a little nearer; a fit that ranks
+  // higher replaces theirs unless it reaches below the floor or has left its search hit's depth.
+  const int depth_starts = std::min(m.config.depth_starts, count);
+#pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
+  for (int i = begin; i < begin + depth_starts; ++i) {
+    Verified& v = m.verified[i];
+    if (v.fit_score <= 0 || Clock::now() > cycle.deadline) continue;
+    const PartModel& part = m.parts[v.hit.part];
+    // Further first, then nearer from whichever fit is best by then.
+    for (const double delta : {m.config.depth_start_mm, -m.config.depth_start_mm}) {
+      RigidPose start = v.fitted;
+      const cv::Vec3d centre = start.R * part.db.center_mm + start.t_mm;
+      start.t_mm += centre * (delta / cv::norm(centre));
+      const int view = TemplatePoseFit::nearest_view(part.db, m.camera.camera, start);
+      const TemplateFitResult f = m.scored_like(i - begin, part.db,
+          m.fitter.fit(part.db, view, start, m.camera.camera, m.fit_workspaces[omp_get_thread_num()]));
+      if (floor.below(part.db.mesh, f.pose) || moved_too_far_in_depth(part.db, v.coarse, f.pose)) continue;
+      const double rank = fitted_rank(f, part.db, m.config);
+      if (rank > v.fit_rank) v.take(f, rank);
+    }
+  }
+  if (depth_starts > 0) sort_verified(first);
 
   // Turned-over check of the best few: a part that is symmetric but for a small feature (the
   // breaker's toggle) fits as well turned by 180 degrees about an axis; the edges can only tell

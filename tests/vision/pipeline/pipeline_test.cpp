@@ -277,6 +277,7 @@ TEST(Pipeline, RefusesBadConfiguration) {
   refuses("escalate_query_guides", &PipelineConfig::escalate_query_guides, {0});
   refuses("escalate_hypotheses", &PipelineConfig::escalate_hypotheses, {0});
   refuses("rescore_hypotheses", &PipelineConfig::rescore_hypotheses, {-1});
+  refuses("depth_starts", &PipelineConfig::depth_starts, {-1});
   // The ranking's settings.
   const double nan = std::numeric_limits<double>::quiet_NaN();
   refuses("fit_score_gate_px", &PipelineConfig::fit_score_gate_px, {0.0, -1.0, nan, 1.5});  // 1.5 < inlier cost 2
@@ -284,6 +285,7 @@ TEST(Pipeline, RefusesBadConfiguration) {
   refuses("unexplained_weight", &PipelineConfig::unexplained_weight, {-0.1, nan});
   refuses("escalate_max_cost_px", &PipelineConfig::escalate_max_cost_px, {-1.0, nan});
   refuses("escalate_below", &PipelineConfig::escalate_below, {-0.1, nan});
+  refuses("depth_start_mm", &PipelineConfig::depth_start_mm, {0.0, -2.0, nan});
 }
 
 // The bin floor: with the floor where it is, the part is still found; with a floor placed above
@@ -696,6 +698,36 @@ TEST(Pipeline, TellsTheSpinOfADiamondOnItsRim) {
     right += dt <= 5.0 && dr <= 10.0;
   }
   EXPECT_GE(right, 3) << "of 8 renders";
+}
+
+// Depth starts (PipelineConfig::depth_starts) only ever take a fit that ranks higher: with the
+// checks that could reorder the leaders off (turned-over checks, escalation), the best candidate
+// ranks at least as high with them as without, on every render of the two diamonds on their rim
+// searched at a distance 12 mm off their own; and on some render they raise it (they do something).
+TEST(Pipeline, DepthStartsOnlyRaiseTheBestRank) {
+  ASSERT_TRUE(fs::exists(kTemplates / "diamond.tdb"));
+  RimDiamonds scene;
+  PipelineConfig pc = scene.config();
+  pc.distances_mm = {270};
+  pc.flip_checks = 0;
+  pc.escalate_below = 0;
+  ASSERT_GT(pc.depth_starts, 0);
+  BinPickingPipeline with(scene.cam, pc);
+  pc.depth_starts = 0;
+  BinPickingPipeline without(scene.cam, pc);
+  int raised = 0;
+  for (int k = 0; k < 8; ++k) {
+    const MfcRender render = scene.render(k);
+    PipelineResult a, b;
+    with.process(render.frames, 0, std::chrono::steady_clock::now() + std::chrono::seconds(30), a);
+    without.process(render.frames, 0, std::chrono::steady_clock::now() + std::chrono::seconds(30), b);
+    ASSERT_FALSE(a.candidates.empty() || b.candidates.empty()) << "render " << k;
+    const double ra = a.candidates.front().fit_rank, rb = b.candidates.front().fit_rank;
+    std::printf("render %d: best rank %.4f with depth starts, %.4f without\n", k, ra, rb);
+    EXPECT_GE(ra, rb - 1e-12) << "render " << k;
+    raised += ra > rb + 1e-6;
+  }
+  EXPECT_GT(raised, 0);
 }
 
 // The edge offset correction (PipelineConfig::edge_offset_correction): the same two diamonds
