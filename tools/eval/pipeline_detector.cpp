@@ -70,7 +70,20 @@ class PipelineDetector final : public Detector {
     cv::Mat1b dim = edges * (110.0 / 255.0);
     cv::Mat3b out;
     cv::cvtColor(dim, out, cv::COLOR_GRAY2BGR);
-    for (const DrawnPose& p : poses) pipeline_->draw_pose(out, obj_id, p.R, p.t_mm, p.colour);
+    // Each pose's points in its colour where an image edge lies under them (within 1 px) and dimmed
+    // where none does, so that the overlay shows which of a pose's edges the image lacks.
+    cv::Mat1b near_edge;
+    cv::dilate(edges, near_edge, cv::Mat());
+    for (const DrawnPose& p : poses) {
+      cv::Mat3b drawn(out.size(), cv::Vec3b(0, 0, 0));
+      pipeline_->draw_pose(drawn, obj_id, p.R, p.t_mm, p.colour);
+      for (int y = 0; y < out.rows; ++y)
+        for (int x = 0; x < out.cols; ++x) {
+          const cv::Vec3b c = drawn(y, x);
+          if (c == cv::Vec3b(0, 0, 0)) continue;
+          out(y, x) = near_edge(y, x) ? c : cv::Vec3b(c[0] * 2 / 5, c[1] * 2 / 5, c[2] * 2 / 5);
+        }
+    }
     return out;
   }
   double setup_seconds() const override { return setup_s_; }
@@ -104,7 +117,8 @@ void apply_pipeline_setting(vision::PipelineConfig& c, const std::string& settin
       {"evidence_weight", &Config::evidence_weight}, {"escalate_below", &Config::escalate_below},
       {"fit_score_gate_px", &Config::fit_score_gate_px}, {"fit_inlier_cost_px", &Config::fit_inlier_cost_px},
       {"unexplained_weight", &Config::unexplained_weight}, {"escalate_max_cost_px", &Config::escalate_max_cost_px},
-      {"search_polarity_penalty_px", &Config::search_polarity_penalty_px}};
+      {"search_polarity_penalty_px", &Config::search_polarity_penalty_px},
+      {"depth_start_mm", &Config::depth_start_mm}};
   static constexpr std::pair<const char*, int Config::*> kIntegers[] = {
       {"template_guides", &Config::template_guides}, {"query_guides", &Config::query_guides},
       {"view_stride", &Config::view_stride},         {"coarse_seeds", &Config::coarse_seeds},
@@ -115,7 +129,7 @@ void apply_pipeline_setting(vision::PipelineConfig& c, const std::string& settin
       {"floor_starts", &Config::floor_starts},       {"rescore_hypotheses", &Config::rescore_hypotheses},
       {"search_rounds", &Config::search_rounds},
       {"round_hypotheses", &Config::round_hypotheses}, {"escalate_query_guides", &Config::escalate_query_guides},
-      {"escalate_hypotheses", &Config::escalate_hypotheses}};
+      {"escalate_hypotheses", &Config::escalate_hypotheses}, {"depth_starts", &Config::depth_starts}};
   static constexpr std::pair<const char*, bool Config::*> kSwitches[] = {
       {"share_search_bound", &Config::share_search_bound}, {"trace", &Config::trace},
       {"edge_polarity", &Config::edge_polarity},         {"search_polarity", &Config::search_polarity},
