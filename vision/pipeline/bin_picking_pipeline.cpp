@@ -1015,6 +1015,13 @@ void BinPickingPipeline::Impl::rank(const Cycle& cycle, size_t first) {
   const BinFloor& floor = m.config.floor;
   const int begin = static_cast<int>(first);
   const int count = static_cast<int>(m.verified.size()) - begin;
+  // The checks below fit hypothesis i again from another start (on the calling OpenMP thread's
+  // workspace), scored as its rank was.
+  auto fit_from = [&](int i, const TemplateDatabase& db, RigidPose start) {
+    const int view = TemplatePoseFit::nearest_view(db, m.camera.camera, start);
+    return m.scored_like(i - begin, db,
+                         m.fitter.fit(db, view, start, m.camera.camera, m.fit_workspaces[omp_get_thread_num()]));
+  };
   // Rescoring: the fit scores a pose with at most TemplateFitParams::max_points of its view's
   // points (160 of up to ~1100), so two poses a few hundredths apart are ordered partly by which
   // points the subsample kept. The best few are scored again with every point before the checks
@@ -1043,10 +1050,7 @@ void BinPickingPipeline::Impl::rank(const Cycle& cycle, size_t first) {
     const PartModel& part = m.parts[v.hit.part];
     const double height = -floor.reach_below(part.db.mesh, v.fitted);
     if (height <= floor.tolerance_mm || height > kFloorStartHeightMm) continue;
-    RigidPose start = floor.onto(part.db.mesh, v.fitted, part.db.center_mm);
-    const int view = TemplatePoseFit::nearest_view(part.db, m.camera.camera, start);
-    const TemplateFitResult f = m.scored_like(i - begin, part.db,
-        m.fitter.fit(part.db, view, start, m.camera.camera, m.fit_workspaces[omp_get_thread_num()]));
+    const TemplateFitResult f = fit_from(i, part.db, floor.onto(part.db.mesh, v.fitted, part.db.center_mm));
     if (f.score < kFloorStartMinScoreRatio * v.fit_score || floor.below(part.db.mesh, f.pose) ||
         moved_too_far_in_depth(part.db, v.coarse, f.pose))
       continue;
@@ -1068,9 +1072,7 @@ void BinPickingPipeline::Impl::rank(const Cycle& cycle, size_t first) {
       RigidPose start = v.fitted;
       const cv::Vec3d centre = start.R * part.db.center_mm + start.t_mm;
       start.t_mm += centre * (delta / cv::norm(centre));
-      const int view = TemplatePoseFit::nearest_view(part.db, m.camera.camera, start);
-      const TemplateFitResult f = m.scored_like(i - begin, part.db,
-          m.fitter.fit(part.db, view, start, m.camera.camera, m.fit_workspaces[omp_get_thread_num()]));
+      const TemplateFitResult f = fit_from(i, part.db, start);
       if (floor.below(part.db.mesh, f.pose) || moved_too_far_in_depth(part.db, v.coarse, f.pose)) continue;
       const double rank = fitted_rank(f, part.db, m.config);
       if (rank > v.fit_rank) v.take(f, rank);
@@ -1094,8 +1096,7 @@ void BinPickingPipeline::Impl::rank(const Cycle& cycle, size_t first) {
       RigidPose turned;
       turned.R = current.pose.R * S;
       turned.t_mm = current.pose.t_mm + current.pose.R * (turn.pivot_mm - S * turn.pivot_mm);
-      const int view = TemplatePoseFit::nearest_view(part.db, m.camera.camera, turned);
-      const TemplateFitResult f = m.scored_like(i - begin, part.db, m.fitter.fit(part.db, view, turned, m.camera.camera, ws));
+      const TemplateFitResult f = fit_from(i, part.db, turned);
       if (moved_too_far_in_depth(part.db, v.coarse, f.pose) || f.score < kFlipMinScoreRatio * current.score ||
           floor.below(part.db.mesh, f.pose))
         continue;
