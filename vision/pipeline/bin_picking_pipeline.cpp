@@ -1022,51 +1022,44 @@ void BinPickingPipeline::Impl::rank(const Cycle& cycle, size_t first) {
     return m.scored_like(i - begin, db,
                          m.fitter.fit(db, view, start, m.camera.camera, m.fit_workspaces[omp_get_thread_num()]));
   };
+  // Each check runs on the best `n` hypotheses that have a fit, shared out among the threads,
+  // until the deadline; then the hypotheses are ordered by their ranks again.
+  auto check_leaders = [&](int n, auto&& check) {
+#pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
+    for (int i = begin; i < begin + n; ++i) {
+      Verified& v = m.verified[i];
+      if (v.fit_score <= 0 || Clock::now() > cycle.deadline) continue;
+      check(i, v, m.parts[v.hit.part]);
+    }
+    if (n > 0) sort_verified(first);
+  };
   // Rescoring: the fit scores a pose with at most TemplateFitParams::max_points of its view's
   // points (160 of up to ~1100), so two poses a few hundredths apart are ordered partly by which
   // points the subsample kept. The best few are scored again with every point before the checks
   // below and the choice of the cycle's picks (PipelineConfig::rescore_hypotheses).
   const int rescored = std::min(m.config.rescore_hypotheses, count);
-  if (rescored > 0) {
-#pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
-    for (int i = begin; i < begin + rescored; ++i) {
-      Verified& v = m.verified[i];
-      if (v.fit_score <= 0 || Clock::now() > cycle.deadline) continue;
-      const PartModel& part = m.parts[v.hit.part];
-      const TemplateFitResult f = m.scored_like(i - begin, part.db, v.fit);
-      v.take(f, fitted_rank(f, part.db, m.config));
-    }
-    sort_verified(first);
-  }
+  check_leaders(rescored, [&](int i, Verified& v, const PartModel& part) {
+    const TemplateFitResult f = m.scored_like(i - begin, part.db, v.fit);
+    v.take(f, fitted_rank(f, part.db, m.config));
+  });
   // Floor starts: one view measures a part's distance poorly, and the fit converges to the
   // depth nearest its start. Parts low in the bin mostly rest on its floor, so the best few
   // hypotheses whose lowest point hovers above the floor are fitted again from the pose slid
   // down onto it (the fit stays free to leave it).
-  const int floor_starts = floor.known() ? std::min(m.config.floor_starts, count) : 0;
-#pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
-  for (int i = begin; i < begin + floor_starts; ++i) {
-    Verified& v = m.verified[i];
-    if (v.fit_score <= 0 || Clock::now() > cycle.deadline) continue;
-    const PartModel& part = m.parts[v.hit.part];
+  check_leaders(floor.known() ? std::min(m.config.floor_starts, count) : 0,
+                [&](int i, Verified& v, const PartModel& part) {
     const double height = -floor.reach_below(part.db.mesh, v.fitted);
-    if (height <= floor.tolerance_mm || height > kFloorStartHeightMm) continue;
+    if (height <= floor.tolerance_mm || height > kFloorStartHeightMm) return;
     const TemplateFitResult f = fit_from(i, part.db, floor.onto(part.db.mesh, v.fitted, part.db.center_mm));
     if (f.score < kFloorStartMinScoreRatio * v.fit_score || floor.below(part.db.mesh, f.pose) ||
         moved_too_far_in_depth(part.db, v.coarse, f.pose))
-      continue;
+      return;
     v.take(f, fitted_rank(f, part.db, m.config));
-  }
-  if (floor_starts > 0) sort_verified(first);
-
+  });
   // Depth starts (PipelineConfig::depth_starts): the fit settles on the depth nearest its start,
   // so the best few are fitted again from a little further and a little nearer; a fit that ranks
   // higher replaces theirs unless it reaches below the floor or has left its search hit's depth.
-  const int depth_starts = std::min(m.config.depth_starts, count);
-#pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
-  for (int i = begin; i < begin + depth_starts; ++i) {
-    Verified& v = m.verified[i];
-    if (v.fit_score <= 0 || Clock::now() > cycle.deadline) continue;
-    const PartModel& part = m.parts[v.hit.part];
+  check_leaders(std::min(m.config.depth_starts, count), [&](int i, Verified& v, const PartModel& part) {
     // Further first, then nearer from whichever fit is best by then.
     for (const double delta : {m.config.depth_start_mm, -m.config.depth_start_mm}) {
       RigidPose start = v.fitted;
@@ -1077,18 +1070,11 @@ void BinPickingPipeline::Impl::rank(const Cycle& cycle, size_t first) {
       const double rank = fitted_rank(f, part.db, m.config);
       if (rank > v.fit_rank) v.take(f, rank);
     }
-  }
-  if (depth_starts > 0) sort_verified(first);
-
+  });
   // Turned-over check of the best few: a part that is symmetric but for a small feature (the
   // breaker's toggle) fits as well turned by 180 degrees about an axis; the edges can only tell
   // the two apart where they differ (TemplatePoseFit::compare).
-  const int checks = std::min(m.config.flip_checks, count);
-#pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
-  for (int i = begin; i < begin + checks; ++i) {
-    Verified& v = m.verified[i];
-    if (v.fit_score <= 0 || Clock::now() > cycle.deadline) continue;
-    const PartModel& part = m.parts[v.hit.part];
+  check_leaders(std::min(m.config.flip_checks, count), [&](int i, Verified& v, const PartModel& part) {
     auto& ws = m.fit_workspaces[omp_get_thread_num()];
     TemplateFitResult current = v.as_fit();
     for (const PartModel::Turn& turn : part.flips) {
@@ -1114,8 +1100,7 @@ void BinPickingPipeline::Impl::rank(const Cycle& cycle, size_t first) {
       // The turned pose replaces the fit, but never lowers the rank the hypothesis was sorted by.
       v.take(f, std::max(v.fit_rank, fitted_rank(f, part.db, m.config)));
     }
-  }
-  sort_verified(first);
+  });
   check_spins(cycle, first, rescored);
 }
 
