@@ -38,7 +38,7 @@ struct PipelineConfig {
   // from all of them: at 8 px its truth was sometimes not among the hits at all. Measured at 8 /
   // 9 / 10 / 12 (dev sets, mfc-sim seeds 7, 13, 19, 283 trials; bench set, 119; capped-occlusion
   // set, 116): 81 / 80 / 80 / 80, 30 / 27 / 28 / 28, 17 / 16 / 16 / 16 failures, none broken at 10;
-  // median detection +1.5 ms (docs/pose.md, "Session 12: the search threshold").
+  // median detection +1.5 ms (docs/pose-experiments.md, "Session 12: the search threshold").
   double max_cost_px = 10.0;
   std::vector<double> distances_mm;  // hypothesised part distances; empty = the templates' own
   // 1-D line search (paper Sec. 4.4): each template's longest `template_guides` lines are slid
@@ -173,7 +173,7 @@ struct PipelineConfig {
   // 5-fold symmetry) can lie far from all its views: with the first search's 10 px a wheel 27 %
   // hidden had 7 hits in the wide search, none on it, while its truth fitted to rank 0.25 against
   // the pick's -0.18. Measured on the capped, bench and three dev sets (1241 trials, session 26,
-  // docs/pose.md "Re-measured on the honest gaps"): 250 failures at 10, 246 at 14 and at 18 (four
+  // docs/pose-experiments.md "Re-measured on the honest gaps"): 250 failures at 10, 246 at 14 and at 18 (four
   // wheels fixed, none broken), median detection unchanged (the wide search runs in a quarter of
   // the cycles, and only those change).
   double escalate_max_cost_px = 14;
