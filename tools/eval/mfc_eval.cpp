@@ -11,6 +11,7 @@
 #include "tools/eval/pose_error.hpp"
 #include "tools/eval/refine_eval.hpp"
 #include "vision/dataset/bop_dataset.hpp"
+#include "vision/templates/template_database.hpp"
 
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -42,7 +43,8 @@ detect: for every image and every part type present in it, runs each method for 
   --dataset DIR          BOP-layout dataset with flash images (mfc-sim, docs/datasets.md)
   --split NAME           split folder (default test)
   --templates DIR        folder with <name>.tdb per part (mfc-teach; <build>/templates)
-  --parts FILE           parts table name,obj_id,symmetry (default config/parts/parts.csv)
+  --parts FILE           parts table name,obj_id,symmetry[,views_symmetry[,views]] (default
+                         config/parts/parts.csv)
   --out FILE             JSON to write
   --methods LIST         comma-separated: fdcm, fdcm-rounds, fdcm-search, ocm, cm, line2d (default
                          fdcm,ocm,cm); fdcm-search = FDCM without the hypothesis fit (ranked by the
@@ -290,7 +292,18 @@ int run_detect(const Options& o) {
   json jparts = json::array();
   for (const auto& [id, f] : tdb_of) {
     const PartEntry& p = part_by_id(parts, id, o.parts.string());
-    jparts.push_back({{"name", p.name}, {"obj_id", id}, {"symmetry", p.symmetry.str()}, {"templates", f.string()}});
+    // What the templates are, as taught (K and the views kept after folding): the results are
+    // only comparable with the same databases.
+    const vision::TemplateDatabase db = vision::load_template_database(f);
+    if (db.sphere_samples != p.views)
+      std::fprintf(stderr, "mfc-eval: %s was taught with K = %d views, the parts table says %d\n", f.string().c_str(),
+                   db.sphere_samples, p.views);
+    jparts.push_back({{"name", p.name},
+                      {"obj_id", id},
+                      {"symmetry", p.symmetry.str()},
+                      {"templates", f.string()},
+                      {"sphere_samples", db.sphere_samples},
+                      {"views", db.views.size()}});
   }
   out["parts"] = jparts;
   out["distances_mm"] = o.distances_mm;

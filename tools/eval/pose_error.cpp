@@ -39,8 +39,8 @@ std::vector<PartEntry> read_parts_csv(const std::filesystem::path& file) {
     std::vector<std::string> f;
     std::stringstream ss(line);
     for (std::string x; std::getline(ss, x, ',');) f.push_back(trim(x));
-    if (f.size() != 3 && f.size() != 4)
-      throw std::runtime_error(where + "expected 3 or 4 fields name,obj_id,symmetry[,views_symmetry], got " +
+    if (f.size() < 3 || f.size() > 5)
+      throw std::runtime_error(where + "expected 3 to 5 fields name,obj_id,symmetry[,views_symmetry[,views]], got " +
                                std::to_string(f.size()));
     if (!header && f[0] == "name") {
       header = true;
@@ -63,7 +63,7 @@ std::vector<PartEntry> read_parts_csv(const std::filesystem::path& file) {
       throw std::runtime_error(where + "symmetry '" + f[2] + "': " + e.what());
     }
     p.views_symmetry = p.symmetry;
-    if (f.size() == 4) {
+    if (f.size() >= 4) {
       try {
         p.views_symmetry = vision::PartSymmetry::parse(f[3]);
       } catch (const std::exception& e) {
@@ -71,6 +71,16 @@ std::vector<PartEntry> read_parts_csv(const std::filesystem::path& file) {
       }
       if (!p.symmetry.includes(p.views_symmetry))
         throw std::runtime_error(where + "views_symmetry " + f[3] + " is not a symmetry of the part (" + f[2] + ")");
+    }
+    if (f.size() == 5) {
+      used = 0;
+      try {
+        p.views = std::stoi(f[4], &used);
+      } catch (const std::exception&) {
+        used = 0;
+      }
+      if (used == 0 || used != f[4].size() || p.views < 1 || p.views > 100000)
+        throw std::runtime_error(where + "views '" + f[4] + "' is not an integer in 1..100000");
     }
     for (const auto& q : parts) {
       if (q.name == p.name) throw std::runtime_error(where + "part '" + p.name + "' listed twice");

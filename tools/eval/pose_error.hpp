@@ -18,12 +18,13 @@ struct PartEntry {
   int obj_id = 0;
   vision::PartSymmetry symmetry;        // what counts as the same pose (errors are symmetry-aware)
   vision::PartSymmetry views_symmetry;  // what mfc-teach folds the views by (a subgroup of it)
+  int views = 300;                      // K, the views over the whole sphere mfc-teach samples
 };
 
-// Reads config/parts/parts.csv ('#' comments, header "name,obj_id,symmetry[,views_symmetry]";
-// views_symmetry defaults to symmetry). Throws std::runtime_error naming the file, line and
-// reason (missing file, wrong field count, bad obj_id, bad symmetry, a views_symmetry that is not
-// a subgroup of symmetry, duplicate name or obj_id).
+// Reads config/parts/parts.csv ('#' comments, header "name,obj_id,symmetry[,views_symmetry[,views]]";
+// views_symmetry defaults to symmetry, views to 300). Throws std::runtime_error naming the file,
+// line and reason (missing file, wrong field count, bad obj_id, bad symmetry, a views_symmetry
+// that is not a subgroup of symmetry, views not an integer in 1..100000, duplicate name or obj_id).
 std::vector<PartEntry> read_parts_csv(const std::filesystem::path& file);
 // The entry with this obj_id; throws std::runtime_error naming `source` when there is none.
 const PartEntry& part_by_id(const std::vector<PartEntry>& parts, int obj_id, const std::string& source);

@@ -201,6 +201,11 @@ def main(bench_dir, docs_dir):
            "(floor starts); unfitted poses, the baselines' and LINE-2D's, are slid onto it "
            "(vision/pose/bin_floor.hpp, docs/pose.md)." % res["floor_mm"])
           if res.get("floor_mm") else "The detectors are not told where the bin floor is."))
+    taught = [p for p in res["parts"] if "sphere_samples" in p]
+    if taught:
+        w("**Templates.** Views over the sphere (K) and views kept after the symmetry fold, per part "
+          "(`config/parts/parts.csv`, docs/pose.md \"Views per part\"): %s.\n" % ", ".join(
+              "%s K = %d (%d views)" % (p["name"], p["sphere_samples"], p["views"]) for p in taught))
 
     # ---- Table 1 ----
     w("## Table 1: detection failure rate and time per detection\n")

@@ -175,6 +175,8 @@ TEST_F(EvalFiles, ReadsTheProjectPartsTable) {
   EXPECT_EQ(part_by_id(parts, 5, "x").views_symmetry.order, 2);  // the knob's pointer groove
   EXPECT_EQ(part_by_id(parts, 6, "x").views_symmetry.order, part_by_id(parts, 6, "x").symmetry.order);
   EXPECT_EQ(part_by_id(parts, 6, "x").symmetry.kind, PartSymmetry::Kind::discrete_z);
+  EXPECT_EQ(part_by_id(parts, 1, "x").views, 300);  // the paper's K
+  EXPECT_EQ(part_by_id(parts, 4, "x").views, 600);  // the T-nut, deep along the line of sight on its end
 }
 
 TEST_F(EvalFiles, RefusesMalformedPartsTables) {
@@ -187,8 +189,11 @@ TEST_F(EvalFiles, RefusesMalformedPartsTables) {
       EXPECT_NE(std::string(e.what()).find(fragment), std::string::npos) << e.what();
     }
   };
-  refused("name,obj_id,symmetry\nknob,5\n", "parts.csv:2: expected 3 or 4 fields");
-  refused("knob,5,z:10,z:2,x\n", "parts.csv:1: expected 3 or 4 fields");
+  refused("name,obj_id,symmetry\nknob,5\n", "parts.csv:2: expected 3 to 5 fields");
+  refused("knob,5,z:10,z:2,300,x\n", "parts.csv:1: expected 3 to 5 fields");
+  refused("knob,5,z:10,z:2,x\n", "parts.csv:1: views 'x' is not an integer in 1..100000");
+  refused("knob,5,z:10,z:2,0\n", "parts.csv:1: views '0' is not an integer in 1..100000");
+  refused("knob,5,z:10,z:2,300.5\n", "parts.csv:1: views '300.5' is not an integer");
   refused("knob,5,z:10,z:pear\n", "parts.csv:1: views_symmetry 'z:pear'");
   refused("knob,5,z:10,z:3\n", "parts.csv:1: views_symmetry z:3 is not a symmetry of the part (z:10)");
   refused("knob,five,z:10\n", "parts.csv:1: obj_id 'five' is not a positive integer");
@@ -197,6 +202,7 @@ TEST_F(EvalFiles, RefusesMalformedPartsTables) {
   refused("# nothing\n", "no parts listed");
   EXPECT_THROW(read_parts_csv(dir_ / "missing.csv"), std::runtime_error);
   const auto parts = read_parts_csv(write("ok.csv", "knob,5,z:10\n"));
+  EXPECT_EQ(parts[0].views, 300);
   try {
     part_by_id(parts, 9, "scene 1 scene_gt.json");
     ADD_FAILURE();
@@ -236,7 +242,7 @@ TEST_F(EvalFiles, CommandRefusesMalformedInput) {
   r = run("detect --dataset " + (dir_ / "ds").string() + " --templates " + dir_.string() + o + " --parts " +
           write("bad.csv", "knob,5\n").string());
   EXPECT_EQ(r.first, 1);
-  EXPECT_NE(r.second.find("bad.csv:1: expected 3 or 4 fields"), std::string::npos) << r.second;
+  EXPECT_NE(r.second.find("bad.csv:1: expected 3 to 5 fields"), std::string::npos) << r.second;
 
   r = run("detect --templates " + dir_.string() + o);
   EXPECT_EQ(r.first, 2);
@@ -306,6 +312,36 @@ TEST_F(EvalFiles, OverlayDrawsTheTruthAndTheEstimateOfEveryFailedTrial) {
 // Every trial that found something carries its best estimate (R row-major, t in mm), so that it
 // can be scored again by another criterion without the detector: scored against the instance it
 // was matched to, it gives the trial's own errors.
+// The JSON says how each part's templates were taught (K and the views kept after the fold), and
+// mfc-eval warns when a database's K is not the parts table's: results are only comparable with
+// the same databases.
+TEST_F(EvalFiles, PartsSayHowTheirTemplatesWereTaught) {
+  nlohmann::json trials;
+  ASSERT_NO_FATAL_FAILURE(detect_on_two_parts(*this, dir_, "", trials));
+  const auto table = read_parts_csv(fs::path(MFC_SOURCE_DIR) / "config/parts/parts.csv");
+  std::ifstream in(dir_ / "out.json");
+  const nlohmann::json parts = nlohmann::json::parse(in)["parts"];
+  ASSERT_EQ(parts.size(), table.size());
+  for (const auto& p : parts) {
+    const PartEntry& row = part_by_id(table, p["obj_id"].get<int>(), "test");
+    EXPECT_EQ(p["sphere_samples"].get<int>(), row.views) << p.dump();
+    EXPECT_GT(p["views"].get<int>(), 0) << p.dump();
+    EXPECT_LE(p["views"].get<int>(), row.views) << p.dump();  // folded by the views' symmetry
+  }
+  // The same templates against a table that says the T-nut has 300 views.
+  std::ifstream table_in(fs::path(MFC_SOURCE_DIR) / "config/parts/parts.csv");
+  std::string text, line;
+  while (std::getline(table_in, line)) text += (line.rfind("tnut,", 0) == 0 ? "tnut,4,z:2,z:2,300" : line) + "\n";
+  const fs::path other = write("other.csv", text);
+  const auto r = run("detect --dataset " + (dir_ / "data").string() + " --templates " + MFC_BINARY_DIR +
+                     "/templates --out " + (dir_ / "other.json").string() + " --methods fdcm --quiet --parts " +
+                     other.string());
+  EXPECT_EQ(r.first, 0) << r.second;
+  EXPECT_NE(r.second.find("tnut.tdb was taught with K = 600 views, the parts table says 300"), std::string::npos)
+      << r.second;
+  EXPECT_EQ(r.second.find("breaker.tdb was taught"), std::string::npos) << r.second;
+}
+
 TEST_F(EvalFiles, TrialsCarryTheBestEstimateThatTheirErrorsWereMeasuredOn) {
   nlohmann::json trials;
   ASSERT_NO_FATAL_FAILURE(detect_on_two_parts(*this, dir_, "", trials));
