@@ -204,7 +204,7 @@ def main(bench_dir, docs_dir):
     taught = [p for p in res["parts"] if "sphere_samples" in p]
     if taught:
         w("**Templates.** Views over the sphere (K) and views kept after the symmetry fold, per part "
-          "(`config/parts/parts.csv`, docs/pose.md \"Views per part\"): %s.\n" % ", ".join(
+          "(`config/parts/parts.csv`, docs/template-database.md): %s.\n" % ", ".join(
               "%s K = %d (%d views)" % (p["name"], p["sphere_samples"], p["views"]) for p in taught))
 
     # ---- Table 1 ----
