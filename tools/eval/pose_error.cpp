@@ -1,10 +1,12 @@
 #include "tools/eval/pose_error.hpp"
 
+#include "tools/common/cli_numbers.hpp"
 #include "vision/pose/rigid_transform.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <optional>
 #include <set>
 #include <sstream>
 #include <stdexcept>
@@ -12,6 +14,15 @@
 namespace mfcd::eval {
 
 namespace {
+
+// The whole text as an integer (tools::parse_int's rule), or nothing.
+std::optional<int> whole_number(const std::string& text) {
+  try {
+    return tools::parse_int("", text);
+  } catch (const std::invalid_argument&) {
+    return std::nullopt;
+  }
+}
 
 std::string trim(const std::string& s) {
   const auto b = s.find_first_not_of(" \t\r");
@@ -49,14 +60,9 @@ std::vector<PartEntry> read_parts_csv(const std::filesystem::path& file) {
     PartEntry p;
     p.name = f[0];
     if (p.name.empty()) throw std::runtime_error(where + "empty part name");
-    size_t used = 0;
-    try {
-      p.obj_id = std::stoi(f[1], &used);
-    } catch (const std::exception&) {
-      used = 0;
-    }
-    if (used == 0 || used != f[1].size() || p.obj_id < 1)
-      throw std::runtime_error(where + "obj_id '" + f[1] + "' is not a positive integer");
+    const std::optional<int> obj_id = whole_number(f[1]);
+    if (!obj_id || *obj_id < 1) throw std::runtime_error(where + "obj_id '" + f[1] + "' is not a positive integer");
+    p.obj_id = *obj_id;
     try {
       p.symmetry = vision::PartSymmetry::parse(f[2]);
     } catch (const std::exception& e) {
@@ -73,14 +79,10 @@ std::vector<PartEntry> read_parts_csv(const std::filesystem::path& file) {
         throw std::runtime_error(where + "views_symmetry " + f[3] + " is not a symmetry of the part (" + f[2] + ")");
     }
     if (f.size() == 5) {
-      used = 0;
-      try {
-        p.views = std::stoi(f[4], &used);
-      } catch (const std::exception&) {
-        used = 0;
-      }
-      if (used == 0 || used != f[4].size() || p.views < 1 || p.views > 100000)
+      const std::optional<int> views = whole_number(f[4]);
+      if (!views || *views < 1 || *views > 100000)
         throw std::runtime_error(where + "views '" + f[4] + "' is not an integer in 1..100000");
+      p.views = *views;
     }
     for (const auto& q : parts) {
       if (q.name == p.name) throw std::runtime_error(where + "part '" + p.name + "' listed twice");

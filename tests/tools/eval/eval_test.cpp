@@ -308,9 +308,6 @@ TEST_F(EvalFiles, OverlayDrawsTheTruthAndTheEstimateOfEveryFailedTrial) {
   }
 }
 
-// Every trial that found something carries its best estimate (R row-major, t in mm), so that it
-// can be scored again by another criterion without the detector: scored against the instance it
-// was matched to, it gives the trial's own errors.
 // The JSON says how each part's templates were taught (K and the views kept after the fold), and
 // mfc-eval warns when a database's K is not the parts table's: results are only comparable with
 // the same databases.
@@ -341,6 +338,9 @@ TEST_F(EvalFiles, PartsSayHowTheirTemplatesWereTaught) {
   EXPECT_EQ(r.second.find("breaker.tdb was taught"), std::string::npos) << r.second;
 }
 
+// Every trial that found something carries its best estimate (R row-major, t in mm), so that it
+// can be scored again by another criterion without the detector: scored against the instance it
+// was matched to, it gives the trial's own errors.
 TEST_F(EvalFiles, TrialsCarryTheBestEstimateThatTheirErrorsWereMeasuredOn) {
   nlohmann::json trials;
   ASSERT_NO_FATAL_FAILURE(detect_on_two_parts(*this, dir_, "", trials));
