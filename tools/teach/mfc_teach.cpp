@@ -1,7 +1,7 @@
 // mfc-teach: builds a part's template database (*.tdb) from its CAD model (paper Sec. 4.3).
 //   mfc-teach MODEL --camera CAMERA.yaml --out PART.tdb [--obj-id N] [--name NAME]
 //             [--unit mm|cm|m|in|<mm per unit>] [--views K] [--symmetry none|z:N|z:inf]
-//             [--views-symmetry none|z:N|z:inf] [--distance MM] [--threads N] [--quiet]
+//             [--views-symmetry none|z:N|z:inf] [--distance MM] [--lighting-turns N[:M]] [--lighting-tolerance PX] [--threads N] [--quiet]
 #include "tools/common/cli_numbers.hpp"
 #include "vision/model/mesh.hpp"
 #include "vision/templates/template_teacher.hpp"
@@ -37,6 +37,11 @@ void usage(std::FILE* to) {
                "                     have a finer one (a small orienting feature); a subgroup of\n"
                "                     --symmetry (default: --symmetry)\n"
                "  --distance MM      part centre to lens (default: the camera's working_distance_mm)\n"
+               "  --lighting-turns N[:M] render each view N times, turned about the optical axis\n"
+               "                     over the LED ring's period, and keep the edge pixels that at\n"
+               "                     least M of them show (default 4:4; M defaults to N; 1 = off)\n"
+               "  --lighting-tolerance PX  how far from the view's edge a turned render's may lie\n"
+               "                     (default 1)\n"
                "  --threads N        rendering threads (default: all cores)\n"
                "  --preview PNG      also write a contact sheet of up to 64 views (lines over edge points)\n"
                "  --quiet            no progress bar\n");
@@ -84,7 +89,7 @@ void write_preview(const TemplateDatabase& db, const std::string& file) {
 
 int main(int argc, char** argv) {
   std::string model, camera, out, name, unit = "mm", symmetry = "none", views_symmetry;
-  int obj_id = -1, views = 300, threads = 0;
+  int obj_id = -1, views = 300, threads = 0, lighting_turns = 4, lighting_min_turns = 4, lighting_tolerance = 1;
   double distance = 0;
   bool quiet = false;
   std::string preview;
@@ -108,6 +113,14 @@ int main(int argc, char** argv) {
       else if (a == "--symmetry") symmetry = value("--symmetry");
       else if (a == "--views-symmetry") views_symmetry = value("--views-symmetry");
       else if (a == "--threads") threads = integer("--threads");
+      else if (a == "--lighting-tolerance") lighting_tolerance = integer("--lighting-tolerance");
+      else if (a == "--lighting-turns") {
+        const std::string v = value("--lighting-turns");
+        const size_t colon = v.find(':');
+        lighting_turns = mfcd::tools::parse_int("--lighting-turns", v.substr(0, colon));
+        lighting_min_turns =
+            colon == std::string::npos ? lighting_turns : mfcd::tools::parse_int("--lighting-turns", v.substr(colon + 1));
+      }
       else if (a == "--distance") {
         const std::string v = value("--distance");
         distance = mfcd::tools::parse_double("--distance", v);
@@ -140,6 +153,9 @@ int main(int argc, char** argv) {
     if (!views_symmetry.empty()) tp.views_symmetry = PartSymmetry::parse(views_symmetry);
     tp.distance_mm = distance;
     tp.threads = threads;
+    tp.lighting_turns = lighting_turns;
+    tp.lighting_min_turns = lighting_min_turns;
+    tp.lighting_tolerance_px = lighting_tolerance;
     const auto t0 = std::chrono::steady_clock::now();
     auto seconds = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); };
     const bool bar = !quiet;
@@ -160,10 +176,11 @@ int main(int argc, char** argv) {
     // The edge offset profiles within 10 degrees of the image axes (docs/template-database.md): the
     // views' and the query's differ by a few tenths of a pixel there, which the pose fit corrects.
     std::printf("%s: part %s obj_id %d symmetry %s, views folded by %s: %zu views (K = %d), %.1f lines and %.0f edge points per view, "
-                "distance %.1f mm, edge offset near image axes %.2f px (views) / %.2f px (query), %.1f s\n",
+                "distance %.1f mm, edge offset near image axes %.2f px (views) / %.2f px (query), lighting turns %d:%d, %.1f s\n",
                 out.c_str(), name.c_str(), obj_id, db.symmetry.str().c_str(), db.views_symmetry.str().c_str(), db.views.size(), views,
                 double(lines) / db.views.size(), double(points) / db.views.size(), db.distance_mm,
-                db.template_edge_offset.mean_near(0, 10), db.query_edge_offset.mean_near(0, 10), seconds());
+                db.template_edge_offset.mean_near(0, 10), db.query_edge_offset.mean_near(0, 10), lighting_turns,
+                lighting_min_turns, seconds());
     return 0;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "\nmfc-teach: %s\n", e.what());

@@ -11,6 +11,7 @@
 #include <cmath>
 #include <exception>
 #include <mutex>
+#include <numbers>
 #include <optional>
 #include <stdexcept>
 #include <thread>
@@ -96,6 +97,15 @@ bool part_pixel_near(const MfcRender& render, int x, int y) {
   return false;
 }
 
+// The turn about the optical axis that brings the LED ring onto itself: 360 degrees over the
+// LED count for a regular ring whose steps close the circle, else a full turn.
+double lighting_period(const FlashRing& flashes) {
+  if (flashes.ring && flashes.ring->count > 0 &&
+      std::abs(std::abs(flashes.ring->step_deg) * flashes.ring->count - 360.0) < 1e-6)
+    return 2 * std::numbers::pi / flashes.ring->count;
+  return 2 * std::numbers::pi;
+}
+
 void drop_background_edges(DepthEdges& edges, const MfcRender& render) {
   for (int y = 0; y < edges.edges.rows; ++y)
     for (int x = 0; x < edges.edges.cols; ++x)
@@ -148,6 +158,13 @@ TemplateDatabase teach_templates(const Mesh& mesh, const CameraConfig& camera, c
     throw std::invalid_argument("sphere samples K = " + std::to_string(params.sphere_samples) +
                                 " out of range [1, 100000]");
   if (mesh.vertices.empty() || mesh.triangles.empty()) throw std::invalid_argument("teach: the mesh is empty");
+  if (params.lighting_turns < 1 || params.lighting_turns > 64 || params.lighting_min_turns < 1 ||
+      params.lighting_min_turns > params.lighting_turns)
+    throw std::invalid_argument("teach: lighting turns " + std::to_string(params.lighting_min_turns) + " of " +
+                                std::to_string(params.lighting_turns) + " need 1 <= min <= turns <= 64");
+  if (params.lighting_tolerance_px < 0 || params.lighting_tolerance_px > 10)
+    throw std::invalid_argument("teach: lighting tolerance " + std::to_string(params.lighting_tolerance_px) +
+                                " px out of range [0, 10]");
 
   TemplateDatabase db;
   db.part_name = part_name;
@@ -174,6 +191,7 @@ TemplateDatabase teach_templates(const Mesh& mesh, const CameraConfig& camera, c
   const ViewGeometry geo = view_geometry(camera, db.distance_mm, radius, params.background_gap_mm);
   const cv::Point2f origin(static_cast<float>(geo.cropped.cx()), static_cast<float>(geo.cropped.cy()));
   const Mesh plane = make_plane(geo.plane_size_mm);
+  const double turn_period = lighting_period(camera.flashes);
 
   const int total = static_cast<int>(directions.size());
   std::vector<std::optional<TemplateView>> views(total);
@@ -192,8 +210,10 @@ TemplateDatabase teach_templates(const Mesh& mesh, const CameraConfig& camera, c
       const int part_id = renderer.add_mesh(mesh);
       const int plane_id = renderer.add_mesh(plane);
       DepthEdgeExtractor extractor(geo.cropped, camera.flashes, params.edges);
-      MfcRender render;
-      DepthEdges edges;
+      MfcRender render, turned_render;
+      DepthEdges edges, turned_edges;
+      cv::Mat1b turned_back;
+      cv::Mat1b support;
       for (int i = next++; i < total; i = next++) {
         TemplateView view;
         view.view_direction = directions[i];
@@ -208,6 +228,38 @@ TemplateDatabase teach_templates(const Mesh& mesh, const CameraConfig& camera, c
         // background plane (where two flashes' shadows meet), not of the part: a bin floor at
         // another distance would not show them, so they are removed before line fitting.
         drop_background_edges(edges, render);
+        if (params.lighting_turns > 1) {
+          // The same view turned about the optical axis under the fixed LED ring: an edge that
+          // the turns do not all show depends on where the LEDs stand around the part, and the
+          // query's part stands at any turn.
+          support.create(edges.edges.size());
+          support.setTo(1);  // the view itself
+          for (int k = 1; k < params.lighting_turns; ++k) {
+            const double theta = turn_period * k / params.lighting_turns;
+            const double c = std::cos(theta), s = std::sin(theta);
+            const cv::Matx33d R = cv::Matx33d(c, -s, 0, s, c, 0, 0, 0, 1) * view.R_m2c;
+            const cv::Vec3d t = cv::Vec3d(0, 0, db.distance_mm) - R * db.center_mm;
+            const ScenePart turned[2] = {{part_id, R, t, parts[0].material}, parts[1]};
+            renderer.render(turned, turned_render, 1);
+            extractor.extract(turned_render.frames, turned_edges);
+            drop_background_edges(turned_edges, turned_render);
+            // Back into the view's image: the part centre images at the window's principal
+            // point, about which the turn turned the image by theta.
+            const cv::Mat back = cv::getRotationMatrix2D(
+                cv::Point2f(static_cast<float>(geo.cropped.cx()), static_cast<float>(geo.cropped.cy())),
+                theta * 180.0 / std::numbers::pi, 1.0);
+            cv::warpAffine(turned_edges.edges, turned_back, back, turned_edges.edges.size(), cv::INTER_LINEAR);
+            cv::dilate(turned_back, turned_back,
+                       cv::getStructuringElement(cv::MORPH_RECT, cv::Size(2 * params.lighting_tolerance_px + 1,
+                                                                          2 * params.lighting_tolerance_px + 1)));
+            for (int y = 0; y < support.rows; ++y)
+              for (int x = 0; x < support.cols; ++x)
+                if (turned_back(y, x)) ++support(y, x);
+          }
+          for (int y = 0; y < support.rows; ++y)
+            for (int x = 0; x < support.cols; ++x)
+              if (edges.edges(y, x) && support(y, x) < params.lighting_min_turns) edges.edges(y, x) = 0;
+        }
         if (cv::countNonZero(edges.edges) >= params.min_edge_pixels) {
           LineFitResult fit = fitLines(edges.edges, line_params, &edges.direction, &edges.shadow);
           if (!fit.set.lines.empty()) {

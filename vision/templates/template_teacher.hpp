@@ -26,6 +26,17 @@ struct TeachParams {
   double distance_mm = 0;        // part centre to lens; 0 = the camera's working distance
   double background_gap_mm = 15; // background plane this far behind the part's far side
   int min_edge_pixels = 30;      // views with fewer depth-edge pixels are dropped (degenerate)
+  // Edges that depend on where the LEDs stand around the part. A fold between a face facing the
+  // camera and one seen at a grazing angle is found for some turns of the part about the line of
+  // sight relative to the LED ring and not for others, and the query's part lies at any turn.
+  // Each view is rendered `lighting_turns` times, turned about the optical axis by k /
+  // lighting_turns of the ring's period (k = 0 is the view itself), and an edge pixel of the view
+  // is kept when at least `lighting_min_turns` of those renders, turned back, show an edge within
+  // `lighting_tolerance_px` (the turn resamples the image). 1 turn = off. Four turns, all needed,
+  // measured best (docs/pose-experiments.md, "Session 30"); teaching takes ~3.5x as long.
+  int lighting_turns = 4;
+  int lighting_min_turns = 4;
+  int lighting_tolerance_px = 1;
   int threads = 0;               // rendering threads, each with its own GL context; 0 = cores
   LineFitParams lines;           // `oriented` is always set: templates carry edge polarity
   DepthEdgeParams edges;

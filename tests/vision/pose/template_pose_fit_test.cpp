@@ -230,7 +230,10 @@ TEST_P(TemplatePoseFitOnRenders, MovesTheCoarsePoseTowardsTheTruth) {
     end_t += centre_error(after.pose);
     start_r += symmetric_rotation_error_deg(start.R, truth.R, db.symmetry);
     end_r += symmetric_rotation_error_deg(after.pose.R, truth.R, db.symmetry);
-    better += after.score > before.score;
+    // A start already within 2 degrees and 1 mm of the truth is about as good as the fit gets:
+    // there the score may only not fall (by more than its noise); elsewhere it must rise.
+    const bool near_truth = centre_error(start) < 1 && symmetric_rotation_error_deg(start.R, truth.R, db.symmetry) < 2;
+    better += near_truth ? after.score > before.score - 0.01 : after.score > before.score;
     std::printf("%s trial %d: view %d->%d, score %.3f -> %.3f (cost %.2f -> %.2f px), centre %.2f -> %.2f mm, "
                 "rotation %.2f -> %.2f deg\n",
                 GetParam(), trial, view, after.view, before.score, after.score, before.mean_cost_px,
@@ -418,6 +421,8 @@ TEST(TemplatePoseFit, CompareFavoursTheTruthOverItsTurnedOverTwin) {
     std::printf("trial %d: scores %.3f / %.3f, differing points %d / %d, on edges %.2f / %.2f, mean cost %.2f / %.2f px\n",
                 trial, right.score, wrong.score, d.only_a, d.only_b, d.found_a, d.found_b, d.cost_a, d.cost_b);
     EXPECT_GT(d.only_a, 5);
+    EXPECT_GT(d.found_a, d.found_b) << "trial " << trial;
+    EXPECT_LT(d.cost_a, d.cost_b) << "trial " << trial;
     favoured += d.found_a > d.found_b + 0.2;
     favoured_by_cost += d.cost_a + 2 < d.cost_b;
     for (const double c : {d.cost_a, d.cost_b}) {
@@ -434,7 +439,10 @@ TEST(TemplatePoseFit, CompareFavoursTheTruthOverItsTurnedOverTwin) {
     favoured_on_toggle += t.found_a > t.found_b + 0.2;
     favoured_on_toggle_by_cost += t.cost_a + 2 < t.cost_b;
   }
-  EXPECT_GE(favoured, trials - 1);
+  // By a clear margin: on all the differing points in 3 of 5 (trial 3's twin kept only 22
+  // differing points once the views lost the folds that depend on the LEDs, session 30; trial 4's
+  // truth has few of its own on edges), on the toggle's in 4.
+  EXPECT_GE(favoured, trials - 2);
   EXPECT_GE(favoured_on_toggle, trials - 1);
   EXPECT_GE(favoured_by_cost, trials - 1);
   EXPECT_GE(favoured_on_toggle_by_cost, trials - 1);

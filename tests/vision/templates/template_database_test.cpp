@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <set>
 
 using namespace mfcd::vision;
 namespace fs = std::filesystem;
@@ -160,6 +161,60 @@ TEST(TemplateTeacher, SymmetricPartsGetFewerViews) {
   EXPECT_EQ(db.symmetry.kind, PartSymmetry::Kind::continuous_z);
 }
 
+// Lighting turns only take edge pixels away, and not the outline: a box's silhouette casts a
+// shadow whatever the turn of the LED ring around it, so its points survive (a turned render
+// mapped back the wrong way, or not at all, would lose them). What goes are edges inside the
+// outline that only some turns show (folds next to a face seen at a grazing angle).
+TEST(TemplateTeacher, LightingTurnsKeepTheOutlineAndDropOnlyEdgesSomeTurnsLack) {
+  const TemplateDatabase& turned = box_db();  // the default: 4 turns, all needed
+  ASSERT_EQ(TeachParams{}.lighting_turns, 4);
+  TeachParams p;
+  p.sphere_samples = 24;
+  p.threads = 2;
+  p.edge_offset_profiles = false;
+  p.lighting_turns = 1;
+  p.lighting_min_turns = 1;
+  const TemplateDatabase plain = teach_templates(make_box(40, 30, 20), sim_camera(), "box", 7, p);
+  ASSERT_EQ(turned.views.size(), plain.views.size());
+  size_t plain_points = 0, turned_points = 0;
+  int all_outline = 0, all_outline_kept = 0;
+  for (size_t i = 0; i < plain.views.size(); ++i) {
+    const TemplateView& a = plain.views[i];
+    const TemplateView& b = turned.views[i];
+    ASSERT_EQ(a.view_direction, b.view_direction);
+    plain_points += a.points.size();
+    turned_points += b.points.size();
+    // Every kept point is one of the view's own (the same render at turn 0).
+    std::set<std::pair<int, int>> own;
+    for (const auto& q : a.points) own.insert({static_cast<int>(std::lround(q.pixel.x)), static_cast<int>(std::lround(q.pixel.y))});
+    for (const auto& q : b.points)
+      EXPECT_TRUE(own.count({static_cast<int>(std::lround(q.pixel.x)), static_cast<int>(std::lround(q.pixel.y))}))
+          << "view " << i << " gained a point";
+    // The outline (within 1 px of the convex hull of the view's points) is kept whole.
+    std::vector<cv::Point2f> pixels, hull;
+    for (const auto& q : a.points) pixels.push_back(q.pixel);
+    cv::convexHull(pixels, hull);
+    std::set<std::pair<int, int>> kept;
+    for (const auto& q : b.points) kept.insert({static_cast<int>(std::lround(q.pixel.x)), static_cast<int>(std::lround(q.pixel.y))});
+    int outline = 0, outline_kept = 0;
+    for (const auto& q : a.points) {
+      if (cv::pointPolygonTest(hull, q.pixel, true) > 1) continue;
+      ++outline;
+      const bool k = kept.count({static_cast<int>(std::lround(q.pixel.x)), static_cast<int>(std::lround(q.pixel.y))}) > 0;
+      outline_kept += k;
+    }
+    // (A few stretches may go, where the found outline moves by more than the tolerance with the
+    // LEDs: at corners and along faces seen edge-on.)
+    EXPECT_GE(outline_kept, static_cast<int>(0.9 * outline)) << "view " << i << ": outline points lost";
+    all_outline += outline;
+    all_outline_kept += outline_kept;
+  }
+  std::printf("outline points kept: %d of %d\n", all_outline_kept, all_outline);
+  EXPECT_GE(all_outline_kept, 0.98 * all_outline);
+  EXPECT_LT(turned_points, plain_points) << "no view had an edge that only some turns show";
+  EXPECT_GT(turned_points, plain_points * 9 / 10);
+}
+
 TEST(TemplateTeacher, BadInputIsRefused) {
   TeachParams p;
   p.sphere_samples = 0;
@@ -168,6 +223,16 @@ TEST(TemplateTeacher, BadInputIsRefused) {
   p.distance_mm = 5;
   EXPECT_THROW(teach_templates(make_box(10, 10, 10), sim_camera(), "b", 1, p), std::invalid_argument);
   EXPECT_THROW(teach_templates(Mesh{}, sim_camera(), "b", 1, TeachParams{}), std::invalid_argument);
+  p.distance_mm = 0;
+  p.lighting_turns = 4;
+  p.lighting_min_turns = 5;
+  EXPECT_THROW(teach_templates(make_box(10, 10, 10), sim_camera(), "b", 1, p), std::invalid_argument);
+  p.lighting_turns = 0;
+  p.lighting_min_turns = 1;
+  EXPECT_THROW(teach_templates(make_box(10, 10, 10), sim_camera(), "b", 1, p), std::invalid_argument);
+  p.lighting_turns = 4;
+  p.lighting_tolerance_px = -1;
+  EXPECT_THROW(teach_templates(make_box(10, 10, 10), sim_camera(), "b", 1, p), std::invalid_argument);
 }
 
 TEST(TemplateFile, RoundTripKeepsEverything) {
