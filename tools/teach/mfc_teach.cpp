@@ -89,7 +89,9 @@ void write_preview(const TemplateDatabase& db, const std::string& file) {
 
 int main(int argc, char** argv) {
   std::string model, camera, out, name, unit = "mm", symmetry = "none", views_symmetry;
-  int obj_id = -1, views = 300, threads = 0, lighting_turns = 4, lighting_min_turns = 4, lighting_tolerance = 1;
+  const TeachParams defaults;
+  int obj_id = -1, views = 300, threads = 0, lighting_turns = defaults.lighting_turns,
+      lighting_min_turns = defaults.lighting_min_turns, lighting_tolerance = defaults.lighting_tolerance_px;
   double distance = 0;
   bool quiet = false;
   std::string preview;

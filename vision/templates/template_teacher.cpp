@@ -214,6 +214,8 @@ TemplateDatabase teach_templates(const Mesh& mesh, const CameraConfig& camera, c
       DepthEdges edges, turned_edges;
       cv::Mat1b turned_back;
       cv::Mat1b support;
+      const cv::Mat tolerance_kernel = cv::getStructuringElement(
+          cv::MORPH_RECT, cv::Size(2 * params.lighting_tolerance_px + 1, 2 * params.lighting_tolerance_px + 1));
       for (int i = next++; i < total; i = next++) {
         TemplateView view;
         view.view_direction = directions[i];
@@ -249,16 +251,10 @@ TemplateDatabase teach_templates(const Mesh& mesh, const CameraConfig& camera, c
                 cv::Point2f(static_cast<float>(geo.cropped.cx()), static_cast<float>(geo.cropped.cy())),
                 theta * 180.0 / std::numbers::pi, 1.0);
             cv::warpAffine(turned_edges.edges, turned_back, back, turned_edges.edges.size(), cv::INTER_LINEAR);
-            cv::dilate(turned_back, turned_back,
-                       cv::getStructuringElement(cv::MORPH_RECT, cv::Size(2 * params.lighting_tolerance_px + 1,
-                                                                          2 * params.lighting_tolerance_px + 1)));
-            for (int y = 0; y < support.rows; ++y)
-              for (int x = 0; x < support.cols; ++x)
-                if (turned_back(y, x)) ++support(y, x);
+            cv::dilate(turned_back, turned_back, tolerance_kernel);
+            cv::add(support, 1, support, turned_back);
           }
-          for (int y = 0; y < support.rows; ++y)
-            for (int x = 0; x < support.cols; ++x)
-              if (edges.edges(y, x) && support(y, x) < params.lighting_min_turns) edges.edges(y, x) = 0;
+          edges.edges.setTo(0, support < params.lighting_min_turns);
         }
         if (cv::countNonZero(edges.edges) >= params.min_edge_pixels) {
           LineFitResult fit = fitLines(edges.edges, line_params, &edges.direction, &edges.shadow);

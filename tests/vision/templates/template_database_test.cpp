@@ -184,24 +184,23 @@ TEST(TemplateTeacher, LightingTurnsKeepTheOutlineAndDropOnlyEdgesSomeTurnsLack) 
     ASSERT_EQ(a.view_direction, b.view_direction);
     plain_points += a.points.size();
     turned_points += b.points.size();
+    auto pixel_of = [](const TemplateEdgePoint& q) {
+      return std::pair<int, int>(static_cast<int>(std::lround(q.pixel.x)), static_cast<int>(std::lround(q.pixel.y)));
+    };
+    std::set<std::pair<int, int>> own, kept;
+    for (const auto& q : a.points) own.insert(pixel_of(q));
+    for (const auto& q : b.points) kept.insert(pixel_of(q));
     // Every kept point is one of the view's own (the same render at turn 0).
-    std::set<std::pair<int, int>> own;
-    for (const auto& q : a.points) own.insert({static_cast<int>(std::lround(q.pixel.x)), static_cast<int>(std::lround(q.pixel.y))});
-    for (const auto& q : b.points)
-      EXPECT_TRUE(own.count({static_cast<int>(std::lround(q.pixel.x)), static_cast<int>(std::lround(q.pixel.y))}))
-          << "view " << i << " gained a point";
-    // The outline (within 1 px of the convex hull of the view's points) is kept whole.
+    for (const auto& q : b.points) EXPECT_TRUE(own.count(pixel_of(q))) << "view " << i << " gained a point";
+    // The outline (within 1 px of the convex hull of the view's points) is kept.
     std::vector<cv::Point2f> pixels, hull;
     for (const auto& q : a.points) pixels.push_back(q.pixel);
     cv::convexHull(pixels, hull);
-    std::set<std::pair<int, int>> kept;
-    for (const auto& q : b.points) kept.insert({static_cast<int>(std::lround(q.pixel.x)), static_cast<int>(std::lround(q.pixel.y))});
     int outline = 0, outline_kept = 0;
     for (const auto& q : a.points) {
       if (cv::pointPolygonTest(hull, q.pixel, true) > 1) continue;
       ++outline;
-      const bool k = kept.count({static_cast<int>(std::lround(q.pixel.x)), static_cast<int>(std::lround(q.pixel.y))}) > 0;
-      outline_kept += k;
+      outline_kept += kept.count(pixel_of(q)) > 0;
     }
     // (A few stretches may go, where the found outline moves by more than the tolerance with the
     // LEDs: at corners and along faces seen edge-on.)
