@@ -32,6 +32,14 @@ const TemplateDatabase& box_db() {
   return db;
 }
 
+// The convex hull of a view's points (relative to its origin): its outline is what lies near it.
+std::vector<cv::Point2f> hull_of(const TemplateView& v) {
+  std::vector<cv::Point2f> pixels, hull;
+  for (const auto& p : v.points) pixels.push_back(p.pixel);
+  cv::convexHull(pixels, hull);
+  return hull;
+}
+
 fs::path temp_file(const std::string& name) {
   const fs::path dir = fs::temp_directory_path() / ("mfcd-tdb-test-" + std::to_string(::getpid()));
   fs::create_directories(dir);
@@ -114,9 +122,7 @@ TEST(TemplateTeacher, EveryViewHasLinesAndPointsThatReprojectOntoTheirPixels) {
     // the box: each such point's oriented tangent turns its left normal away from the image of the
     // centre (the origin). (Inside the outline are creases where a face turns away from a flash;
     // their near side is whatever the shading makes it, the same in scenes.)
-    std::vector<cv::Point2f> pixels, hull;
-    for (const auto& p : v.points) pixels.push_back(p.pixel);
-    cv::convexHull(pixels, hull);
+    const std::vector<cv::Point2f> hull = hull_of(v);
     int outline = 0, outward = 0;
     for (const auto& p : v.points) {
       if (cv::pointPolygonTest(hull, p.pixel, true) > 2) continue;
@@ -193,9 +199,7 @@ TEST(TemplateTeacher, LightingTurnsKeepTheOutlineAndDropOnlyEdgesSomeTurnsLack) 
     // Every kept point is one of the view's own (the same render at turn 0).
     for (const auto& q : b.points) EXPECT_TRUE(own.count(pixel_of(q))) << "view " << i << " gained a point";
     // The outline (within 1 px of the convex hull of the view's points) is kept.
-    std::vector<cv::Point2f> pixels, hull;
-    for (const auto& q : a.points) pixels.push_back(q.pixel);
-    cv::convexHull(pixels, hull);
+    const std::vector<cv::Point2f> hull = hull_of(a);
     int outline = 0, outline_kept = 0;
     for (const auto& q : a.points) {
       if (cv::pointPolygonTest(hull, q.pixel, true) > 1) continue;
