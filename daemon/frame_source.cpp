@@ -9,6 +9,7 @@
 #include "mfcd/hal/simulated.hpp"
 #include "mfcd/hal/v4l2_camera.hpp"
 #include "vision/calib/sim_board.hpp"
+#include "vision/common/rotation.hpp"
 #include "vision/camera/camera.hpp"
 #include "vision/model/mesh.hpp"
 #include "vision/render/mfc_renderer.hpp"
@@ -226,9 +227,9 @@ private:
         for (const auto& p : bin_)
           overlaps = overlaps || std::hypot(p.scene.t_mm[0] - x, p.scene.t_mm[1] - y) < r + meshes_[p.mesh].radius + 2;
         if (overlaps) continue;
-        const double yaw = (2 * unit(rng_) - 1) * M_PI, c = std::cos(yaw), s = std::sin(yaw);
+        const double yaw = (2 * unit(rng_) - 1) * M_PI;
         // Rz(yaw) * Rx(180): mesh +z points back at the camera.
-        const cv::Matx33d R = cv::Matx33d(c, -s, 0, s, c, 0, 0, 0, 1) * cv::Matx33d(1, 0, 0, 0, -1, 0, 0, 0, -1);
+        const cv::Matx33d R = vision::rotation_about_z(yaw) * cv::Matx33d(1, 0, 0, 0, -1, 0, 0, 0, -1);
         const double zmin = type.mesh.bbox_min()[2];
         bin_.push_back({m, {type.renderId, R, {x, y, f + zmin}, vision::Material::matte(0.75f)}});
         break;

@@ -1,5 +1,6 @@
 #include "vision/dataset/bin_scene.hpp"
 
+#include "vision/common/rotation.hpp"
 #include "vision/edges/edge_evaluation.hpp"
 
 #include <opencv2/imgproc.hpp>
@@ -173,7 +174,7 @@ bool BinSimulator::drop(BinLayout& layout, bool is_part, HeightMap& top, std::ve
 
   for (int attempt = 0; attempt < options_.attempts_per_object; ++attempt) {
     const cv::Matx33d rest = poses.empty() ? cv::Matx33d::eye() : poses[pick_face(rng)].R;
-    const cv::Matx33d R = yaw_rotation(2 * std::numbers::pi * unit(rng)) * rest;
+    const cv::Matx33d R = rotation_about_z(2 * std::numbers::pi * unit(rng)) * rest;
     cv::Vec3d lo(1e300, 1e300, 1e300), hi(-1e300, -1e300, -1e300);
     for (const auto& v : mesh.vertices) {
       const cv::Vec3d p = R * cv::Vec3d(v);

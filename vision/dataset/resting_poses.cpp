@@ -38,11 +38,6 @@ double triangle_solid_angle(const cv::Vec3d& a, const cv::Vec3d& b, const cv::Ve
 
 }  // namespace
 
-cv::Matx33d yaw_rotation(double angle) {
-  const double c = std::cos(angle), s = std::sin(angle);
-  return {c, -s, 0, s, c, 0, 0, 0, 1};
-}
-
 std::vector<RestingPose> stable_resting_poses(const Mesh& mesh, double min_margin_mm) {
   const cv::Vec3d com = centre_of_mass(mesh);
   const double size = cv::norm(mesh.bbox_max() - mesh.bbox_min());

@@ -33,7 +33,4 @@ struct RestingPose {
 // Coplanar triangles give one pose. Sorted by decreasing support area.
 std::vector<RestingPose> stable_resting_poses(const Mesh& mesh, double min_margin_mm = 0.2);
 
-// Rotation about the camera's z axis by `angle` radians.
-cv::Matx33d yaw_rotation(double angle);
-
 }  // namespace mfcd::vision

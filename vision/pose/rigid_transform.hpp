@@ -2,6 +2,8 @@
 // Rigid transforms p_to = R * p_from + t (mm) and the small helpers the pose code needs.
 // Angles and axes follow OpenCV's camera convention (x right, y down, z forward).
 
+#include "vision/common/rotation.hpp"
+
 #include <opencv2/core.hpp>
 
 #include <algorithm>
@@ -27,12 +29,6 @@ inline cv::Matx33d rotation_from_angle_axis(const cv::Vec3d& w) {
   const cv::Vec3d k = w / th;
   const cv::Matx33d Kx(0, -k[2], k[1], k[2], 0, -k[0], -k[1], k[0], 0);
   return cv::Matx33d::eye() + std::sin(th) * Kx + (1 - std::cos(th)) * Kx * Kx;
-}
-
-// Rotation by `a` radians about the z axis.
-inline cv::Matx33d rotation_about_z(double a) {
-  const double c = std::cos(a), s = std::sin(a);
-  return {c, -s, 0, s, c, 0, 0, 0, 1};
 }
 
 // Angle of the rotation R in radians, [0, pi].

@@ -1,5 +1,6 @@
 #include "vision/templates/edge_offset_profile.hpp"
 
+#include "vision/common/rotation.hpp"
 #include "vision/edges/depth_edges.hpp"
 #include "vision/model/mesh.hpp"
 #include "vision/render/mfc_renderer.hpp"
@@ -65,8 +66,7 @@ EdgeOffsetProfile measure_edge_offset_profile(const CameraConfig& camera, double
   const cv::Matx33d face_camera(1, 0, 0, 0, -1, 0, 0, 0, -1);
   for (int k = 0; k < conditions.turns; ++k) {
     const double turn = (k + 0.37) * (std::numbers::pi / 2) / conditions.turns;
-    const double ct = std::cos(turn), st = std::sin(turn);
-    const cv::Matx33d R = cv::Matx33d(ct, -st, 0, st, ct, 0, 0, 0, 1) * face_camera;
+    const cv::Matx33d R = rotation_about_z(turn) * face_camera;
     // Fractions of a pixel (1 mm ~ f / distance px) so that the outline crosses the pixel grid at
     // every phase, not only where one position puts it.
     const cv::Vec3d t(0.37 * (k % 7) - 1.1, -0.29 * (k % 5) + 0.6, distance_mm + kHeight / 2);

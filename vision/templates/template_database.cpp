@@ -1,5 +1,7 @@
 #include "vision/templates/template_database.hpp"
 
+#include "vision/common/rotation.hpp"
+
 #include <zlib.h>
 
 #include <bit>
@@ -219,10 +221,7 @@ std::string PartSymmetry::str() const {
 std::vector<cv::Matx33d> PartSymmetry::discrete_rotations() const {
   std::vector<cv::Matx33d> out{cv::Matx33d::eye()};
   if (kind != Kind::discrete_z) return out;
-  for (int k = 1; k < order; ++k) {
-    const double a = 2 * CV_PI * k / order, c = std::cos(a), s = std::sin(a);
-    out.push_back(cv::Matx33d(c, -s, 0, s, c, 0, 0, 0, 1));
-  }
+  for (int k = 1; k < order; ++k) out.push_back(rotation_about_z(2 * CV_PI * k / order));
   return out;
 }
 

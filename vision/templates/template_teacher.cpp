@@ -1,5 +1,6 @@
 #include "vision/templates/template_teacher.hpp"
 
+#include "vision/common/rotation.hpp"
 #include "vision/edges/edge_tangents.hpp"
 #include "vision/templates/render_window.hpp"
 #include "vision/templates/view_sampling.hpp"
@@ -238,8 +239,7 @@ TemplateDatabase teach_templates(const Mesh& mesh, const CameraConfig& camera, c
           support.setTo(1);  // the view itself
           for (int k = 1; k < params.lighting_turns; ++k) {
             const double theta = turn_period * k / params.lighting_turns;
-            const double c = std::cos(theta), s = std::sin(theta);
-            const cv::Matx33d R = cv::Matx33d(c, -s, 0, s, c, 0, 0, 0, 1) * view.R_m2c;
+            const cv::Matx33d R = rotation_about_z(theta) * view.R_m2c;
             const cv::Vec3d t = cv::Vec3d(0, 0, db.distance_mm) - R * db.center_mm;
             const ScenePart turned[2] = {{part_id, R, t, parts[0].material}, parts[1]};
             renderer.render(turned, turned_render, 1);
