@@ -492,6 +492,9 @@ int run_detect(const Options& o) {
             json h;
             for (const auto& [name, value] : e.measures) h[name] = value;
             h["rank"] = e.rank;
+            // The pose too: how far apart two hypotheses are (a twin at the same place).
+            h["R"] = std::vector<double>(e.R.val, e.R.val + 9);
+            h["t_mm"] = {e.t_mm[0], e.t_mm[1], e.t_mm[2]};
             const InstanceMatch matched = e.obj_id == obj_id ? match(e, true) : InstanceMatch{};
             h["correct"] = matched.correct;
             if (e.obj_id == obj_id) h["instance"] = matched.instance;

@@ -390,6 +390,14 @@ TEST_F(EvalFiles, TraceWritesEveryFittedHypothesisWithTheMeasuresOfItsRank) {
     for (const auto& h : fitted) {
       any_correct = any_correct || h["correct"].get<bool>();
       EXPECT_GE(h["position_mm"].get<double>(), 0);
+      // Its pose: a rotation, and a place in front of the camera.
+      const std::vector<double> r = h.at("R"), tr = h.at("t_mm");
+      ASSERT_EQ(r.size(), 9u);
+      ASSERT_EQ(tr.size(), 3u);
+      const cv::Matx33d R(r.data());
+      EXPECT_LT(cv::norm(R * R.t() - cv::Matx33d::eye()), 1e-6) << h.dump();
+      EXPECT_NEAR(cv::determinant(R), 1.0, 1e-6) << h.dump();
+      EXPECT_GT(tr[2], 0) << h.dump();
       if (h["rank"].get<double>() <= -1) continue;  // fit refused: no measures to check
       ++ranked;
       const double score = h["fit_score"], coverage = h["fit_coverage"], inliers = h["inlier_fraction"],
