@@ -159,6 +159,12 @@ def main(bench_dir, docs_dir):
     if meta.get("capped_occlusion") and os.path.exists(capped_path):
         with open(capped_path) as f:
             capped = json.load(f)["methods"]["fdcm"]
+    # The leaning-parts control (the same bins, resting poses tilted by up to meta["lean_deg"]).
+    lean = None
+    lean_path = os.path.join(bench_dir, "paper-lean.json")
+    if meta.get("lean_deg") and os.path.exists(lean_path):
+        with open(lean_path) as f:
+            lean = json.load(f)["methods"]["fdcm"]
     img_dir = os.path.join(docs_dir, "img")
     os.makedirs(img_dir, exist_ok=True)
     parts = res["parts"]
@@ -318,7 +324,7 @@ def main(bench_dir, docs_dir):
         trials = ctl["methods"]["fdcm"]["trials"]
         w("**Control: one part alone.** The same FDCM detector and scoring on %d images of a single part dropped into "
           "the empty bin (`mfc-sim --parts-per-image 1 --no-corrupt --seed %s`: no occlusion, no missing edges, no "
-          "clutter), to separate what the bin costs from what the coarse pose misses by itself.%s\n" % (
+          "clutter), to separate what the bin costs from what the coarse pose misses by itself.%s%s\n" % (
               ctl["images"], meta.get("control_seed", "?"),
               (" **Control: capped occlusion.** The same bins (%s scenes x %s images, %s parts dropped per image) made "
                "with `mfc-sim --max-occlusion %g --seed %s`: a drop that would leave any part more than %g %% hidden "
@@ -326,7 +332,12 @@ def main(bench_dir, docs_dir):
                "are not legible in our copy of the paper)." % (
                    meta.get("scenes", "?"), meta.get("images_per_scene", "?"), meta.get("parts_per_image", "?"),
                    meta["capped_occlusion"], meta.get("capped_seed", "?"), 100 * meta["capped_occlusion"]))
-              if capped else ""))
+              if capped else "",
+              (" **Control: leaning parts.** The same bins made with `mfc-sim --max-lean %g --seed %s`: every part's "
+               "resting pose is tilted by up to %g degrees about a random horizontal axis and kept only where it rests "
+               "stably, i.e. leaning on the parts below (otherwise mfc-sim's parts lie in resting poses on horizontal "
+               "planes; docs/datasets.md)." % (meta["lean_deg"], meta.get("lean_seed", "?"), meta["lean_deg"])
+               if lean else "")))
         w("| run | trials | failure | failure, x-y only | nothing found | depth only | turned >= 150 deg | "
           "turned < 150 deg | wrong place |")
         w("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
@@ -335,6 +346,8 @@ def main(bench_dir, docs_dir):
         if capped:
             rows.append(("FDCM, bins with no part more than %g %% occluded" % (100 * meta["capped_occlusion"]),
                          capped["trials"]))
+        if lean:
+            rows.append(("FDCM, bins with parts leaning up to %g deg" % meta["lean_deg"], lean["trials"]))
         for label, ts in rows:
             if not ts:
                 continue

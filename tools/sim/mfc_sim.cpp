@@ -34,6 +34,8 @@ const char* kUsage = R"(usage: mfc-sim --camera FILE --parts DIR|FILE[,FILE...] 
   --max-occlusion F        reject drops leaving any part more occluded than F (default 1 = off)
   --resting-weight W       how a drop picks the face a part rests on: area (by support area,
                            default) or solid-angle (by the solid angle at the centre of mass)
+  --max-lean DEG           tilt each part's resting pose by up to DEG degrees (0-90, default 0):
+                           kept where the tilted part rests stably, i.e. leaning on others
   --no-corrupt             neither missing edges nor clutter
   --no-missing-edges       keep every depth edge
   --missing-fraction F     share of found depth-edge pixels to remove (default 0.12)
@@ -135,6 +137,7 @@ int main(int argc, char** argv) {
       opt.bin.inner_y_mm = to_double(a, v[1]);
       opt.bin.wall_height_mm = to_double(a, v[2]);
     } else if (a == "--max-occlusion") opt.max_occlusion = to_double(a, value());
+    else if (a == "--max-lean") opt.max_lean_deg = to_double(a, value());
     else if (a == "--resting-weight") {
       const std::string w = value();
       if (w == "area") opt.resting_weight = BinSceneOptions::RestingWeight::support_area;

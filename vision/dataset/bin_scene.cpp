@@ -52,6 +52,8 @@ BinSimulator::BinSimulator(const CameraConfig& camera, std::vector<PartModel> mo
     throw std::invalid_argument("bin simulator: walls reach too close to the camera");
   if (options_.parts_per_image < 0 || options_.cell_mm <= 0 || options_.max_occlusion < 0)
     throw std::invalid_argument("bin simulator: parts_per_image, cell_mm and max_occlusion must not be negative");
+  if (!(options_.max_lean_deg >= 0 && options_.max_lean_deg < 90))
+    throw std::invalid_argument("bin simulator: max_lean_deg must be in [0, 90)");
   if (options_.missing.fraction < 0 || options_.missing.fraction > 0.9 || options_.missing.stretch_px < 2)
     throw std::invalid_argument("bin simulator: missing-edge fraction must be in [0, 0.9], stretch >= 2 px");
   if (options_.clutter.min_rods < 0 || options_.clutter.max_rods < options_.clutter.min_rods ||
@@ -174,7 +176,15 @@ bool BinSimulator::drop(BinLayout& layout, bool is_part, HeightMap& top, std::ve
 
   for (int attempt = 0; attempt < options_.attempts_per_object; ++attempt) {
     const cv::Matx33d rest = poses.empty() ? cv::Matx33d::eye() : poses[pick_face(rng)].R;
-    const cv::Matx33d R = rotation_about_z(2 * std::numbers::pi * unit(rng)) * rest;
+    cv::Matx33d R = rotation_about_z(2 * std::numbers::pi * unit(rng)) * rest;
+    if (is_part && options_.max_lean_deg > 0) {
+      // Tilted about the horizontal axis at `azimuth`: turn that axis onto x, tilt about x, turn back.
+      const double azimuth = 2 * std::numbers::pi * unit(rng);
+      const double lean = options_.max_lean_deg * std::numbers::pi / 180 * unit(rng);
+      const double c = std::cos(lean), s = std::sin(lean);
+      const cv::Matx33d about_x(1, 0, 0, 0, c, -s, 0, s, c);
+      R = rotation_about_z(azimuth) * about_x * rotation_about_z(-azimuth) * R;
+    }
     cv::Vec3d lo(1e300, 1e300, 1e300), hi(-1e300, -1e300, -1e300);
     for (const auto& v : mesh.vertices) {
       const cv::Vec3d p = R * cv::Vec3d(v);

@@ -84,6 +84,12 @@ struct BinSceneOptions {
   // puts flat parts on their rims less often; docs/datasets.md).
   enum class RestingWeight { support_area, solid_angle };
   RestingWeight resting_weight = RestingWeight::support_area;
+  // Leaning parts: each drop of a part tilts its resting pose by an angle drawn uniformly in
+  // [0, max_lean_deg] about a random horizontal axis, and the tilted part is kept only where it
+  // rests stably (its centre of mass over the hull of its contacts), which on the bare floor it
+  // mostly does not: it leans on the parts below. Parts in a real bin lean; 0 (the default)
+  // keeps every part in a resting pose on a horizontal plane and the random draws as they were.
+  double max_lean_deg = 0;
   MissingEdgeOptions missing;
   ClutterOptions clutter;
   // True depth edges: discontinuities above this jump (mm) of the rendered depth.

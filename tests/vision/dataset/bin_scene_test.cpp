@@ -421,3 +421,67 @@ TEST_F(BinScenes, RestingFacesAreDrawnByTheChosenWeight) {
   }
   EXPECT_LT(solid_rim / solid, area_rim / area - 0.1);
 }
+
+// Leaning parts (BinSceneOptions::max_lean_deg): every part's orientation is one of its resting
+// poses tilted by at most the limit, a good share are tilted by more than a few degrees (they
+// rest on the parts below), and none sinks into the floor or into another object.
+TEST_F(BinScenes, LeaningPartsTiltWithinTheLimitWithoutInterpenetrating) {
+  BinSceneOptions opt = sim().options();
+  opt.max_lean_deg = 30;
+  BinSimulator leaning(sim().camera(), sim().models(), opt);
+  const double floor_z = sim().camera().working_distance_mm;
+  std::vector<std::vector<RestingPose>> poses;
+  for (const auto& m : sim().models()) poses.push_back(stable_resting_poses(m.mesh));
+  int parts = 0, tilted = 0;
+  for (uint64_t seed = 1; seed <= 6; ++seed) {
+    const BinLayout layout = leaning.layout(seed);
+    struct Placed {
+      const Mesh* mesh;
+      cv::Matx33d R;
+      cv::Vec3d t;
+    };
+    std::vector<Placed> objs;
+    for (const auto& p : layout.parts) {
+      const auto& rest = poses[static_cast<size_t>(p.model)];
+      // Gravity (camera +z) in the part's frame is the support face's outward normal at rest.
+      const cv::Vec3d down = p.R.t() * cv::Vec3d(0, 0, 1);
+      double tilt = 180;
+      for (const auto& r : rest)
+        tilt = std::min(tilt, std::acos(std::clamp(down.dot(r.face_normal), -1.0, 1.0)) * 180 / CV_PI);
+      EXPECT_LE(tilt, 30 + 1e-6) << "seed " << seed;
+      ++parts;
+      tilted += tilt > 5;
+      objs.push_back({&sim().models()[static_cast<size_t>(p.model)].mesh, p.R, p.t_mm});
+    }
+    for (const auto& c : layout.clutter) objs.push_back({&sim().rod_mesh(c.rod), c.R, c.t_mm});
+    for (size_t a = 0; a < objs.size(); ++a) {
+      for (const auto& v : objs[a].mesh->vertices)
+        EXPECT_LE((objs[a].R * cv::Vec3d(v) + objs[a].t)[2], floor_z + 1e-3) << "seed " << seed << ": below the floor";
+      for (size_t b = 0; b < objs.size(); ++b) {
+        if (a == b) continue;
+        // A vertex of a deeper than 0.5 mm inside b: the vertex and its six neighbours 0.5 mm
+        // away all inside.
+        int deep = 0;
+        for (const auto& v : objs[a].mesh->vertices) {
+          const cv::Vec3d w = objs[a].R * cv::Vec3d(v) + objs[a].t;
+          bool all = true;
+          for (int k = 0; k < 7 && all; ++k) {
+            cv::Vec3d off(0, 0, 0);
+            if (k > 0) off[(k - 1) / 2] = k % 2 ? 0.5 : -0.5;
+            all = inside(*objs[b].mesh, objs[b].R.t() * (w + off - objs[b].t));
+          }
+          deep += all;
+        }
+        EXPECT_EQ(deep, 0) << "seed " << seed << ": object " << a << " inside object " << b;
+      }
+    }
+  }
+  std::printf("%d of %d parts tilted more than 5 degrees from every resting pose\n", tilted, parts);
+  EXPECT_GE(parts, 30);
+  EXPECT_GE(tilted, parts / 5);
+
+  for (const double bad : {-1.0, 90.0}) {
+    opt.max_lean_deg = bad;
+    EXPECT_THROW(BinSimulator(sim().camera(), sim().models(), opt), std::invalid_argument) << bad;
+  }
+}
