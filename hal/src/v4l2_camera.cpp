@@ -396,7 +396,7 @@ void V4L2Camera::read(Image& out, FrameInfo& info) {
       requeue();
       continue;
     }
-    if (haveSequence_ && b.sequence != lastSequence_ + 1) stats_.droppedFrames += b.sequence - lastSequence_ - 1;
+    if (haveSequence_) stats_.droppedFrames += framesMissedBetween(lastSequence_, b.sequence);
     lastSequence_ = b.sequence;
     haveSequence_ = true;
     if (b.index >= static_cast<std::uint32_t>(bufferCount_) || b.bytesused < srcStride_ * static_cast<std::size_t>(format_.height)) {

@@ -22,6 +22,15 @@ struct CameraStats {
   std::uint64_t reconnects = 0;     // successful re-opens after ENODEV
 };
 
+// Frames a driver skipped between two delivered sequence numbers. The counter is 32 bits and
+// wraps; a number that repeats or goes backwards (a driver that restarts its count, or vivid
+// filling two buffers in one frame period on a starved machine) is a resynchronisation, not
+// four billion drops.
+constexpr std::uint64_t framesMissedBetween(std::uint32_t previous, std::uint32_t current) {
+  const std::uint32_t step = current - previous;  // modulo 2^32: forward across a wrap too
+  return step != 0 && step < 0x80000000u ? step - 1u : 0u;
+}
+
 class Camera {
 public:
   virtual ~Camera() = default;
