@@ -152,19 +152,19 @@ def main(bench_dir, docs_dir):
     if os.path.exists(meta_path):
         with open(meta_path) as f:
             meta = json.load(f)
-    # The capped-occlusion control (bins where no part is more than meta["capped_occlusion"]
-    # hidden): read once here for the controls table and Fig. 13; None when the run made none.
-    capped = None
-    capped_path = os.path.join(bench_dir, "paper-capped.json")
-    if meta.get("capped_occlusion") and os.path.exists(capped_path):
-        with open(capped_path) as f:
-            capped = json.load(f)["methods"]["fdcm"]
-    # The leaning-parts control (the same bins, resting poses tilted by up to meta["lean_deg"]).
-    lean = None
-    lean_path = os.path.join(bench_dir, "paper-lean.json")
-    if meta.get("lean_deg") and os.path.exists(lean_path):
-        with open(lean_path) as f:
-            lean = json.load(f)["methods"]["fdcm"]
+    def bins_control(name, key):
+        # A control on bins made with one more mfc-sim option (tools/bench/run's bins_control):
+        # its FDCM result, or None when the run made none (meta[key] 0 or missing).
+        path = os.path.join(bench_dir, "paper-%s.json" % name)
+        if not meta.get(key) or not os.path.exists(path):
+            return None
+        with open(path) as f:
+            return json.load(f)["methods"]["fdcm"]
+
+    # Read once here for the controls table (and, the capped one, Fig. 13): bins where no part is
+    # more than meta["capped_occlusion"] hidden, and bins whose parts lean up to meta["lean_deg"].
+    capped = bins_control("capped", "capped_occlusion")
+    lean = bins_control("lean", "lean_deg")
     img_dir = os.path.join(docs_dir, "img")
     os.makedirs(img_dir, exist_ok=True)
     parts = res["parts"]
