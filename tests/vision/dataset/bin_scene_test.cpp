@@ -68,6 +68,19 @@ bool inside(const Mesh& m, const cv::Vec3d& p) {
   return hits % 2 == 1;
 }
 
+// A point w (camera frame) deeper than ~0.5 mm inside the mesh placed at (R, t): the point and its
+// six neighbours 0.5 mm away are all inside. Shallower contact is the drop's clearance at work.
+bool deep_inside(const Mesh& m, const cv::Matx33d& R, const cv::Vec3d& t, const cv::Vec3d& w) {
+  const cv::Matx33d Rt = R.t();
+  if (!inside(m, Rt * (w - t))) return false;
+  for (int k = 0; k < 6; ++k) {
+    cv::Vec3d off(0, 0, 0);
+    off[k / 2] = k % 2 ? 0.5 : -0.5;
+    if (!inside(m, Rt * (w + off - t))) return false;
+  }
+  return true;
+}
+
 // Points on the surface: vertices plus samples every ~1.5 mm over every triangle.
 std::vector<cv::Vec3d> surface_points(const Mesh& m) {
   std::vector<cv::Vec3d> pts;
@@ -209,23 +222,13 @@ TEST_F(BinScenes, PartsRestInsideTheBinWithoutInterpenetrating) {
           << "seed " << seed << " object " << a << " would tip over";
       for (size_t b = 0; b < objs.size(); ++b) {
         if (a == b) continue;
-        // Surface points of a deeper than ~0.5 mm inside b (the point and its six
-        // neighbours 0.5 mm away all inside) count as interpenetration.
+        // Surface points of a deeper than ~0.5 mm inside b count as interpenetration.
         int deep = 0;
-        const cv::Matx33d Rt = objs[b].R.t();
         for (const auto& w : objs[a].world) {
           if (w[0] < objs[b].lo[0] || w[0] > objs[b].hi[0] || w[1] < objs[b].lo[1] || w[1] > objs[b].hi[1] ||
               w[2] < objs[b].lo[2] || w[2] > objs[b].hi[2])
             continue;
-          const cv::Vec3d q = Rt * (w - objs[b].t);
-          if (!inside(*objs[b].mesh, q)) continue;
-          bool all = true;
-          for (int k = 0; k < 6 && all; ++k) {
-            cv::Vec3d off(0, 0, 0);
-            off[k / 2] = k % 2 ? 0.5 : -0.5;
-            all = inside(*objs[b].mesh, Rt * (w + off - objs[b].t));
-          }
-          deep += all;
+          deep += deep_inside(*objs[b].mesh, objs[b].R, objs[b].t, w);
         }
         EXPECT_EQ(deep, 0) << "seed " << seed << ": object " << a << " inside object " << b;
       }
@@ -459,19 +462,10 @@ TEST_F(BinScenes, LeaningPartsTiltWithinTheLimitWithoutInterpenetrating) {
         EXPECT_LE((objs[a].R * cv::Vec3d(v) + objs[a].t)[2], floor_z + 1e-3) << "seed " << seed << ": below the floor";
       for (size_t b = 0; b < objs.size(); ++b) {
         if (a == b) continue;
-        // A vertex of a deeper than 0.5 mm inside b: the vertex and its six neighbours 0.5 mm
-        // away all inside.
+        // Vertices of a deeper than ~0.5 mm inside b count as interpenetration.
         int deep = 0;
-        for (const auto& v : objs[a].mesh->vertices) {
-          const cv::Vec3d w = objs[a].R * cv::Vec3d(v) + objs[a].t;
-          bool all = true;
-          for (int k = 0; k < 7 && all; ++k) {
-            cv::Vec3d off(0, 0, 0);
-            if (k > 0) off[(k - 1) / 2] = k % 2 ? 0.5 : -0.5;
-            all = inside(*objs[b].mesh, objs[b].R.t() * (w + off - objs[b].t));
-          }
-          deep += all;
-        }
+        for (const auto& v : objs[a].mesh->vertices)
+          deep += deep_inside(*objs[b].mesh, objs[b].R, objs[b].t, objs[a].R * cv::Vec3d(v) + objs[a].t);
         EXPECT_EQ(deep, 0) << "seed " << seed << ": object " << a << " inside object " << b;
       }
     }
