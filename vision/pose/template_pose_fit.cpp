@@ -123,6 +123,11 @@ class PointPlacer {
 
 }  // namespace
 
+double TemplatePoseFit::in_plane_angle(const TemplateDatabase& db, int view, const RigidPose& pose,
+                                       const PinholeCamera& camera) {
+  return vision::in_plane_angle(db, view, pose, camera);
+}
+
 int TemplatePoseFit::nearest_view(const TemplateDatabase& db, const PinholeCamera& /*camera*/, RigidPose& pose) {
   if (db.views.empty()) throw std::invalid_argument("template fit: the database has no views");
   const cv::Vec3d c = pose.R * db.center_mm + pose.t_mm;

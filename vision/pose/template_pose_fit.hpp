@@ -109,6 +109,10 @@ class TemplatePoseFit {
   // the turns the views were folded by (db.views_symmetry); `pose` is replaced by the symmetric
   // copy that view belongs to (the same placed part). Continuous symmetry: the views' meridian.
   static int nearest_view(const TemplateDatabase& db, const PinholeCamera& camera, RigidPose& pose);
+  // The angle (radians) by which the image of the part at `pose` is turned in the image plane
+  // relative to view `view`'s image: a view point's tangent at the pose is its own plus this.
+  static double in_plane_angle(const TemplateDatabase& db, int view, const RigidPose& pose,
+                               const PinholeCamera& camera);
 
   // Two fitted poses of one part at one place (e.g. a pose and its turn by 180 degrees about a
   // near-symmetry axis) judged where they differ: only the points of each that have no point of
