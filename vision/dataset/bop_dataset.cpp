@@ -419,9 +419,17 @@ cv::Mat1f BopDataset::depth_mm(int scene_id, int image_id) const {
 }
 
 cv::Mat1b BopDataset::mask_visib(int scene_id, int image_id, int instance) const {
+  return mask_png("mask_visib", scene_id, image_id, instance);
+}
+
+cv::Mat1b BopDataset::mask(int scene_id, int image_id, int instance) const {
+  return mask_png("mask", scene_id, image_id, instance);
+}
+
+cv::Mat1b BopDataset::mask_png(const char* folder, int scene_id, int image_id, int instance) const {
   const BopSceneCamera cam = camera(scene_id, image_id);
   const fs::path dir = scene_dir(scene_id);
-  return read_png(dir / "mask_visib" / (id6(image_id) + "_" + id6(instance) + ".png"), CV_8UC1, cam.image_size,
+  return read_png(dir / folder / (id6(image_id) + "_" + id6(instance) + ".png"), CV_8UC1, cam.image_size,
                   (dir / "scene_camera.json").string());
 }
 

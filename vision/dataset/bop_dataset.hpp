@@ -102,8 +102,11 @@ class BopDataset {
   MfcFrames frames(int scene_id, int image_id) const;
   cv::Mat1f depth_mm(int scene_id, int image_id) const;
   cv::Mat1b mask_visib(int scene_id, int image_id, int instance) const;
+  // The instance's whole silhouette (mask/), also where other objects hide it.
+  cv::Mat1b mask(int scene_id, int image_id, int instance) const;
 
  private:
+  cv::Mat1b mask_png(const char* folder, int scene_id, int image_id, int instance) const;
   std::filesystem::path root_, split_dir_;
   std::map<int, BopModelInfo> models_info_;
 };

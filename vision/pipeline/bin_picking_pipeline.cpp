@@ -331,6 +331,7 @@ struct BinPickingPipeline::Impl {
   std::vector<PartModel> parts;
   DepthEdgeExtractor extractor;
   DepthEdges edges;
+  cv::Mat1b own_edges;  // grasp visibility: the pixels a candidate's own points explain (kept zero between uses)
   Dt3Params search_dt3;      // dt3_params in reduced pixels
   cv::Mat1b search_channels;  // the line fitter's channel map, reduced
   LineSet search_lines;      // the query lines, reduced
@@ -680,6 +681,14 @@ BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfi
     m.config.floor.validate();
   } catch (const std::invalid_argument& e) {
     throw std::runtime_error(std::string("pipeline: ") + e.what());
+  }
+  for (const auto& [obj_id, feature] : m.config.grasp_features) {
+    bool loaded = false;
+    for (const auto& p : m.parts) loaded = loaded || p.db.obj_id == obj_id;
+    if (!loaded) throw std::runtime_error("pipeline: a grasp feature names obj_id " + std::to_string(obj_id) +
+                                          ", which no template file defines");
+    const std::string why = feature.validate();
+    if (!why.empty()) throw std::runtime_error("pipeline: grasp feature of obj_id " + std::to_string(obj_id) + ": " + why);
   }
   if (m.config.floor_starts < 0) throw std::runtime_error("pipeline: floor_starts must be >= 0");
   if (m.config.depth_starts < 0) throw std::runtime_error("pipeline: depth_starts must be >= 0");
@@ -1411,6 +1420,24 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
     // refiner polishes a pose, its score (model edges found, no converse check) does not tell a
     // part from its own back or from clutter as well.
   }
+  // Grasp features at the final poses: edges and the part's own points only, ~0.1 ms each.
+  if (!m.config.grasp_features.empty())
+    for (PoseCandidate& c : out.candidates) {
+      const PartModel* part = nullptr;
+      for (const auto& p : m.parts)
+        if (p.db.obj_id == c.obj_id) part = &p;
+      bool any = false;
+      double best = 0;
+      for (const auto& [feature_obj_id, feature] : m.config.grasp_features) {
+        if (feature_obj_id != c.obj_id || !part) continue;
+        any = true;
+        best = std::max(best, grasp_feature_visibility(m.edges, part->db, m.camera.camera,
+                                                       RigidPose{c.R_m2c, c.t_m2c_mm}, feature,
+                                                       m.config.fit_inlier_cost_px, m.own_edges)
+                                  .visible);
+      }
+      c.grasp_visibility = any ? best : 1.0;
+    }
   const auto t2 = Clock::now();
   out.times.refine_ms = ms_between(t, t2);
   t = t2;
@@ -1466,6 +1493,17 @@ void BinPickingPipeline::draw_pose(cv::Mat3b& image, int obj_id, const cv::Matx3
     const cv::Point px(static_cast<int>(std::lround(q.x)), static_cast<int>(std::lround(q.y)));
     if (px.x >= 0 && px.y >= 0 && px.x < image.cols && px.y < image.rows) image(px) = c;
   });
+}
+
+GraspVisibility BinPickingPipeline::grasp_visibility(int obj_id, const cv::Matx33d& R_m2c, const cv::Vec3d& t_m2c_mm,
+                                                     const GraspFeature& feature) {
+  Impl& m = *impl_;
+  const PartModel* part = nullptr;
+  for (const auto& p : m.parts)
+    if (p.db.obj_id == obj_id) part = &p;
+  if (!part) throw std::invalid_argument("pipeline: no templates loaded for obj_id " + std::to_string(obj_id));
+  return grasp_feature_visibility(m.edges, part->db, m.camera.camera, RigidPose{R_m2c, t_m2c_mm}, feature,
+                                  m.config.fit_inlier_cost_px, m.own_edges);
 }
 
 cv::Mat3b draw_candidates(const cv::Mat1b& image, const PipelineResult& result, const CameraConfig& camera) {

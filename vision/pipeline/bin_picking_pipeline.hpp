@@ -13,6 +13,7 @@
 #include "vision/camera/mfc_frames.hpp"
 #include "vision/edges/depth_edges.hpp"
 #include "vision/pose/bin_floor.hpp"
+#include "vision/pose/grasp_visibility.hpp"
 
 #include <opencv2/core.hpp>
 
@@ -187,6 +188,10 @@ struct PipelineConfig {
   // calling thread's OpenMP setting (OMP_NUM_THREADS, else every core).
   int threads = 0;
   DepthEdgeParams depth_edges;
+  // Grasp features per part type (obj_id, feature; several per part: the best one counts), for
+  // PoseCandidate::grasp_visibility (Sec. 4.4's "whether the grasp feature is visible"). A part
+  // type without any keeps 1.
+  std::vector<std::pair<int, GraspFeature>> grasp_features;
   // Diagnostics (mfc-eval): every fitted hypothesis is also reported in PipelineResult::trace.
   // Allocates per cycle; off in the daemon.
   bool trace = false;
@@ -206,6 +211,9 @@ struct PoseCandidate {
   double rank_px = 0;           // the search's ranking measure: cost_px + the unexplained-edge penalty
   double fit_rank = 0;          // the rank after TemplatePoseFit (fit score less unexplained edges)
   bool refined = false;         // false: coarse pose only (refinement skipped or failed)
+  // 0..1: how clearly its best grasp feature is on top and facing the camera at the final pose
+  // (vision/pose/grasp_visibility.hpp); 1 when its part type has no grasp feature configured.
+  double grasp_visibility = 1;
   cv::Rect2d box;               // image bounding box of the matched template
 };
 
@@ -275,6 +283,11 @@ class BinPickingPipeline {
   // The pose (model -> camera) of part obj_id scored on the last process()'s image (FDCM cost
   // only). Throws std::invalid_argument for an unknown obj_id or another cost.
   PoseScore score_pose(int obj_id, const cv::Matx33d& R_m2c, const cv::Vec3d& t_m2c_mm);
+
+  // Whether part obj_id at a pose (model -> camera) shows a grasp feature, on top and facing
+  // the camera, on the last process()'s image (vision/pose/grasp_visibility.hpp). Throws std::invalid_argument for an unknown obj_id.
+  GraspVisibility grasp_visibility(int obj_id, const cv::Matx33d& R_m2c, const cv::Vec3d& t_m2c_mm,
+                                   const GraspFeature& feature);
 
   // Part types loaded, as (obj_id, name).
   std::vector<std::pair<int, std::string>> parts() const;

@@ -490,8 +490,9 @@ TEST(Pipeline, FramePathDoesNotAllocateInSteadyState) {
   // a second search round.
   pc.floor.distance_mm = db.distance_mm + 15;
   pc.search_rounds = 2;
-  // And escalation's wide search in every cycle (no rank reaches 2).
+  // And escalation's wide search in every cycle (no rank reaches 2), and a grasp feature.
   pc.escalate_below = 2;
+  pc.grasp_features = {{db.obj_id, GraspFeature{{0, 0, 18}, 6, {0, 0, 1}, 60}}};
   BinPickingPipeline pipeline(cam, pc);
   MfcRenderer renderer(cam);
   const int part_id = renderer.add_mesh(db.mesh);
@@ -769,4 +770,85 @@ TEST(Pipeline, ReportsThePlateOnItsRimAtItsDepth) {
               sum_plain / both);
   EXPECT_LT(sum_plain / both, -1.5);
   EXPECT_LT(std::abs(sum_corrected / both), 1.0);
+}
+
+// Grasp features (PipelineConfig::grasp_features, vision/pose/grasp_visibility.hpp) on a
+// rendered scene: two T-nuts lying with their hole up, a plate hovering 8 mm over the hole of
+// the first. Both are found; the covered hole's candidate gets a low grasp visibility and the
+// free one a high one, as the render itself says (the share of each hole's disc where the T-nut
+// is the visible surface), and the candidates carry what grasp_visibility() gives at their pose.
+TEST(Pipeline, GraspVisibilityTellsACoveredHoleFromAFreeOne) {
+  const fs::path tdb = kTemplates / "tnut.tdb";
+  ASSERT_TRUE(fs::exists(tdb)) << tdb;
+  const CameraConfig cam = sim_camera();
+  const TemplateDatabase db = load_template_database(tdb);
+  int view = 0;
+  while (db.views[view].view_direction[2] < 0.97) ++view;  // seen from the hole's side
+  const RigidPose a = coarse_pose(db, TemplatePlacement{view, 0.4, 1.0, {230, 220}}, cam.camera);
+  const RigidPose b = coarse_pose(db, TemplatePlacement{view, 2.0, 1.0, {430, 270}}, cam.camera);
+  GraspFeature top, bottom;
+  top.point_mm = {0, 0, 18}, top.radius_mm = 6, top.approach = {0, 0, 1}, top.max_tilt_deg = 45;
+  bottom.point_mm = {0, 0, 0}, bottom.radius_mm = 6, bottom.approach = {0, 0, -1}, bottom.max_tilt_deg = 45;
+  ASSERT_TRUE(grasp_faces_camera(top, a) && grasp_faces_camera(top, b));
+  MfcRenderer renderer(cam);
+  const int part_id = renderer.add_mesh(db.mesh);
+  const int plate_id = renderer.add_mesh(make_box(20, 20, 3));
+  const int floor_id = renderer.add_mesh(make_plane(600));
+  const cv::Vec3d hole_a = a.R * top.point_mm + a.t_mm, hole_b = b.R * top.point_mm + b.t_mm;
+  const double floor_z =
+      std::max((a.R * db.center_mm + a.t_mm)[2], (b.R * db.center_mm + b.t_mm)[2]) + db.diameter_mm / 2 + 10;
+  const ScenePart parts[4] = {{part_id, a.R, a.t_mm, Material::matte(0.6f)},
+                              {part_id, b.R, b.t_mm, Material::matte(0.6f)},
+                              {plate_id, cv::Matx33d::eye(), hole_a - cv::Vec3d(0, 0, 8), Material::matte(0.7f)},
+                              {floor_id, cv::Matx33d::eye(), {0, 0, floor_z}, Material::matte(0.5f)}};
+  MfcRender render;
+  renderer.render(parts, render, 31);
+  // The reference: the share of the hole's disc (6 mm) where the T-nut itself is seen.
+  auto seen = [&](const cv::Vec3d& hole, int index) {
+    const cv::Point2d c = cam.camera.project(hole);
+    const double r = 6 * cam.camera.fx() / hole[2];
+    int disc = 0, part = 0;
+    for (int y = static_cast<int>(c.y - r); y <= static_cast<int>(c.y + r) + 1; ++y)
+      for (int x = static_cast<int>(c.x - r); x <= static_cast<int>(c.x + r) + 1; ++x)
+        if ((x - c.x) * (x - c.x) + (y - c.y) * (y - c.y) <= r * r) ++disc, part += render.part_index(y, x) == index;
+    return static_cast<double>(part) / disc;
+  };
+  EXPECT_LT(seen(hole_a, 1), 0.05) << "the plate covers the first hole";
+  // The second is free: through the 10 mm bore the floor shows, around it the T-nut.
+  EXPECT_GT(seen(hole_b, 2), 0.3) << "the second hole is free";
+
+  PipelineConfig pc;
+  pc.template_files = {tdb};
+  pc.search_rounds = 2;
+  pc.grasp_features = {{db.obj_id, top}, {db.obj_id, bottom}};
+  BinPickingPipeline pipeline(cam, pc);
+  PipelineResult r;
+  pipeline.process(render.frames, 0, std::chrono::steady_clock::now() + std::chrono::seconds(60), r);
+  auto candidate_at = [&](const RigidPose& truth) -> const PoseCandidate* {
+    const cv::Vec3d centre = truth.R * db.center_mm + truth.t_mm;
+    for (const PoseCandidate& c : r.candidates)
+      if (cv::norm(c.R_m2c * db.center_mm + c.t_m2c_mm - centre) <= 5.0 &&
+          rotation_error_deg(c.R_m2c, truth.R, db.symmetry) <= 10.0)
+        return &c;
+    return nullptr;
+  };
+  const PoseCandidate* ca = candidate_at(a);
+  const PoseCandidate* cb = candidate_at(b);
+  ASSERT_NE(ca, nullptr) << "the covered T-nut is found";
+  ASSERT_NE(cb, nullptr) << "the free T-nut is found";
+  std::printf("grasp visibility: covered hole %.2f, free hole %.2f\n", ca->grasp_visibility, cb->grasp_visibility);
+  EXPECT_LT(ca->grasp_visibility, 0.3);
+  EXPECT_GT(cb->grasp_visibility, 0.6);
+  for (const PoseCandidate* c : {ca, cb}) {
+    const double direct = std::max(pipeline.grasp_visibility(c->obj_id, c->R_m2c, c->t_m2c_mm, top).visible,
+                                   pipeline.grasp_visibility(c->obj_id, c->R_m2c, c->t_m2c_mm, bottom).visible);
+    EXPECT_DOUBLE_EQ(c->grasp_visibility, direct);
+  }
+  // Turned over (the hole's top side away from the camera), only the bottom feature could count,
+  // and it faces away too at these poses: nothing to take it by.
+  const RigidPose flipped{a.R * cv::Matx33d(1, 0, 0, 0, -1, 0, 0, 0, -1), a.t_mm};
+  EXPECT_FALSE(pipeline.grasp_visibility(db.obj_id, flipped.R, flipped.t_mm, top).faces_camera);
+  // A grasp feature for a part type no template file defines is refused.
+  pc.grasp_features = {{99, top}};
+  EXPECT_THROW(BinPickingPipeline(cam, pc), std::runtime_error);
 }
