@@ -332,8 +332,10 @@ void Cell::runCycle(FrameSlot& slot, CycleResult& out) {
         const auto pose = transform.pick_pose(cam_T_part);
         c.base_valid = pose.has_value();
         if (pose) c.base = *pose;
-        // Grasp visibility is not estimated by the pipeline: every candidate counts as fully visible.
-        choice[static_cast<std::size_t>(i)] = {c.score, static_cast<float>(config_.pick.bin_floor_distance_mm - pc.t_m2c_mm[2]), 1.0f};
+        // Grasp visibility: the pipeline's estimate for the recipes' grasp features (1 without any).
+        c.grasp_visibility = static_cast<float>(pc.grasp_visibility);
+        choice[static_cast<std::size_t>(i)] = {c.score, static_cast<float>(config_.pick.bin_floor_distance_mm - pc.t_m2c_mm[2]),
+                                               c.grasp_visibility};
         const auto u = motion::pick_utility(choice[static_cast<std::size_t>(i)], config_.pick.choice);
         c.utility = u ? *u : -1.0f;
       }

@@ -358,6 +358,33 @@ DaemonConfig parseConfig(const std::string& yamlText, const std::string& source,
       r.obj_id = static_cast<int>(s.integer("obj_id", 0, 0, 65535, true));
       if (s.has("templates")) r.templates = s.file("templates", true);
       if (s.has("mesh")) r.mesh = s.file("mesh", true);
+      YAML::Node features = s.child("grasp_features");
+      if (features.IsDefined() && !features.IsNull()) {
+        const std::string key = s.key("grasp_features");
+        if (r.obj_id == 0)
+          s.fail(key, lineOf(features), "a recipe for every part (obj_id 0) has no part to take a grasp feature of");
+        if (!features.IsSequence() || features.size() == 0 || features.size() > 8)
+          s.fail(key, lineOf(features), "must be a list of 1 to 8 grasp features {x_mm, y_mm, z_mm, radius_mm, approach, max_tilt_deg}");
+        for (std::size_t k = 0; k < features.size(); ++k) {
+          Section f(features[k], key + "[" + std::to_string(k) + "]", lineOf(features[k]), ctx);
+          if (!features[k].IsMap()) f.fail(key + "[" + std::to_string(k) + "]", lineOf(features[k]), "must be a mapping");
+          GraspFeatureSetting g;
+          g.x_mm = f.number("x_mm", 0, -1e4, 1e4);
+          g.y_mm = f.number("y_mm", 0, -1e4, 1e4);
+          g.z_mm = f.number("z_mm", 0, -1e4, 1e4);
+          g.radius_mm = f.number("radius_mm", 4, 0.1, 100);
+          g.max_tilt_deg = f.number("max_tilt_deg", 60, 0, 180);
+          if (f.has("approach")) {
+            Section a = f.section("approach");
+            g.approach = {a.number("x", 0, -1, 1), a.number("y", 0, -1, 1), a.number("z", 0, -1, 1)};
+            if (g.approach[0] == 0 && g.approach[1] == 0 && g.approach[2] == 0)
+              a.fail(a.key(""), a.line(), "must not be zero (leave it out for any direction)");
+            a.finish();
+          }
+          f.finish();
+          r.grasp_features.push_back(g);
+        }
+      }
       s.finish();
       c.recipes.push_back(std::move(r));
     }

@@ -41,12 +41,23 @@ enum class LogLevel { Error = 3, Warning = 4, Notice = 5, Info = 6, Debug = 7 };
 const char* toString(RunMode m);
 const char* toString(LogLevel l);
 
+// Where the gripper takes a part (vision::GraspFeature): a spot in the part's model frame that
+// must be on top and facing the camera for the pick to be worth trying (pick.weight_grasp,
+// pick.min_grasp_visibility).
+struct GraspFeatureSetting {
+  double x_mm = 0, y_mm = 0, z_mm = 0;  // the spot's centre on the part's surface
+  double radius_mm = 4;                 // the free disc the gripper needs around it
+  std::array<double, 3> approach{0, 0, 0};  // direction the gripper comes from (out of the surface); 0 = any
+  double max_tilt_deg = 60;             // how far the approach may face away from the camera
+};
+
 struct RecipeConfig {
   int id = 0;               // the PLC's RECIPE_ID
   std::string part;         // part name (for logs, status, the simulated bin)
   int obj_id = 0;           // object id in the template file; 0 = every loaded part
   std::optional<fs::path> templates;  // .tdb (mfc-teach), resolved
   std::optional<fs::path> mesh;       // STL for the simulated bin, resolved
+  std::vector<GraspFeatureSetting> grasp_features;  // none: every candidate counts as graspable
 };
 
 struct CameraSettings {

@@ -110,6 +110,7 @@ struct CandidateOut {
   motion::PickPose base;  // in the robot base frame
   bool base_valid = false;
   float utility = -1;     // pick-choice utility, -1 = not eligible
+  float grasp_visibility = 1;  // vision::PoseCandidate::grasp_visibility
 };
 
 // One cycle's outcome, vision -> main thread.

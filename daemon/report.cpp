@@ -74,7 +74,7 @@ json resultJson(const CycleResult& r, const DaemonConfig& config) {
   for (int i = 0; i < r.candidate_count; ++i) {
     const CandidateOut& c = r.candidates[static_cast<std::size_t>(i)];
     json cj = {{"obj_id", c.obj_id}, {"score", c.score}, {"cost_px", c.cost_px}, {"refined", c.refined},
-               {"utility", c.utility}, {"R_cam", matJson(c.R_cam)},
+               {"utility", c.utility}, {"grasp_visibility", c.grasp_visibility}, {"R_cam", matJson(c.R_cam)},
                {"t_cam_mm", {c.t_cam_mm[0], c.t_cam_mm[1], c.t_cam_mm[2]}}};
     if (c.base_valid) cj["base"] = poseJson(c.base);
     cands.push_back(std::move(cj));

@@ -56,6 +56,15 @@ std::unique_ptr<VisionStage> makePipelineStage(const DaemonConfig& config) {
   }
   if (pc.template_files.empty())
     throw std::runtime_error(config.source + ": recipes: no recipe names a template file; the vision pipeline has nothing to look for");
+  for (const auto& r : config.recipes)
+    for (const GraspFeatureSetting& g : r.grasp_features) {
+      vision::GraspFeature f;
+      f.point_mm = {g.x_mm, g.y_mm, g.z_mm};
+      f.radius_mm = g.radius_mm;
+      f.approach = {g.approach[0], g.approach[1], g.approach[2]};
+      f.max_tilt_deg = g.max_tilt_deg;
+      pc.grasp_features.emplace_back(r.obj_id, f);
+    }
   pc.max_candidates = config.vision.max_candidates;
   if (config.vision.max_cost_px) pc.max_cost_px = *config.vision.max_cost_px;
   pc.refine_iterations = std::max(1, config.vision.refine_iterations);

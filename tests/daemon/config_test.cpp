@@ -1,7 +1,9 @@
 // Configuration parsing and validation: every error names the key and the line.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <fstream>
+#include <sstream>
 
 #include "daemon/config.hpp"
 #include "vision/camera/camera.hpp"
@@ -133,6 +135,51 @@ TEST(Config, SearchDistancesAreAListOfDistances) {
   EXPECT_NE(std::string(e.what()).find("list of 1 to 4"), std::string::npos) << e.what();
 }
 
+// Grasp features: a list per recipe (for one part type), each a spot in the part's model frame
+// with its free radius, approach direction and tilt limit; errors name the feature's key and line.
+TEST(Config, GraspFeaturesAreReadPerRecipe) {
+  const std::string recipes =
+      "recipes:\n"
+      "  - id: 4\n"
+      "    part: tnut\n"
+      "    obj_id: 4\n"
+      "    grasp_features:\n"
+      "      - {x_mm: 0, y_mm: 0, z_mm: 18, radius_mm: 6, approach: {z: 1}, max_tilt_deg: 45}\n"
+      "      - {z_mm: 2}\n"
+      "  - {id: 0, part: any, obj_id: 0}\n";
+  const DaemonConfig c = parseConfig(minimal("", recipes), "test.yaml", kPath);
+  ASSERT_EQ(c.recipes.size(), 2u);
+  ASSERT_EQ(c.recipes[0].grasp_features.size(), 2u);
+  const GraspFeatureSetting& a = c.recipes[0].grasp_features[0];
+  EXPECT_EQ(a.z_mm, 18);
+  EXPECT_EQ(a.radius_mm, 6);
+  EXPECT_EQ(a.approach, (std::array<double, 3>{0, 0, 1}));
+  EXPECT_EQ(a.max_tilt_deg, 45);
+  const GraspFeatureSetting& b = c.recipes[0].grasp_features[1];  // the documented defaults
+  EXPECT_EQ(b.radius_mm, 4);
+  EXPECT_EQ(b.approach, (std::array<double, 3>{0, 0, 0}));
+  EXPECT_EQ(b.max_tilt_deg, 60);
+  EXPECT_TRUE(c.recipes[1].grasp_features.empty());
+
+  const std::string head = "recipes:\n  - id: 4\n    part: tnut\n    obj_id: 4\n    grasp_features:\n";
+  ConfigError e = errorOf(minimal("", head + "      - {z_mm: 18, radius_mm: 0}\n"));
+  EXPECT_EQ(e.key(), "recipes[0].grasp_features[0].radius_mm");
+  EXPECT_EQ(e.line(), 8);
+  e = errorOf(minimal("", head + "      - {z_mm: 18}\n      - {z_mm: 0, approach: {x: 0, y: 0, z: 0}}\n"));
+  EXPECT_EQ(e.key(), "recipes[0].grasp_features[1].approach");
+  EXPECT_EQ(e.line(), 9);
+  EXPECT_NE(std::string(e.what()).find("must not be zero"), std::string::npos) << e.what();
+  e = errorOf(minimal("", head + "      - {z_mm: 18, diameter_mm: 8}\n"));
+  EXPECT_EQ(e.key(), "recipes[0].grasp_features[0].diameter_mm");
+  e = errorOf(minimal("", head + "      z_mm: 18\n"));
+  EXPECT_EQ(e.key(), "recipes[0].grasp_features");
+  EXPECT_NE(std::string(e.what()).find("list of 1 to 8"), std::string::npos) << e.what();
+  e = errorOf(minimal("", "recipes:\n  - id: 0\n    part: any\n    obj_id: 0\n    grasp_features:\n      - {z_mm: 1}\n"));
+  EXPECT_EQ(e.key(), "recipes[0].grasp_features");
+  EXPECT_EQ(e.line(), 8);  // where the list starts
+  EXPECT_NE(std::string(e.what()).find("obj_id 0"), std::string::npos) << e.what();
+}
+
 TEST(Config, MissingRequiredKeys) {
   ConfigError e = errorOf("recipes:\n  - {id: 0, part: any, obj_id: 0}\n");
   EXPECT_EQ(e.key(), "camera.model");
@@ -225,6 +272,33 @@ TEST(Config, SimAndCellConfigsParse) {
     if (r.obj_id != 0) {
       EXPECT_TRUE(r.templates && r.mesh) << r.part;
     }
+  // The simulated cell's grasp features are the evaluation's (config/parts/grasp-features.csv,
+  // mfc-eval --grasp-features): the pick figures of docs/results.md are the cell's.
+  std::ifstream table(MFC_SOURCE_DIR "/config/parts/grasp-features.csv");
+  ASSERT_TRUE(table) << "config/parts/grasp-features.csv";
+  std::vector<std::pair<int, std::array<double, 8>>> listed;
+  for (std::string line; std::getline(table, line);) {
+    if (line.empty() || line[0] == '#' || line.rfind("name,", 0) == 0) continue;
+    std::stringstream fields(line);
+    std::string name, field;
+    std::getline(fields, name, ',');
+    std::getline(fields, field, ',');
+    std::pair<int, std::array<double, 8>> f{std::stoi(field), {}};
+    for (double& v : f.second) {
+      std::getline(fields, field, ',');
+      v = std::stod(field);
+    }
+    listed.push_back(f);
+  }
+  std::vector<std::pair<int, std::array<double, 8>>> configured;
+  for (const auto& r : sim.recipes)
+    for (const auto& g : r.grasp_features)
+      configured.push_back({r.obj_id, {g.x_mm, g.y_mm, g.z_mm, g.radius_mm, g.approach[0], g.approach[1], g.approach[2],
+                                       g.max_tilt_deg}});
+  EXPECT_EQ(configured, listed);
+  EXPECT_EQ(configured.size(), 12u);
+  EXPECT_GT(sim.pick.choice.weight_grasp, 0);
+
   const DaemonConfig cell = loadConfigFile(MFC_SOURCE_DIR "/config/cell.yaml", MFC_BINARY_DIR);
   EXPECT_EQ(cell.camera.type, CameraType::V4L2);
   EXPECT_EQ(cell.lights.type, LightsType::Gpiod);
