@@ -24,6 +24,7 @@ struct Estimate {
   double score = 0;
   double rank_px = 0;  // pipeline detectors: the search's ranking measure (PoseCandidate::rank_px)
   double rank = 0;     // pipeline detectors: the fitted hypothesis' rank (PoseCandidate::fit_rank)
+  double grasp_visibility = 1;  // pipeline detectors: PoseCandidate::grasp_visibility
   // Traced hypotheses (--set trace=1): the measures the rank is made of, by name (HypothesisTrace).
   std::vector<std::pair<std::string, double>> measures;
 };
@@ -50,6 +51,14 @@ class Detector {
   virtual std::optional<vision::PoseScore> score_pose(int /*obj_id*/, const cv::Matx33d& /*R*/, const cv::Vec3d& /*t_mm*/) {
     return std::nullopt;
   }
+  // Whether part obj_id at a pose is on top at a grasp feature on the
+  // last detect()'s image (vision/pose/grasp_visibility.hpp); detectors without depth edges
+  // return nothing.
+  virtual std::optional<vision::GraspVisibility> grasp_visibility(int /*obj_id*/, const cv::Matx33d& /*R*/,
+                                                                  const cv::Vec3d& /*t_mm*/,
+                                                                  const vision::GraspFeature& /*feature*/) {
+    return std::nullopt;
+  }
   // The last detect()'s depth edges (dimmed) with the given poses of part obj_id drawn on them
   // (mfc-eval --overlay); detectors without edge images return nothing.
   struct DrawnPose {
@@ -67,13 +76,15 @@ class Detector {
 // FDCM / OCM / CM through BinPickingPipeline; `distances_mm` and `refine_candidates` as in
 // PipelineConfig (refine_candidates < 0: the pipeline's default).
 // `fit_hypotheses` as PipelineConfig's (the FDCM cost only); `name` is the method's name;
-// `settings` ("key=value", apply_pipeline_setting) are applied last.
+// `settings` ("key=value", apply_pipeline_setting) are applied last; `grasp_features` as
+// PipelineConfig's (the estimates' grasp_visibility).
 std::unique_ptr<Detector> make_pipeline_detector(const std::string& name, vision::PipelineConfig::Cost cost,
                                                  const vision::CameraConfig& camera,
                                                  const std::vector<std::filesystem::path>& templates, int threads,
                                                  int max_candidates, const std::vector<double>& distances_mm,
                                                  int refine_candidates, bool fit_hypotheses,
-                                                 const std::vector<std::string>& settings = {});
+                                                 const std::vector<std::string>& settings = {},
+                                                 const std::vector<std::pair<int, vision::GraspFeature>>& grasp_features = {});
 
 // One "key=value" of PipelineConfig's search and fit settings (mfc-eval --set, for tuning
 // experiments). Throws std::invalid_argument naming the key or value it refuses.

@@ -129,7 +129,7 @@ class Line2dDetector final : public Detector {
       pl.origin_px = origin;
       vision::RigidPose pose = vision::coarse_pose(part.db, pl, camera_.camera);
       pose = options_.floor.onto_if_below(part.db.mesh, pose, part.db.center_mm);
-      out.estimates.push_back({part.db.obj_id, pose.R, pose.t_mm, m.similarity / 100.0, 0, 0, {}});
+      out.estimates.push_back({part.db.obj_id, pose.R, pose.t_mm, m.similarity / 100.0, 0, 0, 1, {}});
     }
     out.times.pose_ms = ms_since(t2);
     out.times.total_ms = ms_since(t0);

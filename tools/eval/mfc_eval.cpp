@@ -6,6 +6,7 @@
 //
 // tools/eval/report.py turns the JSON into docs/results.md and docs/img/results-*.png;
 // `tools/mfc bench paper` runs mfc-sim, mfc-eval and the report in one go.
+#include "motion/pick_choice.h"
 #include "tools/common/cli_numbers.hpp"
 #include "tools/eval/detectors.hpp"
 #include "tools/eval/pose_error.hpp"
@@ -79,6 +80,13 @@ detect: for every image and every part type present in it, runs each method for 
                          type (green), the best estimate (red) and, with --set trace=1, the
                          fitted hypothesis nearest the truth (yellow); points with no image
                          edge within 1 px are drawn dim
+  --grasp-features FILE  the parts' grasp features (config/parts/grasp-features.csv): every estimate
+                         gets the pipeline's grasp visibility (PoseCandidate::grasp_visibility), every
+                         true instance the estimate at its pose beside the rendered truth, and with
+                         --all-types every image the cell's pick (motion::choose_pick, config/sim.yaml's
+                         weights) without and with the grasp features
+  --pick-grasp W,V       the cell's pick with grasp features: weight_grasp W and min_grasp_visibility V
+                         (default 0.5,0.3, config/sim.yaml's)
   --quiet                no per-image lines
 
 refine: each part alone in random poses (random orientation, centre within +-25, +-20 mm of the
@@ -131,6 +139,8 @@ struct Options {
   std::string split = "test";
   std::vector<std::string> methods = {"fdcm", "ocm", "cm"};
   int max_images = 0, threads = 0, refine_candidates = -1;
+  std::filesystem::path grasp_features;  // --grasp-features: the parts' grasp features (pick evaluation)
+  double grasp_weight = 0.5, min_grasp_visibility = 0.3;  // --pick-grasp W,V (config/sim.yaml's)
   int timing_repeats = 1;  // --timing-repeats
   double floor_mm = 0;  // --floor
   std::vector<double> distances_mm;
@@ -163,6 +173,14 @@ Options parse(int argc, char** argv) {
       }
       if (o.methods.empty()) throw Usage("--methods needs at least one method");
     } else if (a == "--max-images") o.max_images = to_int(a, value());
+    else if (a == "--grasp-features") o.grasp_features = value();
+    else if (a == "--pick-grasp") {
+      const std::string v = value();
+      const auto comma = v.find(',');
+      if (comma == std::string::npos) throw Usage("--pick-grasp takes W,V (weight, minimum visibility)");
+      o.grasp_weight = to_double(a, v.substr(0, comma));
+      o.min_grasp_visibility = to_double(a, v.substr(comma + 1));
+    }
     else if (a == "--threads") o.threads = to_int(a, value());
     else if (a == "--timing-repeats") o.timing_repeats = to_int(a, value());
     else if (a == "--all-types") o.all_types = true;
@@ -206,6 +224,8 @@ Options parse(int argc, char** argv) {
   if (o.templates.empty()) throw Usage("--templates is required");
   if (o.out.empty()) throw Usage("--out is required");
   if (o.max_images < 0) throw Usage("--max-images must be >= 0");
+  if (!(o.grasp_weight >= 0 && o.grasp_weight <= 100) || !(o.min_grasp_visibility >= 0 && o.min_grasp_visibility <= 1))
+    throw Usage("--pick-grasp: the weight must be in 0..100 and the minimum visibility in 0..1");
   if (o.timing_repeats < 1 || o.timing_repeats > 10) throw Usage("--timing-repeats must be in 1..10");
   if (!(o.line2d.inplane_step_deg > 0 && o.line2d.inplane_step_deg <= 360)) throw Usage("--line2d-step must be in (0, 360]");
   if (o.line2d.view_stride < 1) throw Usage("--line2d-view-stride must be >= 1");
@@ -279,6 +299,22 @@ int run_detect(const Options& o) {
   if (o.max_images > 0 && static_cast<int>(images.size()) > o.max_images) images.resize(static_cast<size_t>(o.max_images));
   const vision::CameraConfig camera = dataset.camera(images[0].scene, images[0].image).config();
   const std::string key = camera_key(camera);
+
+  // The parts' grasp features (--grasp-features), those of the dataset's parts, and the reference
+  // they are checked against: how free a feature of a true instance is in the rendered scene, the
+  // best of the part's features.
+  std::vector<std::pair<int, vision::GraspFeature>> grasp;
+  if (!o.grasp_features.empty())
+    for (const auto& f : read_grasp_features_csv(o.grasp_features, parts))
+      if (tdb_of.count(f.first)) grasp.push_back(f);
+  auto true_grasp = [&](const ImageRef& ref, size_t instance, const vision::BopGtPose& gt) {
+    const cv::Mat1b mask = dataset.mask(ref.scene, ref.image, static_cast<int>(instance));
+    const cv::Mat1b visib = dataset.mask_visib(ref.scene, ref.image, static_cast<int>(instance));
+    double best = 0;
+    for (const auto& [id, feature] : grasp)
+      if (id == gt.obj_id) best = std::max(best, true_grasp_visibility(feature, gt.R, gt.t_mm, camera.camera, mask, visib));
+    return best;
+  };
 
   // Each method's detector, built lazily (LINE-2D trains for a while).
   json out;
@@ -361,7 +397,7 @@ int run_detect(const Options& o) {
       std::vector<std::string> settings = o.pipeline_settings;
       if (m == "fdcm-rounds") settings.push_back("search_rounds=2");
       det = make_pipeline_detector(m, cost, camera, tdbs, o.threads, max_candidates, o.distances_mm,
-                                   o.refine_candidates, /*fit_hypotheses=*/m != "fdcm-search", settings);
+                                   o.refine_candidates, /*fit_hypotheses=*/m != "fdcm-search", settings, grasp);
     }
     std::fprintf(stderr, "mfc-eval: %s ready (%.1f s setup)\n", m.c_str(), det->setup_seconds());
     json trials = json::array(), instances = json::array();
@@ -455,8 +491,31 @@ int run_detect(const Options& o) {
                                {"view_angle_deg", ps->view_angle_deg}, {"cost_px", ps->cost_px},
                                {"coverage", ps->coverage}, {"rank_px", ps->rank_px},
                                {"fit_score", ps->fit_score}, {"exact_score", ps->exact_score}});
+          // Grasp features (--grasp-features): at each instance's true pose, the estimator's answer
+          // and the rendered scene's (true_grasp_visibility), to check the estimator itself.
+          if (!grasp.empty())
+            for (json& tj : truth) {
+              const size_t j = tj["instance"].get<size_t>();
+              double estimated = -1;
+              bool faces = false;
+              for (const auto& [id, feature] : grasp)
+                if (id == obj_id) {
+                  faces = faces || vision::grasp_faces_camera(feature, vision::RigidPose{g.gt[j].R, g.gt[j].t_mm});
+                  if (const auto gv = det->grasp_visibility(obj_id, g.gt[j].R, g.gt[j].t_mm, feature))
+                    estimated = std::max(estimated, gv->visible);
+                }
+              if (estimated >= 0)
+                tj["grasp"] = {{"estimated", estimated}, {"true", true_grasp(ref, j, g.gt[j])}, {"faces_camera", faces}};
+            }
           if (!truth.empty()) trial["truth_scores"] = truth;
           if (!d.estimates.empty()) trial["best_rank_px"] = d.estimates[0].rank_px, trial["best_score"] = d.estimates[0].rank;
+          // The best estimate's grasp visibility (the pipeline's, at its final pose) and, when the
+          // estimate is correct, the true one of the instance it matches.
+          if (!d.estimates.empty() && !grasp.empty()) {
+            trial["grasp_estimated"] = d.estimates[0].grasp_visibility;
+            if (correct) trial["grasp_true"] = true_grasp(ref, trial["matched_instance"].get<size_t>(),
+                                                          g.gt[trial["matched_instance"].get<size_t>()]);
+          }
         }
         // Where the first correct estimate stands in the detector's ranking (-1: none of them):
         // a ranking miss rather than a search miss when > 0.
@@ -554,6 +613,42 @@ int run_detect(const Options& o) {
     std::fflush(stdout);
     methods[m] = {{"setup_s", det->setup_seconds()}, {"trials", trials}, {"instances", instances}};
 
+    // The cell's pick among an all-types cycle's candidates (motion::choose_pick, config/sim.yaml's
+    // weights: score 1, height 0.5 over 100 mm, min_score 0.08), once without the grasp features
+    // (weight 0, as when none are configured) and once with them (--pick-grasp W,V). For each:
+    // the chosen candidate, whether its pose is right (Table 1's criterion, any instance of its
+    // type) and, if so, how free the grasp feature of that instance truly is.
+    auto cell_picks = [&](const ImageRef& ref, const ImageGt& gt, const Detection& det_out) {
+      const double floor_mm = o.floor_mm > 0 ? o.floor_mm : camera.working_distance_mm;
+      std::vector<motion::PickCandidate> candidates;
+      for (const Estimate& e : det_out.estimates)
+        candidates.push_back({static_cast<float>(e.score), static_cast<float>(floor_mm - e.t_mm[2]),
+                              static_cast<float>(e.grasp_visibility)});
+      json settings = json::array();
+      for (const bool with_grasp : {false, true}) {
+        motion::PickChoiceConfig pc;
+        pc.weight_score = 1.0f, pc.weight_height = 0.5f, pc.height_scale_mm = 100.0f, pc.min_score = 0.08f;
+        pc.weight_grasp = with_grasp ? static_cast<float>(o.grasp_weight) : 0.0f;
+        pc.min_grasp_visibility = with_grasp ? static_cast<float>(o.min_grasp_visibility) : 0.0f;
+        const auto chosen = motion::choose_pick(candidates, pc);
+        json c = {{"grasp_weight", pc.weight_grasp}, {"min_grasp_visibility", pc.min_grasp_visibility},
+                  {"picked", chosen.has_value()}};
+        if (chosen) {
+          const Estimate& e = det_out.estimates[*chosen];
+          bool right = false;
+          double free = 0;
+          for (size_t j = 0; j < gt.gt.size(); ++j)
+            if (gt.gt[j].obj_id == e.obj_id && o.criterion.accepts(score(e, gt.gt[j]))) {
+              right = true;
+              free = std::max(free, true_grasp(ref, j, gt.gt[j]));
+            }
+          c["index"] = *chosen, c["obj_id"] = e.obj_id, c["correct"] = right, c["grasp_true"] = free;
+          c["grasp_estimated"] = e.grasp_visibility, c["score"] = e.score;
+        }
+        settings.push_back(c);
+      }
+      return settings;
+    };
     if (m == "fdcm" && o.all_types) {
       // Best pick over all part types at once: the daemon's cycle.
       json picks = json::array();
@@ -567,6 +662,7 @@ int run_detect(const Options& o) {
         json pick = {{"scene", ref.scene}, {"image", ref.image}, {"found", !d.estimates.empty()},
                      {"obj_id", d.estimates.empty() ? 0 : d.estimates[0].obj_id}, {"correct", correct},
                      {"times", times_json(d.times)}, {"escalated", d.escalated}};
+        if (!grasp.empty()) pick["cell"] = cell_picks(ref, gts[k], d);
         if (o.timing_repeats > 1) pick["times_best"] = repeat_timing(*det, dataset.frames(ref.scene, ref.image), 0, d);
         picks.push_back(pick);
       }

@@ -20,7 +20,8 @@ class PipelineDetector final : public Detector {
   PipelineDetector(std::string name, vision::PipelineConfig::Cost cost, const vision::CameraConfig& camera,
                    const std::vector<std::filesystem::path>& templates, int threads, int max_candidates,
                    const std::vector<double>& distances_mm, int refine_candidates, bool fit_hypotheses,
-                   const std::vector<std::string>& settings)
+                   const std::vector<std::string>& settings,
+                   const std::vector<std::pair<int, vision::GraspFeature>>& grasp_features)
       : name_(std::move(name)), cost_(cost) {
     const auto t0 = std::chrono::steady_clock::now();
     vision::PipelineConfig pc;
@@ -31,6 +32,7 @@ class PipelineDetector final : public Detector {
     pc.distances_mm = distances_mm;
     pc.fit_hypotheses = fit_hypotheses;
     if (refine_candidates >= 0) pc.refine_candidates = refine_candidates;
+    pc.grasp_features = grasp_features;
     for (const auto& s : settings) apply_pipeline_setting(pc, s);
     pipeline_ = std::make_unique<vision::BinPickingPipeline>(camera, pc);
     setup_s_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -40,7 +42,8 @@ class PipelineDetector final : public Detector {
     // No deadline: the evaluation measures the full search of every method.
     pipeline_->process(frames, obj_id, std::chrono::steady_clock::now() + std::chrono::hours(1), result_);
     out.estimates.clear();
-    for (const auto& c : result_.candidates) out.estimates.push_back({c.obj_id, c.R_m2c, c.t_m2c_mm, c.score, c.rank_px, c.fit_rank, {}});
+    for (const auto& c : result_.candidates)
+      out.estimates.push_back({c.obj_id, c.R_m2c, c.t_m2c_mm, c.score, c.rank_px, c.fit_rank, c.grasp_visibility, {}});
     out.times = result_.times;
     out.views_searched = result_.views_searched;
     out.evaluated = result_.hypotheses;
@@ -48,8 +51,8 @@ class PipelineDetector final : public Detector {
     out.coarse_hypotheses.clear();
     out.fitted_hypotheses.clear();
     for (const auto& h : result_.trace) {
-      out.coarse_hypotheses.push_back({h.obj_id, h.R_coarse, h.t_coarse_mm, 0, h.search_cost_px, h.fit_rank, {}});
-      out.fitted_hypotheses.push_back({h.obj_id, h.R_fitted, h.t_fitted_mm, 0, h.search_cost_px, h.fit_rank,
+      out.coarse_hypotheses.push_back({h.obj_id, h.R_coarse, h.t_coarse_mm, 0, h.search_cost_px, h.fit_rank, 1, {}});
+      out.fitted_hypotheses.push_back({h.obj_id, h.R_fitted, h.t_fitted_mm, 0, h.search_cost_px, h.fit_rank, 1,
                                        {{"search_cost_px", h.search_cost_px},
                                         {"search_coverage", h.coverage},
                                         {"fit_score", h.fit_score},
@@ -63,6 +66,11 @@ class PipelineDetector final : public Detector {
   std::optional<vision::PoseScore> score_pose(int obj_id, const cv::Matx33d& R, const cv::Vec3d& t_mm) override {
     if (cost_ != vision::PipelineConfig::Cost::fdcm) return std::nullopt;
     return pipeline_->score_pose(obj_id, R, t_mm);
+  }
+  std::optional<vision::GraspVisibility> grasp_visibility(int obj_id, const cv::Matx33d& R, const cv::Vec3d& t_mm,
+                                                          const vision::GraspFeature& feature) override {
+    if (cost_ != vision::PipelineConfig::Cost::fdcm) return std::nullopt;
+    return pipeline_->grasp_visibility(obj_id, R, t_mm, feature);
   }
   std::optional<cv::Mat3b> overlay(int obj_id, const std::vector<DrawnPose>& poses) const override {
     const cv::Mat1b& edges = pipeline_->last_edges().edges;
@@ -103,9 +111,10 @@ std::unique_ptr<Detector> make_pipeline_detector(const std::string& name, vision
                                                  const std::vector<std::filesystem::path>& templates, int threads,
                                                  int max_candidates, const std::vector<double>& distances_mm,
                                                  int refine_candidates, bool fit_hypotheses,
-                                                 const std::vector<std::string>& settings) {
+                                                 const std::vector<std::string>& settings,
+                                                 const std::vector<std::pair<int, vision::GraspFeature>>& grasp_features) {
   return std::make_unique<PipelineDetector>(name, cost, camera, templates, threads, max_candidates, distances_mm,
-                                            refine_candidates, fit_hypotheses, settings);
+                                            refine_candidates, fit_hypotheses, settings, grasp_features);
 }
 
 void apply_pipeline_setting(vision::PipelineConfig& c, const std::string& setting) {

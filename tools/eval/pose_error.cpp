@@ -95,6 +95,79 @@ std::vector<PartEntry> read_parts_csv(const std::filesystem::path& file) {
   return parts;
 }
 
+std::vector<std::pair<int, vision::GraspFeature>> read_grasp_features_csv(const std::filesystem::path& file,
+                                                                          const std::vector<PartEntry>& parts) {
+  std::ifstream in(file);
+  if (!in) throw std::runtime_error(file.string() + ": cannot open the grasp features table");
+  std::vector<std::pair<int, vision::GraspFeature>> features;
+  std::string line;
+  int number = 0;
+  bool header = false;
+  while (std::getline(in, line)) {
+    ++number;
+    const auto hash = line.find('#');
+    if (hash != std::string::npos) line.resize(hash);
+    line = trim(line);
+    if (line.empty()) continue;
+    const std::string where = file.string() + ":" + std::to_string(number) + ": ";
+    std::vector<std::string> f;
+    std::stringstream ss(line);
+    for (std::string x; std::getline(ss, x, ',');) f.push_back(trim(x));
+    if (f.size() != 10)
+      throw std::runtime_error(where + "expected 10 fields name,obj_id,x_mm,y_mm,z_mm,radius_mm,approach_x,"
+                                       "approach_y,approach_z,max_tilt_deg, got " + std::to_string(f.size()));
+    if (!header && f[0] == "name") {
+      header = true;
+      continue;
+    }
+    const std::optional<int> obj_id = whole_number(f[1]);
+    if (!obj_id) throw std::runtime_error(where + "obj_id '" + f[1] + "' is not an integer");
+    const PartEntry& part = part_by_id(parts, *obj_id, where.substr(0, where.size() - 2));
+    if (part.name != f[0])
+      throw std::runtime_error(where + "obj_id " + f[1] + " is '" + part.name + "' in the parts table, not '" + f[0] + "'");
+    double v[8];
+    static const char* const names[8] = {"x_mm", "y_mm", "z_mm", "radius_mm", "approach_x", "approach_y", "approach_z",
+                                         "max_tilt_deg"};
+    for (int i = 0; i < 8; ++i) {
+      try {
+        v[i] = tools::parse_double(names[i], f[static_cast<size_t>(i) + 2]);
+      } catch (const std::invalid_argument&) {
+        throw std::runtime_error(where + names[i] + " '" + f[static_cast<size_t>(i) + 2] + "' is not a number");
+      }
+    }
+    vision::GraspFeature g;
+    g.point_mm = {v[0], v[1], v[2]};
+    g.radius_mm = v[3];
+    g.approach = {v[4], v[5], v[6]};
+    g.max_tilt_deg = v[7];
+    if (const std::string why = g.validate(); !why.empty()) throw std::runtime_error(where + why);
+    features.emplace_back(*obj_id, g);
+  }
+  if (features.empty()) throw std::runtime_error(file.string() + ": no grasp features listed");
+  return features;
+}
+
+double true_grasp_visibility(const vision::GraspFeature& feature, const cv::Matx33d& R, const cv::Vec3d& t_mm,
+                             const vision::PinholeCamera& camera, const cv::Mat1b& mask, const cv::Mat1b& mask_visib) {
+  CV_Assert(mask.size() == mask_visib.size());
+  if (!vision::grasp_faces_camera(feature, vision::RigidPose{R, t_mm})) return 0;
+  const cv::Vec3d g = R * feature.point_mm + t_mm;
+  if (g[2] <= 0) return 0;
+  const cv::Point2d c = camera.project(g);
+  const double r = feature.radius_mm * camera.fx() / g[2];
+  int disc = 0, on_part = 0, visible = 0;
+  for (int y = static_cast<int>(std::floor(c.y - r)); y <= static_cast<int>(std::ceil(c.y + r)); ++y)
+    for (int x = static_cast<int>(std::floor(c.x - r)); x <= static_cast<int>(std::ceil(c.x + r)); ++x) {
+      if ((x - c.x) * (x - c.x) + (y - c.y) * (y - c.y) > r * r) continue;
+      ++disc;  // pixels outside the image count as part of the disc, never as seen
+      if (x < 0 || y < 0 || x >= mask.cols || y >= mask.rows || !mask(y, x)) continue;
+      ++on_part;
+      visible += mask_visib(y, x) != 0;
+    }
+  if (disc == 0 || on_part * 5 < disc) return 0;
+  return static_cast<double>(visible) / on_part;
+}
+
 const PartEntry& part_by_id(const std::vector<PartEntry>& parts, int obj_id, const std::string& source) {
   for (const auto& p : parts)
     if (p.obj_id == obj_id) return p;

@@ -3,6 +3,7 @@
 // and the correctness criterion of Table 1, plus the parts table (config/parts/parts.csv) that
 // says which symmetry each part has.
 
+#include "vision/pose/grasp_visibility.hpp"
 #include "vision/templates/template_database.hpp"
 
 #include <opencv2/core.hpp>
@@ -28,6 +29,23 @@ struct PartEntry {
 std::vector<PartEntry> read_parts_csv(const std::filesystem::path& file);
 // The entry with this obj_id; throws std::runtime_error naming `source` when there is none.
 const PartEntry& part_by_id(const std::vector<PartEntry>& parts, int obj_id, const std::string& source);
+
+// Grasp features of the parts (config/parts/grasp-features.csv): '#' comments, header
+// "name,obj_id,x_mm,y_mm,z_mm,radius_mm,approach_x,approach_y,approach_z,max_tilt_deg", one line
+// per feature, several per part allowed. Throws std::runtime_error naming the file, line and
+// reason (missing file, field count, a number that is not one, an obj_id not in `parts` or
+// given with another part's name, GraspFeature::validate's reasons).
+std::vector<std::pair<int, vision::GraspFeature>> read_grasp_features_csv(const std::filesystem::path& file,
+                                                                          const std::vector<PartEntry>& parts);
+
+// The reference for the grasp-feature estimate (vision/pose/grasp_visibility.hpp): how free a
+// feature of a ground-truth instance is in the rendered scene. 0 when it faces away from the
+// camera (grasp_faces_camera at the true pose) or its disc lies mostly off the instance's
+// silhouette (`mask`: less than a fifth of the disc's pixels, e.g. a bore seen edge-on); else the
+// share of the disc's silhouette pixels that are visible (`mask_visib`). The disc is the
+// feature's radius at the spot's distance, around its projection.
+double true_grasp_visibility(const vision::GraspFeature& feature, const cv::Matx33d& R, const cv::Vec3d& t_mm,
+                             const vision::PinholeCamera& camera, const cv::Mat1b& mask, const cv::Mat1b& mask_visib);
 
 // Errors of an estimate against one ground-truth pose, after choosing the ground-truth pose's
 // symmetric equivalent (R_gt * S, S a model symmetry about the model z axis through the model

@@ -5,6 +5,7 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -19,7 +20,9 @@
 
 namespace fs = std::filesystem;
 using namespace mfcd::eval;
+using mfcd::vision::GraspFeature;
 using mfcd::vision::PartSymmetry;
+using mfcd::vision::PinholeCamera;
 
 namespace {
 
@@ -208,6 +211,78 @@ TEST_F(EvalFiles, RefusesMalformedPartsTables) {
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("scene 1 scene_gt.json: unknown part: obj_id 9"), std::string::npos) << e.what();
   }
+}
+
+TEST_F(EvalFiles, ReadsTheProjectGraspFeatures) {
+  const auto parts = read_parts_csv(fs::path(MFC_SOURCE_DIR) / "config/parts/parts.csv");
+  const auto features = read_grasp_features_csv(fs::path(MFC_SOURCE_DIR) / "config/parts/grasp-features.csv", parts);
+  ASSERT_EQ(features.size(), 12u);
+  for (int id = 1; id <= 6; ++id)
+    EXPECT_EQ(std::count_if(features.begin(), features.end(), [&](const auto& f) { return f.first == id; }), 2) << id;
+  EXPECT_EQ(features[2].second.point_mm, cv::Vec3d(0, 0, 14));  // the diamond's boss, from the top
+  EXPECT_EQ(features[3].second.approach, cv::Vec3d(0, 0, -1));  // and from below
+}
+
+TEST_F(EvalFiles, RefusesMalformedGraspFeatureTables) {
+  const auto parts = read_parts_csv(write("parts.csv", "knob,5,z:10\nwheel,6,z:5\n"));
+  auto refused = [&](const std::string& text, const std::string& fragment) {
+    const fs::path f = write("grasp.csv", text);
+    try {
+      read_grasp_features_csv(f, parts);
+      ADD_FAILURE() << "accepted: " << text;
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find(fragment), std::string::npos) << e.what();
+    }
+  };
+  const std::string header = "name,obj_id,x_mm,y_mm,z_mm,radius_mm,approach_x,approach_y,approach_z,max_tilt_deg\n";
+  refused(header + "knob,5,0,0,24,6,0,0,1\n", "grasp.csv:2: expected 10 fields");
+  refused("knob,5,0,0,24,6,0,0,1,45,7\n", "grasp.csv:1: expected 10 fields");
+  refused("knob,x,0,0,24,6,0,0,1,45\n", "grasp.csv:1: obj_id 'x' is not an integer");
+  refused("knob,6,0,0,24,6,0,0,1,45\n", "grasp.csv:1: obj_id 6 is 'wheel' in the parts table, not 'knob'");
+  refused("knob,9,0,0,24,6,0,0,1,45\n", "unknown part: obj_id 9");
+  refused("knob,5,0,0,top,6,0,0,1,45\n", "grasp.csv:1: z_mm 'top' is not a number");
+  refused("knob,5,0,0,24,0,0,0,1,45\n", "grasp.csv:1: radius_mm must be in (0, 100]");
+  refused("knob,5,0,0,24,6,0,0,1,181\n", "grasp.csv:1: max_tilt_deg must be in [0, 180]");
+  refused("# nothing\n", "no grasp features listed");
+  EXPECT_THROW(read_grasp_features_csv(dir_ / "missing.csv", parts), std::runtime_error);
+  const auto ok = read_grasp_features_csv(write("ok.csv", header + "wheel,6,0,0,18,6,0,0,1,45\n# more\n"), parts);
+  ASSERT_EQ(ok.size(), 1u);
+  EXPECT_EQ(ok[0].first, 6);
+  EXPECT_EQ(ok[0].second.max_tilt_deg, 45);
+}
+
+// The reference the grasp-feature estimate is checked against, on drawn masks: a part lying
+// face up (model z towards the camera) at 300 mm, its 5 mm spot 36.7 px across.
+TEST(EvalGrasp, TrueVisibilityIsTheSeenShareOfTheSpotOnThePart) {
+  PinholeCamera camera;
+  camera.K = cv::Matx33d(1100, 0, 319.5, 0, 1100, 239.5, 0, 0, 1);
+  const cv::Matx33d face_up(1, 0, 0, 0, -1, 0, 0, 0, -1);
+  const cv::Vec3d t(0, 0, 300);
+  GraspFeature f;
+  f.radius_mm = 5;
+  f.approach = {0, 0, 1};
+  f.max_tilt_deg = 45;
+  const cv::Point2d c = camera.project(t);
+  const double r = 5 * camera.fx() / 300;
+  cv::Mat1b mask(480, 640, uchar(0)), visib;
+  cv::circle(mask, c, 80, 255, -1);
+  visib = mask.clone();
+  EXPECT_DOUBLE_EQ(true_grasp_visibility(f, face_up, t, camera, mask, visib), 1.0);
+  // Half of the spot under something else.
+  cv::rectangle(visib, cv::Point(0, 0), cv::Point(static_cast<int>(c.x) - 1, 479), 0, -1);
+  const double half = true_grasp_visibility(f, face_up, t, camera, mask, visib);
+  EXPECT_NEAR(half, 0.5, 0.06);
+  // All of it under something else.
+  cv::circle(visib, c, static_cast<int>(r) + 2, 0, -1);
+  EXPECT_EQ(true_grasp_visibility(f, face_up, t, camera, mask, visib), 0.0);
+  // Facing away (lying on that side) or mostly off the part's silhouette (a bore seen through):
+  // nothing to take it by.
+  visib = mask.clone();
+  EXPECT_EQ(true_grasp_visibility(f, cv::Matx33d::eye(), t, camera, mask, visib), 0.0);
+  cv::Mat1b ring(480, 640, uchar(0));
+  cv::circle(ring, c, 80, 255, -1);
+  cv::circle(ring, c, static_cast<int>(r * 0.95), 0, -1);  // a bore nearly as wide as the spot
+  EXPECT_EQ(true_grasp_visibility(f, face_up, t, camera, ring, ring), 0.0);
 }
 
 // ---- the command line: refusals name the thing and write nothing ----
@@ -448,3 +523,55 @@ TEST_F(EvalFiles, TimingRepeatsAddTheFastestRunsStageTimes) {
   }
 }
 #endif
+
+// --grasp-features: every trial's best estimate carries the pipeline's grasp visibility (and,
+// when right, the true one of its instance), every true instance the estimate at its pose next
+// to the rendered truth, and every --all-types image the cell's pick without and with the grasp
+// features (motion::choose_pick), each scored for its pose and the truth of its grasp feature.
+TEST_F(EvalFiles, GraspFeaturesAreEstimatedScoredAndUsedForTheCellsPick) {
+  nlohmann::json trials;
+  ASSERT_NO_FATAL_FAILURE(detect_on_two_parts(
+      *this, dir_,
+      "--all-types --pick-grasp 0.5,0.3 --grasp-features " + std::string(MFC_SOURCE_DIR) + "/config/parts/grasp-features.csv",
+      trials));
+  int truths = 0;
+  for (const auto& t : trials) {
+    if (t["found"].get<bool>()) {
+      ASSERT_TRUE(t.contains("grasp_estimated")) << t.dump();
+      EXPECT_GE(t["grasp_estimated"].get<double>(), 0);
+      EXPECT_LE(t["grasp_estimated"].get<double>(), 1);
+      EXPECT_EQ(t.contains("grasp_true"), t["correct"].get<bool>()) << t.dump();
+    }
+    for (const auto& ts : t["truth_scores"]) {
+      ASSERT_TRUE(ts.contains("grasp")) << ts.dump();
+      const auto& g = ts["grasp"];
+      for (const char* k : {"estimated", "true"}) {
+        EXPECT_GE(g[k].get<double>(), 0) << k;
+        EXPECT_LE(g[k].get<double>(), 1) << k;
+      }
+      // Turned away, both say so (the same test of the pose).
+      if (!g["faces_camera"].get<bool>()) {
+        EXPECT_EQ(g["estimated"].get<double>(), 0);
+        EXPECT_EQ(g["true"].get<double>(), 0);
+      }
+      ++truths;
+    }
+  }
+  EXPECT_GT(truths, 0);
+  std::ifstream in(dir_ / "out.json");
+  const nlohmann::json out = nlohmann::json::parse(in);
+  ASSERT_FALSE(out["all_types"].empty());
+  for (const auto& pick : out["all_types"]) {
+    ASSERT_EQ(pick["cell"].size(), 2u) << pick.dump();
+    EXPECT_EQ(pick["cell"][0]["grasp_weight"].get<double>(), 0);
+    EXPECT_FLOAT_EQ(pick["cell"][1]["grasp_weight"].get<float>(), 0.5f);
+    EXPECT_FLOAT_EQ(pick["cell"][1]["min_grasp_visibility"].get<float>(), 0.3f);
+    for (const auto& c : pick["cell"])
+      if (c["picked"].get<bool>()) {
+        EXPECT_GE(c["score"].get<double>(), 0.08) << c.dump();  // the cell's min_score
+        if (c["grasp_weight"].get<double>() > 0) {
+          EXPECT_GE(c["grasp_estimated"].get<double>(), 0.3) << c.dump();
+        }
+      }
+  }
+}

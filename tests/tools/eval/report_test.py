@@ -82,5 +82,39 @@ class EscalationNote(unittest.TestCase):
         self.assertEqual(lines, [])
 
 
+class GraspFeatures(unittest.TestCase):
+    TRIALS = [
+        {"truth_scores": [
+            {"grasp": {"true": 0.0, "estimated": 0.1, "faces_camera": True}},
+            {"grasp": {"true": 0.0, "estimated": 0.0, "faces_camera": False}},  # turned away: not counted
+            {"grasp": {"true": 0.3, "estimated": 0.5, "faces_camera": True}}]},
+        {"truth_scores": [
+            {"grasp": {"true": 0.95, "estimated": 0.9, "faces_camera": True}},
+            {"grasp": {"true": 1.0, "estimated": 0.2, "faces_camera": True}},
+            {"visib_fract": 0.5}]},  # a run without grasp features
+    ]
+
+    def test_estimate_rows_bin_by_the_truth(self):
+        rows = report.grasp_estimate_rows(self.TRIALS, 0.3)
+        self.assertEqual([r[0] for r in rows][0], "covered (0)")
+        self.assertEqual([(n, taken) for _, n, _, taken in rows], [(1, 0), (1, 1), (0, 0), (2, 1)])
+        self.assertIsNone(rows[2][2])
+        self.assertAlmostEqual(rows[3][2], 0.55)
+
+    def test_cell_pick_counts_per_setting(self):
+        def cell(picked, correct=True, free=1.0):
+            c = {"grasp_weight": 0.5, "min_grasp_visibility": 0.3, "picked": picked}
+            if picked:
+                c.update({"correct": correct, "grasp_true": free})
+            return c
+        picks = [{"cell": [dict(cell(True), grasp_weight=0, min_grasp_visibility=0), cell(True)]},
+                 {"cell": [dict(cell(True, free=0.2), grasp_weight=0, min_grasp_visibility=0), cell(False)]},
+                 {"cell": [dict(cell(True, correct=False), grasp_weight=0, min_grasp_visibility=0),
+                           cell(True, free=0.5)]}]
+        self.assertEqual(report.cell_pick_counts(picks), [(0, 0, 3, 1, 1, 1, 0), (0.5, 0.3, 3, 2, 0, 0, 1)])
+        self.assertEqual(report.cell_pick_counts([{"correct": True}]), [])
+        self.assertEqual(report.cell_pick_counts([]), [])
+
+
 if __name__ == "__main__":
     unittest.main()
