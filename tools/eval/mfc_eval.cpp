@@ -625,6 +625,21 @@ int run_detect(const Options& o) {
         candidates.push_back({static_cast<float>(e.score), static_cast<float>(floor_mm - e.t_mm[2]),
                               static_cast<float>(e.grasp_visibility)});
       json settings = json::array();
+      // Every candidate the cell chose from: its score, height, grasp estimate, and whether its
+      // pose is right (then how free its instance's grasp feature truly is).
+      json listed = json::array();
+      for (size_t i = 0; i < candidates.size(); ++i) {
+        const Estimate& e = det_out.estimates[i];
+        bool right = false;
+        double free = 0;
+        for (size_t j = 0; j < gt.gt.size(); ++j)
+          if (gt.gt[j].obj_id == e.obj_id && o.criterion.accepts(score(e, gt.gt[j]))) {
+            right = true;
+            free = std::max(free, true_grasp(ref, j, gt.gt[j]));
+          }
+        listed.push_back({{"obj_id", e.obj_id}, {"score", e.score}, {"height_mm", candidates[i].height_mm},
+                          {"grasp_estimated", e.grasp_visibility}, {"correct", right}, {"grasp_true", free}});
+      }
       for (const bool with_grasp : {false, true}) {
         motion::PickChoiceConfig pc;
         pc.weight_score = 1.0f, pc.weight_height = 0.5f, pc.height_scale_mm = 100.0f, pc.min_score = 0.08f;
@@ -634,20 +649,13 @@ int run_detect(const Options& o) {
         json c = {{"grasp_weight", pc.weight_grasp}, {"min_grasp_visibility", pc.min_grasp_visibility},
                   {"picked", chosen.has_value()}};
         if (chosen) {
-          const Estimate& e = det_out.estimates[*chosen];
-          bool right = false;
-          double free = 0;
-          for (size_t j = 0; j < gt.gt.size(); ++j)
-            if (gt.gt[j].obj_id == e.obj_id && o.criterion.accepts(score(e, gt.gt[j]))) {
-              right = true;
-              free = std::max(free, true_grasp(ref, j, gt.gt[j]));
-            }
-          c["index"] = *chosen, c["obj_id"] = e.obj_id, c["correct"] = right, c["grasp_true"] = free;
-          c["grasp_estimated"] = e.grasp_visibility, c["score"] = e.score;
+          const json& e = listed[*chosen];
+          c["index"] = *chosen, c["obj_id"] = e["obj_id"], c["correct"] = e["correct"], c["grasp_true"] = e["grasp_true"];
+          c["grasp_estimated"] = e["grasp_estimated"], c["score"] = e["score"];
         }
         settings.push_back(c);
       }
-      return settings;
+      return std::make_pair(settings, listed);
     };
     if (m == "fdcm" && o.all_types) {
       // Best pick over all part types at once: the daemon's cycle.
@@ -662,7 +670,7 @@ int run_detect(const Options& o) {
         json pick = {{"scene", ref.scene}, {"image", ref.image}, {"found", !d.estimates.empty()},
                      {"obj_id", d.estimates.empty() ? 0 : d.estimates[0].obj_id}, {"correct", correct},
                      {"times", times_json(d.times)}, {"escalated", d.escalated}};
-        if (!grasp.empty()) pick["cell"] = cell_picks(ref, gts[k], d);
+        if (!grasp.empty()) std::tie(pick["cell"], pick["candidates"]) = cell_picks(ref, gts[k], d);
         if (o.timing_repeats > 1) pick["times_best"] = repeat_timing(*det, dataset.frames(ref.scene, ref.image), 0, d);
         picks.push_back(pick);
       }

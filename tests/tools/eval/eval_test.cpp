@@ -563,6 +563,14 @@ TEST_F(EvalFiles, GraspFeaturesAreEstimatedScoredAndUsedForTheCellsPick) {
   ASSERT_FALSE(out["all_types"].empty());
   for (const auto& pick : out["all_types"]) {
     ASSERT_EQ(pick["cell"].size(), 2u) << pick.dump();
+    // The candidates chosen from, and the chosen one among them.
+    ASSERT_TRUE(pick.contains("candidates")) << pick.dump();
+    for (const auto& c : pick["cell"])
+      if (c["picked"].get<bool>()) {
+        const auto& listed = pick["candidates"].at(c["index"].get<size_t>());
+        EXPECT_EQ(listed["obj_id"], c["obj_id"]);
+        EXPECT_EQ(listed["grasp_estimated"], c["grasp_estimated"]);
+      }
     EXPECT_EQ(pick["cell"][0]["grasp_weight"].get<double>(), 0);
     EXPECT_FLOAT_EQ(pick["cell"][1]["grasp_weight"].get<float>(), 0.5f);
     EXPECT_FLOAT_EQ(pick["cell"][1]["min_grasp_visibility"].get<float>(), 0.3f);

@@ -115,6 +115,18 @@ class GraspFeatures(unittest.TestCase):
         self.assertEqual(report.cell_pick_counts([{"correct": True}]), [])
         self.assertEqual(report.cell_pick_counts([]), [])
 
+    def test_no_pick_breakdown_counts_the_candidates_of_images_without_a_pick(self):
+        setting = {"grasp_weight": 0.5, "min_grasp_visibility": 0.3}
+        picks = [
+            {"cell": [dict(setting, picked=True), dict(setting, picked=False)],
+             "candidates": [{"score": 0.4, "grasp_estimated": 0.0, "correct": True, "grasp_true": 0.0},
+                            {"score": 0.2, "grasp_estimated": 0.1, "correct": False, "grasp_true": 0.0},
+                            {"score": 0.05, "grasp_estimated": 0.9, "correct": True, "grasp_true": 1.0}]},
+            {"cell": [dict(setting, picked=True), dict(setting, picked=True)],
+             "candidates": [{"score": 0.4, "grasp_estimated": 0.9, "correct": True, "grasp_true": 1.0}]},
+        ]
+        self.assertEqual(report.no_pick_breakdown(picks), (1, 2, 2, 1))
+
 
 if __name__ == "__main__":
     unittest.main()
