@@ -178,22 +178,24 @@ def cell_pick_counts(picks):
 
 def no_pick_breakdown(picks, min_score=0.08):
     """Of the images where the cell with grasp features (the last setting) picked nothing: how
-    many, their candidates at or above min_score, of those the ones whose grasp estimate is below
-    the setting's minimum, and of those the right poses whose feature is truly not free (< 0.5)."""
-    images = eligible = low = truly_not_free = 0
+    many; their candidates at or above min_score; of those, the ones whose grasp estimate is below
+    the setting's minimum, and of these the right poses whose feature is truly not free (< 0.5);
+    and, over all their candidates, the right poses whose feature is truly free."""
+    images = eligible = low = truly_not_free = free_listed = 0
     for p in picks:
         if "cell" not in p or p["cell"][-1]["picked"] or "candidates" not in p:
             continue
         images += 1
         v = p["cell"][-1]["min_grasp_visibility"]
         for c in p["candidates"]:
+            free_listed += c["correct"] and c["grasp_true"] >= 0.5
             if c["score"] < min_score:
                 continue
             eligible += 1
             if c["grasp_estimated"] < v:
                 low += 1
                 truly_not_free += c["correct"] and c["grasp_true"] < 0.5
-    return images, eligible, low, truly_not_free
+    return images, eligible, low, truly_not_free, free_listed
 
 
 def main(bench_dir, docs_dir):
@@ -688,12 +690,13 @@ def main(bench_dir, docs_dir):
         for gw, gv, n, free, blocked, wrong, none in counts:
             w("| %g | %g | %d | %d | %d | %d | %d |" % (gw, gv, n, free, blocked, wrong, none))
         w("")
-        images, eligible, low, not_free = no_pick_breakdown(res["all_types"])
+        images, eligible, low, not_free, free_listed = no_pick_breakdown(res["all_types"])
         if images:
             w("In the %d images where the cell with grasp features picks nothing, %d candidates reach `min_score`; "
               "%d of them estimate below `min_grasp_visibility`, and %d of those are right poses whose grasp feature "
-              "truly faces away or is covered (the others are wrong poses). The free parts of those images were not "
-              "among the cycle's candidates.\n" % (images, eligible, low, not_free))
+              "truly faces away or is covered (the others are wrong poses). Of all the candidates of those images, "
+              "%d %s a right pose with a truly free grasp feature.\n" % (
+                  images, eligible, low, not_free, free_listed, "is" if free_listed == 1 else "are"))
 
     w("## Reproduce\n")
     w("```\ntools/mfc bench paper                       # defaults below; everything from one command\n"

@@ -134,7 +134,10 @@ GraspVisibility grasp_feature_visibility(const DepthEdges& edges, const Template
     return out;
   }
   const cv::Vec3d g = pose.R * feature.point_mm + pose.t_mm;
-  if (g[2] <= 0) return out.visible = 0, out;
+  if (g[2] <= 0) {
+    out.visible = 0;  // behind the camera
+    return out;
+  }
   if (edges.edges.empty() || edges.shadow.empty()) return out;
   if (own.size() != edges.edges.size()) own = cv::Mat1b::zeros(edges.edges.size());
   RigidPose at = pose;  // nearest_view may turn it onto the view's symmetric copy (the same placed part)

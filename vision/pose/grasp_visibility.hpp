@@ -49,7 +49,8 @@ struct GraspVisibilityParams {
   double own_tolerance_rad = 0.5;  // ~29 degrees between the edge's and the point's oriented tangents
 };
 
-// An oriented tangent (radians, any turn) as an `own` pixel value: 1..255.
+// An oriented tangent (radians, any turn) as an `own` pixel value, 1..254 (0 = no own point):
+// 254 steps of 1.4 degrees, well within own_tolerance_rad.
 inline unsigned char encode_own_direction(double angle) {
   constexpr double kTwoPi = 6.283185307179586;
   double a = std::fmod(angle, kTwoPi);

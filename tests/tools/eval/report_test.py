@@ -125,7 +125,7 @@ class GraspFeatures(unittest.TestCase):
             {"cell": [dict(setting, picked=True), dict(setting, picked=True)],
              "candidates": [{"score": 0.4, "grasp_estimated": 0.9, "correct": True, "grasp_true": 1.0}]},
         ]
-        self.assertEqual(report.no_pick_breakdown(picks), (1, 2, 2, 1))
+        self.assertEqual(report.no_pick_breakdown(picks), (1, 2, 2, 1, 1))
 
 
 if __name__ == "__main__":
