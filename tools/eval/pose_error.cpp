@@ -31,31 +31,40 @@ std::string trim(const std::string& s) {
   return s.substr(b, e - b + 1);
 }
 
-}  // namespace
-
-std::vector<PartEntry> read_parts_csv(const std::filesystem::path& file) {
+// The rows of a comma-separated table ('#' comments, blank lines skipped, fields trimmed): `row`
+// gets each row's fields and "FILE:LINE: " for its errors. `what` names the table when the file
+// cannot be opened.
+template <class Row>
+void for_each_csv_row(const std::filesystem::path& file, const char* what, Row row) {
   std::ifstream in(file);
-  if (!in) throw std::runtime_error(file.string() + ": cannot open the parts table");
-  std::vector<PartEntry> parts;
+  if (!in) throw std::runtime_error(file.string() + ": cannot open the " + what);
   std::string line;
   int number = 0;
-  bool header = false;
   while (std::getline(in, line)) {
     ++number;
     const auto hash = line.find('#');
     if (hash != std::string::npos) line.resize(hash);
     line = trim(line);
     if (line.empty()) continue;
-    const std::string where = file.string() + ":" + std::to_string(number) + ": ";
     std::vector<std::string> f;
     std::stringstream ss(line);
     for (std::string x; std::getline(ss, x, ',');) f.push_back(trim(x));
+    row(file.string() + ":" + std::to_string(number) + ": ", f);
+  }
+}
+
+}  // namespace
+
+std::vector<PartEntry> read_parts_csv(const std::filesystem::path& file) {
+  std::vector<PartEntry> parts;
+  bool header = false;
+  for_each_csv_row(file, "parts table", [&](const std::string& where, const std::vector<std::string>& f) {
     if (f.size() < 3 || f.size() > 5)
       throw std::runtime_error(where + "expected 3 to 5 fields name,obj_id,symmetry[,views_symmetry[,views]], got " +
                                std::to_string(f.size()));
     if (!header && f[0] == "name") {
       header = true;
-      continue;
+      return;
     }
     PartEntry p;
     p.name = f[0];
@@ -90,35 +99,22 @@ std::vector<PartEntry> read_parts_csv(const std::filesystem::path& file) {
         throw std::runtime_error(where + "obj_id " + f[1] + " used by '" + q.name + "' and '" + p.name + "'");
     }
     parts.push_back(std::move(p));
-  }
+  });
   if (parts.empty()) throw std::runtime_error(file.string() + ": no parts listed");
   return parts;
 }
 
 std::vector<std::pair<int, vision::GraspFeature>> read_grasp_features_csv(const std::filesystem::path& file,
                                                                           const std::vector<PartEntry>& parts) {
-  std::ifstream in(file);
-  if (!in) throw std::runtime_error(file.string() + ": cannot open the grasp features table");
   std::vector<std::pair<int, vision::GraspFeature>> features;
-  std::string line;
-  int number = 0;
   bool header = false;
-  while (std::getline(in, line)) {
-    ++number;
-    const auto hash = line.find('#');
-    if (hash != std::string::npos) line.resize(hash);
-    line = trim(line);
-    if (line.empty()) continue;
-    const std::string where = file.string() + ":" + std::to_string(number) + ": ";
-    std::vector<std::string> f;
-    std::stringstream ss(line);
-    for (std::string x; std::getline(ss, x, ',');) f.push_back(trim(x));
+  for_each_csv_row(file, "grasp features table", [&](const std::string& where, const std::vector<std::string>& f) {
     if (f.size() != 10)
       throw std::runtime_error(where + "expected 10 fields name,obj_id,x_mm,y_mm,z_mm,radius_mm,approach_x,"
                                        "approach_y,approach_z,max_tilt_deg, got " + std::to_string(f.size()));
     if (!header && f[0] == "name") {
       header = true;
-      continue;
+      return;
     }
     const std::optional<int> obj_id = whole_number(f[1]);
     if (!obj_id) throw std::runtime_error(where + "obj_id '" + f[1] + "' is not an integer");
@@ -142,7 +138,7 @@ std::vector<std::pair<int, vision::GraspFeature>> read_grasp_features_csv(const 
     g.max_tilt_deg = v[7];
     if (const std::string why = g.validate(); !why.empty()) throw std::runtime_error(where + why);
     features.emplace_back(*obj_id, g);
-  }
+  });
   if (features.empty()) throw std::runtime_error(file.string() + ": no grasp features listed");
   return features;
 }
