@@ -51,7 +51,7 @@ class Detector {
   virtual std::optional<vision::PoseScore> score_pose(int /*obj_id*/, const cv::Matx33d& /*R*/, const cv::Vec3d& /*t_mm*/) {
     return std::nullopt;
   }
-  // Whether part obj_id at a pose is on top at a grasp feature on the
+  // Whether part obj_id at a pose shows a grasp feature, on top and facing the camera, on the
   // last detect()'s image (vision/pose/grasp_visibility.hpp); detectors without depth edges
   // return nothing.
   virtual std::optional<vision::GraspVisibility> grasp_visibility(int /*obj_id*/, const cv::Matx33d& /*R*/,

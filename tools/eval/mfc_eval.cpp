@@ -23,6 +23,7 @@
 #include <cstdio>
 #include <fstream>
 #include <map>
+#include <tuple>
 #include <set>
 #include <sstream>
 #include <string>
@@ -307,13 +308,18 @@ int run_detect(const Options& o) {
   if (!o.grasp_features.empty())
     for (const auto& f : read_grasp_features_csv(o.grasp_features, parts))
       if (tdb_of.count(f.first)) grasp.push_back(f);
+  // Each instance's masks are read once: the trials of every method, their best estimates and
+  // the cell's candidates ask again for the same instances.
+  std::map<std::tuple<int, int, size_t>, double> true_grasp_of;
   auto true_grasp = [&](const ImageRef& ref, size_t instance, const vision::BopGtPose& gt) {
+    const auto which = std::make_tuple(ref.scene, ref.image, instance);
+    if (const auto it = true_grasp_of.find(which); it != true_grasp_of.end()) return it->second;
     const cv::Mat1b mask = dataset.mask(ref.scene, ref.image, static_cast<int>(instance));
     const cv::Mat1b visib = dataset.mask_visib(ref.scene, ref.image, static_cast<int>(instance));
     double best = 0;
     for (const auto& [id, feature] : grasp)
       if (id == gt.obj_id) best = std::max(best, true_grasp_visibility(feature, gt.R, gt.t_mm, camera.camera, mask, visib));
-    return best;
+    return true_grasp_of[which] = best;
   };
 
   // Each method's detector, built lazily (LINE-2D trains for a while).
@@ -385,6 +391,50 @@ int run_detect(const Options& o) {
       if (again.times.total_ms < best.total_ms) best = again.times;
     }
     return times_json(best);
+  };
+  // The cell's pick among an all-types cycle's candidates (motion::choose_pick, config/sim.yaml's
+  // weights: score 1, height 0.5 over 100 mm, min_score 0.08), once without the grasp features
+  // (weight 0, as when none are configured) and once with them (--pick-grasp W,V). For each:
+  // the chosen candidate, whether its pose is right (Table 1's criterion, any instance of its
+  // type) and, if so, how free the grasp feature of that instance truly is.
+  auto cell_picks = [&](const ImageRef& ref, const ImageGt& gt, const Detection& det_out) {
+    const double floor_mm = o.floor_mm > 0 ? o.floor_mm : camera.working_distance_mm;
+    std::vector<motion::PickCandidate> candidates;
+    for (const Estimate& e : det_out.estimates)
+      candidates.push_back({static_cast<float>(e.score), static_cast<float>(floor_mm - e.t_mm[2]),
+                            static_cast<float>(e.grasp_visibility)});
+    json settings = json::array();
+    // Every candidate the cell chose from: its score, height, grasp estimate, and whether its
+    // pose is right (then how free its instance's grasp feature truly is).
+    json listed = json::array();
+    for (size_t i = 0; i < candidates.size(); ++i) {
+      const Estimate& e = det_out.estimates[i];
+      bool right = false;
+      double free = 0;
+      for (size_t j = 0; j < gt.gt.size(); ++j)
+        if (gt.gt[j].obj_id == e.obj_id && o.criterion.accepts(score(e, gt.gt[j]))) {
+          right = true;
+          free = std::max(free, true_grasp(ref, j, gt.gt[j]));
+        }
+      listed.push_back({{"obj_id", e.obj_id}, {"score", e.score}, {"height_mm", candidates[i].height_mm},
+                        {"grasp_estimated", e.grasp_visibility}, {"correct", right}, {"grasp_true", free}});
+    }
+    for (const bool with_grasp : {false, true}) {
+      motion::PickChoiceConfig pc;
+      pc.weight_score = 1.0f, pc.weight_height = 0.5f, pc.height_scale_mm = 100.0f, pc.min_score = 0.08f;
+      pc.weight_grasp = with_grasp ? static_cast<float>(o.grasp_weight) : 0.0f;
+      pc.min_grasp_visibility = with_grasp ? static_cast<float>(o.min_grasp_visibility) : 0.0f;
+      const auto chosen = motion::choose_pick(candidates, pc);
+      json c = {{"grasp_weight", pc.weight_grasp}, {"min_grasp_visibility", pc.min_grasp_visibility},
+                {"picked", chosen.has_value()}};
+      if (chosen) {
+        const json& e = listed[*chosen];
+        c["index"] = *chosen, c["obj_id"] = e["obj_id"], c["correct"] = e["correct"], c["grasp_true"] = e["grasp_true"];
+        c["grasp_estimated"] = e["grasp_estimated"], c["score"] = e["score"];
+      }
+      settings.push_back(c);
+    }
+    return std::make_pair(settings, listed);
   };
   for (const std::string& m : o.methods) {
     std::unique_ptr<Detector> det;
@@ -499,11 +549,11 @@ int run_detect(const Options& o) {
               double estimated = -1;
               bool faces = false;
               for (const auto& [id, feature] : grasp)
-                if (id == obj_id) {
-                  faces = faces || vision::grasp_faces_camera(feature, vision::RigidPose{g.gt[j].R, g.gt[j].t_mm});
-                  if (const auto gv = det->grasp_visibility(obj_id, g.gt[j].R, g.gt[j].t_mm, feature))
+                if (id == obj_id)
+                  if (const auto gv = det->grasp_visibility(obj_id, g.gt[j].R, g.gt[j].t_mm, feature)) {
                     estimated = std::max(estimated, gv->visible);
-                }
+                    faces = faces || gv->faces_camera;
+                  }
               if (estimated >= 0)
                 tj["grasp"] = {{"estimated", estimated}, {"true", true_grasp(ref, j, g.gt[j])}, {"faces_camera", faces}};
             }
@@ -613,50 +663,6 @@ int run_detect(const Options& o) {
     std::fflush(stdout);
     methods[m] = {{"setup_s", det->setup_seconds()}, {"trials", trials}, {"instances", instances}};
 
-    // The cell's pick among an all-types cycle's candidates (motion::choose_pick, config/sim.yaml's
-    // weights: score 1, height 0.5 over 100 mm, min_score 0.08), once without the grasp features
-    // (weight 0, as when none are configured) and once with them (--pick-grasp W,V). For each:
-    // the chosen candidate, whether its pose is right (Table 1's criterion, any instance of its
-    // type) and, if so, how free the grasp feature of that instance truly is.
-    auto cell_picks = [&](const ImageRef& ref, const ImageGt& gt, const Detection& det_out) {
-      const double floor_mm = o.floor_mm > 0 ? o.floor_mm : camera.working_distance_mm;
-      std::vector<motion::PickCandidate> candidates;
-      for (const Estimate& e : det_out.estimates)
-        candidates.push_back({static_cast<float>(e.score), static_cast<float>(floor_mm - e.t_mm[2]),
-                              static_cast<float>(e.grasp_visibility)});
-      json settings = json::array();
-      // Every candidate the cell chose from: its score, height, grasp estimate, and whether its
-      // pose is right (then how free its instance's grasp feature truly is).
-      json listed = json::array();
-      for (size_t i = 0; i < candidates.size(); ++i) {
-        const Estimate& e = det_out.estimates[i];
-        bool right = false;
-        double free = 0;
-        for (size_t j = 0; j < gt.gt.size(); ++j)
-          if (gt.gt[j].obj_id == e.obj_id && o.criterion.accepts(score(e, gt.gt[j]))) {
-            right = true;
-            free = std::max(free, true_grasp(ref, j, gt.gt[j]));
-          }
-        listed.push_back({{"obj_id", e.obj_id}, {"score", e.score}, {"height_mm", candidates[i].height_mm},
-                          {"grasp_estimated", e.grasp_visibility}, {"correct", right}, {"grasp_true", free}});
-      }
-      for (const bool with_grasp : {false, true}) {
-        motion::PickChoiceConfig pc;
-        pc.weight_score = 1.0f, pc.weight_height = 0.5f, pc.height_scale_mm = 100.0f, pc.min_score = 0.08f;
-        pc.weight_grasp = with_grasp ? static_cast<float>(o.grasp_weight) : 0.0f;
-        pc.min_grasp_visibility = with_grasp ? static_cast<float>(o.min_grasp_visibility) : 0.0f;
-        const auto chosen = motion::choose_pick(candidates, pc);
-        json c = {{"grasp_weight", pc.weight_grasp}, {"min_grasp_visibility", pc.min_grasp_visibility},
-                  {"picked", chosen.has_value()}};
-        if (chosen) {
-          const json& e = listed[*chosen];
-          c["index"] = *chosen, c["obj_id"] = e["obj_id"], c["correct"] = e["correct"], c["grasp_true"] = e["grasp_true"];
-          c["grasp_estimated"] = e["grasp_estimated"], c["score"] = e["score"];
-        }
-        settings.push_back(c);
-      }
-      return std::make_pair(settings, listed);
-    };
     if (m == "fdcm" && o.all_types) {
       // Best pick over all part types at once: the daemon's cycle.
       json picks = json::array();

@@ -329,6 +329,12 @@ struct BinPickingPipeline::Impl {
   LineFitResult lines;  // this cycle's query lines (buffers reused)
   Dt3Params dt3_params;
   std::vector<PartModel> parts;
+  // The loaded part type `obj_id`; std::invalid_argument when none is.
+  const PartModel& part_of(int obj_id) const {
+    for (const auto& p : parts)
+      if (p.db.obj_id == obj_id) return p;
+    throw std::invalid_argument("pipeline: no templates loaded for obj_id " + std::to_string(obj_id));
+  }
   DepthEdgeExtractor extractor;
   DepthEdges edges;
   cv::Mat1b own_edges;  // grasp visibility: the pixels a candidate's own points explain (kept zero between uses)
@@ -1421,23 +1427,16 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
     // part from its own back or from clutter as well.
   }
   // Grasp features at the final poses: edges and the part's own points only, ~0.1 ms each.
-  if (!m.config.grasp_features.empty())
-    for (PoseCandidate& c : out.candidates) {
-      const PartModel* part = nullptr;
-      for (const auto& p : m.parts)
-        if (p.db.obj_id == c.obj_id) part = &p;
-      bool any = false;
-      double best = 0;
-      for (const auto& [feature_obj_id, feature] : m.config.grasp_features) {
-        if (feature_obj_id != c.obj_id || !part) continue;
+  for (PoseCandidate& c : out.candidates) {
+    bool any = false;
+    double best = 0;
+    for (const auto& [feature_obj_id, feature] : m.config.grasp_features)
+      if (feature_obj_id == c.obj_id) {
         any = true;
-        best = std::max(best, grasp_feature_visibility(m.edges, part->db, m.camera.camera,
-                                                       RigidPose{c.R_m2c, c.t_m2c_mm}, feature,
-                                                       m.config.fit_inlier_cost_px, m.own_edges)
-                                  .visible);
+        best = std::max(best, grasp_visibility(c.obj_id, c.R_m2c, c.t_m2c_mm, feature).visible);
       }
-      c.grasp_visibility = any ? best : 1.0;
-    }
+    c.grasp_visibility = any ? best : 1.0;
+  }
   const auto t2 = Clock::now();
   out.times.refine_ms = ms_between(t, t2);
   t = t2;
@@ -1447,19 +1446,16 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
 PoseScore BinPickingPipeline::score_pose(int obj_id, const cv::Matx33d& R_m2c, const cv::Vec3d& t_m2c_mm) {
   Impl& m = *impl_;
   if (m.config.cost != PipelineConfig::Cost::fdcm) throw std::invalid_argument("pipeline: score_pose needs the FDCM cost");
-  const PartModel* part = nullptr;
-  for (const auto& p : m.parts)
-    if (p.db.obj_id == obj_id) part = &p;
-  if (!part) throw std::invalid_argument("pipeline: no templates loaded for obj_id " + std::to_string(obj_id));
+  const PartModel& part = m.part_of(obj_id);
   // The nearest view over the part's symmetric copies of the pose (the views cover one wedge),
   // as the hypothesis fit chooses it.
   PoseScore out;
   RigidPose pose{R_m2c, t_m2c_mm};
-  out.view = TemplatePoseFit::nearest_view(part->db, m.camera.camera, pose);
-  TemplatePlacement placement = placement_of(part->db, out.view, pose, m.camera.camera);
-  const double best = rotation_angle(coarse_pose(part->db, placement, m.camera.camera).R.t() * pose.R);
+  out.view = TemplatePoseFit::nearest_view(part.db, m.camera.camera, pose);
+  TemplatePlacement placement = placement_of(part.db, out.view, pose, m.camera.camera);
+  const double best = rotation_angle(coarse_pose(part.db, placement, m.camera.camera).R.t() * pose.R);
   out.view_angle_deg = best * 180.0 / CV_PI;
-  const TemplateView& view = part->db.views[static_cast<size_t>(out.view)];
+  const TemplateView& view = part.db.views[static_cast<size_t>(out.view)];
   out.cost_px = fit_distance(view.lines, m.idt, m.config.search_downsample, placement, m.distance_workspaces[0]);
   if (!std::isfinite(out.cost_px)) out.cost_px = m.dt3_params.maxCost;
   const Warp w{placement.angle_rad, placement.scale, 1.0};
@@ -1467,29 +1463,26 @@ PoseScore BinPickingPipeline::score_pose(int obj_id, const cv::Matx33d& R_m2c, c
                                     static_cast<int>(placement.origin_px.y), m.edges.edges, m.fit_workspaces[0]);
   out.rank_px = out.cost_px + kUnexplainedPenaltyPx * (1.0 - out.coverage);
   m.prepare_fitter();
-  const RigidPose start = coarse_pose(part->db, placement, m.camera.camera);
+  const RigidPose start = coarse_pose(part.db, placement, m.camera.camera);
   // Scored as a best hypothesis of the cycle is (PipelineConfig::rescore_hypotheses).
   const TemplateFitResult f =
-      m.scored_like(0, part->db, m.fitter.fit(part->db, out.view, start, m.camera.camera, m.fit_workspaces[0]));
-  out.fit_score = fitted_rank(f, part->db, m.config);
-  const TemplateFitResult exact = m.fitter.evaluate(part->db, out.view, pose, m.camera.camera, m.fit_workspaces[0],
+      m.scored_like(0, part.db, m.fitter.fit(part.db, out.view, start, m.camera.camera, m.fit_workspaces[0]));
+  out.fit_score = fitted_rank(f, part.db, m.config);
+  const TemplateFitResult exact = m.fitter.evaluate(part.db, out.view, pose, m.camera.camera, m.fit_workspaces[0],
                                                     TemplatePoseFit::kAllPoints);
-  out.exact_score = fitted_rank(exact, part->db, m.config);
+  out.exact_score = fitted_rank(exact, part.db, m.config);
   return out;
 }
 
 void BinPickingPipeline::draw_pose(cv::Mat3b& image, int obj_id, const cv::Matx33d& R_m2c, const cv::Vec3d& t_m2c_mm,
                                    const cv::Scalar& colour) const {
   const Impl& m = *impl_;
-  const PartModel* part = nullptr;
-  for (const auto& p : m.parts)
-    if (p.db.obj_id == obj_id) part = &p;
-  if (!part) throw std::invalid_argument("pipeline: no templates loaded for obj_id " + std::to_string(obj_id));
+  const PartModel& part = m.part_of(obj_id);
   RigidPose pose{R_m2c, t_m2c_mm};
-  const int view = TemplatePoseFit::nearest_view(part->db, m.camera.camera, pose);
+  const int view = TemplatePoseFit::nearest_view(part.db, m.camera.camera, pose);
   const cv::Vec3b c(cv::saturate_cast<uchar>(colour[0]), cv::saturate_cast<uchar>(colour[1]),
                     cv::saturate_cast<uchar>(colour[2]));
-  for_each_projected_point(part->db.views[static_cast<size_t>(view)], pose, m.camera.camera, [&](const cv::Point2d& q) {
+  for_each_projected_point(part.db.views[static_cast<size_t>(view)], pose, m.camera.camera, [&](const cv::Point2d& q) {
     const cv::Point px(static_cast<int>(std::lround(q.x)), static_cast<int>(std::lround(q.y)));
     if (px.x >= 0 && px.y >= 0 && px.x < image.cols && px.y < image.rows) image(px) = c;
   });
@@ -1498,11 +1491,8 @@ void BinPickingPipeline::draw_pose(cv::Mat3b& image, int obj_id, const cv::Matx3
 GraspVisibility BinPickingPipeline::grasp_visibility(int obj_id, const cv::Matx33d& R_m2c, const cv::Vec3d& t_m2c_mm,
                                                      const GraspFeature& feature) {
   Impl& m = *impl_;
-  const PartModel* part = nullptr;
-  for (const auto& p : m.parts)
-    if (p.db.obj_id == obj_id) part = &p;
-  if (!part) throw std::invalid_argument("pipeline: no templates loaded for obj_id " + std::to_string(obj_id));
-  return grasp_feature_visibility(m.edges, part->db, m.camera.camera, RigidPose{R_m2c, t_m2c_mm}, feature,
+  const PartModel& part = m.part_of(obj_id);
+  return grasp_feature_visibility(m.edges, part.db, m.camera.camera, RigidPose{R_m2c, t_m2c_mm}, feature,
                                   m.config.fit_inlier_cost_px, m.own_edges);
 }
 

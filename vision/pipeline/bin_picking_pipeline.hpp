@@ -285,7 +285,8 @@ class BinPickingPipeline {
   PoseScore score_pose(int obj_id, const cv::Matx33d& R_m2c, const cv::Vec3d& t_m2c_mm);
 
   // Whether part obj_id at a pose (model -> camera) shows a grasp feature, on top and facing
-  // the camera, on the last process()'s image (vision/pose/grasp_visibility.hpp). Throws std::invalid_argument for an unknown obj_id.
+  // the camera, on the last process()'s image (vision/pose/grasp_visibility.hpp). Throws
+  // std::invalid_argument for an unknown obj_id.
   GraspVisibility grasp_visibility(int obj_id, const cv::Matx33d& R_m2c, const cv::Vec3d& t_m2c_mm,
                                    const GraspFeature& feature);
 
