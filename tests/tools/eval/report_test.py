@@ -21,6 +21,19 @@ def write(text):
     return f.name
 
 
+class MachineLine(unittest.TestCase):
+    def test_cpu_and_yardstick_as_the_run_recorded_them(self):
+        meta = {"cpu_model": "AMD EPYC", "cpu_mhz": "2245.78", "avx512": False, "yardstick_mhyp_s": 20.62}
+        self.assertEqual(report.machine_cpu(meta), " (AMD EPYC at 2246 MHz, no AVX-512)")
+        self.assertIn("at 20.6 M hypotheses/s", report.machine_yardstick(meta))
+
+    def test_older_runs_without_them_say_nothing(self):
+        # paper-run.json files written before the yardstick: the line reads as it did.
+        self.assertEqual(report.machine_cpu({"cpus": 2}), "")
+        self.assertEqual(report.machine_yardstick({"cpus": 2}), "")
+        self.assertEqual(report.machine_cpu({"cpu_model": "X", "cpu_mhz": "", "avx512": True}), " (X, AVX-512)")
+
+
 class ConfigMinScore(unittest.TestCase):
     def test_reads_the_pick_sections_key_only(self):
         # A min_score under another section, before and after, must not be taken for the pick one.
