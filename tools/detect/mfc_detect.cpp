@@ -26,6 +26,8 @@ void usage(std::FILE* to) {
                "usage: mfc-detect --dataset DIR --templates A.tdb [B.tdb ...] --out results.csv [options]\n"
                "  --dataset DIR        BOP-layout dataset with flash/ and ambient/ images (docs/datasets.md)\n"
                "  --split NAME         split folder (default test)\n"
+               "  --camera FILE        camera YAML (docs/camera.md) whose flash positions are used where the\n"
+               "                       dataset's scene_camera.json gives none (a standard BOP dataset)\n"
                "  --templates F...     template databases (mfc-teach); each carries its part's obj_id\n"
                "  --out FILE           BOP results CSV to write\n"
                "  --views N            views used by the refinement (default 1; more need camera poses)\n"
@@ -46,7 +48,7 @@ void usage(std::FILE* to) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  fs::path dataset_dir, out;
+  fs::path dataset_dir, out, camera_file;
   std::string split = "test";
   std::vector<fs::path> templates;
   std::vector<int> only_scenes;
@@ -65,6 +67,7 @@ int main(int argc, char** argv) {
         return 0;
       } else if (a == "--dataset") dataset_dir = value();
       else if (a == "--split") split = value();
+      else if (a == "--camera") camera_file = value();
       else if (a == "--out") out = value();
       else if (a == "--views") views = mfcd::tools::parse_int(a, value());
       else if (a == "--max-per-image") max_per_image = mfcd::tools::parse_int(a, value());
@@ -92,7 +95,9 @@ int main(int argc, char** argv) {
     if (search_rounds < 1 || search_rounds > PipelineConfig::kMaxSearchRounds)
       throw std::invalid_argument("--search-rounds must be 1.." + std::to_string(PipelineConfig::kMaxSearchRounds));
 
-    const BopDataset dataset(dataset_dir, split);
+    BopCameraDefaults defaults;
+    if (!camera_file.empty()) defaults = {load_camera_config(camera_file).flashes.positions_mm, camera_file.string()};
+    const BopDataset dataset(dataset_dir, split, defaults);
     std::vector<int> scenes = dataset.scenes();
     if (!only_scenes.empty()) scenes = only_scenes;
     if (scenes.empty()) throw std::runtime_error(dataset_dir.string() + ": no scenes in split '" + split + "'");

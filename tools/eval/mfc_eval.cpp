@@ -44,6 +44,11 @@ detect: for every image and every part type present in it, runs each method for 
 (correct when it matches any: position <= 5 mm and rotation angle <= 10 deg, symmetry-aware).
   --dataset DIR          BOP-layout dataset with flash images (mfc-sim, docs/datasets.md)
   --split NAME           split folder (default test)
+  --camera FILE          camera YAML whose flash positions are used where the dataset's
+                         scene_camera.json gives none (a standard BOP dataset)
+  --model-symmetries     score with the symmetries of the dataset's models_info.json (BOP's
+                         symmetries_discrete and symmetries_continuous, the latter every 1 deg)
+                         instead of the parts table's
   --templates DIR        folder with <name>.tdb per part (mfc-teach; <build>/templates)
   --parts FILE           parts table name,obj_id,symmetry[,views_symmetry[,views]] (default
                          config/parts/parts.csv)
@@ -137,6 +142,8 @@ std::string camera_key(const vision::CameraConfig& c) {
 
 struct Options {
   fs::path dataset, templates, parts = fs::path(MFC_SOURCE_DIR) / "config/parts/parts.csv", out, overlay;
+  fs::path camera;  // --camera: flash positions for a dataset that lacks them
+  bool model_symmetries = false;  // --model-symmetries
   std::string split = "test";
   std::vector<std::string> methods = {"fdcm", "ocm", "cm"};
   int max_images = 0, threads = 0, refine_candidates = -1;
@@ -161,6 +168,8 @@ Options parse(int argc, char** argv) {
     };
     if (a == "--dataset") o.dataset = value();
     else if (a == "--split") o.split = value();
+    else if (a == "--camera") o.camera = value();
+    else if (a == "--model-symmetries") o.model_symmetries = true;
     else if (a == "--templates") o.templates = value();
     else if (a == "--parts") o.parts = value();
     else if (a == "--out") o.out = value();
@@ -276,11 +285,14 @@ int run_detect(const Options& o) {
   if (!fs::is_directory(o.dataset)) throw std::runtime_error(o.dataset.string() + ": no such dataset folder");
   if (!fs::is_directory(o.templates)) throw std::runtime_error(o.templates.string() + ": no such templates folder");
   const std::vector<PartEntry> parts = read_parts_csv(o.parts);
-  const vision::BopDataset dataset(o.dataset, o.split);
+  vision::BopCameraDefaults defaults;
+  if (!o.camera.empty()) defaults = {vision::load_camera_config(o.camera).flashes.positions_mm, o.camera.string()};
+  const vision::BopDataset dataset(o.dataset, o.split, defaults);
 
   // Every object of the dataset must be a known part with a template file.
   std::map<int, fs::path> tdb_of;
   std::map<int, cv::Vec3d> centre_of;  // bounding-box centre, model frame: the "position" of a part
+  std::map<int, std::vector<cv::Matx44d>> symmetries_of;  // --model-symmetries: models_info.json's
   for (const auto& [obj_id, info] : dataset.models_info()) {
     const PartEntry& p = part_by_id(parts, obj_id, (o.dataset / "models/models_info.json").string());
     const fs::path tdb = o.templates / (p.name + ".tdb");
@@ -289,6 +301,7 @@ int run_detect(const Options& o) {
                                std::to_string(obj_id) + "); run mfc-teach or build the mfc_templates target");
     tdb_of[obj_id] = tdb;
     centre_of[obj_id] = info.min + info.size * 0.5;
+    if (o.model_symmetries) symmetries_of[obj_id] = symmetry_transforms(info);
   }
   std::vector<fs::path> tdbs;
   for (const auto& [id, f] : tdb_of) tdbs.push_back(f);
@@ -342,7 +355,8 @@ int run_detect(const Options& o) {
                    db.sphere_samples, p.views);
     jparts.push_back({{"name", p.name},
                       {"obj_id", id},
-                      {"symmetry", p.symmetry.str()},
+                      {"symmetry", o.model_symmetries ? "models_info.json (" + std::to_string(symmetries_of.at(id).size()) +
+                                                            " transforms)" : p.symmetry.str()},
                       {"templates", f.string()},
                       {"sphere_samples", db.sphere_samples},
                       {"views", db.views.size()}});
@@ -371,6 +385,7 @@ int run_detect(const Options& o) {
   }
 
   auto score = [&](const Estimate& e, const vision::BopGtPose& g) {
+    if (o.model_symmetries) return pose_error(e.R, e.t_mm, g.R, g.t_mm, symmetries_of.at(g.obj_id), centre_of.at(g.obj_id));
     return pose_error(e.R, e.t_mm, g.R, g.t_mm, part_by_id(parts, g.obj_id, "").symmetry, centre_of.at(g.obj_id));
   };
 
@@ -521,7 +536,9 @@ int run_detect(const Options& o) {
           trial["position_mm"] = matched.error.position_mm;
           trial["rotation_deg"] = matched.error.rotation_deg;
           trial["d_t_mm"] = {matched.error.d_t_mm[0], matched.error.d_t_mm[1], matched.error.d_t_mm[2]};
+          trial["axis_cam"] = {matched.error.axis_cam[0], matched.error.axis_cam[1], matched.error.axis_cam[2]};
           trial["matched_instance"] = matched.instance;
+          trial["score"] = d.estimates[0].score;
           trial["matched_visib_fract"] = g.info[matched.instance].visib_fract;
           // The estimate itself (model -> camera, R row-major, t in mm), to score it again by
           // another criterion without running the detector.
@@ -676,7 +693,9 @@ int run_detect(const Options& o) {
         json pick = {{"scene", ref.scene}, {"image", ref.image}, {"found", !d.estimates.empty()},
                      {"obj_id", d.estimates.empty() ? 0 : d.estimates[0].obj_id}, {"correct", correct},
                      {"times", times_json(d.times)}, {"escalated", d.escalated}};
-        if (!grasp.empty()) std::tie(pick["cell"], pick["candidates"]) = cell_picks(ref, gts[k], d);
+        if (!d.estimates.empty()) pick["score"] = d.estimates[0].score;
+        // The cell's pick (without grasp features when none are given: both settings then agree).
+        std::tie(pick["cell"], pick["candidates"]) = cell_picks(ref, gts[k], d);
         if (o.timing_repeats > 1) pick["times_best"] = repeat_timing(*det, dataset.frames(ref.scene, ref.image), 0, d);
         picks.push_back(pick);
       }

@@ -184,6 +184,49 @@ cv::Vec3d euler_xyz_deg(const cv::Matx33d& R) {
   return cv::Vec3d(x, y, z) * (180 / CV_PI);
 }
 
+namespace {
+
+// Unit axis of a rotation (0 for none). From the skew part where it is well conditioned; near a
+// half turn, where the skew part vanishes, from the symmetric part (R + R^T) / 2 = cos(angle) I +
+// (1 - cos(angle)) a a^T (a a^T's largest column), signed by what is left of the skew part.
+cv::Vec3d rotation_axis(const cv::Matx33d& R) {
+  const cv::Vec3d v(R(2, 1) - R(1, 2), R(0, 2) - R(2, 0), R(1, 0) - R(0, 1));
+  const double angle = rotation_angle_deg(R);
+  if (angle < 1e-9) return {0, 0, 0};
+  if (angle < 170) return v / cv::norm(v);
+  const double c = std::cos(angle * CV_PI / 180);
+  const cv::Matx33d B = ((R + R.t()) * 0.5 - cv::Matx33d::eye() * c) * (1 / (1 - c));  // = a a^T
+  int k = 0;
+  for (int i = 1; i < 3; ++i)
+    if (B(i, i) > B(k, k)) k = i;
+  cv::Vec3d a(B(0, k), B(1, k), B(2, k));
+  a /= cv::norm(a);
+  return a.dot(v) < 0 ? -a : a;
+}
+
+// Errors of an estimate against one equivalent of the ground truth.
+PoseError error_against(const cv::Matx33d& R_est, const cv::Vec3d& t_est, const cv::Matx33d& R_eq,
+                        const cv::Vec3d& t_eq, const cv::Vec3d& centre_mm) {
+  PoseError e;
+  const cv::Matx33d rel = R_est * R_eq.t();
+  e.rotation_deg = rotation_angle_deg(rel);
+  const cv::Vec3d c_est = R_est * centre_mm + t_est, c_gt = R_eq * centre_mm + t_eq;
+  const cv::Vec3d d = c_est - c_gt;
+  e.position_mm = cv::norm(d);
+  e.d_t_mm = d;
+  e.abs_t_mm = {std::abs(d[0]), std::abs(d[1]), std::abs(d[2])};
+  const cv::Vec3d r = euler_xyz_deg(rel);
+  e.abs_r_deg = {std::abs(r[0]), std::abs(r[1]), std::abs(r[2])};
+  e.axis_cam = rotation_axis(rel);
+  return e;
+}
+
+cv::Matx33d rotation_of(const cv::Matx44d& T) {
+  return cv::Matx33d(T(0, 0), T(0, 1), T(0, 2), T(1, 0), T(1, 1), T(1, 2), T(2, 0), T(2, 1), T(2, 2));
+}
+
+}  // namespace
+
 PoseError pose_error(const cv::Matx33d& R_est, const cv::Vec3d& t_est, const cv::Matx33d& R_gt, const cv::Vec3d& t_gt,
                      const vision::PartSymmetry& symmetry, const cv::Vec3d& centre_mm) {
   // The ground-truth equivalent closest to the estimate.
@@ -199,17 +242,43 @@ PoseError pose_error(const cv::Matx33d& R_est, const cv::Vec3d& t_est, const cv:
       if (a < best_angle) best_angle = a, best = R_gt * S;
     }
   }
-  PoseError e;
-  const cv::Matx33d rel = R_est * best.t();
-  e.rotation_deg = rotation_angle_deg(rel);
-  const cv::Vec3d c_est = R_est * centre_mm + t_est, c_gt = best * centre_mm + t_gt;
-  const cv::Vec3d d = c_est - c_gt;
-  e.position_mm = cv::norm(d);
-  e.d_t_mm = d;
-  e.abs_t_mm = {std::abs(d[0]), std::abs(d[1]), std::abs(d[2])};
-  const cv::Vec3d r = euler_xyz_deg(rel);
-  e.abs_r_deg = {std::abs(r[0]), std::abs(r[1]), std::abs(r[2])};
-  return e;
+  return error_against(R_est, t_est, best, t_gt, centre_mm);
+}
+
+PoseError pose_error(const cv::Matx33d& R_est, const cv::Vec3d& t_est, const cv::Matx33d& R_gt, const cv::Vec3d& t_gt,
+                     const std::vector<cv::Matx44d>& symmetries, const cv::Vec3d& centre_mm) {
+  CV_Assert(!symmetries.empty());
+  double best_angle = 1e9;
+  cv::Matx33d best_R = R_gt;
+  cv::Vec3d best_t = t_gt;
+  for (const auto& S : symmetries) {
+    const cv::Matx33d R_eq = R_gt * rotation_of(S);
+    const double a = rotation_angle_deg(R_est * R_eq.t());
+    if (a < best_angle) best_angle = a, best_R = R_eq, best_t = R_gt * cv::Vec3d(S(0, 3), S(1, 3), S(2, 3)) + t_gt;
+  }
+  return error_against(R_est, t_est, best_R, best_t, centre_mm);
+}
+
+std::vector<cv::Matx44d> symmetry_transforms(const vision::BopModelInfo& info, double continuous_step_deg) {
+  CV_Assert(continuous_step_deg > 0 && continuous_step_deg <= 360);
+  std::vector<cv::Matx44d> discrete{cv::Matx44d::eye()};
+  discrete.insert(discrete.end(), info.symmetries_discrete.begin(), info.symmetries_discrete.end());
+  std::vector<cv::Matx44d> continuous{cv::Matx44d::eye()};
+  for (const auto& c : info.symmetries_continuous) {
+    const cv::Vec3d axis = c.axis / cv::norm(c.axis);
+    const int steps = std::max(1, static_cast<int>(std::lround(360.0 / continuous_step_deg)));
+    for (int k = 1; k < steps; ++k) {
+      const cv::Matx33d R = vision::rotation_from_angle_axis(axis * (2 * CV_PI * k / steps));
+      // A turn about the axis through `offset`: p -> R (p - o) + o.
+      const cv::Vec3d t = c.offset - R * c.offset;
+      continuous.push_back(cv::Matx44d(R(0, 0), R(0, 1), R(0, 2), t[0], R(1, 0), R(1, 1), R(1, 2), t[1], R(2, 0),
+                                       R(2, 1), R(2, 2), t[2], 0, 0, 0, 1));
+    }
+  }
+  std::vector<cv::Matx44d> out;
+  for (const auto& C : continuous)
+    for (const auto& D : discrete) out.push_back(C * D);
+  return out;
 }
 
 }  // namespace mfcd::eval

@@ -3,6 +3,7 @@
 // and the correctness criterion of Table 1, plus the parts table (config/parts/parts.csv) that
 // says which symmetry each part has.
 
+#include "vision/dataset/bop_dataset.hpp"
 #include "vision/pose/grasp_visibility.hpp"
 #include "vision/templates/template_database.hpp"
 
@@ -57,10 +58,25 @@ struct PoseError {
   cv::Vec3d abs_t_mm{0, 0, 0};  // |d_t_mm| per axis
   // |rx|, |ry|, |rz| of the relative rotation R_est * R_gt'^T = Rz(rz) Ry(ry) Rx(rx), camera axes, degrees.
   cv::Vec3d abs_r_deg{0, 0, 0};
+  // Unit axis of that relative rotation, camera axes (z = the optical axis); 0 when there is no
+  // rotation. Tells a turn about the line of sight from a part turned over.
+  cv::Vec3d axis_cam{0, 0, 0};
 };
 
 PoseError pose_error(const cv::Matx33d& R_est, const cv::Vec3d& t_est, const cv::Matx33d& R_gt, const cv::Vec3d& t_gt,
                      const vision::PartSymmetry& symmetry, const cv::Vec3d& centre_mm = {0, 0, 0});
+
+// The same against a model's symmetries given as rigid transforms S of the model frame (mm),
+// p_model -> S p_model, that leave the model the same (BOP's models_info convention); the
+// equivalent ground truth is (R_gt R_S, R_gt t_S + t_gt), the one closest in rotation to the
+// estimate. `symmetries` must hold the identity.
+PoseError pose_error(const cv::Matx33d& R_est, const cv::Vec3d& t_est, const cv::Matx33d& R_gt, const cv::Vec3d& t_gt,
+                     const std::vector<cv::Matx44d>& symmetries, const cv::Vec3d& centre_mm = {0, 0, 0});
+
+// Every symmetry transform of a BOP model, identity first: its symmetries_discrete, and each
+// continuous symmetry sampled every `continuous_step_deg` about its axis through its offset,
+// composed with each discrete one (as the BOP toolkit's get_symmetry_transformations does).
+std::vector<cv::Matx44d> symmetry_transforms(const vision::BopModelInfo& info, double continuous_step_deg = 1.0);
 
 // The criterion of Table 1: position within `max_position_mm` and rotation angle within
 // `max_rotation_deg` (the total angle; stricter than asking each of three Euler angles of the

@@ -242,9 +242,11 @@ CameraConfig BopSceneCamera::config() const {
   return c;
 }
 
-BopDataset::BopDataset(fs::path root, std::string split) : root_(std::move(root)), split_dir_(root_ / split) {
+BopDataset::BopDataset(fs::path root, std::string split, BopCameraDefaults defaults)
+    : root_(std::move(root)), split_dir_(root_ / split), defaults_(std::move(defaults)) {
   if (!fs::is_directory(root_)) fail(root_, "not a directory");
   if (!fs::is_directory(split_dir_)) fail(split_dir_, "missing split directory");
+  read_dataset_camera();
   const fs::path file = root_ / "models" / "models_info.json";
   const json j = read_json(file);
   const Reader r{file};
@@ -283,6 +285,19 @@ BopDataset::BopDataset(fs::path root, std::string split) : root_(std::move(root)
     }
     models_info_[id] = info;
   }
+}
+
+void BopDataset::read_dataset_camera() {
+  const fs::path file = root_ / "camera.json";
+  if (!fs::exists(file)) return;
+  const json j = read_json(file);
+  const Reader r{file};
+  if (!j.is_object()) fail(file, "top level is not a JSON object");
+  dataset_camera_.present = true;
+  if (j.contains("width") || j.contains("height"))
+    dataset_camera_.image_size = cv::Size(r.integer(r.key(j, "width", "camera"), "width"),
+                                          r.integer(r.key(j, "height", "camera"), "height"));
+  if (j.contains("depth_scale")) dataset_camera_.depth_scale = r.number(j["depth_scale"], "depth_scale");
 }
 
 fs::path BopDataset::scene_dir(int scene_id) const { return split_dir_ / id6(scene_id); }
@@ -325,10 +340,22 @@ BopSceneCamera BopDataset::camera(int scene_id, int image_id) const {
   const Reader r{file};
   const std::string w = std::to_string(image_id);
   const json& e = r.image_entry(j, image_id);
+  if (!e.is_object()) fail(file, "'" + w + "' is not a JSON object");
+  const DatasetCamera& d = dataset_camera_;
+  // The entry's own key, else camera.json's value, else a refusal naming both places.
+  auto missing = [&](const std::string& k, const char* fallback) {
+    fail(file, "missing key '" + w + "." + k + "', and " + (root_ / "camera.json").string() +
+                   (d.present ? " gives no " : " does not exist to give the ") + fallback);
+  };
   BopSceneCamera c;
   c.K = to_matx(r.numbers(r.key(e, "cam_K", w), 9, w + ".cam_K"));
-  c.depth_scale = r.number(r.key(e, "depth_scale", w), w + ".depth_scale");
-  c.image_size = {r.integer(r.key(e, "width", w), w + ".width"), r.integer(r.key(e, "height", w), w + ".height")};
+  if (e.contains("depth_scale")) c.depth_scale = r.number(e["depth_scale"], w + ".depth_scale");
+  else if (d.depth_scale) c.depth_scale = *d.depth_scale;
+  else missing("depth_scale", "depth_scale");
+  if (e.contains("width") || e.contains("height"))
+    c.image_size = {r.integer(r.key(e, "width", w), w + ".width"), r.integer(r.key(e, "height", w), w + ".height")};
+  else if (d.image_size) c.image_size = *d.image_size;
+  else missing("width", "width and height");
   if (c.image_size.width <= 0 || c.image_size.height <= 0) fail(file, "'" + w + "' image size must be positive");
   if (c.depth_scale <= 0) fail(file, "'" + w + ".depth_scale' must be positive");
   if (c.K(0, 0) <= 0 || c.K(1, 1) <= 0 || c.K(2, 2) != 1 || c.K(2, 0) != 0 || c.K(2, 1) != 0)
@@ -336,9 +363,16 @@ BopSceneCamera BopDataset::camera(int scene_id, int image_id) const {
   if (c.K(0, 2) < -0.5 || c.K(0, 2) > c.image_size.width - 0.5 || c.K(1, 2) < -0.5 || c.K(1, 2) > c.image_size.height - 0.5)
     fail(file, "'" + w + ".cam_K' principal point lies outside the " + std::to_string(c.image_size.width) + "x" +
                    std::to_string(c.image_size.height) + " image");
-  const json& flashes = r.key(e, "flash_positions_mm", w);
-  if (!flashes.is_array() || flashes.empty()) fail(file, "'" + w + ".flash_positions_mm' must be a non-empty array");
-  for (const auto& p : flashes) c.flash_positions_mm.push_back(to_vec(r.numbers(p, 3, w + ".flash_positions_mm")));
+  if (e.contains("flash_positions_mm")) {
+    const json& flashes = e["flash_positions_mm"];
+    if (!flashes.is_array() || flashes.empty()) fail(file, "'" + w + ".flash_positions_mm' must be a non-empty array");
+    for (const auto& p : flashes) c.flash_positions_mm.push_back(to_vec(r.numbers(p, 3, w + ".flash_positions_mm")));
+  } else if (!defaults_.flash_positions_mm.empty()) {
+    c.flash_positions_mm = defaults_.flash_positions_mm;
+  } else {
+    fail(file, "missing key '" + w + ".flash_positions_mm': the dataset does not say where the LEDs are; give the "
+               "camera file whose flashes took its images (--camera)");
+  }
   if (e.contains("working_distance_mm")) c.working_distance_mm = r.number(e["working_distance_mm"], w + ".working_distance_mm");
   return c;
 }

@@ -21,6 +21,7 @@
 
 #include <filesystem>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -78,14 +79,27 @@ class BopWriter {
 
 void write_ply(const Mesh& mesh, const std::filesystem::path& file);
 
+// What a standard BOP dataset does not say about the multi-flash camera, from elsewhere (a
+// camera file the user gives): used only where scene_camera.json lacks the key.
+struct BopCameraDefaults {
+  std::vector<cv::Vec3d> flash_positions_mm;  // camera frame, firing order; empty = none given
+  std::string source;                         // where they come from, for messages
+};
+
 // Reads a dataset. Every accessor checks what it reads and throws std::runtime_error
 // naming the file (and key) and the reason on missing files, bad JSON, missing or
-// ill-typed keys, image sizes that disagree with scene_camera.json, or a flash image count
-// that disagrees with flash_positions_mm.
+// ill-typed keys, image sizes that disagree with the camera's, or a flash image count
+// that disagrees with the flash positions.
+//
+// Per image, the camera comes from scene_camera.json (cam_K, depth_scale, and the MFC
+// extensions width, height, flash_positions_mm, working_distance_mm); an image size or depth scale
+// an entry lacks comes from <root>/camera.json (BOP keeps them there), the flash positions from
+// `defaults`. Refused only when none of them gives a needed value.
 class BopDataset {
  public:
-  // Opens <root>: needs models/models_info.json and <root>/<split>/.
-  explicit BopDataset(std::filesystem::path root, std::string split = "test");
+  // Opens <root>: needs models/models_info.json and <root>/<split>/; reads <root>/camera.json
+  // when it exists (a malformed one is refused).
+  explicit BopDataset(std::filesystem::path root, std::string split = "test", BopCameraDefaults defaults = {});
 
   const std::filesystem::path& root() const { return root_; }
   std::filesystem::path scene_dir(int scene_id) const;
@@ -106,9 +120,18 @@ class BopDataset {
   cv::Mat1b mask(int scene_id, int image_id, int instance) const;
 
  private:
+  void read_dataset_camera();
   cv::Mat1b mask_png(const char* folder, int scene_id, int image_id, int instance) const;
   std::filesystem::path root_, split_dir_;
   std::map<int, BopModelInfo> models_info_;
+  // <root>/camera.json's image size and depth scale, those it gives (BOP's camera.json also has
+  // fx, fy, cx, cy; the reader takes K from each image's cam_K, which BOP always gives).
+  struct DatasetCamera {
+    bool present = false;
+    std::optional<cv::Size> image_size;
+    std::optional<double> depth_scale;
+  } dataset_camera_;
+  BopCameraDefaults defaults_;
 };
 
 }  // namespace mfcd::vision

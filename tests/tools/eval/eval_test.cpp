@@ -129,6 +129,78 @@ TEST(EvalPoseError, MatchesBruteForceOnRandomPoses) {
   }
 }
 
+namespace {
+
+cv::Matx44d rigid(const cv::Matx33d& R, const cv::Vec3d& t) {
+  return {R(0, 0), R(0, 1), R(0, 2), t[0], R(1, 0), R(1, 1), R(1, 2), t[1], R(2, 0), R(2, 1), R(2, 2), t[2], 0, 0, 0, 1};
+}
+
+}  // namespace
+
+// BOP's symmetries (models_info.json) as transforms of the model frame: an estimate that is the
+// truth composed with one of them is right, also when the symmetry's axis does not pass through
+// the model origin; the z-group written as BOP transforms scores as PartSymmetry does.
+TEST(EvalPoseError, ModelSymmetriesAsBopTransforms) {
+  const cv::Matx33d Rg = rx(30) * rz(20);
+  const cv::Vec3d tg(5, -3, 300);
+  // A half turn about the model x axis through (0, 0, 8): p -> Rx(180) (p - o) + o.
+  const cv::Vec3d o(0, 0, 8);
+  mfcd::vision::BopModelInfo flip;
+  flip.symmetries_discrete.push_back(rigid(rx(180), o - rx(180) * o));
+  const auto flips = symmetry_transforms(flip);
+  ASSERT_EQ(flips.size(), 2u);
+  const cv::Matx33d Re = Rg * rx(180);
+  const cv::Vec3d te = Rg * (o - rx(180) * o) + tg;
+  const PoseError e = pose_error(Re, te, Rg, tg, flips, {1, 2, 8});
+  EXPECT_NEAR(e.rotation_deg, 0, 1e-6);
+  EXPECT_NEAR(e.position_mm, 0, 1e-9);
+  // Without the symmetry the same estimate is a half turn off and, for a centre off the axis, displaced.
+  const PoseError plain = pose_error(Re, te, Rg, tg, std::vector<cv::Matx44d>{cv::Matx44d::eye()}, {1, 2, 8});
+  EXPECT_NEAR(plain.rotation_deg, 180, 1e-6);
+  EXPECT_GT(plain.position_mm, 1);
+
+  // A continuous axis (the model y axis through (4, 0, 0)), sampled every degree: any turn is
+  // within half a degree, and the position follows the axis' offset.
+  mfcd::vision::BopModelInfo roll;
+  roll.symmetries_continuous.push_back({{0, 1, 0}, {4, 0, 0}});
+  const auto rolls = symmetry_transforms(roll);
+  EXPECT_EQ(rolls.size(), 360u);
+  const cv::Vec3d a(4, 0, 0);
+  for (double deg : {13.3, 97.6, 211.2}) {
+    const PoseError r = pose_error(Rg * ry(deg), Rg * (a - ry(deg) * a) + tg, Rg, tg, rolls, {4, 1, 0});
+    EXPECT_LE(r.rotation_deg, 0.5 + 1e-9) << deg;
+    EXPECT_LT(r.position_mm, 0.01) << deg;
+  }
+
+  // z:5 written as BOP transforms agrees with PartSymmetry's z:5 on random poses.
+  mfcd::vision::BopModelInfo five;
+  for (int k = 1; k < 5; ++k) five.symmetries_discrete.push_back(rigid(rz(72.0 * k), {0, 0, 0}));
+  const auto fives = symmetry_transforms(five);
+  std::mt19937 rng(3);
+  for (int i = 0; i < 50; ++i) {
+    const cv::Matx33d R1 = random_rotation(rng), R2 = random_rotation(rng);
+    const PoseError bop = pose_error(R1, {1, 0, 300}, R2, {0, 0, 300}, fives, {3, 1, 2});
+    const PoseError z5 = pose_error(R1, {1, 0, 300}, R2, {0, 0, 300}, PartSymmetry::parse("z:5"), {3, 1, 2});
+    ASSERT_NEAR(bop.rotation_deg, z5.rotation_deg, 1e-6) << i;
+    ASSERT_NEAR(bop.position_mm, z5.position_mm, 1e-6) << i;
+  }
+}
+
+// The rotation error's axis, camera frame: a turn about the line of sight has it along z, a part
+// turned over has it in the image plane, also at exactly half a turn.
+TEST(EvalPoseError, RotationAxisTellsInPlaneTurnsFromTurnsOver) {
+  const cv::Matx33d Rg = ry(25) * rz(40);
+  const PoseError spin = pose_error(rz(30) * Rg, {0, 0, 300}, Rg, {0, 0, 300}, kNone);
+  EXPECT_NEAR(std::abs(spin.axis_cam[2]), 1, 1e-9);
+  const PoseError over = pose_error(rx(180) * Rg, {0, 0, 300}, Rg, {0, 0, 300}, kNone);
+  EXPECT_NEAR(std::abs(over.axis_cam[0]), 1, 1e-9);
+  EXPECT_NEAR(over.axis_cam[2], 0, 1e-9);
+  const cv::Vec3d diag = cv::Vec3d(1, 1, 0) / std::sqrt(2.0);
+  const PoseError half = pose_error(rot(diag, 179.5) * Rg, {0, 0, 300}, Rg, {0, 0, 300}, kNone);
+  EXPECT_NEAR(std::abs(half.axis_cam.dot(diag)), 1, 1e-6);
+  EXPECT_EQ(pose_error(Rg, {0, 0, 300}, Rg, {0, 0, 300}, kNone).axis_cam, cv::Vec3d(0, 0, 0));
+}
+
 TEST(EvalPoseError, RotationAngleAccurateNearZeroAndHalfTurn) {
   EXPECT_NEAR(rotation_angle_deg(rx(1e-4)), 1e-4, 1e-9);
   EXPECT_NEAR(rotation_angle_deg(ry(179.999)), 179.999, 1e-6);

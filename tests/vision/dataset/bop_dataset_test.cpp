@@ -250,3 +250,55 @@ TEST_F(BopTiny, RefusesWrongNumberOfFlashImages) {
   edit_json(scene() / "scene_camera.json", [](auto& j) { j["1"]["flash_positions_mm"].erase(7); });
   expect_refused([&] { ds.frames(1, 1); }, scene() / "flash" / "000001_7.png", "more flash images than the 7");
 }
+
+// A dataset laid out as the BOP toolkit's docs describe it (docs/bop_datasets_format.md): the
+// image size lives in camera.json only, scene_camera.json holds cam_K, depth_scale and the
+// world-to-camera pose, and nothing says where the LEDs are. It reads with the flash positions of
+// a camera file, and each missing piece is refused with the file, the key and where else to look.
+TEST_F(BopTiny, ReadsAStandardBopLayoutWithFlashesFromACameraFile) {
+  for (int s = 1; s <= 2; ++s)
+    edit_json(root / "test" / (s == 1 ? "000001" : "000002") / "scene_camera.json", [](auto& j) {
+      for (auto& [id, e] : j.items()) {
+        for (const char* k : {"width", "height", "flash_positions_mm", "working_distance_mm"}) e.erase(k);
+        e["cam_R_w2c"] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+        e["cam_t_w2c"] = {0, 0, 0};
+      }
+    });
+  const nlohmann::json camera_json = nlohmann::json::parse(std::ifstream(root / "camera.json"));
+  ASSERT_EQ(camera_json["width"], 32);
+  ASSERT_EQ(camera_json["height"], 24);
+
+  const BopDataset ds(root, "test", {cam.flashes.positions_mm, "tiny camera"});
+  const BopSceneCamera c = ds.camera(1, 1);
+  EXPECT_EQ(c.image_size, cv::Size(32, 24));
+  EXPECT_EQ(c.K, cam.camera.K);
+  ASSERT_EQ(c.flash_positions_mm.size(), 8u);
+  for (size_t k = 0; k < 8; ++k) EXPECT_EQ(c.flash_positions_mm[k], cam.flashes.positions_mm[k]);
+  EXPECT_EQ(c.working_distance_mm, 0);
+  const MfcFrames f = ds.frames(1, 1);
+  ASSERT_EQ(f.flash.size(), 8u);
+  EXPECT_EQ(cv::norm(f.flash[3], written[0][1].frames.flash[3], cv::NORM_INF), 0);
+  EXPECT_EQ(ds.depth_mm(2, 0).size(), cv::Size(32, 24));
+
+  // No camera file: the flash positions are missing, and the message says what to give.
+  const BopDataset bare(root);
+  expect_refused([&] { bare.frames(1, 0); }, scene() / "scene_camera.json",
+                 "missing key '0.flash_positions_mm'...--camera");
+  // No image size anywhere.
+  edit_json(root / "camera.json", [](auto& j) { j.erase("width"); j.erase("height"); });
+  const BopDataset sizeless(root, "test", {cam.flashes.positions_mm, "tiny camera"});
+  expect_refused([&] { sizeless.camera(1, 0); }, scene() / "scene_camera.json",
+                 "missing key '0.width'...camera.json gives no width and height");
+  fs::remove(root / "camera.json");
+  const BopDataset no_camera_json(root, "test", {cam.flashes.positions_mm, "tiny camera"});
+  expect_refused([&] { no_camera_json.camera(1, 0); }, scene() / "scene_camera.json",
+                 "missing key '0.width'...camera.json does not exist");
+  // The images must agree with camera.json's size.
+  std::ofstream(root / "camera.json") << R"({"cx": 15.5, "cy": 11.5, "fx": 55, "fy": 56, "width": 30, "height": 24,
+                                            "depth_scale": 0.1})";
+  const BopDataset narrow(root, "test", {cam.flashes.positions_mm, "tiny camera"});
+  expect_refused([&] { narrow.frames(1, 0); }, scene() / "flash" / "000000_0.png", "image size 32x24 differs from 30x24");
+  // A malformed camera.json is refused when the dataset is opened.
+  std::ofstream(root / "camera.json") << R"({"width": "wide", "height": 24})";
+  expect_refused([&] { BopDataset again(root); }, root / "camera.json", "'width' is not an integer");
+}
