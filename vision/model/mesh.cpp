@@ -1,4 +1,5 @@
 #include "vision/model/mesh.hpp"
+#include "vision/model/ply_reader.hpp"
 
 #include <assimp/Importer.hpp>
 #include <assimp/postprocess.h>
@@ -6,6 +7,7 @@
 #include <syslog.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <limits>
 #include <map>
@@ -103,11 +105,29 @@ MeshReport validate_mesh(const Mesh& mesh, const MeshLoadOptions& options, const
   return r;
 }
 
+namespace {
+
+// What every format's loader ends with: shared vertices welded, the mesh validated, findings
+// reported (to `report`, else syslog).
+Mesh finish_loading(Mesh mesh, const MeshLoadOptions& options, MeshReport* report, const std::string& src) {
+  weld_identical_vertices(mesh);
+  MeshReport r = validate_mesh(mesh, options, src);
+  for (const auto& w : r.warnings)
+    if (!report) syslog(LOG_WARNING, "%s", w.c_str());
+  if (report) *report = std::move(r);
+  return mesh;
+}
+
+}  // namespace
+
 Mesh load_mesh(const std::filesystem::path& file, const MeshLoadOptions& options, MeshReport* report) {
   const std::string src = file.string();
   if (!(options.unit_mm > 0) || !std::isfinite(options.unit_mm))
     throw std::runtime_error(src + ": unit_mm must be a positive number");
   if (!std::filesystem::exists(file)) throw std::runtime_error(src + ": no such file");
+  std::string ext = file.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  if (ext == ".ply") return finish_loading(read_ply(file, static_cast<float>(options.unit_mm)), options, report, src);
   Assimp::Importer importer;
   const aiScene* scene = importer.ReadFile(src, aiProcess_Triangulate | aiProcess_SortByPType);
   if (!scene || !scene->mRootNode) throw std::runtime_error(src + ": cannot read mesh: " + importer.GetErrorString());
@@ -140,13 +160,7 @@ Mesh load_mesh(const std::filesystem::path& file, const MeshLoadOptions& options
     }
   };
   Walker{scene, mesh, scale}.walk(scene->mRootNode, aiMatrix4x4());
-  weld_identical_vertices(mesh);
-
-  MeshReport r = validate_mesh(mesh, options, src);
-  for (const auto& w : r.warnings)
-    if (!report) syslog(LOG_WARNING, "%s", w.c_str());
-  if (report) *report = std::move(r);
-  return mesh;
+  return finish_loading(std::move(mesh), options, report, src);
 }
 
 Mesh make_box(double sx, double sy, double sz) {

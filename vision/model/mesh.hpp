@@ -41,7 +41,8 @@ struct MeshReport {
   std::vector<std::string> warnings;
 };
 
-// Loads an STL (ASCII or binary), OBJ or PLY with assimp, merges all its meshes into one,
+// Loads an STL (ASCII or binary) or OBJ with assimp, or a PLY (ASCII or binary) with read_ply
+// (vision/model/ply_reader.hpp), merges all its meshes into one,
 // scales to mm and validates. Throws std::runtime_error naming the file on an unreadable,
 // empty or absurdly sized mesh; non-manifold geometry only adds warnings to *report
 // (and to syslog when report is null).
