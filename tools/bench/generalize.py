@@ -8,8 +8,8 @@ PLC's recipe) and over all types at once (recipe 0), scored with the symmetries 
 gives (detected from the meshes). tools/bench/generalize_report.py writes docs/generalization.md.
 
 Everything generated is cached outside the checkout (--cache, default $MFC_BENCH_CACHE or
-~/.cache/mfcd-bench), keyed by what made it: the part generator's version, the renderer script's
-hash, the camera and the teacher binary's hash. A scene folder or template file that exists is
+~/.cache/mfcd-bench), keyed by what made it: the part generator's version, the renderer
+modules' hash, the camera and the teacher binary's hash. A scene folder or template file that exists is
 complete (both are written under a temporary name and renamed), so an interrupted run resumes.
 """
 
@@ -65,6 +65,12 @@ def digest(*parts):
 
 def file_digest(path):
     return digest(Path(path).read_bytes())
+
+
+def renderer_digest():
+    """What the images depend on: every module of the renderer (not its checker)."""
+    files = sorted(p for p in (ROOT / "tools/benchgen").glob("*.py") if p.name != "check_scene.py")
+    return digest(*(f.name.encode() + f.read_bytes() for f in files))
 
 
 def flash_positions(cam):
@@ -143,8 +149,7 @@ def scene_plan(split, n_scenes, obj_ids, smoke):
 def prepare_dataset(args, cache, parts_dir, parts, split):
     """The split's BOP dataset folder: its models, camera files and scene plan."""
     cam = CAMERAS[split]
-    renderer = ROOT / "tools/benchgen/render_bin.py"
-    key = digest(parts["generator_version"], file_digest(renderer), json.dumps(cam, sort_keys=True), args.samples)
+    key = digest(parts["generator_version"], renderer_digest(), json.dumps(cam, sort_keys=True), args.samples)
     root = cache / f"scenes-{split}-{key}"
     models_src = parts_dir / ("dev" if split == "smoke" else split) / "models"
     mine = split_parts(parts, split)
@@ -249,7 +254,7 @@ def main():
     ap.add_argument("--scenes-test", type=int, default=40, help="scenes of the test split (default 40)")
     ap.add_argument("--scenes-dev", type=int, default=20, help="scenes of the dev split (default 20)")
     ap.add_argument("--parts-per-family", type=int, default=5, help="parts per family (default 5: 2 dev, 3 test)")
-    ap.add_argument("--samples", type=int, default=24, help="Cycles samples per pixel (default 24)")
+    ap.add_argument("--samples", type=int, default=16, help="Cycles samples per pixel (default 16)")
     ap.add_argument("--max-images", type=int, default=0, help="evaluate only the first N images (default all)")
     ap.add_argument("--cache", type=Path, default=Path(os.environ.get("MFC_BENCH_CACHE",
                                                                        Path.home() / ".cache/mfcd-bench")))
