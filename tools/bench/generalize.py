@@ -119,9 +119,8 @@ flashes:
 def make_parts(args, cache):
     """tools/partgen into the cache (it skips parts it already made)."""
     out = cache / "parts"
-    cmd = [PY, ROOT / "tools/partgen/partgen.py", "--out", out, "--count-per-family", args.parts_per_family]
-    if args.smoke:
-        cmd += ["--families", "plate", "--count-per-family", 1]
+    cmd = [PY, ROOT / "tools/partgen/partgen.py", "--out", out]
+    cmd += ["--families", "plate", "--count-per-family", 1] if args.smoke else ["--count-per-family", args.parts_per_family]
     say(f"parts: {' '.join(str(c) for c in cmd[1:])}")
     t0 = time.time()
     subprocess.run([str(c) for c in cmd], check=True)

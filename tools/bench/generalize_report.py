@@ -147,8 +147,8 @@ def split_section(split, run, parts, lines, plots):
                  "(median ms): " + ", ".join(f"{s} {pct([t['times'][s] for t in trials], 0.5):.1f}" for s in stages)
                  + f". All types at once: median {pct(all_t, 0.5):.0f} ms, p90 {pct(all_t, 0.9):.0f} ms.")
     if teach:
-        lines.append(f" Teaching (mfc-teach defaults, K = 300): median {statistics.median(teach):.0f} s per part, "
-                     f"max {max(teach):.0f} s, {len(teach)} parts taught in this run (cached ones not timed again).")
+        lines.append(f" Teaching (mfc-teach defaults, K = 300), as timed when each part was taught: median "
+                     f"{statistics.median(teach):.0f} s per part, max {max(teach):.0f} s, {len(teach)} parts.")
     lines.append("")
     plots.append((split, fam, sr, sw))
     return {"split": split, "images": n_images, "trials": len(trials), "failure_75": tot75, "failure_50": tot50,
