@@ -21,7 +21,6 @@ import random
 import shutil
 import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -193,9 +192,17 @@ def render_scenes(args, root, cam_render, plan, split):
         run(cmd)
         render_s.append(time.time() - t0)
         say(f"{split}: scene {s['scene_id']}/{n_scenes} rendered in {render_s[-1]:.0f} s (types {s['obj_ids']})")
-        check = [PY, ROOT / "tools/benchgen/check_scene.py", "--dataset", root, "--split", "test",
-                 "--scene", s["scene_id"], "--overlay", folder / "overlay.png"]
-        say(f"{split}: scene {s['scene_id']} check: {run(check).stdout.strip().splitlines()[-1]}")
+        check = [str(c) for c in (PY, ROOT / "tools/benchgen/check_scene.py", "--dataset", root, "--split", "test",
+                                  "--scene", s["scene_id"], "--overlay", folder / "overlay.png")]
+        r = subprocess.run(check, capture_output=True, text=True)
+        if r.returncode != 0:
+            # Kept aside for a look, never used: a rerun renders the scene again.
+            aside = folder.with_name(f".failed-check-{folder.name}")
+            shutil.rmtree(aside, ignore_errors=True)
+            folder.rename(aside)
+            sys.stderr.write(r.stdout[-4000:] + r.stderr[-4000:])
+            raise SystemExit(f"generalize: scene {s['scene_id']} failed its ground-truth check (kept in {aside})")
+        say(f"{split}: scene {s['scene_id']} check: {r.stdout.strip().splitlines()[-1]}")
 
 
 def teach(args, cache, build, root, cam_yaml, ids):
@@ -261,7 +268,7 @@ def main():
     ap.add_argument("--docs", type=Path, default=ROOT / "docs", help="where generalization.md goes")
     ap.add_argument("--no-docs", action="store_true", help="do not write docs/")
     ap.add_argument("--stages", default="teach,render,eval",
-                    help="what to run of teach,render,eval (default all; eval needs teach)")
+                    help="what to run of teach,render,eval (default all; eval also teaches what is missing)")
     ap.add_argument("--smoke", action="store_true",
                     help="one generated part, one small scene at few samples, detect, score (ctest)")
     args = ap.parse_args()
@@ -280,6 +287,11 @@ def main():
     parts_dir, parts = make_parts(args, cache)
     runs = []
     stages = set(args.stages.split(","))
+    unknown = stages - {"teach", "render", "eval"}
+    if unknown:
+        ap.error(f"--stages: unknown stage(s) {', '.join(sorted(unknown))} (known: teach, render, eval)")
+    if "eval" in stages:
+        stages.add("teach")  # the evaluation needs the templates (cached ones cost nothing)
     for split in splits:
         root, cam_yaml, cam_render, ids, plan = prepare_dataset(args, cache, parts_dir, parts, split)
         if "teach" in stages:
