@@ -78,7 +78,6 @@ def rate(f):
 
 def cell_view(result):
     right = wrong = withheld = 0
-    scores_right, scores_wrong = [], []
     for p in result.get("all_types", []):
         c = p["cell"][0]
         if not c["picked"]:
@@ -87,9 +86,7 @@ def cell_view(result):
             right += 1
         else:
             wrong += 1
-        if p.get("found"):
-            (scores_right if p["correct"] else scores_wrong).append(p["score"])
-    return right, wrong, withheld, scores_right, scores_wrong
+    return right, wrong, withheld
 
 
 def split_section(split, run, parts, lines, plots):
@@ -116,7 +113,7 @@ def split_section(split, run, parts, lines, plots):
     for c in CAUSES:
         lines.append(f"| {c} | {sum(t['cause'] == c for t in all75)} |")
     lines.append("")
-    right, wrong, withheld, s_right, s_wrong = cell_view(result)
+    right, wrong, withheld = cell_view(result)
     delivered = right + wrong
     lines.append(f"### The cell's view (recipe 0: all {len(set(t['obj_id'] for t in trials))} types at once)\n")
     lines.append(f"Per image, the pick the daemon would deliver (motion::choose_pick with config/sim.yaml's "
@@ -160,6 +157,17 @@ def split_section(split, run, parts, lines, plots):
             "all_types_ms_median": pct(all_t, 0.5)}
 
 
+def save(fig, ax, title, path):
+    """Titles, lays out, writes and closes a plot; returns the file's name."""
+    import matplotlib.pyplot as plt
+    ax.set_title(title)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path.name
+
+
 def draw(plots, img_dir):
     import matplotlib
     matplotlib.use("Agg")
@@ -177,12 +185,7 @@ def draw(plots, img_dir):
         ax.set_xticks(list(x), labels, rotation=40, ha="right", fontsize=8)
         ax.set_ylim(0, 1)
         ax.set_ylabel("top-1 failure")
-        ax.set_title(f"Failure per family, {split} split")
-        ax.legend(fontsize=8)
-        fig.tight_layout()
-        name = f"generalize-{split}-families.png"
-        fig.savefig(img_dir / name, dpi=110)
-        plt.close(fig)
+        name = save(fig, ax, f"Failure per family, {split} split", img_dir / f"generalize-{split}-families.png")
         fig, ax = plt.subplots(figsize=(6, 3.2))
         bins = [i / 40 for i in range(41)]
         ax.hist(sr, bins=bins, alpha=0.6, label=f"right ({len(sr)})")
@@ -190,12 +193,7 @@ def draw(plots, img_dir):
         ax.axvline(MIN_SCORE, color="k", lw=0.8, ls="--", label="pick.min_score")
         ax.set_xlabel("score of the best estimate")
         ax.set_ylabel("trials")
-        ax.set_title(f"Score vs correctness, {split} split")
-        ax.legend(fontsize=8)
-        fig.tight_layout()
-        name2 = f"generalize-{split}-scores.png"
-        fig.savefig(img_dir / name2, dpi=110)
-        plt.close(fig)
+        name2 = save(fig, ax, f"Score vs correctness, {split} split", img_dir / f"generalize-{split}-scores.png")
         names.append((split, name, name2))
     return names
 
