@@ -4,6 +4,7 @@
 
 #include "vision/camera/camera.hpp"
 #include "vision/pipeline/bin_picking_pipeline.hpp"
+#include "vision/pipeline/pipeline_parameters.hpp"
 
 #include <cerrno>
 #include <cmath>
@@ -324,22 +325,30 @@ DaemonConfig parseConfig(const std::string& yamlText, const std::string& source,
   }
   {
     Section s = top.section("vision");
-    c.vision.max_candidates = static_cast<int>(s.integer("max_candidates", 8, 1, 16));
-    if (s.has("max_cost_px")) c.vision.max_cost_px = s.number("max_cost_px", 0, 0.1, 100);
-    c.vision.refine_iterations = static_cast<int>(s.integer("refine_iterations", 10, 0, 1000));
-    c.vision.refine_candidates = static_cast<int>(s.integer("refine_candidates", 0, 0, 64));
-    c.vision.threads = static_cast<int>(s.integer("threads", 0, 0, 256));
+    // The pipeline's parameters, from its one table (vision/pipeline/pipeline_parameters.hpp).
+    for (const vision::PipelineParameter& p : vision::pipeline_parameters()) {
+      if (!p.cell || !s.has(p.key)) continue;
+      using Type = vision::PipelineParameter::Type;
+      const double d = p.default_value();
+      const double v = p.type == Type::boolean   ? (s.boolean(p.key, d != 0) ? 1.0 : 0.0)
+                       : p.type == Type::integer ? static_cast<double>(s.integer(p.key, static_cast<long long>(d),
+                                                                                 static_cast<long long>(p.min),
+                                                                                 static_cast<long long>(p.max)))
+                                                 : s.number(p.key, d, p.min, p.max);
+      p.set(c.vision.pipeline, v);
+    }
+    try {  // the pairs that must agree (the ranges were checked key by key above)
+      vision::validate_parameters(c.vision.pipeline);
+    } catch (const std::invalid_argument& e) {
+      s.fail(s.key(""), s.line(), e.what());
+    }
     c.vision.floor_check = s.boolean("floor_check", false);
-    c.vision.floor_tolerance_mm = s.number("floor_tolerance_mm", 3, 0, 100);
-    c.vision.search_rounds =
-        static_cast<int>(s.integer("search_rounds", 1, 1, vision::PipelineConfig::kMaxSearchRounds));
-    if (s.has("escalate_below")) c.vision.escalate_below = s.number("escalate_below", 0, 0, 1);
     YAML::Node distances = s.child("search_distances_mm");
     if (distances.IsDefined() && !distances.IsNull()) {
       if (!distances.IsSequence() || distances.size() == 0 || distances.size() > 4)
         s.fail(s.key("search_distances_mm"), lineOf(distances), "must be a list of 1 to 4 distances (mm)");
       for (const YAML::Node& d : distances)
-        c.vision.search_distances_mm.push_back(s.toNumber("search_distances_mm", d, 50, 5000));
+        c.vision.pipeline.distances_mm.push_back(s.toNumber("search_distances_mm", d, 50, 5000));
     }
     s.finish();
   }

@@ -14,6 +14,7 @@
 #include "motion/can_publisher.h"
 #include "motion/modbus_server.h"
 #include "motion/pick_choice.h"
+#include "vision/pipeline/bin_picking_pipeline.hpp"
 #include "motion/pick_transform.h"
 
 namespace mfcd::daemon {
@@ -115,26 +116,13 @@ struct CalibrationSettings {
 };
 
 struct VisionSettings {
-  int max_candidates = 8;
-  std::optional<double> max_cost_px;  // unset: the pipeline's own default
-  int refine_iterations = 10;
-  int refine_candidates = 0;  // render-based refinement of the best n (0: the fitted pose is kept)
-  int threads = 0;
-  // The bin floor (pick.bin_floor_distance_mm) as a constraint: fitted poses below it are dropped,
-  // and the best few hovering just above it are fitted again from it (vision::BinFloor,
-  // PipelineConfig::floor). Off by default: a floor distance left at its default would refuse
-  // every part of a deeper cell.
+  // Every key of the section but floor_check and search_distances_mm is a parameter of the
+  // pipeline's table (vision/pipeline/pipeline_parameters.hpp), read into this config; the
+  // template files, grasp features and floor distance are added from the recipes and pick.
+  vision::PipelineConfig pipeline;
+  // The bin floor (pick.bin_floor_distance_mm) as a constraint (PipelineConfig::floor). Off by
+  // default: a floor distance left at its default would refuse every part of a deeper cell.
   bool floor_check = false;
-  double floor_tolerance_mm = 3;
-  // Part distances the search tries, one template scale each (PipelineConfig::distances_mm);
-  // empty: the templates' own distance only. A deep bin wants two or three (docs/configuration.md).
-  std::vector<double> search_distances_mm;
-  // Search rounds (PipelineConfig::search_rounds): later rounds search again without the edges
-  // of the candidates found so far, for the parts they hid; each costs about one more search.
-  int search_rounds = 1;
-  // Escalation (PipelineConfig::escalate_below): a cycle whose best candidate ranks below this
-  // searches again over every view, within the cycle budget. Unset: the pipeline's default.
-  std::optional<double> escalate_below;
 };
 
 struct PickSettings {

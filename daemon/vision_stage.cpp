@@ -38,7 +38,7 @@ bool pipelineAvailable() { return true; }
 
 std::unique_ptr<VisionStage> makePipelineStage(const DaemonConfig& config) {
   const vision::CameraConfig camera = vision::load_camera_config(config.camera.model);
-  vision::PipelineConfig pc;
+  vision::PipelineConfig pc = config.vision.pipeline;
   std::string files;
   for (const auto& r : config.recipes) {
     if (!r.templates) {
@@ -65,17 +65,8 @@ std::unique_ptr<VisionStage> makePipelineStage(const DaemonConfig& config) {
       f.max_tilt_deg = g.max_tilt_deg;
       pc.grasp_features.emplace_back(r.obj_id, f);
     }
-  pc.max_candidates = config.vision.max_candidates;
-  if (config.vision.max_cost_px) pc.max_cost_px = *config.vision.max_cost_px;
-  pc.refine_iterations = std::max(1, config.vision.refine_iterations);
-  pc.refine_candidates = config.vision.refine_iterations > 0 ? config.vision.refine_candidates : 0;
-  pc.threads = config.vision.threads;
-  pc.distances_mm = config.vision.search_distances_mm;
-  pc.search_rounds = config.vision.search_rounds;
-  if (config.vision.escalate_below) pc.escalate_below = *config.vision.escalate_below;
   if (config.vision.floor_check) {
     pc.floor.distance_mm = config.pick.bin_floor_distance_mm;  // the camera looks straight down at it
-    pc.floor.tolerance_mm = config.vision.floor_tolerance_mm;
   }
   auto stage = std::make_unique<PipelineVisionStage>(camera, std::move(pc), files);
   // Every recipe's obj_id must be one the templates define.

@@ -2,10 +2,12 @@
 #include <gtest/gtest.h>
 
 #include <array>
+#include <cmath>
 #include <fstream>
 #include <sstream>
 
 #include "daemon/config.hpp"
+#include "vision/pipeline/pipeline_parameters.hpp"
 #include "vision/camera/camera.hpp"
 
 #include <unistd.h>
@@ -77,19 +79,19 @@ TEST(Config, WrongTypeAndRangeNameKeyAndLine) {
 }
 
 TEST(Config, RefinementIsOffUnlessAsked) {
-  EXPECT_EQ(parseConfig(minimal(), "test.yaml", kPath).vision.refine_candidates, 0);
-  EXPECT_EQ(parseConfig(minimal("vision:\n  refine_candidates: 2\n"), "test.yaml", kPath).vision.refine_candidates, 2);
+  EXPECT_EQ(parseConfig(minimal(), "test.yaml", kPath).vision.pipeline.refine_candidates, 0);
+  EXPECT_EQ(parseConfig(minimal("vision:\n  refine_candidates: 2\n"), "test.yaml", kPath).vision.pipeline.refine_candidates, 2);
 }
 
 // The floor check needs a floor distance someone set: off unless asked; the tolerance is ranged.
 TEST(Config, FloorCheckIsOffUnlessAsked) {
   const DaemonConfig plain = parseConfig(minimal(), "test.yaml", kPath);
   EXPECT_FALSE(plain.vision.floor_check);
-  EXPECT_EQ(plain.vision.floor_tolerance_mm, 3.0);
+  EXPECT_EQ(plain.vision.pipeline.floor.tolerance_mm, 3.0);
   const DaemonConfig on =
       parseConfig(minimal("vision:\n  floor_check: true\n  floor_tolerance_mm: 2.5\n"), "test.yaml", kPath);
   EXPECT_TRUE(on.vision.floor_check);
-  EXPECT_EQ(on.vision.floor_tolerance_mm, 2.5);
+  EXPECT_EQ(on.vision.pipeline.floor.tolerance_mm, 2.5);
   const ConfigError e = errorOf(minimal("vision:\n  floor_tolerance_mm: -1\n"));
   EXPECT_EQ(e.key(), "vision.floor_tolerance_mm");
   EXPECT_EQ(e.line(), 6);
@@ -97,8 +99,8 @@ TEST(Config, FloorCheckIsOffUnlessAsked) {
 
 // Search rounds: one unless asked, 1..4, a bad value named with its key and line.
 TEST(Config, SearchRoundsAreOneUnlessAsked) {
-  EXPECT_EQ(parseConfig(minimal(), "test.yaml", kPath).vision.search_rounds, 1);
-  EXPECT_EQ(parseConfig(minimal("vision:\n  search_rounds: 2\n"), "test.yaml", kPath).vision.search_rounds, 2);
+  EXPECT_EQ(parseConfig(minimal(), "test.yaml", kPath).vision.pipeline.search_rounds, 1);
+  EXPECT_EQ(parseConfig(minimal("vision:\n  search_rounds: 2\n"), "test.yaml", kPath).vision.pipeline.search_rounds, 2);
   for (const char* bad : {"0", "5", "two"}) {
     const ConfigError e = errorOf(minimal(std::string("vision:\n  search_rounds: ") + bad + "\n"));
     EXPECT_EQ(e.key(), "vision.search_rounds") << bad;
@@ -106,26 +108,67 @@ TEST(Config, SearchRoundsAreOneUnlessAsked) {
   }
 }
 
-// Escalation: the pipeline's default unless set, 0..1, a bad value named with its key and line.
+// Escalation: the pipeline's default unless set, 0..2, a bad value named with its key and line.
 TEST(Config, EscalationThresholdIsThePipelinesUnlessSet) {
-  EXPECT_FALSE(parseConfig(minimal(), "test.yaml", kPath).vision.escalate_below.has_value());
-  const DaemonConfig off = parseConfig(minimal("vision:\n  escalate_below: 0\n"), "test.yaml", kPath);
-  ASSERT_TRUE(off.vision.escalate_below.has_value());
-  EXPECT_EQ(*off.vision.escalate_below, 0.0);
-  EXPECT_EQ(*parseConfig(minimal("vision:\n  escalate_below: 0.15\n"), "test.yaml", kPath).vision.escalate_below, 0.15);
-  for (const char* bad : {"-0.1", "1.5", "high"}) {
+  EXPECT_EQ(parseConfig(minimal(), "test.yaml", kPath).vision.pipeline.escalate_below,
+            mfcd::vision::PipelineConfig{}.escalate_below);
+  EXPECT_EQ(parseConfig(minimal("vision:\n  escalate_below: 0\n"), "test.yaml", kPath).vision.pipeline.escalate_below, 0.0);
+  EXPECT_EQ(parseConfig(minimal("vision:\n  escalate_below: 0.15\n"), "test.yaml", kPath).vision.pipeline.escalate_below, 0.15);
+  for (const char* bad : {"-0.1", "2.5", "high"}) {
     const ConfigError e = errorOf(minimal(std::string("vision:\n  escalate_below: ") + bad + "\n"));
     EXPECT_EQ(e.key(), "vision.escalate_below") << bad;
     EXPECT_EQ(e.line(), 6) << bad;
   }
 }
 
+// Every cell parameter of the pipeline's table is a key of the vision section, read into the
+// pipeline's config; one out of its range is named with its key and line; a pair that must agree
+// is refused naming the section.
+static std::string number_text(double v) {
+  std::ostringstream os;
+  os << v;
+  return os.str();
+}
+
+TEST(Config, VisionSectionIsThePipelinesParameterTable) {
+  using mfcd::vision::PipelineParameter;
+  int cell = 0;
+  for (const PipelineParameter& p : mfcd::vision::pipeline_parameters()) {
+    const std::string key = p.key;
+    if (!p.cell) {
+      EXPECT_EQ(errorOf(minimal("vision:\n  " + key + ": 1\n")).key(), "vision." + key);
+      continue;
+    }
+    ++cell;
+    // A value in range other than the default: the maximum, or the minimum when that is the default.
+    double v = std::isinf(p.max) ? p.min + 1 : p.max;
+    if (v == p.default_value()) v = p.min;
+    const std::string text = p.type == PipelineParameter::Type::boolean ? (v != 0 ? "true" : "false")
+                                                                         : number_text(v);
+    const std::string extra = key == "fit_inlier_cost_px" ? "  fit_score_gate_px: 100\n"
+                              : key == "edges_low_threshold" ? "  edges_high_threshold: 8\n"
+                              : key == "edges_high_threshold" ? "  edges_low_threshold: 0\n"
+                              : key == "fit_score_gate_px" ? "  fit_inlier_cost_px: 0.01\n" : "";
+    const DaemonConfig c = parseConfig(minimal("vision:\n  " + key + ": " + text + "\n" + extra), "test.yaml", kPath);
+    EXPECT_EQ(p.get(c.vision.pipeline), v) << key;
+    if (p.type != PipelineParameter::Type::boolean) {
+      const ConfigError e = errorOf(minimal("vision:\n  " + key + ": " + number_text(p.min - 1) + "\n"));
+      EXPECT_EQ(e.key(), "vision." + key);
+      EXPECT_EQ(e.line(), 6) << key;
+    }
+  }
+  EXPECT_GT(cell, 30);
+  const ConfigError e = errorOf(minimal("vision:\n  fit_score_gate_px: 1\n  fit_inlier_cost_px: 2\n"));
+  EXPECT_EQ(e.key(), "vision");
+  EXPECT_NE(std::string(e.what()).find("fit_inlier_cost_px"), std::string::npos) << e.what();
+}
+
 // Search distances: a list of 1..4 numbers; an element out of range is named with its line.
 TEST(Config, SearchDistancesAreAListOfDistances) {
-  EXPECT_TRUE(parseConfig(minimal(), "test.yaml", kPath).vision.search_distances_mm.empty());
+  EXPECT_TRUE(parseConfig(minimal(), "test.yaml", kPath).vision.pipeline.distances_mm.empty());
   const DaemonConfig two =
       parseConfig(minimal("vision:\n  search_distances_mm: [315, 299]\n"), "test.yaml", kPath);
-  EXPECT_EQ(two.vision.search_distances_mm, (std::vector<double>{315, 299}));
+  EXPECT_EQ(two.vision.pipeline.distances_mm, (std::vector<double>{315, 299}));
   ConfigError e = errorOf(minimal("vision:\n  search_distances_mm:\n    - 300\n    - 10\n"));
   EXPECT_EQ(e.key(), "vision.search_distances_mm");
   EXPECT_EQ(e.line(), 8);  // the element's own line
@@ -266,7 +309,7 @@ TEST(Config, SimAndCellConfigsParse) {
   EXPECT_EQ(sim.modbus.bind_address, "127.0.0.1");
   EXPECT_EQ(sim.recipes.size(), 7u);
   EXPECT_TRUE(sim.vision.floor_check);  // the simulated bin's floor is at pick.bin_floor_distance_mm
-  EXPECT_EQ(sim.vision.search_rounds, 2);
+  EXPECT_EQ(sim.vision.pipeline.search_rounds, 2);
   EXPECT_EQ(sim.pick.bin_floor_distance_mm, sim.simulation.floor_distance_mm);
   for (const auto& r : sim.recipes)
     if (r.obj_id != 0) {

@@ -86,9 +86,10 @@ std::unique_ptr<Detector> make_pipeline_detector(const std::string& name, vision
                                                  const std::vector<std::string>& settings = {},
                                                  const std::vector<std::pair<int, vision::GraspFeature>>& grasp_features = {});
 
-// One "key=value" of PipelineConfig's search and fit settings (mfc-eval --set, for tuning
-// experiments). Throws std::invalid_argument naming the key or value it refuses.
-void apply_pipeline_setting(vision::PipelineConfig& config, const std::string& setting);
+// One "key=value" of mfc-eval --set: a parameter of vision/pipeline/pipeline_parameters.hpp, or
+// floor_distance_mm (the bin floor, mm; 0 = not known). Throws std::invalid_argument naming the
+// key or value it refuses.
+void apply_eval_setting(vision::PipelineConfig& config, const std::string& setting);
 
 struct Line2dOptions {
   double inplane_step_deg = 15;  // in-plane rotations trained per view (LINE-2D is not rotation invariant)

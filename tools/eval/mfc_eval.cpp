@@ -69,7 +69,8 @@ detect: for every image and every part type present in it, runs each method for 
                          drops fitted poses below it and fits the best few just above it again
                          from it; unfitted poses (baselines, LINE-2D) below it are slid onto it
                          (PipelineConfig::floor). Default 0: not known
-  --set KEY=VALUE        a PipelineConfig setting for the pipeline methods (repeatable), e.g.
+  --set KEY=VALUE        a pipeline parameter for the pipeline methods (repeatable; the keys of
+                         docs/configuration.md's vision table, trace, floor_distance_mm), e.g.
                          --set view_stride=2; an unknown key lists the keys
   --all-types            also run FDCM once per image over all part types (best pick; timing)
   --timing-repeats N     run every fdcm detection (and --all-types run) N times on its image (1-10,
@@ -213,7 +214,7 @@ Options parse(int argc, char** argv) {
       o.pipeline_settings.push_back(value());
       try {  // refused here, before any dataset is read
         vision::PipelineConfig probe;
-        apply_pipeline_setting(probe, o.pipeline_settings.back());
+        apply_eval_setting(probe, o.pipeline_settings.back());
       } catch (const std::invalid_argument& e) {
         throw Usage(std::string("--set: ") + e.what());
       }

@@ -2,6 +2,7 @@
 #include "tools/eval/detectors.hpp"
 
 #include "tools/common/cli_numbers.hpp"
+#include "vision/pipeline/pipeline_parameters.hpp"
 
 #include <opencv2/imgproc.hpp>
 
@@ -33,7 +34,7 @@ class PipelineDetector final : public Detector {
     pc.fit_hypotheses = fit_hypotheses;
     if (refine_candidates >= 0) pc.refine_candidates = refine_candidates;
     pc.grasp_features = grasp_features;
-    for (const auto& s : settings) apply_pipeline_setting(pc, s);
+    for (const auto& s : settings) apply_eval_setting(pc, s);
     pipeline_ = std::make_unique<vision::BinPickingPipeline>(camera, pc);
     setup_s_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   }
@@ -117,61 +118,16 @@ std::unique_ptr<Detector> make_pipeline_detector(const std::string& name, vision
                                             refine_candidates, fit_hypotheses, settings, grasp_features);
 }
 
-void apply_pipeline_setting(vision::PipelineConfig& c, const std::string& setting) {
-  using Config = vision::PipelineConfig;
-  // The settings an experiment may change, by their PipelineConfig names.
-  static constexpr std::pair<const char*, double Config::*> kNumbers[] = {
-      {"max_cost_px", &Config::max_cost_px},
-      {"min_guide_overlap", &Config::min_guide_overlap},
-      {"evidence_weight", &Config::evidence_weight}, {"escalate_below", &Config::escalate_below},
-      {"fit_score_gate_px", &Config::fit_score_gate_px}, {"fit_inlier_cost_px", &Config::fit_inlier_cost_px},
-      {"unexplained_weight", &Config::unexplained_weight}, {"escalate_max_cost_px", &Config::escalate_max_cost_px},
-      {"search_polarity_penalty_px", &Config::search_polarity_penalty_px},
-      {"depth_start_mm", &Config::depth_start_mm}};
-  static constexpr std::pair<const char*, int Config::*> kIntegers[] = {
-      {"template_guides", &Config::template_guides}, {"query_guides", &Config::query_guides},
-      {"view_stride", &Config::view_stride},         {"coarse_seeds", &Config::coarse_seeds},
-      {"keep_per_view", &Config::keep_per_view},     {"slide_step", &Config::slide_step},
-      {"keep_separation_px", &Config::keep_separation_px},
-      {"search_downsample", &Config::search_downsample}, {"fit_candidates", &Config::fit_candidates},
-      {"max_candidates", &Config::max_candidates},   {"flip_checks", &Config::flip_checks},
-      {"floor_starts", &Config::floor_starts},       {"rescore_hypotheses", &Config::rescore_hypotheses},
-      {"search_rounds", &Config::search_rounds},
-      {"round_hypotheses", &Config::round_hypotheses}, {"escalate_query_guides", &Config::escalate_query_guides},
-      {"escalate_hypotheses", &Config::escalate_hypotheses}, {"depth_starts", &Config::depth_starts}};
-  static constexpr std::pair<const char*, bool Config::*> kSwitches[] = {
-      {"share_search_bound", &Config::share_search_bound}, {"trace", &Config::trace},
-      {"edge_polarity", &Config::edge_polarity},         {"search_polarity", &Config::search_polarity},
-      {"edge_offset_correction", &Config::edge_offset_correction}};
-  const auto eq = setting.find('=');
-  if (eq == std::string::npos) throw std::invalid_argument("'" + setting + "' is not key=value");
-  const std::string key = setting.substr(0, eq), value = setting.substr(eq + 1);
-  // The bin floor's fields (BinFloor), the floor's normal staying the optical axis.
-  if (key == "floor_distance_mm" || key == "floor_tolerance_mm") {
-    (key == "floor_distance_mm" ? c.floor.distance_mm : c.floor.tolerance_mm) = mfcd::tools::parse_double(key, value);
+void apply_eval_setting(vision::PipelineConfig& c, const std::string& setting) {
+  // The bin floor's distance is the cell's geometry, not a pipeline parameter (the daemon takes it
+  // from pick.bin_floor_distance_mm); the evaluation sets it per dataset (--floor).
+  const std::string floor_key = "floor_distance_mm=";
+  if (setting.rfind(floor_key, 0) == 0) {
+    c.floor.distance_mm = mfcd::tools::parse_double("floor_distance_mm", setting.substr(floor_key.size()));
     c.floor.validate();
     return;
   }
-  for (const auto& [name, field] : kNumbers)
-    if (key == name) {
-      c.*field = mfcd::tools::parse_double(key, value);
-      return;
-    }
-  for (const auto& [name, field] : kIntegers)
-    if (key == name) {
-      c.*field = mfcd::tools::parse_int(key, value);
-      return;
-    }
-  for (const auto& [name, field] : kSwitches)
-    if (key == name) {
-      c.*field = mfcd::tools::parse_int(key, value) != 0;
-      return;
-    }
-  std::string known = "floor_distance_mm, floor_tolerance_mm";
-  for (const auto& k : kNumbers) known += std::string(", ") + k.first;
-  for (const auto& k : kIntegers) known += std::string(", ") + k.first;
-  for (const auto& k : kSwitches) known += std::string(", ") + k.first + " (0/1)";
-  throw std::invalid_argument("unknown key '" + key + "' (keys: " + known + ")");
+  vision::apply_pipeline_setting(c, setting);
 }
 
 }  // namespace mfcd::eval

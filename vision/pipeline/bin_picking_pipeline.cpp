@@ -1,4 +1,5 @@
 #include "vision/pipeline/bin_picking_pipeline.hpp"
+#include "vision/pipeline/pipeline_parameters.hpp"
 
 #include "vision/dt3/directional_distance_transform.hpp"
 #include "vision/idt3/integral_distance_transform.hpp"
@@ -600,31 +601,23 @@ double fit_distance(const LineSet& lines, const IntegralDistanceTransform& idt, 
   return best_cost * down;
 }
 
-// The fit's gates, checked before the fitters are made from them (they would refuse them in
-// their own words, naming TemplateFitParams fields rather than the pipeline's).
-PipelineConfig checked_fit_gates(PipelineConfig c) {
-  if (!(c.fit_score_gate_px > 0) || !(c.fit_inlier_cost_px > 0) || !(c.fit_inlier_cost_px <= c.fit_score_gate_px))
-    throw std::runtime_error("pipeline: fit_score_gate_px and fit_inlier_cost_px must be positive, "
-                             "fit_inlier_cost_px <= fit_score_gate_px");
+// The table's ranges (pipeline_parameters.hpp), checked before anything is made from them (the
+// fitters would refuse bad gates in their own words, naming TemplateFitParams fields).
+PipelineConfig checked_parameters(PipelineConfig c) {
+  try {
+    validate_parameters(c);
+  } catch (const std::invalid_argument& e) {
+    throw std::runtime_error(e.what());
+  }
   return c;
 }
 
 }  // namespace
 
 BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfig config)
-    : impl_(std::make_unique<Impl>(camera, checked_fit_gates(std::move(config)))) {
+    : impl_(std::make_unique<Impl>(camera, checked_parameters(std::move(config)))) {
   Impl& m = *impl_;
   if (m.config.template_files.empty()) throw std::runtime_error("pipeline: no template files configured");
-  if (m.config.max_candidates < 1) throw std::runtime_error("pipeline: max_candidates must be >= 1");
-  if (!(m.config.max_cost_px > 0)) throw std::runtime_error("pipeline: max_cost_px must be positive");
-  if (m.config.refine_candidates < 0 || m.config.refine_iterations < 1)
-    throw std::runtime_error("pipeline: refine_candidates must be >= 0 and refine_iterations >= 1");
-  if (m.config.search_downsample < 1 || m.config.search_downsample > 4)
-    throw std::runtime_error("pipeline: search_downsample must be 1..4");
-  if (m.config.view_stride < 1 || m.config.keep_per_view < 1 || m.config.slide_step < 1)
-    throw std::runtime_error("pipeline: view_stride, keep_per_view and slide_step must be >= 1");
-  if (m.config.template_guides < 1 || m.config.query_guides < 1)
-    throw std::runtime_error("pipeline: template_guides and query_guides must be >= 1");
   for (const auto& file : m.config.template_files) {
     PartModel part;
     part.file = file.string();
@@ -696,26 +689,6 @@ BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfi
     const std::string why = feature.validate();
     if (!why.empty()) throw std::runtime_error("pipeline: grasp feature of obj_id " + std::to_string(obj_id) + ": " + why);
   }
-  if (m.config.floor_starts < 0) throw std::runtime_error("pipeline: floor_starts must be >= 0");
-  if (m.config.depth_starts < 0) throw std::runtime_error("pipeline: depth_starts must be >= 0");
-  if (!(m.config.depth_start_mm > 0) || !std::isfinite(m.config.depth_start_mm))
-    throw std::runtime_error("pipeline: depth_start_mm must be positive");
-  if (m.config.rescore_hypotheses < 0) throw std::runtime_error("pipeline: rescore_hypotheses must be >= 0");
-  if (m.config.coarse_seeds < 0) throw std::runtime_error("pipeline: coarse_seeds must be >= 0");
-  if (m.config.search_rounds < 1 || m.config.search_rounds > PipelineConfig::kMaxSearchRounds)
-    throw std::runtime_error("pipeline: search_rounds must be 1.." + std::to_string(PipelineConfig::kMaxSearchRounds));
-  if (m.config.round_hypotheses < 1) throw std::runtime_error("pipeline: round_hypotheses must be >= 1");
-  if (!(m.config.escalate_below >= 0) || !std::isfinite(m.config.escalate_below))
-    throw std::runtime_error("pipeline: escalate_below must be >= 0 (0 = off)");
-  if (!(m.config.escalate_max_cost_px >= 0) || !std::isfinite(m.config.escalate_max_cost_px))
-    throw std::runtime_error("pipeline: escalate_max_cost_px must be >= 0 (0 = max_cost_px)");
-  if (m.config.escalate_query_guides < 1 || m.config.escalate_hypotheses < 1)
-    throw std::runtime_error("pipeline: escalate_query_guides and escalate_hypotheses must be >= 1");
-  if (!(m.config.evidence_weight >= 0)) throw std::runtime_error("pipeline: evidence_weight must be >= 0");
-  if (!(m.config.unexplained_weight >= 0) || !std::isfinite(m.config.unexplained_weight))
-    throw std::runtime_error("pipeline: unexplained_weight must be >= 0");
-  if (!(m.config.search_polarity_penalty_px >= 0))
-    throw std::runtime_error("pipeline: search_polarity_penalty_px must be >= 0");
   m.dt3_params.polarityPenalty = m.config.search_polarity_penalty_px;
   m.search_dt3 = m.dt3_params;
   m.search_dt3.lambda /= m.config.search_downsample;
@@ -734,7 +707,6 @@ BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfi
                                 m.config.coarse_seeds * m.parts.size()}) +
               1);
   m.hits.reserve(4096);
-  if (m.config.fit_candidates < 1) throw std::runtime_error("pipeline: fit_candidates must be >= 1");
   m.verified.reserve(static_cast<size_t>(m.config.fit_candidates) +
                      static_cast<size_t>(m.config.search_rounds - 1) * static_cast<size_t>(m.config.round_hypotheses) +
                      (m.config.escalate_below > 0 ? static_cast<size_t>(m.config.escalate_hypotheses) : 0));
@@ -1379,7 +1351,9 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
 
   // Multi-view refinement (paper Sec. 4.5; one view here: the cell's single MFC capture) of the
   // best candidates, until the deadline. A candidate whose refinement fails keeps its coarse pose.
-  const int refine = std::min<int>(m.config.refine_candidates, static_cast<int>(out.candidates.size()));
+  const int refine = m.config.refine_iterations > 0
+                         ? std::min<int>(m.config.refine_candidates, static_cast<int>(out.candidates.size()))
+                         : 0;
   if (refine > 0 && Clock::now() < deadline) {
     if (!m.renderer) {
       m.renderer = std::make_unique<MfcRenderer>(m.camera);

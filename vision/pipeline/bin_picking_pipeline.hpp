@@ -26,174 +26,82 @@
 
 namespace mfcd::vision {
 
+// The pipeline's settings. Every scalar here is a parameter of the table in
+// pipeline_parameters.hpp (key = field name, with its range, unit and meaning; its default is the
+// initializer below); docs/tuning-log.md says why each has its value. The rest are the cycle's
+// inputs: template files, distances, the floor's plane, grasp features, the matching cost.
 struct PipelineConfig {
   // Matching cost: FDCM (the product), or the paper's baselines OCM and CM scored on the same
-  // hypotheses (for the evaluation's Table 1).
+  // hypotheses (the evaluation's Table 1).
   enum class Cost { fdcm, ocm, cm };
   Cost cost = Cost::fdcm;
   std::vector<std::filesystem::path> template_files;  // *.tdb, one per part type (mfc-teach)
-  int max_candidates = 8;          // pick candidates kept per cycle, best first
-  // Search threshold, px (mean directional chamfer cost). A part between template views reaches
-  // 3-4 px alone and 5-7 px in a full bin; the hypothesis fit decides, so this only bounds the
-  // search. A part with few views (the wheel's 5-fold symmetry leaves it 60 of 300) can lie far
-  // from all of them: at 8 px its truth was sometimes not among the hits at all. Measured at 8 /
-  // 9 / 10 / 12 (dev sets, mfc-sim seeds 7, 13, 19, 283 trials; bench set, 119; capped-occlusion
-  // set, 116): 81 / 80 / 80 / 80, 30 / 27 / 28 / 28, 17 / 16 / 16 / 16 failures, none broken at 10;
-  // median detection +1.5 ms (docs/pose-experiments.md, "Session 12: the search threshold").
-  double max_cost_px = 10.0;
-  std::vector<double> distances_mm;  // hypothesised part distances; empty = the templates' own
-  // 1-D line search (paper Sec. 4.4): each template's longest `template_guides` lines are slid
-  // along the query's longest `query_guides` lines of the same orientation.
-  int template_guides = 3;
-  int query_guides = 60;   // long clutter (rods, other parts) fills the first 30 in a full bin
-  double min_guide_overlap = 0.75;  // of the shorter line (LineSearchParams::minOverlap)
-  // Views coarse to fine: every `view_stride`-th view first, then the not yet searched views
-  // near (out-of-plane) the views of the best coarse_seeds x (parts searched) coarse hits. 1 =
-  // every view in one stage. coarse_seeds = 0: the coarse stage only (the hypothesis fit moves
-  // between views). Measured on the dev set (mfc-sim seed 7, 93 trials): stride 4 with 6 seeds
-  // searches 67 of 155 views on average for one failure more (32 vs 31).
-  int view_stride = 4;
-  int coarse_seeds = 6;
-  int keep_per_view = 1;            // best placements kept per view, more than keep_separation_px apart
-  int keep_separation_px = 8;
-  // The search (query lines, DT3, IDT3, templated lines, fit_distance) runs on the image reduced
-  // by this factor (1..4; reduceQuery); hypotheses are then fitted at full resolution. The search
-  // only has to put the truth among the fit's hypotheses, and at a third of the resolution
-  // IDT3 is 4 MB instead of 37 (it stays in cache) and lines are a third as long. Measured on
-  // three dev sets (mfc-sim seeds 7, 13, 19; 283 trials): 98 failures at 1 (slide_step 4), 90
-  // at 3 (slide_step 2); median detection 130 -> 70 ms, breaker 220 -> 100 ms (runs one after
-  // the other on this shared machine).
-  int search_downsample = 3;
-  int slide_step = 2;               // search px between slide positions, then the best refined (LineSearchParams)
-  // Searches abandon a placement as soon as it cannot be among the fit_candidates best hits of
-  // the cycle so far (a bound shared by the search threads). With slide_step 1 exactly the same
-  // hits as without; with coarser steps a slide whose coarse best lies above the bound is no
-  // longer refined around it (on the 93-trial dev set no result changed; search 20 % faster).
-  bool share_search_bound = true;
-  // Hypotheses (distinct best search hits) fitted in 6-DoF with their template's model points
-  // and ranked by the fitted score (TemplatePoseFit); false = ranked by the search cost.
-  int fit_candidates = 48;
-  // The best this many fitted hypotheses are scored again with every point of their view (the fit
-  // uses at most 160, evenly subsampled) and ranked by that, before the checks below, whose new
-  // fits of them (floor starts, turned over) are then scored the same way. The scores of competing
-  // poses often differ by a few hundredths, about the subsample's own scatter. Measured on the
-  // capped, bench and three dev sets (1241 trials): failures 277 -> 267 with the ranking alone
-  // (24 or 48: the same), 257 with the checks' fits scored alike; instances among the top k
-  // 1175 -> 1198; median detection of the bench set 59 -> 68 ms (docs/pose.md "Rescoring with
-  // every point"). 0 = off.
-  int rescore_hypotheses = 12;
-  // The best this many fitted hypotheses are also fitted turned over (by 180 degrees about each
-  // model axis that is not a symmetry) and, for an N-fold symmetry about z (N >= 3), turned about z
-  // by +-0.4 of the period, and replaced by the turned pose when the edges where the two differ
-  // favour it (TemplatePoseFit::compare; docs/pose.md "Turned-over check"). 0 = off.
-  int flip_checks = 6;
-  // Evidence: the fitted rank gains evidence_weight x ln(found / 300), found = the matched view's
-  // edge points at the fitted distance times the fit's inlier fraction. A flat part seen edge-on
-  // is two long parallel lines, and rods or the rim of a wheel give it as large a share of its
-  // points as a part lying flat finds of its much longer outline; the count of points found is
-  // the evidence. (Counting all the view's points instead, found or not, favoured views with
-  // more edges: a lone T-nut came out 12 degrees off.) Measured on two dev sets (mfc-sim seeds 7
-  // and 13, 191 trials): 67 failures at 0, 65 at 0.06; the lone-part control unchanged.
-  double evidence_weight = 0.06;
-  // The hypothesis fit's scoring (TemplateFitParams::score_gate_px, inlier_cost_px) and the
-  // weight of the image edges inside a fitted outline that it leaves unexplained (all of them
-  // unexplained lowers the rank by this much).
-  double fit_score_gate_px = 4.0;
-  double fit_inlier_cost_px = 2.0;
-  double unexplained_weight = 0.3;
-  bool fit_hypotheses = true;
-  // Edge polarity: the fit pairs a template point only with an image edge whose near (occluding)
-  // side is the part's (the depth edges' shadow side; TemplatePoseFit::prepare). Wrong hypotheses
-  // lose about half their score, the truth about 6 %. Measured (docs/pose.md "Edge polarity in
-  // the fit"): instances found among the top k 41 more, 21 fewer over the dev, capped and bench
-  // sets; best-pick failures 162 -> 159. false = undirected, as before.
-  bool edge_polarity = true;
-  // Each pick candidate's fitted pose is polished once more with the templates' edge offset
-  // profiles (TemplateFitParams::edge_offset_correction): parts turned in the image are otherwise
-  // reported up to ~2 mm too near the camera (docs/pose.md, "Edge offset profiles"). The
-  // hypotheses are ranked without it either way.
-  bool edge_offset_correction = true;
-  // Edge polarity in the FDCM search (docs/fdcm.md "Search with edge polarity"): query and
-  // template lines are oriented by their shadow side and DT3/IDT3 have 2q channels over 2 pi, so
-  // a template line only matches image edges whose near side is on the same side. FDCM only
-  // (the baselines CM and OCM stay the paper's). false = undirected channels, as before.
-  bool search_polarity = true;
-  // What an image edge of the other polarity costs the search beyond its undirected orientation
-  // difference, px (Dt3Params::polarityPenalty; infinity: such an edge is as good as none). Parts
-  // in a bin touch: where a lower part's outline meets the upper one's, the depth edge there is
-  // the upper part's, and the lower part's template sees it reversed. Measured (docs/fdcm.md
-  // "Search with edge polarity"), failures over the capped, bench and three dev sets: 283
-  // undirected, 286 at infinity, 277 at 6 px; 3 and 10 px on three of the sets: 147 and 144 against 140.
-  double search_polarity_penalty_px = 6.0;
-  // The bin floor (BinFloor): no part reaches below it. A fitted hypothesis reaching more than
-  // its tolerance below is dropped; an unfitted one (the baselines) is slid onto the floor. Not
-  // known by default (distance 0): no check. Measured on three dev sets (mfc-sim seeds 7, 13, 19;
-  // 283 trials; floor at 300 mm) and the bench set (119 trials): 88 and 35 failures without, 85
-  // and 33 with (docs/pose.md "The bin floor"; 81 and 30 with the floor starts below).
+  std::vector<double> distances_mm;  // hypothesised part distances, mm; empty = the templates' own
+  DepthEdgeParams depth_edges;       // edges_* parameters
+  // The bin floor's plane (distance 0: not known, no check); floor.tolerance_mm is the parameter
+  // floor_tolerance_mm.
   BinFloor floor;
-  // With a known floor, the best this many fitted hypotheses whose lowest point lies a few to
-  // 30 mm above it are fitted again from the pose slid down onto the floor, and take that fit when
-  // it scores at least 0.8 of theirs (docs/pose.md "The bin floor"). 0 = off.
-  int floor_starts = 6;
-  // Depth starts: the best this many fitted hypotheses are fitted again from their pose moved
-  // depth_start_mm along the line of sight, once further and once nearer, and take a new fit that
-  // ranks higher. The fit settles on the depth nearest its start, and the depth (a part's image
-  // scale) is what one view measures worst: the fit of a T-nut on its side stopped 5 mm too near,
-  // 6 degrees off, at rank -0.02 where its true pose ranks 0.14. Measured on the capped, bench and
-  // three dev sets (1241 trials, docs/pose.md "Depth starts"): 246 failures without, 242 with 6
-  // starts at 2 mm (four fixed, none broken). 0 = off.
-  int depth_starts = 6;
-  double depth_start_mm = 2;
-  // Search rounds: each view keeps only its best placement, so the hypotheses gather on the
-  // instance that matches best, and a second instance of the type is often not among them
-  // (docs/pose.md "Search rounds"). A later round takes out of the query (its lines and
-  // directional edge map) the image edges that the best candidates so far explain (round k: the
-  // best k - 1 distinct ones), searches again and fits its best `round_hypotheses` new hits, ranked
-  // with the others. It starts only when the deadline leaves it the time the last one took, and
-  // costs about as much as the first search plus that many fits. 1..kMaxSearchRounds; 1 = one
-  // search. FDCM only (the baselines, evaluation tools, always search once).
+  // Grasp features per part type (obj_id, feature; the best one counts) for
+  // PoseCandidate::grasp_visibility; a part type without any keeps 1.
+  std::vector<std::pair<int, GraspFeature>> grasp_features;
+
+  // FDCM search (paper Sec. 3.6, 4.3): 1-D line search over coarse then fine views.
+  double max_cost_px = 10.0;      // px, mean directional chamfer cost of a hit
+  int search_downsample = 3;      // image reduction of the search (1..4)
+  bool search_polarity = true;    // FDCM only: 2q oriented channels over 2 pi
+  double search_polarity_penalty_px = 6.0;  // px; infinity: such an edge is as good as none
+  int template_guides = 3;
+  int query_guides = 60;
+  double min_guide_overlap = 0.75;  // of the shorter line
+  int slide_step = 2;               // px at the search's resolution
+  int view_stride = 4;              // 1 = every view in one stage
+  int coarse_seeds = 6;             // per part type searched; 0 = the coarse stage only
+  int keep_per_view = 1;
+  int keep_separation_px = 8;
+  // With slide_step 1 the shared bound keeps exactly the hits searched without it.
+  bool share_search_bound = true;
+  // Search rounds: FDCM only (the baselines and evaluation tools search once); a round starts
+  // only when the deadline leaves it the time the last one took.
   static constexpr int kMaxSearchRounds = 4;
   int search_rounds = 1;
   int round_hypotheses = 16;
-  // Escalation: when the first search's best fitted hypothesis ranks below `escalate_below` (the
-  // cycle has nothing a cell would pick: config pick.min_score is 0.08-0.1, and 0.08, the lower,
-  // is the default), the search runs again wide: every view of the part types, escalate_query_guides query guides, two placements per
-  // view at least 40 px apart, and escalate_hypotheses hypotheses fitted and ranked with the
-  // first search's. With the shipped search most failed trials have no correct hypothesis fitted
-  // at all (capped-occlusion set: a correct one in 213 of 238 trials, against 230 with the wide
-  // search), but in every cycle the wide search would cost 3-4 times the cycle (docs/pose.md
-  // "Escalation": failures 80 -> 71 on the dev sets, 33 -> 27 capped). Like a later round it
-  // starts only when the deadline leaves it the time the last escalation took, and skipping it
-  // does not degrade the cycle. 0 = off. FDCM with the hypothesis fit only. (0.1 before edge
-  // polarity, which lowers every fit score a little: at 0.1 the bench set then escalated 78
-  // cycles, at 0.08 66, with the same failures on the dev, capped and bench sets.)
-  double escalate_below = 0.08;
+  // Escalation (FDCM with the fit only): the wide search searches every view with
+  // escalate_query_guides guides and two placements per view at least 40 px apart; like a round it
+  // starts only when the deadline leaves it the time the last escalation took.
+  double escalate_below = 0.08;     // fitted rank; 0 = off
   int escalate_query_guides = 120;
   int escalate_hypotheses = 150;
-  // The wide search's threshold (max_cost_px for it; 0 = max_cost_px). The wheel (60 views for its
-  // 5-fold symmetry) can lie far from all its views: with the first search's 10 px a wheel 27 %
-  // hidden had 7 hits in the wide search, none on it, while its truth fitted to rank 0.25 against
-  // the pick's -0.18. Measured on the capped, bench and three dev sets (1241 trials, session 26,
-  // docs/pose-experiments.md "Re-measured on the honest gaps"): 250 failures at 10, 246 at 14 and at 18 (four
-  // wheels fixed, none broken), median detection unchanged (the wide search runs in a quarter of
-  // the cycles, and only those change).
-  double escalate_max_cost_px = 14;
-  int refine_iterations = 20;      // per candidate (outer ICP iterations); cut short at the deadline
-  // The best this many candidates are refined by the render-based PoseRefiner with the cell's one
-  // view. 0 by default: measured on mfc-sim bins, one-view refinement of the fitted pose made it
-  // worse (median centre error 0.76 -> 1.01 mm, rotation 0.51 -> 0.81 deg, same detections;
-  // docs/results.md Table 2: worse on every axis), while two views improve it.
-  int refine_candidates = 0;
-  // Threads of every stage of a cycle (edges, lines, distance transforms, search, fits); 0 = the
-  // calling thread's OpenMP setting (OMP_NUM_THREADS, else every core).
+  double escalate_max_cost_px = 14;  // px; 0 = max_cost_px
+
+  // 3-D pose (Sec. 4.4): hypotheses fitted in 6-DoF (TemplatePoseFit) and ranked by
+  // fit score - unexplained_weight x (unexplained edge share) + evidence_weight x ln(found / 300).
+  bool fit_hypotheses = true;
+  int fit_candidates = 48;
+  double fit_score_gate_px = 4.0;   // px (TemplateFitParams::score_gate_px)
+  double fit_inlier_cost_px = 2.0;  // px (TemplateFitParams::inlier_cost_px), <= the gate
+  bool edge_polarity = true;        // the fit's pairing by the depth edges' shadow side
+  double unexplained_weight = 0.3;
+  double evidence_weight = 0.06;
+  // The checks of the leading fitted hypotheses, each 0 = off: rescoring with every point of the
+  // view (the fit uses at most 160), depth starts (depth_start_mm further and nearer), the
+  // turned-over comparison (TemplatePoseFit::compare), floor starts (with a known floor).
+  int rescore_hypotheses = 12;
+  int depth_starts = 6;
+  double depth_start_mm = 2;        // mm along the line of sight
+  int flip_checks = 6;
+  int floor_starts = 6;
+
+  // Candidates and refinement (Sec. 4.5, one view).
+  int max_candidates = 8;           // best first
+  // The candidates' poses polished with the templates' edge offset profiles; ranking is without it.
+  bool edge_offset_correction = true;
+  int refine_candidates = 0;        // render-based PoseRefiner on the best n; 0 = fitted pose kept
+  int refine_iterations = 10;       // outer ICP iterations per refined candidate; 0 = no refinement
+
+  // Threads of every stage of a cycle; 0 = the calling thread's OpenMP setting.
   int threads = 0;
-  DepthEdgeParams depth_edges;
-  // Grasp features per part type (obj_id, feature; several per part: the best one counts), for
-  // PoseCandidate::grasp_visibility (Sec. 4.4's "whether the grasp feature is visible"). A part
-  // type without any keeps 1.
-  std::vector<std::pair<int, GraspFeature>> grasp_features;
-  // Diagnostics (mfc-eval): every fitted hypothesis is also reported in PipelineResult::trace.
-  // Allocates per cycle; off in the daemon.
+  // Diagnostics (mfc-eval): every fitted hypothesis also in PipelineResult::trace. Allocates per
+  // cycle; not a cell setting.
   bool trace = false;
 };
 
