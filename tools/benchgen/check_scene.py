@@ -18,9 +18,14 @@ Rules (camera frame OpenCV, mm; pixel centre of (0, 0) at (0, 0)):
 - images: every flash/ambient/depth/mask image present, single channel, 8/16 bit, of the size in
   scene_camera.json, and no flash image beyond the flash positions.
 - alignment: at depth steps > 3 mm between neighbouring pixels, the intensity edge of the
-  per-pixel maximum over the flash images must be centred between the two pixels within 0.25 px
-  on average (a renderer whose camera is off by half a pixel fails this); judged per axis only
-  with >= 500 such contours (a 160x120 image with 3 parts has ~180 and reads up to 0.26 px).
+  per-pixel maximum over the flash images must be centred between the two pixels, on average over
+  near-side-first and near-side-second contours weighted alike: within 0.4 px in one scene, whose
+  parts' shading scatters the measure (on 15 correct test scenes up to 0.25 px), and within 0.1 px
+  over every scene of a split pooled (--split-alignment; judged with >= 2000 contours of each
+  kind), where that scatter averages out and a camera off by half a pixel does not. One scene's axis is judged only with >= 250 contours of
+  each kind (a small image with few parts has fewer: its offset is printed, not judged).
+
+Run with --split-alignment instead of --scene: the pooled alignment of every scene of the split.
 """
 
 import argparse, json, math, os, sys
@@ -35,8 +40,10 @@ import plymesh  # noqa: E402
 SURFACE_TOL_MM = 0.1
 DEPTH_ROUND_MM = 0.05
 SAMPLE_STEP_MM = 0.5  # triangle samples: every surface point within 2 * step of a sample of its triangle
-ALIGN_TOL_PX = 0.25
-ALIGN_MIN_CONTOURS = 500  # fewer (tiny images, few parts): the offset is printed, not judged
+ALIGN_TOL_PX = 0.4          # one scene: its content scatters the measure (see the rules above)
+ALIGN_SPLIT_TOL_PX = 0.1     # every scene of a split pooled
+ALIGN_SPLIT_MIN_CONTOURS = 2000  # of each kind, pooled; fewer (a smoke run's one scene): printed, not judged
+ALIGN_MIN_CONTOURS = 250  # of each kind; fewer (tiny images, few parts): the offset is printed, not judged
 
 
 class Checker:
@@ -261,32 +268,50 @@ def check_info(chk, where, info, sil, x0, y0, mask, visib, depth, sil_inside):
         chk.fail('%s: visib_fract %g, expected %g' % (where, info['visib_fract'], frac))
 
 
-def edge_alignment(flashes, depth, scale):
-    """Offset (px) of the intensity edges at occluding contours, along x and along y.
+def alignment_profiles(flashes, depth, scale):
+    """Edge profiles at occluding contours, per axis (x, y) and per kind of contour.
 
     Contours: neighbour pairs (j, j + 1) whose depth steps by > 3 mm while both sides are smooth
     (< 1 mm steps next to them); the contour lies between the two pixel centres, at j + 0.5.
-    Profile P(k) = sum over contours of |I(j + k + 1) - I(j + k)| for the per-pixel maximum I of the
-    flash images (shadows mostly gone); its peak, refined by a parabola, is the offset.
-    Returns [(offset_x, contours_x), (offset_y, contours_y)]."""
+    Profile P(k), k = -3..3: the sum over contours of |I(j + k + 1) - I(j + k)| for the per-pixel
+    maximum I of the flash images (shadows mostly gone). The near side of a contour biases its
+    peak towards itself (surfaces darken as they turn away from the camera at their rim), so
+    contours with the near side first and those with it second are summed apart.
+    Returns [[(profile, count) near first, (profile, count) near second] for x, for y]."""
     img = np.max(np.stack(flashes), axis=0).astype(float)
     d = depth.astype(float) * scale
     out = []
     for I, D in ((img, d), (img.T, d.T)):
         g = np.abs(np.diff(I, axis=1))
-        s = np.abs(np.diff(D, axis=1))
+        s = np.diff(D, axis=1)
+        a = np.abs(s)
         valid = (D[:, :-1] > 0) & (D[:, 1:] > 0)
         step = np.zeros_like(valid)
-        step[:, 3:-3] = (s[:, 3:-3] > 3.0) & (s[:, 2:-4] < 1.0) & (s[:, 4:-2] < 1.0) & valid[:, 3:-3]
-        rows, cols = np.nonzero(step)
-        if len(rows) < 10:
-            out.append((0.0, int(len(rows))))
-            continue
-        prof = np.array([g[rows, cols + k].sum() for k in range(-3, 4)])
-        k = int(np.clip(np.argmax(prof), 1, 5))
-        den = prof[k - 1] - 2 * prof[k] + prof[k + 1]
-        sub = 0.5 * (prof[k - 1] - prof[k + 1]) / den if den < 0 else 0.0
-        out.append((float(k - 3 + sub), int(len(rows))))
+        step[:, 3:-3] = (a[:, 3:-3] > 3.0) & (a[:, 2:-4] < 1.0) & (a[:, 4:-2] < 1.0) & valid[:, 3:-3]
+        kinds = []
+        for near_first in (True, False):
+            rows, cols = np.nonzero(step & ((s > 0) == near_first))
+            kinds.append((np.array([g[rows, cols + k].sum() for k in range(-3, 4)]), int(len(rows))))
+        out.append(kinds)
+    return out
+
+
+def profile_peak(prof):
+    """Sub-pixel peak of a 7-sample profile (k = -3..3), refined by a parabola."""
+    k = int(np.clip(np.argmax(prof), 1, 5))
+    den = prof[k - 1] - 2 * prof[k] + prof[k + 1]
+    return k - 3 + (0.5 * (prof[k - 1] - prof[k + 1]) / den if den < 0 else 0.0)
+
+
+def alignment_offsets(profiles, min_count=10):
+    """Offset (px) per axis from alignment_profiles (or their sums over scenes): the mean of the two
+    kinds' peaks, so that the rim bias cancels and a camera offset does not.
+    Returns [(offset_x, contours_x), (offset_y, contours_y)]; contours counts the smaller kind
+    (0, offset 0: too few to measure)."""
+    out = []
+    for kinds in profiles:
+        n = min(c for _, c in kinds)
+        out.append((float(np.mean([profile_peak(p) for p, _ in kinds])), n) if n >= min_count else (0.0, 0))
     return out
 
 
@@ -327,7 +352,8 @@ def check_image(chk, root, sdir, iid, cam, gts, infos, models, indexes, overlay)
         if canvas is not None:
             outlines.append((g, oid, canvas))
     if all(f is not None for f in flashes) and flashes:
-        stats['align'] = edge_alignment(flashes, depth, stats['depth_scale'])
+        stats['profiles'] = alignment_profiles(flashes, depth, stats['depth_scale'])
+        stats['align'] = alignment_offsets(stats['profiles'])
         for name, (off, n) in zip('xy', stats['align']):
             if n >= ALIGN_MIN_CONTOURS and abs(off) > ALIGN_TOL_PX:
                 chk.fail('%s: flash images are offset %.2f px in %s from the depth steps (%d edges)' % (tag, off, name, n))
@@ -353,13 +379,51 @@ def write_overlay(path, ambient, outlines):
     im.save(path)
 
 
+def split_alignment(dataset, split):
+    """Every scene of the split (folders named by number: not those kept aside) pooled: exit 1 when
+    an axis is off by more than ALIGN_SPLIT_TOL_PX."""
+    chk = Checker()
+    root = os.path.join(dataset, split)
+    scenes = sorted(n for n in os.listdir(root) if n.isdigit())
+    pooled = None
+    for name in scenes:
+        sdir = os.path.join(root, name)
+        cams = load_json(os.path.join(sdir, 'scene_camera.json'), chk)
+        for key, cam in sorted((cams or {}).items(), key=lambda kv: int(kv[0])):
+            tag, size = '%06d' % int(key), (int(cam['width']), int(cam['height']))
+            flashes = [load_png(os.path.join(sdir, 'flash', '%s_%d.png' % (tag, k)), size, 8, chk)
+                       for k in range(len(cam['flash_positions_mm']))]
+            depth = load_png(os.path.join(sdir, 'depth', tag + '.png'), size, 16, chk)
+            if depth is None or any(f is None for f in flashes):
+                continue
+            prof = alignment_profiles(flashes, depth, float(cam['depth_scale']))
+            pooled = prof if pooled is None else [[(p + q, m + n) for (p, m), (q, n) in zip(a, b)]
+                                                  for a, b in zip(pooled, prof)]
+    if pooled is None:
+        print('check_scene: split %s: no scene to pool' % split)
+        return 1
+    (ox, nx), (oy, ny) = alignment_offsets(pooled)
+    for name, off, n in (('x', ox, nx), ('y', oy, ny)):
+        if n >= ALIGN_SPLIT_MIN_CONTOURS and abs(off) > ALIGN_SPLIT_TOL_PX:
+            chk.fail('split %s: flash images are offset %.3f px in %s from the depth steps over %d scenes'
+                     % (split, off, name, len(scenes)))
+    print('check_scene: split %s, %d scenes pooled: edge offset x %+.3f px (%d), y %+.3f px (%d); %s'
+          % (split, len(scenes), ox, nx, oy, ny, 'FAIL' if chk.failures else 'PASS'))
+    return 1 if chk.failures else 0
+
+
 def main():
     p = argparse.ArgumentParser()
     p.add_argument('--dataset', required=True)
     p.add_argument('--split', default='test')
-    p.add_argument('--scene', type=int, required=True)
+    p.add_argument('--scene', type=int)
     p.add_argument('--overlay')
+    p.add_argument('--split-alignment', action='store_true', help='pooled edge alignment of every scene of the split')
     a = p.parse_args()
+    if a.split_alignment:
+        return split_alignment(a.dataset, a.split)
+    if a.scene is None:
+        p.error('--scene or --split-alignment is required')
     chk = Checker()
     sdir = os.path.join(a.dataset, a.split, '%06d' % a.scene)
     cams, gts, infos = (load_json(os.path.join(sdir, n), chk) for n in ('scene_camera.json', 'scene_gt.json', 'scene_gt_info.json'))
