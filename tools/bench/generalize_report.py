@@ -71,6 +71,30 @@ def failure_table(trials, key):
     return [(k, failures(g, 0.75), failures(g, 0.5)) for k, g in sorted(groups.items())]
 
 
+def part_table(trials, parts, lines):
+    """One row per part: what an engineer validating that part for a cell looks at first."""
+    info = {p["obj_id"]: p for p in parts}
+    lines.append("### Per part (best instance >= 75 % visible)\n")
+    lines.append("| part | family | symmetry (mesh) | diameter mm | failure | causes of the failures | median score |")
+    lines.append("|---|---|---|---:|---:|---|---:|")
+    by_part = {}
+    for t in trials:
+        if t["best_visib_fract"] >= 0.75:
+            by_part.setdefault(t["obj_id"], []).append(t)
+    for obj, ts in sorted(by_part.items(), key=lambda kv: (info.get(kv[0], {}).get("family", "?"), kv[0])):
+        p = info.get(obj, {})
+        causes = {}
+        for t in ts:
+            if t["cause"]:
+                causes[t["cause"]] = causes.get(t["cause"], 0) + 1
+        scores = [t["score"] for t in ts if t.get("found")]
+        lines.append(f"| obj {obj} | {p.get('family', '?')} | {p.get('symmetry', {}).get('group', '?')} | "
+                     f"{p.get('diameter_mm', float('nan')):.0f} | {rate(failures(ts, 0.75))} | "
+                     f"{', '.join(f'{c} {n}' for c, n in sorted(causes.items())) or '-'} | "
+                     f"{statistics.median(scores) if scores else float('nan'):.2f} |")
+    lines.append("")
+
+
 def rate(f):
     bad, n = f
     return f"{bad / n:.2f} ({bad}/{n})" if n else "-"
@@ -107,6 +131,19 @@ def split_section(split, run, parts, lines, plots):
                  f"{rate((sum(not t['correct'] for t in trials), len(trials)))}. At >= 75 % visible, "
                  f"{xy_ok} of {len(all75)} best estimates are right when only the position across the "
                  "optical axis and the rotation are asked (`correct_xy`).\n")
+    placed = sum(t["correct"] or t["cause"] not in ("nothing found", "wrong place") for t in all75)
+    lines.append(f"With rotation and depth ignored (the best estimate within 5 mm of an instance across the "
+                 f"optical axis), {placed} of {len(all75)} are right: failure "
+                 f"{rate((len(all75) - placed, len(all75)))}.\n")
+    part_table(trials, parts, lines)
+    lines.append("### Rotation error of the wrong estimates at the right place (>= 75 % visible)\n")
+    lines.append("| rotation error | trials |")
+    lines.append("|---|---:|")
+    turned = [t["rotation_deg"] for t in all75 if t["cause"] in ("turned in plane", "turned over", "depth only")]
+    for lo, hi in ((0, 10), (10, 30), (30, 90), (90, 150), (150, 181)):
+        label = f"{lo}-{hi} degrees" if hi < 181 else f"over {lo} degrees (turned over or half-turned)"
+        lines.append(f"| {label}{' (depth only)' if lo == 0 else ''} | {sum(lo <= r < hi for r in turned)} |")
+    lines.append("")
     lines.append("### Failures by cause (>= 75 % visible)\n")
     lines.append("| cause | trials |")
     lines.append("|---|---:|")
