@@ -1,5 +1,7 @@
 #include "vision/pipeline/bin_picking_pipeline.hpp"
+#include "vision/pipeline/part_model.hpp"
 #include "vision/pipeline/pipeline_parameters.hpp"
+#include "vision/pipeline/turn_checks.hpp"
 
 #include "vision/dt3/directional_distance_transform.hpp"
 #include "vision/idt3/integral_distance_transform.hpp"
@@ -29,6 +31,8 @@
 
 namespace mfcd::vision {
 
+using namespace detail;  // the pipeline's own parts: part_model.hpp, turn_checks.hpp
+
 namespace {
 
 using Clock = std::chrono::steady_clock;
@@ -40,166 +44,6 @@ double ms_between(Clock::time_point a, Clock::time_point b) {
 bool leaves_time(Clock::time_point deadline, double ms) {
   return Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double, std::milli>(ms)) <=
          deadline;
-}
-
-// A part type: its database and, per view, the view's lines under every in-plane rotation and
-// scale of the search, digitised once at load (the search itself then only slides them).
-struct PartModel {
-  TemplateDatabase db;
-  std::string file;
-  std::vector<Warp> warps;
-  std::vector<std::vector<OrientedTemplate>> oriented;  // [view][warp]
-  // Per view, the other views whose direction lies within the fine stage's radius
-  // (symmetry-aware), nearest first.
-  std::vector<std::vector<int>> neighbours;
-  std::vector<uint8_t> searched;  // per view, this cycle
-  // The turns the fit checks its best poses against: by 180 degrees about the model axes through
-  // the centre that are not symmetries of the part (turned_over), and for an N-fold symmetry about
-  // z (N >= 3) by +-0.4 of the period about z (phase_turns).
-  struct Turn {
-    cv::Matx33d S;
-    // The point of the model the turn is about: the part centre for the turns over, the origin
-    // (on the symmetry axis) for the phase turns about z.
-    cv::Vec3d pivot_mm{0, 0, 0};
-    // A near-symmetry (few points flagged): per view, per point, whether the point belongs to the
-    // feature that breaks it (asymmetric_points); the check then compares only those. Empty for
-    // a turn that changes most of the part's edges (a plate turned face down).
-    std::vector<std::vector<uint8_t>> differs;
-    // Judged by the fitted rank instead of TemplatePoseFit::compare (plate_turns).
-    bool by_rank = false;
-  };
-  std::vector<Turn> flips;
-};
-
-// A turn that moves at most this share of the part's edge points off its surface is a
-// near-symmetry: the two poses are compared on the points of the feature that breaks it, as well
-// as apart in the image. The image distance alone also counts points the two poses' template
-// views disagree on only because the views are sampled apart, which say nothing about the turn.
-// The breaker's half turn about z moves 5 % of its points (the toggle) and the wheel's 10 %;
-// turned face down, the ellipse moves 67 % and the diamond 84 %. Measured on the three dev sets
-// (mfc-sim seeds 7, 13, 19; 283 trials): 90 failures with the image distance alone, 88 with the
-// feature's points for near-symmetries (breaker 10 -> 8), 89 when the feature's points replace the
-// image distance, 91 when they replace it for every turn (the ellipse turned face down 3 more).
-constexpr double kNearSymmetryShare = 0.25;
-
-std::vector<PartModel::Turn> turned_over(const TemplateDatabase& db) {
-  const PartSymmetry& sym = db.symmetry;
-  const cv::Matx33d rx(1, 0, 0, 0, -1, 0, 0, 0, -1), ry(-1, 0, 0, 0, 1, 0, 0, 0, -1), rz(-1, 0, 0, 0, -1, 0, 0, 0, 1);
-  const bool half_turn_z = sym.kind == PartSymmetry::Kind::continuous_z ||
-                           (sym.kind == PartSymmetry::Kind::discrete_z && sym.order % 2 == 0);
-  // With the half turn about z a symmetry, the turn about y is the one about x followed by it.
-  std::vector<PartModel::Turn> out;
-  const SurfaceGrid surface = part_surface(db);
-  for (const cv::Matx33d& S : half_turn_z ? std::vector<cv::Matx33d>{rx} : std::vector<cv::Matx33d>{rx, ry, rz}) {
-    PartModel::Turn& t = out.emplace_back();
-    t.S = S;
-    t.pivot_mm = db.center_mm;
-    double share = 1;
-    auto flags = asymmetric_points(db, surface, S, &share);
-    if (share <= kNearSymmetryShare) t.differs = std::move(flags);
-  }
-  return out;
-}
-
-// Phase turns: a part with an N-fold symmetry about z (N >= 3) has flutes or spokes, and a fit can
-// settle with each flute's flank on its neighbour's opposite flank: the knob's 10 flutes are ~22
-// degrees wide in a 36 degree period, and fits from 5-9 degrees off the truth converge to it,
-// while from 14-18 degrees off they converge to +-14.5 degrees, where the flanks (edges of the
-// same orientation) all find edges and only the flutes' bottoms do not. The fit score alone
-// prefers that twin in clutter (measured: 0.26 against 0.31 for a fully visible knob); the
-// points where the two differ do not (TemplatePoseFit::compare). Turning by +-0.4 of the period
-// starts the fit in the other basin from either twin. The part's symmetry decides, not the views'
-// fold: the knob's views are folded 2-fold by its pointer groove (db.views_symmetry), its flutes
-// still make it 10-fold.
-constexpr double kPhaseTurnShare = 0.4;
-
-std::vector<PartModel::Turn> phase_turns(const TemplateDatabase& db) {
-  const PartSymmetry& sym = db.symmetry;
-  std::vector<PartModel::Turn> out;
-  if (sym.kind != PartSymmetry::Kind::discrete_z || sym.order < 3) return out;
-  for (const double sign : {1.0, -1.0}) {
-    PartModel::Turn& t = out.emplace_back();
-    t.S = rotation_about_z(sign * kPhaseTurnShare * 2 * CV_PI / sym.order);
-  }
-  return out;
-}
-
-// Plate turns: a part with a 2-fold symmetry about z (the diamond, the ellipse, the T-nut) seen on
-// edge or steeply tilted shows an outline that changes little when it turns about its own z axis,
-// and fits from the search's hypotheses stop 10-25 degrees off, on the flank of the truth's basin:
-// in the capped set's scene 7 image 1 an ellipse on edge fitted 24.5 degrees off scores 0.554, the
-// fit from the truth 0.560. Fits started +-15 degrees about z reach the truth's basin. The points
-// where the two poses differ are mostly those of two template views a few degrees apart, which
-// say nothing (judged by compare: 5 correct plates turned wrong, none fixed, on five sets), so
-// the turned fit is taken when its rank is higher, and only for hypotheses the cell would pick
-// (rank at least config/cell.yaml's min_score 0.1): below that, a higher rank is noise (4 fixed and
-// 4 broken without it, all the broken ranked below 0.09).
-constexpr double kPlateTurnDeg = 15;
-constexpr double kPlateTurnMinRank = 0.1;
-
-std::vector<PartModel::Turn> plate_turns(const TemplateDatabase& db) {
-  const PartSymmetry& sym = db.symmetry;
-  std::vector<PartModel::Turn> out;
-  if (sym.kind != PartSymmetry::Kind::discrete_z || sym.order != 2) return out;
-  for (const double sign : {1.0, -1.0}) {
-    PartModel::Turn& t = out.emplace_back();
-    t.S = rotation_about_z(sign * kPlateTurnDeg * CV_PI / 180);
-    t.by_rank = true;
-  }
-  return out;
-}
-
-// Spin check: a plate with a 2-fold symmetry about z standing on its rim shows a strip from
-// above whose length is all that tells its spin about z (its normal), and a wrong spin with a
-// compensating distance makes nearly the same strip: on 160 single parts on an empty floor, two
-// diamonds on their rim were reported spun 35 and 54 degrees, the truth being a lower-ranked
-// hypothesis at the same place. Where the two differ (the wrong spin's ends past the strip's,
-// over bare floor) the edges tell them apart, so each of the best kSpinCheckLeaders hypotheses
-// of such a part, when seen on edge (its normal at least kSpinCheckMinTiltDeg from the line of
-// sight), is compared (TemplatePoseFit::compare, turn_is_better) with every lower-ranked
-// rescored hypothesis of the part at its place (fitted centres within kSpinCheckPlace of the
-// part's image diameter) whose normal agrees within kSpinCheckMaxAxisDeg and whose spin differs
-// by at least kSpinCheckMinSpinDeg. Measured on five sets (docs/pose.md "Spin check"): 246 ->
-// 244 failures, 0 broken; asking flat plates too (spin 10 degrees) broke 3.
-constexpr int kSpinCheckLeaders = 4;
-constexpr double kSpinCheckMinTiltDeg = 60;
-constexpr double kSpinCheckMaxAxisDeg = 10;
-constexpr double kSpinCheckMinSpinDeg = 20;
-constexpr double kSpinCheckPlace = 0.25;
-
-// Angle between two viewing directions of a part, the smallest over the copies under `sym` (the
-// views' fold: views a coarser symmetry would call the same still show different edges).
-double view_angle(const PartSymmetry& sym, const cv::Vec3d& a, const cv::Vec3d& b) {
-  auto angle = [](const cv::Vec3d& u, const cv::Vec3d& v) { return std::acos(std::clamp(u.dot(v), -1.0, 1.0)); };
-  if (sym.kind == PartSymmetry::Kind::continuous_z)
-    return std::abs(std::acos(std::clamp(a[2], -1.0, 1.0)) - std::acos(std::clamp(b[2], -1.0, 1.0)));
-  double best = CV_PI;
-  for (const cv::Matx33d& S : sym.discrete_rotations()) best = std::min(best, angle(a, S * b));
-  return best;
-}
-
-// The fine stage's neighbours of every view. A true pose lies within about 0.6 spacings of its
-// nearest view (K directions on the sphere are sqrt(4 pi / K) apart), so the coarse view that
-// found it lies within 0.6 sqrt(stride) spacings, and the view nearest the truth within
-// 0.6 (sqrt(stride) + 1) spacings of that coarse view.
-std::vector<std::vector<int>> view_neighbours(const TemplateDatabase& db, int stride) {
-  const size_t n = db.views.size();
-  std::vector<std::vector<int>> out(n);
-  if (stride <= 1 || n == 0) return out;
-  const double spacing = std::sqrt(4 * CV_PI / std::max(1, db.sphere_samples));
-  const double radius = 0.6 * (std::sqrt(double(stride)) + 1.0) * spacing;
-  std::vector<std::pair<double, int>> near;
-  for (size_t v = 0; v < n; ++v) {
-    near.clear();
-    for (size_t u = 0; u < n; ++u) {
-      if (u == v) continue;
-      const double a = view_angle(db.views_symmetry, db.views[v].view_direction, db.views[u].view_direction);
-      if (a <= radius) near.emplace_back(a, static_cast<int>(u));
-    }
-    std::sort(near.begin(), near.end());
-    for (const auto& [a, u] : near) out[v].push_back(u);
-  }
-  return out;
 }
 
 struct Hit {
@@ -257,33 +101,6 @@ bool moved_too_far_in_depth(const TemplateDatabase& db, const RigidPose& coarse,
 // docs/pose.md (share 1.0, the better of the two fits: 1 and 2 failures more).
 constexpr double kFloorStartHeightMm = 30;
 constexpr double kFloorStartMinScoreRatio = 0.8;
-
-// Turned-over check: the turned pose is considered when its fit scores at least this share of
-// the pose's, and taken (turn_is_better) when at least kFlipMinPoints of its points differ from
-// the pose's and a larger share of those (by kFlipMargin) lie on image edges than of the pose's
-// own differing ones ...
-constexpr double kFlipMinScoreRatio = 0.6;
-constexpr int kFlipMinPoints = 6;
-constexpr double kFlipMargin = 0.2;
-// ... or when both have kFlipMinPoints differing and the turned pose's lie nearer edges by this
-// much of mean cost (TemplatePoseFit::Difference::cost_b, truncated at 10 px). The breaker's toggle
-// fitted from a template view a few degrees off lands 2-5 px beside its edges: 2 of 31 points
-// found, against 0 of 34 for the turned twin's toggle over bare bin, yet mean costs of 5.3 and
-// 9.5 px ...
-constexpr double kFlipCostMarginPx = 2;
-// ... or when the turned pose hides the feature (at most one point differs: the toggle faces
-// away) while the pose shows it where no edge lies near (mean cost at least this): the missing
-// edges of a feature the pose says is in view are the evidence. A part lying over the feature
-// would bring its own edges near.
-constexpr int kFlipHiddenMaxPoints = 1;
-constexpr double kFlipAbsentCostPx = 7;
-
-bool turn_is_better(const TemplatePoseFit::Difference& d) {
-  if (d.only_b >= kFlipMinPoints)
-    return d.found_b >= d.found_a + kFlipMargin ||
-           (d.only_a >= kFlipMinPoints && d.cost_b + kFlipCostMarginPx <= d.cost_a);
-  return d.only_b <= kFlipHiddenMaxPoints && d.only_a >= kFlipMinPoints && d.cost_a >= kFlipAbsentCostPx;
-}
 
 // Search rounds (PipelineConfig::search_rounds): a later round takes out the image edges within
 // this many pixels of the best candidates' points.
@@ -619,22 +436,12 @@ BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfi
   Impl& m = *impl_;
   if (m.config.template_files.empty()) throw std::runtime_error("pipeline: no template files configured");
   for (const auto& file : m.config.template_files) {
-    PartModel part;
-    part.file = file.string();
-    part.db = load_template_database(file);
-    check_template_camera(part.db, camera, part.file);
+    PartModel part = load_part_model(file, camera, m.config);
     for (const auto& other : m.parts)
       if (other.db.obj_id == part.db.obj_id)
         throw std::runtime_error(part.file + ": obj_id " + std::to_string(part.db.obj_id) + " is also used by " +
                                  other.file);
-    // The search's channels: the templates' own (oriented) ones when the search uses polarity,
-    // else the same lines without it. The first part decides; every other must agree.
-    if (part.db.oriented && !(m.config.search_polarity && m.config.cost == PipelineConfig::Cost::fdcm)) {
-      for (TemplateView& view : part.db.views) view.lines = withoutPolarity(view.lines);
-      part.db.q /= 2;
-      part.db.oriented = false;
-    }
-    if (m.parts.empty()) {
+    if (m.parts.empty()) {  // the first part decides the search's channels; every other must agree
       m.dt3_params.q = part.db.q;
       m.dt3_params.oriented = part.db.oriented;
       LineFitParams query = m.line_fitter.params();
@@ -646,34 +453,6 @@ BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfi
       throw std::runtime_error(part.file + ": templates have q = " + std::to_string(part.db.q) +
                                (part.db.oriented ? " oriented" : "") + ", the pipeline " +
                                std::to_string(m.dt3_params.q) + (m.dt3_params.oriented ? " oriented" : ""));
-    WarpGrid grid;
-    grid.scales.clear();
-    if (m.config.distances_mm.empty()) grid.scales.push_back(1.0);
-    for (double d : m.config.distances_mm) {
-      if (!(d > 0)) throw std::runtime_error("pipeline: distances_mm must be positive");
-      grid.scales.push_back(part.db.distance_mm / d);
-    }
-    part.warps = grid.warps(m.dt3_params.q, m.dt3_params.oriented);
-    part.oriented.resize(part.db.views.size());
-    for (size_t v = 0; v < part.db.views.size(); ++v) {
-      auto& list = part.oriented[v];
-      list.reserve(part.warps.size());
-      for (const Warp& w : part.warps) {
-        OrientedTemplate t = orientTemplate(part.db.views[v].lines, static_cast<int>(v),
-                                            Warp{w.angle, w.scale / m.config.search_downsample, w.aspect});
-        // The line search only needs the longest lines as guides.
-        if (t.lines.size() > 8) {
-          sortLongestFirst(t.lines);
-          t.lines.resize(8);
-        }
-        list.push_back(std::move(t));
-      }
-    }
-    part.neighbours = view_neighbours(part.db, m.config.view_stride);
-    part.searched.assign(part.db.views.size(), 0);
-    part.flips = turned_over(part.db);
-    for (PartModel::Turn& t : phase_turns(part.db)) part.flips.push_back(std::move(t));
-    for (PartModel::Turn& t : plate_turns(part.db)) part.flips.push_back(std::move(t));
     m.parts.push_back(std::move(part));
   }
   try {
