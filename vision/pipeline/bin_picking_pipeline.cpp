@@ -1,4 +1,5 @@
 #include "vision/pipeline/bin_picking_pipeline.hpp"
+#include "vision/pipeline/cycle_budget.hpp"
 #include "vision/pipeline/part_model.hpp"
 #include "vision/pipeline/pipeline_parameters.hpp"
 #include "vision/pipeline/turn_checks.hpp"
@@ -36,15 +37,6 @@ using namespace detail;  // the pipeline's own parts: part_model.hpp, turn_check
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double ms_between(Clock::time_point a, Clock::time_point b) {
-  return std::chrono::duration<double, std::milli>(b - a).count();
-}
-
-// Whether a stage that took `ms` last time would still end before `deadline` if started now.
-bool leaves_time(Clock::time_point deadline, double ms) {
-  return Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double, std::milli>(ms)) <=
-         deadline;
-}
 
 struct Hit {
   int part = 0, view = 0, warp = 0;
@@ -229,17 +221,13 @@ struct BinPickingPipeline::Impl {
   std::vector<DistanceFitWorkspace> distance_workspaces;  // per search thread
   std::vector<LineSearchWorkspace> search_workspaces;     // per search thread
   std::vector<SearchResult> thread_results;               // per search thread, the last view's
-  // What fitting all hypotheses took last cycle (scaled up when the deadline cut it short): the
-  // search leaves the fit that much, with a margin. Before the first cycle, 2 ms per hypothesis.
-  double fit_ms_estimate = 0;
+  std::optional<CycleBudget> budget;  // made once the thread count is known
   std::vector<Verified> verified;
   // Later search rounds (PipelineConfig::search_rounds): the query without the best candidates'
   // edges and its integral distance transform; `idt` stays the whole image's (score_pose uses it).
   cv::Mat1b erased;  // image size: the edges taken out
   LineFitResult round_query;
   IntegralDistanceTransform round_idt;
-  double round_ms_estimate = 0;  // what the last later round took
-  double escalation_ms_estimate = 0;  // what the last escalation took
 
   // How a search is spread: the shipped settings (PipelineConfig) or escalation's wide ones.
   struct SearchSettings {
@@ -508,7 +496,7 @@ BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfi
   size_t views = 0;
   for (const auto& part : m.parts) views += part.db.views.size();
   m.jobs.reserve(views);
-  m.fit_ms_estimate = 2.0 * m.config.fit_candidates / threads;
+  m.budget.emplace(m.config.fit_candidates, threads);
   m.erased = cv::Mat1b::zeros(camera.camera.image_size);
 }
 
@@ -1028,10 +1016,8 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
   cycle.obj_id = obj_id;
   cycle.fdcm = fdcm;
   cycle.deadline = deadline;
-  const double left_ms = std::max(0.0, ms_between(Clock::now(), deadline));
-  cycle.search_deadline =
-      deadline - std::chrono::duration_cast<Clock::duration>(
-                     std::chrono::duration<double, std::milli>(std::min(1.5 * m.fit_ms_estimate, 0.5 * left_ms)));
+  m.budget->start(deadline);
+  cycle.search_deadline = m.budget->search_deadline();
   for (const auto& part : m.parts) cycle.selected_parts += obj_id == 0 || part.db.obj_id == obj_id;
   out.hypotheses = 0;
   out.views_searched = 0;
@@ -1050,9 +1036,8 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
   m.fit(cycle, 0, fdcm ? &m.idt : nullptr);
   out.degraded = out.degraded || cycle.fit_late;
   // The time the fit of all hypotheses takes, from the fits that ran (the search leaves it that).
-  const int fitted = static_cast<int>(m.verified.size());
-  if (fitted > 0)
-    m.fit_ms_estimate = ms_between(fit_start, Clock::now()) * m.config.fit_candidates / std::max(fitted, 1);
+  m.budget->record_fit(ms_between(fit_start, Clock::now()), static_cast<int>(m.verified.size()),
+                      m.config.fit_candidates);
   if (m.config.trace) m.trace(0, 1, out);
   m.rank(cycle, 0);
 
@@ -1062,11 +1047,11 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
   out.escalated = false;
   if (fdcm && m.config.fit_hypotheses && m.config.escalate_below > 0 && !out.degraded &&
       (m.verified.empty() || m.verified.front().fit_rank < m.config.escalate_below) &&
-      leaves_time(deadline, m.escalation_ms_estimate)) {
+      m.budget->leaves_time_for(CycleBudget::Optional::escalation)) {
     const auto escalation_start = Clock::now();
     m.add_search(cycle, *query, m.idt, static_cast<size_t>(m.config.escalate_hypotheses), m.escalation_search(), 0,
                  out);
-    m.escalation_ms_estimate = ms_between(escalation_start, Clock::now());
+    m.budget->record(CycleBudget::Optional::escalation, ms_between(escalation_start, Clock::now()));
     out.escalated = true;
   }
 
@@ -1077,14 +1062,14 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
   out.rounds = 1;
   for (int round = 2; fdcm && round <= m.config.search_rounds && !out.degraded && !m.verified.empty(); ++round) {
     const auto round_start = Clock::now();
-    if (!leaves_time(deadline, m.round_ms_estimate)) break;
+    if (!m.budget->leaves_time_for(CycleBudget::Optional::round)) break;
     m.query_without_best(round - 1);
     const auto [round_lines, round_map] = m.search_query(m.round_query);
     m.dt3.compute(*round_map, m.search_dt3);
     m.round_idt.compute(m.dt3);
     m.add_search(cycle, *round_lines, m.round_idt, static_cast<size_t>(m.config.round_hypotheses), m.shipped_search(),
                  round, out);
-    m.round_ms_estimate = ms_between(round_start, Clock::now());
+    m.budget->record(CycleBudget::Optional::round, ms_between(round_start, Clock::now()));
     out.rounds = round;
   }
 

@@ -108,7 +108,7 @@ TEST(PipelineParameters, ConfigurationDocHoldsTheTable) {
     std::ofstream(path) << doc.substr(0, b + begin.size()) << want << doc.substr(e);
     GTEST_SKIP() << "wrote the table into " << path;
   }
-  EXPECT_EQ(have, want) << path << " is out of date: run this test with MFC_UPDATE_DOCS=1 to write it";
+  EXPECT_EQ(have, want) << path << " is out of date: run test_vision_pipeline_units with MFC_UPDATE_DOCS=1 to write it";
 }
 
 }  // namespace
