@@ -1,0 +1,49 @@
+// Pick candidates from the ranked hypotheses: one per place in the bin (non-maximum suppression
+// across views and part types), each polished with the templates' edge offset profiles.
+#include "vision/pipeline/pipeline_state.hpp"
+
+#include <algorithm>
+
+namespace mfcd::vision {
+
+void BinPickingPipeline::Impl::make_candidates(Clock::time_point deadline, PipelineResult& out) {
+  // Non-maximum suppression across views and part types: one part per place in the bin.
+  const int down = config.search_downsample;  // the search hits' pixels
+  bool final_prepared = false;
+  for (const Impl::Verified& v : verified) {
+    const Hit& h = v.hit;
+    if (static_cast<int>(out.candidates.size()) >= config.max_candidates) break;
+    bool overlaps = false;
+    for (const auto& k : out.candidates) overlaps = overlaps || iou(k.box, h.box) > kCandidateOverlap;
+    if (overlaps) continue;
+    const PartModel& part = parts[h.part];
+    PoseCandidate c;
+    c.obj_id = part.db.obj_id;
+    c.part = part.db.part_name;
+    c.view = v.view;
+    c.R_m2c = v.fitted.R;
+    c.t_m2c_mm = v.fitted.t_mm;
+    c.cost_px = h.c.cost() * down;
+    c.coverage = v.coverage;
+    c.rank_px = v.combined;
+    c.fit_rank = v.fit_rank;
+    // 1 at a perfect match, 0.5 at 2 px of combined cost, falling slowly so that a correct but
+    // unrefined match of a large part (3-4 px) still ranks above nothing.
+    c.score = v.fit_score >= 0 ? std::clamp(v.fit_rank, 0.0, 1.0) : 1.0 / (1.0 + v.combined / 2.0);
+    c.box = h.box;
+    // (Past the deadline the candidate keeps the ranking fit's pose.)
+    if (v.fit_score >= 0 && config.edge_offset_correction && Clock::now() < deadline) {
+      if (!final_prepared) final_fitter.share_prepared(fitter), final_prepared = true;
+      const TemplateFitResult f = final_fitter.fit(part.db, v.view, v.fitted, camera.camera, fit_workspaces[0]);
+      // The bin floor binds this fit as every other: one that slid through it keeps the ranked pose.
+      if (!config.floor.below(part.db.mesh, f.pose)) {
+        c.R_m2c = f.pose.R;
+        c.t_m2c_mm = f.pose.t_mm;
+        c.view = f.view;
+      }
+    }
+    out.candidates.push_back(std::move(c));
+  }
+}
+
+}  // namespace mfcd::vision

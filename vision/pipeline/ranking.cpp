@@ -1,0 +1,163 @@
+// Ranking of the fitted hypotheses and the checks of the leading ones (rescoring, depth, floor
+// and turn checks, the spin check).
+#include "vision/pipeline/pipeline_state.hpp"
+
+#include <omp.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <limits>
+
+namespace mfcd::vision {
+
+// Best first from `first` on: by the fitted rank, or without the fit (the baselines, search
+// only) by the search's combined cost.
+void BinPickingPipeline::Impl::sort_verified(size_t first) {
+  if (config.cost == PipelineConfig::Cost::fdcm && config.fit_hypotheses)
+    stable_sort_in_place(verified, [](const Verified& a, const Verified& b) { return a.fit_rank > b.fit_rank; }, first);
+  else
+    stable_sort_in_place(verified, [](const Verified& a, const Verified& b) { return a.combined < b.combined; }, first);
+}
+
+// Ranks the hypotheses from `first` on, and checks the best few of them against the floor and
+// turned over.
+void BinPickingPipeline::Impl::rank(const Cycle& cycle, size_t first) {
+  Impl& m = *this;
+  sort_verified(first);
+  if (!cycle.fdcm || !m.config.fit_hypotheses) return;
+  const int threads = static_cast<int>(m.thread_hits.size());
+  const BinFloor& floor = m.config.floor;
+  const int begin = static_cast<int>(first);
+  const int count = static_cast<int>(m.verified.size()) - begin;
+  // The checks below fit hypothesis i again from another start (on the calling OpenMP thread's
+  // workspace), scored as its rank was.
+  auto fit_from = [&](int i, const TemplateDatabase& db, RigidPose start) {
+    const int view = TemplatePoseFit::nearest_view(db, m.camera.camera, start);
+    return m.scored_like(i - begin, db,
+                         m.fitter.fit(db, view, start, m.camera.camera, m.fit_workspaces[omp_get_thread_num()]));
+  };
+  // Each check runs on the best `n` hypotheses that have a fit, shared out among the threads,
+  // until the deadline; then the hypotheses are ordered by their ranks again.
+  auto check_leaders = [&](int n, auto&& check) {
+#pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
+    for (int i = begin; i < begin + n; ++i) {
+      Verified& v = m.verified[i];
+      if (v.fit_score <= 0 || Clock::now() > cycle.deadline) continue;
+      check(i, v, m.parts[v.hit.part]);
+    }
+    if (n > 0) sort_verified(first);
+  };
+  // Rescoring: the fit scores a pose with at most TemplateFitParams::max_points of its view's
+  // points (160 of up to ~1100), so two poses a few hundredths apart are ordered partly by which
+  // points the subsample kept. The best few are scored again with every point before the checks
+  // below and the choice of the cycle's picks (PipelineConfig::rescore_hypotheses).
+  const int rescored = std::min(m.config.rescore_hypotheses, count);
+  check_leaders(rescored, [&](int i, Verified& v, const PartModel& part) {
+    const TemplateFitResult f = m.scored_like(i - begin, part.db, v.fit);
+    v.take(f, fitted_rank(f, part.db, m.config));
+  });
+  // Floor starts: one view measures a part's distance poorly, and the fit converges to the
+  // depth nearest its start. Parts low in the bin mostly rest on its floor, so the best few
+  // hypotheses whose lowest point hovers above the floor are fitted again from the pose slid
+  // down onto it (the fit stays free to leave it).
+  check_leaders(floor.known() ? std::min(m.config.floor_starts, count) : 0,
+                [&](int i, Verified& v, const PartModel& part) {
+    const double height = -floor.reach_below(part.db.mesh, v.fitted);
+    if (height <= floor.tolerance_mm || height > kFloorStartHeightMm) return;
+    const TemplateFitResult f = fit_from(i, part.db, floor.onto(part.db.mesh, v.fitted, part.db.center_mm));
+    if (f.score < kFloorStartMinScoreRatio * v.fit_score || floor.below(part.db.mesh, f.pose) ||
+        moved_too_far_in_depth(part.db, v.coarse, f.pose))
+      return;
+    v.take(f, fitted_rank(f, part.db, m.config));
+  });
+  // Depth starts (PipelineConfig::depth_starts): the fit settles on the depth nearest its start,
+  // so the best few are fitted again from a little further and a little nearer; a fit that ranks
+  // higher replaces theirs unless it reaches below the floor or has left its search hit's depth.
+  check_leaders(std::min(m.config.depth_starts, count), [&](int i, Verified& v, const PartModel& part) {
+    // Further first, then nearer from whichever fit is best by then.
+    for (const double delta : {m.config.depth_start_mm, -m.config.depth_start_mm}) {
+      RigidPose start = v.fitted;
+      const cv::Vec3d centre = start.R * part.db.center_mm + start.t_mm;
+      start.t_mm += centre * (delta / cv::norm(centre));
+      const TemplateFitResult f = fit_from(i, part.db, start);
+      if (floor.below(part.db.mesh, f.pose) || moved_too_far_in_depth(part.db, v.coarse, f.pose)) continue;
+      const double rank = fitted_rank(f, part.db, m.config);
+      if (rank > v.fit_rank) v.take(f, rank);
+    }
+  });
+  // Turned-over check of the best few: a part that is symmetric but for a small feature (the
+  // breaker's toggle) fits as well turned by 180 degrees about an axis; the edges can only tell
+  // the two apart where they differ (TemplatePoseFit::compare).
+  check_leaders(std::min(m.config.flip_checks, count), [&](int i, Verified& v, const PartModel& part) {
+    auto& ws = m.fit_workspaces[omp_get_thread_num()];
+    TemplateFitResult current = v.as_fit();
+    for (const PartModel::Turn& turn : part.flips) {
+      const cv::Matx33d& S = turn.S;
+      RigidPose turned;
+      turned.R = current.pose.R * S;
+      turned.t_mm = current.pose.t_mm + current.pose.R * (turn.pivot_mm - S * turn.pivot_mm);
+      const TemplateFitResult f = fit_from(i, part.db, turned);
+      if (moved_too_far_in_depth(part.db, v.coarse, f.pose) || f.score < kFlipMinScoreRatio * current.score ||
+          floor.below(part.db.mesh, f.pose))
+        continue;
+      if (turn.by_rank) {
+        if (v.fit_rank < kPlateTurnMinRank || fitted_rank(f, part.db, m.config) <= v.fit_rank) continue;
+      } else {
+        const bool feature = !turn.differs.empty();
+        const TemplatePoseFit::Difference d =
+            m.fitter.compare(part.db, current, f, m.camera.camera, ws,
+                             feature ? &turn.differs[static_cast<size_t>(current.view)] : nullptr,
+                             feature ? &turn.differs[static_cast<size_t>(f.view)] : nullptr);
+        if (!turn_is_better(d)) continue;
+      }
+      current = f;
+      // The turned pose replaces the fit, but never lowers the rank the hypothesis was sorted by.
+      v.take(f, std::max(v.fit_rank, fitted_rank(f, part.db, m.config)));
+    }
+  });
+  check_spins(cycle, first, rescored);
+}
+
+void BinPickingPipeline::Impl::check_spins(const Cycle& cycle, size_t first, int pool) {
+  Impl& m = *this;
+  const int begin = static_cast<int>(first);
+  const int leaders = std::min(kSpinCheckLeaders, pool);
+  // Serial: a leader reads the lower hypotheses it is compared with, and few leaders qualify.
+  auto& ws = m.fit_workspaces[0];
+  auto normal = [](const RigidPose& p) { return cv::Vec3d(p.R(0, 2), p.R(1, 2), p.R(2, 2)); };
+  for (int i = begin; i < begin + leaders; ++i) {
+    Verified& v = m.verified[i];
+    if (v.fit_score <= 0 || Clock::now() > cycle.deadline) continue;
+    const PartModel& part = m.parts[v.hit.part];
+    const PartSymmetry& sym = part.db.symmetry;
+    if (sym.kind != PartSymmetry::Kind::discrete_z || sym.order != 2) continue;
+    TemplateFitResult current = v.as_fit();
+    const cv::Vec3d centre = current.pose.R * part.db.center_mm + current.pose.t_mm;
+    const cv::Vec3d n = normal(current.pose);
+    const double tilt = degrees(std::acos(std::min(1.0, std::abs(n.dot(centre / cv::norm(centre))))));
+    if (tilt < kSpinCheckMinTiltDeg) continue;
+    const cv::Point2d at = m.camera.camera.project(centre);
+    const double place_px = kSpinCheckPlace * m.camera.camera.fx() * part.db.diameter_mm / centre[2];
+    for (int j = i + 1; j < begin + pool; ++j) {
+      const Verified& r = m.verified[j];
+      if (r.hit.part != v.hit.part || r.fit_score <= 0 || r.fit_score < kFlipMinScoreRatio * current.score) continue;
+      if (cv::norm(m.camera.camera.project(r.fitted.R * part.db.center_mm + r.fitted.t_mm) - at) > place_px) continue;
+      // The normal either way: a plate face down is the turned-over check's.
+      if (degrees(std::acos(std::min(1.0, std::abs(n.dot(normal(r.fitted)))))) > kSpinCheckMaxAxisDeg) continue;
+      // Over the symmetry's turns about z, computed (discrete_rotations() would allocate).
+      double spin = 180;
+      for (int k = 0; k < sym.order; ++k)
+        spin = std::min(spin, degrees(rotation_angle(current.pose.R.t() * r.fitted.R *
+                                                     rotation_about_z(2 * CV_PI * k / sym.order))));
+      if (spin < kSpinCheckMinSpinDeg) continue;
+      const TemplateFitResult rival = r.as_fit();
+      if (!turn_is_better(m.fitter.compare(part.db, current, rival, m.camera.camera, ws))) continue;
+      current = rival;
+      // As a turn: the hypothesis takes the rival's pose and keeps its own rank.
+      v.take(rival, std::max(v.fit_rank, r.fit_rank));
+    }
+  }
+}
+
+}  // namespace mfcd::vision
