@@ -1,5 +1,5 @@
 #include "vision/pipeline/bin_picking_pipeline.hpp"
-#include "vision/pipeline/pipeline_state.hpp"
+#include "vision/pipeline/stage.hpp"
 
 #include <opencv2/imgproc.hpp>
 
@@ -106,6 +106,11 @@ BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfi
   m.jobs.reserve(views);
   m.budget.emplace(m.config.fit_candidates, threads);
   m.erased = cv::Mat1b::zeros(camera.camera.image_size);
+  // The pick cycle, stage by stage (stage.hpp).
+  for (auto make : {make_edges_stage, make_lines_stage, make_distance_stage, make_search_stage, make_fit_stage,
+                    make_ranking_stage, make_escalation_stage, make_rounds_stage, make_candidates_stage,
+                    make_refinement_stage, make_grasp_stage})
+    m.stages.push_back(make());
 }
 
 BinPickingPipeline::~BinPickingPipeline() = default;
@@ -141,113 +146,21 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
   for (const auto& p : m.parts) known = known || p.db.obj_id == obj_id;
   if (!known) throw std::invalid_argument("pipeline: no templates loaded for obj_id " + std::to_string(obj_id));
 
-  m.extractor.extract(frames, m.edges);
-  m.fitter_prepared = false;
-  auto t = Clock::now();
-  out.times.edges_ms = ms_between(t0, t);
-
-  m.line_fitter.fit(m.edges.edges, &m.edges.direction, m.lines, m.dt3_params.oriented ? &m.edges.shadow : nullptr);
-  const LineFitResult& fit = m.lines;
-  out.edge_pixels = fit.inputEdgePixels;
-  out.query_lines = static_cast<int>(fit.set.lines.size());
-  auto t1 = Clock::now();
-  out.times.lines_ms = ms_between(t, t1);
-
-  const bool fdcm = m.config.cost == PipelineConfig::Cost::fdcm;
-  const auto [query, search_map] = m.search_query(fit);
-  if (fdcm) {
-    m.dt3.compute(*search_map, m.search_dt3);
-    m.idt.compute(m.dt3);
-  } else {
-    m.chamfer.compute(*search_map, m.search_dt3);
-  }
-  t = Clock::now();
-  out.times.distance_ms = ms_between(t1, t);
-
-  // Search: the 1-D line search (paper Sec. 4.4) over every view of every selected part, views
-  // shared out among the threads. Past the search's deadline the remaining views are skipped: it
-  // leaves the hypothesis fit the time it took last cycle, with a margin.
-  // At most half the time left goes to the fit: the search always gets the other half.
-  Impl::Cycle cycle;
-  cycle.obj_id = obj_id;
-  cycle.fdcm = fdcm;
-  cycle.deadline = deadline;
+  CycleContext c;
+  c.frames = &frames;
+  c.out = &out;
+  c.cycle.obj_id = obj_id;
+  c.cycle.fdcm = m.config.cost == PipelineConfig::Cost::fdcm;
+  c.cycle.deadline = deadline;
+  for (const auto& part : m.parts) c.cycle.selected_parts += obj_id == 0 || part.db.obj_id == obj_id;
   m.budget->start(deadline);
-  cycle.search_deadline = m.budget->search_deadline();
-  for (const auto& part : m.parts) cycle.selected_parts += obj_id == 0 || part.db.obj_id == obj_id;
-  out.hypotheses = 0;
-  out.views_searched = 0;
-  m.search(cycle, *query, fdcm ? &m.idt : nullptr, static_cast<size_t>(m.config.fit_candidates), m.shipped_search(),
-           out);
-  out.degraded = cycle.late;
-  t1 = Clock::now();
-  out.times.search_ms = ms_between(t, t1);
-
-  // Verification, then each hypothesis fitted in 6-DoF and ranked (Impl::verify, fit, rank).
-  m.verified.clear();
-  out.trace.clear();
-  const auto fit_start = Clock::now();
-  if (fdcm && !m.hits.empty()) m.prepare_fitter();
-  m.verify(static_cast<size_t>(m.config.fit_candidates));
-  m.fit(cycle, 0, fdcm ? &m.idt : nullptr);
-  out.degraded = out.degraded || cycle.fit_late;
-  // The time the fit of all hypotheses takes, from the fits that ran (the search leaves it that).
-  m.budget->record_fit(ms_between(fit_start, Clock::now()), static_cast<int>(m.verified.size()),
-                      m.config.fit_candidates);
-  if (m.config.trace) m.trace(0, 1, out);
-  m.rank(cycle, 0);
-
-  // Escalation (PipelineConfig::escalate_below): nothing the cell would pick, so the same query
-  // is searched again wide, and its new hypotheses are fitted and ranked with the first ones.
-  // Like a later round it only adds candidates: skipped near the deadline, it degrades nothing.
-  out.escalated = false;
-  if (fdcm && m.config.fit_hypotheses && m.config.escalate_below > 0 && !out.degraded &&
-      (m.verified.empty() || m.verified.front().fit_rank < m.config.escalate_below) &&
-      m.budget->leaves_time_for(CycleBudget::Optional::escalation)) {
-    const auto escalation_start = Clock::now();
-    m.add_search(cycle, *query, m.idt, static_cast<size_t>(m.config.escalate_hypotheses), m.escalation_search(), 0,
-                 out);
-    m.budget->record(CycleBudget::Optional::escalation, ms_between(escalation_start, Clock::now()));
-    out.escalated = true;
+  auto t = t0;
+  for (const auto& stage : m.stages) {
+    stage->run(m, c);
+    const auto now = Clock::now();
+    out.times.*stage->time() += ms_between(t, now);
+    t = now;
   }
-
-  // Later search rounds (PipelineConfig::search_rounds): the image edges the best candidates so
-  // far explain are taken out of the query and the search runs again for the parts they hid.
-  // A round starts only when the first was complete and the deadline leaves it the time the last
-  // one took; its result is extra candidates, so skipping it does not degrade the cycle.
-  out.rounds = 1;
-  for (int round = 2; fdcm && round <= m.config.search_rounds && !out.degraded && !m.verified.empty(); ++round) {
-    const auto round_start = Clock::now();
-    if (!m.budget->leaves_time_for(CycleBudget::Optional::round)) break;
-    m.query_without_best(round - 1);
-    const auto [round_lines, round_map] = m.search_query(m.round_query);
-    m.dt3.compute(*round_map, m.search_dt3);
-    m.round_idt.compute(m.dt3);
-    m.add_search(cycle, *round_lines, m.round_idt, static_cast<size_t>(m.config.round_hypotheses), m.shipped_search(),
-                 round, out);
-    m.budget->record(CycleBudget::Optional::round, ms_between(round_start, Clock::now()));
-    out.rounds = round;
-  }
-
-  m.make_candidates(deadline, out);
-  t = Clock::now();
-  out.times.pose_ms = ms_between(t1, t);
-
-  m.refine(deadline, out);
-  // Grasp features at the final poses: edges and the part's own points only, ~0.1 ms each.
-  for (PoseCandidate& c : out.candidates) {
-    bool any = false;
-    double best = 0;
-    for (const auto& [feature_obj_id, feature] : m.config.grasp_features)
-      if (feature_obj_id == c.obj_id) {
-        any = true;
-        best = std::max(best, grasp_visibility(c.obj_id, c.R_m2c, c.t_m2c_mm, feature).visible);
-      }
-    c.grasp_visibility = any ? best : 1.0;
-  }
-  const auto t2 = Clock::now();
-  out.times.refine_ms = ms_between(t, t2);
-  t = t2;
   out.times.total_ms = ms_between(t0, t);
 }
 
@@ -298,10 +211,7 @@ void BinPickingPipeline::draw_pose(cv::Mat3b& image, int obj_id, const cv::Matx3
 
 GraspVisibility BinPickingPipeline::grasp_visibility(int obj_id, const cv::Matx33d& R_m2c, const cv::Vec3d& t_m2c_mm,
                                                      const GraspFeature& feature) {
-  Impl& m = *impl_;
-  const PartModel& part = m.part_of(obj_id);
-  return grasp_feature_visibility(m.edges, part.db, m.camera.camera, RigidPose{R_m2c, t_m2c_mm}, feature,
-                                  m.config.fit_inlier_cost_px, m.own_edges);
+  return impl_->grasp_visibility(obj_id, RigidPose{R_m2c, t_m2c_mm}, feature);
 }
 
 cv::Mat3b draw_candidates(const cv::Mat1b& image, const PipelineResult& result, const CameraConfig& camera) {

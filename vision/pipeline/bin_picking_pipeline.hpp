@@ -210,8 +210,11 @@ class BinPickingPipeline {
   void draw_pose(cv::Mat3b& image, int obj_id, const cv::Matx33d& R_m2c, const cv::Vec3d& t_m2c_mm,
                  const cv::Scalar& colour) const;
 
- private:
+  // The pipeline's state, which its stages share: defined in the internal
+  // vision/pipeline/pipeline_state.hpp (an incomplete type for every user of this header).
   struct Impl;
+
+ private:
   std::unique_ptr<Impl> impl_;
 };
 

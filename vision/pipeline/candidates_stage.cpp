@@ -1,6 +1,6 @@
 // Pick candidates from the ranked hypotheses: one per place in the bin (non-maximum suppression
 // across views and part types), each polished with the templates' edge offset profiles.
-#include "vision/pipeline/pipeline_state.hpp"
+#include "vision/pipeline/stage.hpp"
 
 #include <algorithm>
 
@@ -45,5 +45,21 @@ void BinPickingPipeline::Impl::make_candidates(Clock::time_point deadline, Pipel
     out.candidates.push_back(std::move(c));
   }
 }
+
+namespace detail {
+
+namespace {
+
+class CandidatesStage final : public Stage {
+ public:
+  CandidatesStage() : Stage("candidates", &StageTimes::pose_ms) {}
+  void run(BinPickingPipeline::Impl& m, CycleContext& c) override { m.make_candidates(c.cycle.deadline, *c.out); }
+};
+
+}  // namespace
+
+std::unique_ptr<Stage> make_candidates_stage() { return std::make_unique<CandidatesStage>(); }
+
+}  // namespace detail
 
 }  // namespace mfcd::vision

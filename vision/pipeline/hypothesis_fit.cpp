@@ -1,6 +1,6 @@
 // The hypothesis fit (Sec. 4.4): each hypothesis fitted in 6-DoF with its template's model points,
 // and the measures its rank is made of.
-#include "vision/pipeline/pipeline_state.hpp"
+#include "vision/pipeline/stage.hpp"
 
 #include <omp.h>
 
@@ -192,5 +192,34 @@ void BinPickingPipeline::Impl::trace(size_t first, int round, PipelineResult& ou
     out.trace.push_back(h);
   }
 }
+
+namespace detail {
+
+namespace {
+
+// Verification, then each hypothesis fitted in 6-DoF (Impl::verify, fit). The time the fit of
+// all hypotheses takes, from the fits that ran, is what the next cycle's search leaves it.
+class FitStage final : public Stage {
+ public:
+  FitStage() : Stage("fit", &StageTimes::pose_ms) {}
+  void run(BinPickingPipeline::Impl& m, CycleContext& c) override {
+    m.verified.clear();
+    c.out->trace.clear();
+    const auto start = Clock::now();
+    if (c.cycle.fdcm && !m.hits.empty()) m.prepare_fitter();
+    m.verify(static_cast<size_t>(m.config.fit_candidates));
+    m.fit(c.cycle, 0, c.cycle.fdcm ? &m.idt : nullptr);
+    c.out->degraded = c.out->degraded || c.cycle.fit_late;
+    m.budget->record_fit(ms_between(start, Clock::now()), static_cast<int>(m.verified.size()),
+                         m.config.fit_candidates);
+    if (m.config.trace) m.trace(0, 1, *c.out);
+  }
+};
+
+}  // namespace
+
+std::unique_ptr<Stage> make_fit_stage() { return std::make_unique<FitStage>(); }
+
+}  // namespace detail
 
 }  // namespace mfcd::vision

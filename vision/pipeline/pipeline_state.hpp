@@ -32,6 +32,7 @@
 #include <atomic>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <optional>
 #include <span>
 #include <stdexcept>
@@ -41,6 +42,8 @@ namespace mfcd::vision {
 using namespace detail;  // the pipeline's own parts: part_model.hpp, turn_checks.hpp
 
 namespace detail {
+
+class Stage;
 
 using Clock = std::chrono::steady_clock;
 
@@ -310,6 +313,12 @@ struct BinPickingPipeline::Impl {
   void rank(const Cycle& cycle, size_t first);
   void check_spins(const Cycle& cycle, size_t first, int pool);  // rank()'s spin check
   void query_without_best(int best);  // into round_query
+  // The cycle's stages in order (stage.hpp), made by the constructor.
+  std::vector<std::unique_ptr<Stage>> stages;
+  GraspVisibility grasp_visibility(int obj_id, const RigidPose& pose, const GraspFeature& feature) {
+    return grasp_feature_visibility(edges, part_of(obj_id).db, camera.camera, pose, feature,
+                                    config.fit_inlier_cost_px, own_edges);
+  }
   // The pick candidates from `verified`, best first, at most max_candidates (candidates_stage.cpp).
   void make_candidates(Clock::time_point deadline, PipelineResult& out);
   // The best refine_candidates candidates refined until the deadline (refinement_stage.cpp).

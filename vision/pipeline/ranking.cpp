@@ -1,6 +1,6 @@
 // Ranking of the fitted hypotheses and the checks of the leading ones (rescoring, depth, floor
 // and turn checks, the spin check).
-#include "vision/pipeline/pipeline_state.hpp"
+#include "vision/pipeline/stage.hpp"
 
 #include <omp.h>
 
@@ -159,5 +159,21 @@ void BinPickingPipeline::Impl::check_spins(const Cycle& cycle, size_t first, int
     }
   }
 }
+
+namespace detail {
+
+namespace {
+
+class RankingStage final : public Stage {
+ public:
+  RankingStage() : Stage("ranking", &StageTimes::pose_ms) {}
+  void run(BinPickingPipeline::Impl& m, CycleContext& c) override { m.rank(c.cycle, 0); }
+};
+
+}  // namespace
+
+std::unique_ptr<Stage> make_ranking_stage() { return std::make_unique<RankingStage>(); }
+
+}  // namespace detail
 
 }  // namespace mfcd::vision

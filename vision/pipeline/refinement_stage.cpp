@@ -1,6 +1,6 @@
 // Render-based refinement of the best candidates (paper Sec. 4.5; one view here: the cell's
 // single MFC capture), until the deadline.
-#include "vision/pipeline/pipeline_state.hpp"
+#include "vision/pipeline/stage.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -62,5 +62,41 @@ void BinPickingPipeline::Impl::refine(Clock::time_point deadline, PipelineResult
     // part from its own back or from clutter as well.
   }
 }
+
+namespace detail {
+
+namespace {
+
+class RefinementStage final : public Stage {
+ public:
+  RefinementStage() : Stage("refinement", &StageTimes::refine_ms) {}
+  void run(BinPickingPipeline::Impl& m, CycleContext& c) override { m.refine(c.cycle.deadline, *c.out); }
+};
+
+// Grasp features at the final poses: edges and the part's own points only, ~0.1 ms each. A part
+// type without any keeps 1.
+class GraspStage final : public Stage {
+ public:
+  GraspStage() : Stage("grasp", &StageTimes::refine_ms) {}
+  void run(BinPickingPipeline::Impl& m, CycleContext& c) override {
+    for (PoseCandidate& p : c.out->candidates) {
+      bool any = false;
+      double best = 0;
+      for (const auto& [feature_obj_id, feature] : m.config.grasp_features)
+        if (feature_obj_id == p.obj_id) {
+          any = true;
+          best = std::max(best, m.grasp_visibility(p.obj_id, RigidPose{p.R_m2c, p.t_m2c_mm}, feature).visible);
+        }
+      p.grasp_visibility = any ? best : 1.0;
+    }
+  }
+};
+
+}  // namespace
+
+std::unique_ptr<Stage> make_refinement_stage() { return std::make_unique<RefinementStage>(); }
+std::unique_ptr<Stage> make_grasp_stage() { return std::make_unique<GraspStage>(); }
+
+}  // namespace detail
 
 }  // namespace mfcd::vision

@@ -1,6 +1,6 @@
 // The FDCM search (paper Sec. 3.6, 4.3-4.4): coarse to fine line search, verification of its
 // hits, later rounds and the escalation's wide search.
-#include "vision/pipeline/pipeline_state.hpp"
+#include "vision/pipeline/stage.hpp"
 
 #include <omp.h>
 
@@ -233,5 +233,79 @@ std::pair<const LineSet*, const cv::Mat1b*> BinPickingPipeline::Impl::search_que
   reduceQuery(q.set, q.channelMap, down, search_lines, search_channels);
   return {&search_lines, &search_channels};
 }
+
+namespace detail {
+
+namespace {
+
+// The first search: the 1-D line search (paper Sec. 4.4) over every view of every selected part,
+// views shared out among the threads. Past its own deadline (CycleBudget::search_deadline) the
+// remaining views are skipped.
+class SearchStage final : public Stage {
+ public:
+  SearchStage() : Stage("search", &StageTimes::search_ms) {}
+  void run(BinPickingPipeline::Impl& m, CycleContext& c) override {
+    c.cycle.search_deadline = m.budget->search_deadline();
+    c.out->hypotheses = 0;
+    c.out->views_searched = 0;
+    m.search(c.cycle, *c.query, c.cycle.fdcm ? &m.idt : nullptr, static_cast<size_t>(m.config.fit_candidates),
+             m.shipped_search(), *c.out);
+    c.out->degraded = c.cycle.late;
+  }
+};
+
+// Escalation (PipelineConfig::escalate_below): nothing the cell would pick, so the same query is
+// searched again wide, and its new hypotheses are fitted and ranked with the first ones. Like a
+// later round it only adds candidates: skipped near the deadline, it degrades nothing.
+class EscalationStage final : public Stage {
+ public:
+  EscalationStage() : Stage("escalation", &StageTimes::pose_ms) {}
+  void run(BinPickingPipeline::Impl& m, CycleContext& c) override {
+    c.out->escalated = false;
+    if (c.cycle.fdcm && m.config.fit_hypotheses && m.config.escalate_below > 0 && !c.out->degraded &&
+        (m.verified.empty() || m.verified.front().fit_rank < m.config.escalate_below) &&
+        m.budget->leaves_time_for(CycleBudget::Optional::escalation)) {
+      const auto start = Clock::now();
+      m.add_search(c.cycle, *c.query, m.idt, static_cast<size_t>(m.config.escalate_hypotheses),
+                   m.escalation_search(), 0, *c.out);
+      m.budget->record(CycleBudget::Optional::escalation, ms_between(start, Clock::now()));
+      c.out->escalated = true;
+    }
+  }
+};
+
+// Later search rounds (PipelineConfig::search_rounds): the image edges the best candidates so far
+// explain are taken out of the query and the search runs again for the parts they hid. A round
+// starts only when the first was complete and the deadline leaves it the time the last one took;
+// its result is extra candidates, so skipping it does not degrade the cycle.
+class RoundsStage final : public Stage {
+ public:
+  RoundsStage() : Stage("rounds", &StageTimes::pose_ms) {}
+  void run(BinPickingPipeline::Impl& m, CycleContext& c) override {
+    PipelineResult& out = *c.out;
+    out.rounds = 1;
+    for (int round = 2; c.cycle.fdcm && round <= m.config.search_rounds && !out.degraded && !m.verified.empty();
+         ++round) {
+      const auto start = Clock::now();
+      if (!m.budget->leaves_time_for(CycleBudget::Optional::round)) break;
+      m.query_without_best(round - 1);
+      const auto [round_lines, round_map] = m.search_query(m.round_query);
+      m.dt3.compute(*round_map, m.search_dt3);
+      m.round_idt.compute(m.dt3);
+      m.add_search(c.cycle, *round_lines, m.round_idt, static_cast<size_t>(m.config.round_hypotheses),
+                   m.shipped_search(), round, out);
+      m.budget->record(CycleBudget::Optional::round, ms_between(start, Clock::now()));
+      out.rounds = round;
+    }
+  }
+};
+
+}  // namespace
+
+std::unique_ptr<Stage> make_search_stage() { return std::make_unique<SearchStage>(); }
+std::unique_ptr<Stage> make_escalation_stage() { return std::make_unique<EscalationStage>(); }
+std::unique_ptr<Stage> make_rounds_stage() { return std::make_unique<RoundsStage>(); }
+
+}  // namespace detail
 
 }  // namespace mfcd::vision
