@@ -548,6 +548,11 @@ int run_detect(const Options& o) {
           for (int r = 0; r < 3; ++r)
             for (int c = 0; c < 3; ++c) trial["R"].push_back(best.R(r, c));
           trial["t_mm"] = {best.t_mm[0], best.t_mm[1], best.t_mm[2]};
+          // What the pipeline measured of it (its confidence's inputs: PoseCandidate's fields).
+          if (!best.measures.empty()) {
+            json& measures = trial["measures"];
+            for (const auto& [name, value] : best.measures) measures[name] = value;
+          }
         }
         // Search miss or cost miss: how the truth scores on this image, by the detector's own
         // ranking measure, against the estimate it chose.

@@ -44,7 +44,13 @@ class PipelineDetector final : public Detector {
     pipeline_->process(frames, obj_id, std::chrono::steady_clock::now() + std::chrono::hours(1), result_);
     out.estimates.clear();
     for (const auto& c : result_.candidates)
-      out.estimates.push_back({c.obj_id, c.R_m2c, c.t_m2c_mm, c.score, c.rank_px, c.fit_rank, c.grasp_visibility, {}});
+      out.estimates.push_back({c.obj_id, c.R_m2c, c.t_m2c_mm, c.score, c.rank_px, c.fit_rank, c.grasp_visibility,
+                               {{"fit_rank", c.fit_rank},
+                                {"coverage", c.coverage},
+                                {"has_alternative", c.has_alternative ? 1.0 : 0.0},
+                                {"alternative_rank", c.alternative_rank},
+                                {"alternative_differs", c.alternative_differs},
+                                {"alternative_support", c.alternative_support}}});
     out.times = result_.times;
     out.views_searched = result_.views_searched;
     out.evaluated = result_.hypotheses;

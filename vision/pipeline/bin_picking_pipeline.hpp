@@ -93,6 +93,7 @@ struct PipelineConfig {
 
   // Candidates and refinement (Sec. 4.5, one view).
   int max_candidates = 8;           // best first
+  double alternative_min_differ = 0.25;  // PoseCandidate::alternative_*
   // The candidates' poses polished with the templates' edge offset profiles; ranking is without it.
   bool edge_offset_correction = true;
   int refine_candidates = 0;        // render-based PoseRefiner on the best n; 0 = fitted pose kept
@@ -123,6 +124,17 @@ struct PoseCandidate {
   // (vision/pose/grasp_visibility.hpp); 1 when its part type has no grasp feature configured.
   double grasp_visibility = 1;
   cv::Rect2d box;               // image bounding box of the matched template
+  // What the edges had to tell this pose from: the best-ranked other fitted hypothesis of the
+  // part at its place (search boxes overlapping as in the candidates' suppression) whose image
+  // differs from this pose's, i.e. at least alternative_min_differ of the two poses' edge points
+  // lie more than 3 px from any point of the other (a symmetric turn of the part images the same
+  // points and is not an alternative). None: no such hypothesis was fitted, or the deadline had
+  // passed.
+  bool has_alternative = false;
+  double alternative_rank = 0;     // its fit_rank
+  double alternative_differs = 0;  // share of the two poses' edge points that differ
+  // On the differing points: the share on image edges of this pose's less the alternative's.
+  double alternative_support = 0;
 };
 
 struct StageTimes {

@@ -6,6 +6,28 @@
 
 namespace mfcd::vision {
 
+void BinPickingPipeline::Impl::find_alternative(size_t index, PoseCandidate& c) {
+  const Verified& v = verified[index];
+  const PartModel& part = parts[v.hit.part];
+  const TemplateFitResult mine = v.as_fit();
+  TemplatePoseFit::Workspace& ws = fit_workspaces[0];
+  // Best-ranked first: the first distinct one is the best alternative.
+  for (size_t i = 0; i < verified.size(); ++i) {
+    const Verified& u = verified[i];
+    if (i == index || u.fit_score < 0 || u.below_floor || u.hit.part != v.hit.part) continue;
+    if (iou(u.hit.box, v.hit.box) <= kCandidateOverlap) continue;
+    const TemplatePoseFit::Difference d = fitter.compare(part.db, mine, u.as_fit(), camera.camera, ws);
+    const double points = static_cast<double>(ws.seen_a.size() + ws.seen_b.size());
+    const double differs = points > 0 ? (d.only_a + d.only_b) / points : 0;
+    if (differs < config.alternative_min_differ) continue;
+    c.has_alternative = true;
+    c.alternative_rank = u.fit_rank;
+    c.alternative_differs = differs;
+    c.alternative_support = d.found_a - d.found_b;
+    return;
+  }
+}
+
 void BinPickingPipeline::Impl::make_candidates(Clock::time_point deadline, PipelineResult& out) {
   // Non-maximum suppression across views and part types: one part per place in the bin.
   const int down = config.search_downsample;  // the search hits' pixels
@@ -31,6 +53,7 @@ void BinPickingPipeline::Impl::make_candidates(Clock::time_point deadline, Pipel
     // unrefined match of a large part (3-4 px) still ranks above nothing.
     c.score = v.fit_score >= 0 ? std::clamp(v.fit_rank, 0.0, 1.0) : 1.0 / (1.0 + v.combined / 2.0);
     c.box = h.box;
+    if (v.fit_score >= 0 && Clock::now() < deadline) find_alternative(static_cast<size_t>(&v - verified.data()), c);
     // (Past the deadline the candidate keeps the ranking fit's pose.)
     if (v.fit_score >= 0 && config.edge_offset_correction && Clock::now() < deadline) {
       if (!final_prepared) final_fitter.share_prepared(fitter), final_prepared = true;

@@ -122,6 +122,9 @@ const PipelineParameter kParameters[] = {
     // candidates and refinement (Sec. 4.5)
     {"max_candidates", Type::integer, 1, 16, "", "pick candidates kept per cycle, best first", true,
      MFC_FIELD(max_candidates)},
+    {"alternative_min_differ", Type::number, 0, 1, "",
+     "share of edge points two poses must differ in for one to be the other's alternative", true,
+     MFC_FIELD(alternative_min_differ)},
     {"edge_offset_correction", Type::boolean, 0, 1, "",
      "each candidate's pose polished with the templates' edge offset profiles", true,
      MFC_SWITCH(edge_offset_correction)},

@@ -320,6 +320,9 @@ struct BinPickingPipeline::Impl {
                                     config.fit_inlier_cost_px, own_edges);
   }
   // The pick candidates from `verified`, best first, at most max_candidates (candidates_stage.cpp).
+  // The best-ranked other fitted hypothesis at the place of verified[index] whose image differs
+  // from it (PoseCandidate::alternative_*), into `c`.
+  void find_alternative(size_t index, PoseCandidate& c);
   void make_candidates(Clock::time_point deadline, PipelineResult& out);
   // The best refine_candidates candidates refined until the deadline (refinement_stage.cpp).
   void refine(Clock::time_point deadline, PipelineResult& out);

@@ -852,3 +852,48 @@ TEST(Pipeline, GraspVisibilityTellsACoveredHoleFromAFreeOne) {
   pc.grasp_features = {{99, top}};
   EXPECT_THROW(BinPickingPipeline(cam, pc), std::runtime_error);
 }
+
+// Each candidate's alternative (PoseCandidate::alternative_*) is a fitted hypothesis at its place
+// that ranks no higher than it (the candidate is its place's best) and differs from it by at least
+// alternative_min_differ of their points. Asking less of the difference can only find an
+// alternative at least as high; asking every point to differ, at most as high.
+TEST(Pipeline, AlternativeIsTheBestDistinctHypothesisAtThePlace) {
+  RimDiamonds scene;
+  auto run = [&](double min_differ, int k) {
+    PipelineConfig pc = scene.config();
+    pc.alternative_min_differ = min_differ;
+    BinPickingPipeline pipeline(scene.cam, pc);
+    PipelineResult r;
+    pipeline.process(scene.render(k).frames, 0, std::chrono::steady_clock::now() + std::chrono::seconds(30), r);
+    return r.candidates;
+  };
+  int with_alternative = 0;
+  for (int k = 0; k < 2; ++k) {
+    const auto loose = run(0.0, k), shipped = run(0.25, k), strict = run(1.0, k);
+    ASSERT_FALSE(shipped.empty());
+    ASSERT_EQ(loose.size(), shipped.size());
+    ASSERT_EQ(strict.size(), shipped.size());
+    for (size_t i = 0; i < shipped.size(); ++i) {
+      const PoseCandidate& c = shipped[i];
+      EXPECT_EQ(loose[i].fit_rank, c.fit_rank);  // the alternative changes nothing else
+      if (c.has_alternative) {
+        ++with_alternative;
+        EXPECT_LE(c.alternative_rank, c.fit_rank) << "candidate " << i;
+        EXPECT_GE(c.alternative_differs, 0.25) << "candidate " << i;
+        EXPECT_LE(c.alternative_differs, 1.0);
+        EXPECT_GE(c.alternative_support, -1.0);
+        EXPECT_LE(c.alternative_support, 1.0);
+      }
+      // Asking less finds one whenever the shipped setting does, ranked at least as high.
+      if (c.has_alternative) {
+        ASSERT_TRUE(loose[i].has_alternative) << "candidate " << i;
+        EXPECT_GE(loose[i].alternative_rank, c.alternative_rank) << "candidate " << i;
+      }
+      if (strict[i].has_alternative) {
+        ASSERT_TRUE(c.has_alternative) << "candidate " << i;
+        EXPECT_LE(strict[i].alternative_rank, c.alternative_rank) << "candidate " << i;
+      }
+    }
+  }
+  EXPECT_GT(with_alternative, 0);  // a diamond on its rim always has a competing spin
+}
