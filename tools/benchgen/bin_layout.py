@@ -27,6 +27,27 @@ def draw_types(rng, args):
     return [int(x) for x in rng.permutation(base + rest)]
 
 
+# A bin holds its parts in about one layer, each part covering about half the square of its
+# diameter, and its walls stand at least this share of the largest part's diameter: a bin drawn
+# for the view alone held 1 of 21 cups of 112 mm (the rest slid over its 36 mm walls).
+BIN_LAYERS = 1.0
+FOOTPRINT_SHARE = 0.5
+WALL_SHARE = 0.75
+
+
+def fit_bin_to_parts(lay, models, types):
+    """Grows the drawn bin (in place) to hold `types`: its floor to BIN_LAYERS layers of the parts'
+    footprints (the bin may then reach past the view, as a large part's bin does), its walls to
+    WALL_SHARE of the largest diameter. Returns the area scale applied (1: the drawn bin held them)."""
+    d = [2.0 * models[o]['radius'] for o in types]
+    need = sum(FOOTPRINT_SHARE * x * x for x in d) / BIN_LAYERS
+    area = lay['inner'][0] * lay['inner'][1]
+    scale = max(1.0, need / area)
+    lay['inner'] = [x * math.sqrt(scale) for x in lay['inner']]
+    lay['wall_h'] = max(lay['wall_h'], WALL_SHARE * max(d))
+    return scale
+
+
 def quat_matrix(q):
     w, x, y, z = q
     return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],

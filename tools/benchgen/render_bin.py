@@ -20,7 +20,7 @@ import plymesh  # noqa: E402
 
 import bpy  # noqa: E402
 from benchgen_common import CYCLES, FLIP, N_FLASH, cycles_seed, log, shrunk_hull  # noqa: E402
-from bin_layout import bin_mesh, draw_layout, draw_types, table_mesh  # noqa: E402
+from bin_layout import bin_mesh, draw_layout, draw_types, fit_bin_to_parts, table_mesh  # noqa: E402
 from blender_scene import add_lights, build_render_scene, reset_blender, setup_render  # noqa: E402
 from physics import settle, spawn_poses  # noqa: E402
 from raycast_truth import ground_truth  # noqa: E402
@@ -239,6 +239,7 @@ def make_scene(args, cam, models, tmp):
     rng = np.random.default_rng([args.seed, args.scene_id])
     lay = draw_layout(rng, cam, args)
     types = draw_types(rng, args)
+    lay['bin_area_scale'] = fit_bin_to_parts(lay, models, types)
     reset_blender()
     t0 = time.time()
     types, poses, phys = settle(lay, models, types, spawn_poses(rng, lay, models, types))
