@@ -78,7 +78,7 @@ BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfi
   for (auto& h : m.thread_best)
     h.reserve(std::max<size_t>({static_cast<size_t>(std::max(m.config.fit_candidates, m.config.round_hypotheses) *
                                                     m.config.keep_per_view),
-                                static_cast<size_t>(m.config.escalate_hypotheses * kEscalationPlacementsPerView),
+                                static_cast<size_t>(m.config.escalate_hypotheses * m.config.escalate_placements_per_view),
                                 m.config.coarse_seeds * m.parts.size()}) +
               1);
   m.hits.reserve(4096);

@@ -65,12 +65,15 @@ struct PipelineConfig {
   static constexpr int kMaxSearchRounds = 4;
   int search_rounds = 1;
   int round_hypotheses = 16;
+  int round_erase_px = 2;           // px around the best candidates' points taken out of a later round
   // Escalation (FDCM with the fit only): the wide search searches every view with
   // escalate_query_guides guides and two placements per view at least 40 px apart; like a round it
   // starts only when the deadline leaves it the time the last escalation took.
   double escalate_below = 0.08;     // fitted rank; 0 = off
   int escalate_query_guides = 120;
   int escalate_hypotheses = 150;
+  int escalate_placements_per_view = 2;
+  int escalate_separation_px = 40;   // full-resolution px between one view's placements
   double escalate_max_cost_px = 14;  // px; 0 = max_cost_px
 
   // 3-D pose (Sec. 4.4): hypotheses fitted in 6-DoF (TemplatePoseFit) and ranked by
@@ -90,9 +93,12 @@ struct PipelineConfig {
   double depth_start_mm = 2;        // mm along the line of sight
   int flip_checks = 6;
   int floor_starts = 6;
+  double floor_start_height_mm = 30;       // mm above the floor a hypothesis may hover and start again from it
+  double floor_start_min_score_ratio = 0.8;  // of the free fit's score, for the floor start's fit to be kept
 
   // Candidates and refinement (Sec. 4.5, one view).
   int max_candidates = 8;           // best first
+  double candidate_overlap = 0.3;   // search boxes overlapping more (IoU) are one part
   double alternative_min_differ = 0.25;  // PoseCandidate::alternative_*
   // The candidates' poses polished with the templates' edge offset profiles; ranking is without it.
   bool edge_offset_correction = true;

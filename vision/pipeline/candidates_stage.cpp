@@ -15,7 +15,7 @@ void BinPickingPipeline::Impl::find_alternative(size_t index, PoseCandidate& c) 
   for (size_t i = 0; i < verified.size(); ++i) {
     const Verified& u = verified[i];
     if (i == index || u.fit_score < 0 || u.below_floor || u.hit.part != v.hit.part) continue;
-    if (iou(u.hit.box, v.hit.box) <= kCandidateOverlap) continue;
+    if (iou(u.hit.box, v.hit.box) <= config.candidate_overlap) continue;
     const TemplatePoseFit::Difference d = fitter.compare(part.db, mine, u.as_fit(), camera.camera, ws);
     const double points = static_cast<double>(ws.seen_a.size() + ws.seen_b.size());
     const double differs = points > 0 ? (d.only_a + d.only_b) / points : 0;
@@ -36,7 +36,7 @@ void BinPickingPipeline::Impl::make_candidates(Clock::time_point deadline, Pipel
     const Hit& h = v.hit;
     if (static_cast<int>(out.candidates.size()) >= config.max_candidates) break;
     bool overlaps = false;
-    for (const auto& k : out.candidates) overlaps = overlaps || iou(k.box, h.box) > kCandidateOverlap;
+    for (const auto& k : out.candidates) overlaps = overlaps || iou(k.box, h.box) > config.candidate_overlap;
     if (overlaps) continue;
     const PartModel& part = parts[h.part];
     PoseCandidate c;

@@ -93,27 +93,6 @@ inline bool moved_too_far_in_depth(const TemplateDatabase& db, const RigidPose& 
   return std::abs(z1 - z0) > kMaxFitDepthChange * z0;
 }
 
-// Floor starts (PipelineConfig::floor_starts): hypotheses whose lowest point lies up to this high
-// above the floor are fitted again from the floor, and the floor-start fit is kept when it scores
-// at least this share of the free fit: a prior that a part low in the bin rests on the floor,
-// which a single view cannot tell from a part a few millimetres nearer. Measured on three dev sets
-// (mfc-sim seeds 7, 13, 19; 283 trials, floor at 300 mm) and the bench set (119 trials): 85 and 32
-// failures without, 81 and 30 with the 6 best (height 30 mm, share 0.8). Other settings are in
-// docs/pose.md (share 1.0, the better of the two fits: 1 and 2 failures more).
-inline constexpr double kFloorStartHeightMm = 30;
-inline constexpr double kFloorStartMinScoreRatio = 0.8;
-
-// Search rounds (PipelineConfig::search_rounds): a later round takes out the image edges within
-// this many pixels of the best candidates' points.
-inline constexpr int kRoundErasePx = 2;
-// Candidates whose search boxes overlap by more than this (intersection over union) are one part.
-inline constexpr double kCandidateOverlap = 0.3;
-
-// Escalation's wide search (PipelineConfig::escalate_below): every view, and per view its best
-// two placements at least this far apart (full-resolution px), so that a part whose view matches
-// clutter better still gets a placement of its own.
-inline constexpr int kEscalationPlacementsPerView = 2;
-inline constexpr int kEscalationSeparationPx = 40;
 
 // The calling thread's OpenMP team size set for a scope and restored after. The stages that open
 // their own parallel regions (depth edges, line fitting, DT3 / IDT3) take it from the calling
@@ -286,7 +265,7 @@ struct BinPickingPipeline::Impl {
             config.max_cost_px};
   }
   SearchSettings escalation_search() const {
-    return {1, config.escalate_query_guides, kEscalationPlacementsPerView, kEscalationSeparationPx,
+    return {1, config.escalate_query_guides, config.escalate_placements_per_view, config.escalate_separation_px,
             config.escalate_max_cost_px > 0 ? config.escalate_max_cost_px : config.max_cost_px};
   }
 

@@ -64,9 +64,9 @@ void BinPickingPipeline::Impl::rank(const Cycle& cycle, size_t first) {
   check_leaders(floor.known() ? std::min(m.config.floor_starts, count) : 0,
                 [&](int i, Verified& v, const PartModel& part) {
     const double height = -floor.reach_below(part.db.mesh, v.fitted);
-    if (height <= floor.tolerance_mm || height > kFloorStartHeightMm) return;
+    if (height <= floor.tolerance_mm || height > m.config.floor_start_height_mm) return;
     const TemplateFitResult f = fit_from(i, part.db, floor.onto(part.db.mesh, v.fitted, part.db.center_mm));
-    if (f.score < kFloorStartMinScoreRatio * v.fit_score || floor.below(part.db.mesh, f.pose) ||
+    if (f.score < m.config.floor_start_min_score_ratio * v.fit_score || floor.below(part.db.mesh, f.pose) ||
         moved_too_far_in_depth(part.db, v.coarse, f.pose))
       return;
     v.take(f, fitted_rank(f, part.db, m.config));

@@ -179,7 +179,7 @@ void BinPickingPipeline::Impl::add_search(const Cycle& cycle, const LineSet& que
 
 // The query of a later search round: the cycle's query lines and directional edge map without
 // the image edges that the best `best` distinct candidates so far explain (those within
-// kRoundErasePx of their fitted view's points; distinct as the candidates' NMS sees them). A line
+// m.config.round_erase_px of their fitted view's points; distinct as the candidates' NMS sees them). A line
 // is dropped when more than half of it lies there.
 void BinPickingPipeline::Impl::query_without_best(int best) {
   Impl& m = *this;
@@ -190,13 +190,13 @@ void BinPickingPipeline::Impl::query_without_best(int best) {
   for (const Verified& v : m.verified) {
     if (n >= best) break;
     bool overlaps = false;
-    for (int k = 0; k < n; ++k) overlaps = overlaps || iou(taken[static_cast<size_t>(k)], v.hit.box) > kCandidateOverlap;
+    for (int k = 0; k < n; ++k) overlaps = overlaps || iou(taken[static_cast<size_t>(k)], v.hit.box) > m.config.candidate_overlap;
     if (overlaps) continue;
     taken[static_cast<size_t>(n++)] = v.hit.box;
     const TemplateView& view = m.parts[v.hit.part].db.views[static_cast<size_t>(v.view)];
     for_each_projected_point(view, v.fitted, m.camera.camera, [&](const cv::Point2d& q) {
-      const cv::Rect around(cvRound(q.x) - kRoundErasePx, cvRound(q.y) - kRoundErasePx, 2 * kRoundErasePx + 1,
-                            2 * kRoundErasePx + 1);
+      const cv::Rect around(cvRound(q.x) - m.config.round_erase_px, cvRound(q.y) - m.config.round_erase_px, 2 * m.config.round_erase_px + 1,
+                            2 * m.config.round_erase_px + 1);
       const cv::Rect inside = around & cv::Rect(cv::Point(0, 0), erased.size());
       for (int y = inside.y; y < inside.y + inside.height; ++y)
         std::fill_n(erased.ptr<uchar>(y) + inside.x, inside.width, uchar{255});
