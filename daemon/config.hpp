@@ -14,8 +14,8 @@
 #include "motion/can_publisher.h"
 #include "motion/modbus_server.h"
 #include "motion/pick_choice.h"
-#include "vision/pipeline/bin_picking_pipeline.hpp"
 #include "motion/pick_transform.h"
+#include "vision/pipeline/bin_picking_pipeline.hpp"
 
 namespace mfcd::daemon {
 

@@ -172,12 +172,15 @@ def prepare_dataset(args, cache, parts_dir, parts, split):
     return root, cam_yaml, cam_render, ids, plan
 
 
-def check_scene(root, folder, scene_id):
-    """tools/benchgen/check_scene.py on one scene: (passed, its output)."""
-    check = [str(c) for c in (PY, ROOT / "tools/benchgen/check_scene.py", "--dataset", root, "--split", "test",
-                              "--scene", scene_id, "--overlay", folder / "overlay.png")]
+def run_check(root, *args):
+    """tools/benchgen/check_scene.py on the dataset's split `test`: (passed, its output)."""
+    check = [str(c) for c in (PY, ROOT / "tools/benchgen/check_scene.py", "--dataset", root, "--split", "test", *args)]
     r = subprocess.run(check, capture_output=True, text=True)
     return r.returncode == 0, r.stdout + r.stderr
+
+
+def check_scene(root, folder, scene_id):
+    return run_check(root, "--scene", scene_id, "--overlay", folder / "overlay.png")
 
 
 def render_scenes(args, root, cam_render, plan, split):
@@ -223,11 +226,10 @@ def render_scenes(args, root, cam_render, plan, split):
     if failed:
         raise SystemExit(f"generalize: {split} scene(s) {', '.join(map(str, failed))} failed their ground-truth check")
     # The camera's alignment over every scene pooled: one scene's parts scatter it too much.
-    r = subprocess.run([str(c) for c in (PY, ROOT / "tools/benchgen/check_scene.py", "--dataset", root, "--split",
-                                         "test", "--split-alignment")], capture_output=True, text=True)
-    say(f"{split}: {(r.stdout.strip().splitlines() or ['(no output)'])[-1]}")
-    if r.returncode != 0:
-        sys.stderr.write(r.stdout[-4000:] + r.stderr[-4000:])
+    ok, output = run_check(root, "--split-alignment")
+    say(f"{split}: {(output.strip().splitlines() or ['(no output)'])[-1]}")
+    if not ok:
+        sys.stderr.write(output[-4000:])
         raise SystemExit(f"generalize: {split}: the rendered images are not aligned with their ground truth")
 
 

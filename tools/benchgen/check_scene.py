@@ -296,6 +296,13 @@ def alignment_profiles(flashes, depth, scale):
     return out
 
 
+def add_profiles(pooled, profiles):
+    """alignment_profiles of several images summed (pooled None: the first)."""
+    if pooled is None:
+        return profiles
+    return [[(p + q, m + n) for (p, m), (q, n) in zip(a, b)] for a, b in zip(pooled, profiles)]
+
+
 def profile_peak(prof):
     """Sub-pixel peak of a 7-sample profile (k = -3..3), refined by a parabola."""
     k = int(np.clip(np.argmax(prof), 1, 5))
@@ -396,9 +403,7 @@ def split_alignment(dataset, split):
             depth = load_png(os.path.join(sdir, 'depth', tag + '.png'), size, 16, chk)
             if depth is None or any(f is None for f in flashes):
                 continue
-            prof = alignment_profiles(flashes, depth, float(cam['depth_scale']))
-            pooled = prof if pooled is None else [[(p + q, m + n) for (p, m), (q, n) in zip(a, b)]
-                                                  for a, b in zip(pooled, prof)]
+            pooled = add_profiles(pooled, alignment_profiles(flashes, depth, float(cam['depth_scale'])))
     if pooled is None:
         print('check_scene: split %s: no scene to pool' % split)
         return 1

@@ -13,7 +13,6 @@ namespace mfcd::vision {
 
 namespace {
 
-
 // The table's ranges (pipeline_parameters.hpp), checked before anything is made from them (the
 // fitters would refuse bad gates in their own words, naming TemplateFitParams fields).
 PipelineConfig checked_parameters(PipelineConfig c) {
@@ -122,16 +121,6 @@ std::vector<std::pair<int, std::string>> BinPickingPipeline::parts() const {
 }
 const CameraConfig& BinPickingPipeline::camera() const { return impl_->camera; }
 const DepthEdges& BinPickingPipeline::last_edges() const { return impl_->edges; }
-
-
-
-
-
-
-
-
-
-
 
 void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::time_point deadline,
                                  PipelineResult& out) {

@@ -48,9 +48,7 @@ class EdgeAlignment(unittest.TestCase):
         pooled = None
         for seed in range(6):
             depth, flashes = scene(shift, seed)
-            prof = check_scene.alignment_profiles(flashes, depth, 0.1)
-            pooled = prof if pooled is None else [[(p + q, m + n) for (p, m), (q, n) in zip(a, b)]
-                                                  for a, b in zip(pooled, prof)]
+            pooled = check_scene.add_profiles(pooled, check_scene.alignment_profiles(flashes, depth, 0.1))
         return check_scene.alignment_offsets(pooled)
 
     def test_correct_camera_reads_zero_despite_rim_shading(self):
