@@ -230,7 +230,9 @@ void Daemon::acceptControlClient() {
 }
 
 void Daemon::reply(int fd, const json& j) {
-  const std::string line = j.dump() + "\n";
+  // Request text echoed in an error may hold any bytes: invalid UTF-8 is replaced (U+FFFD), as
+  // dump() would otherwise throw.
+  const std::string line = j.dump(-1, ' ', false, json::error_handler_t::replace) + "\n";
   std::size_t sent = 0;
   // Replies are small; a client that does not read them loses them rather than stall the loop.
   for (int tries = 0; sent < line.size() && tries < 100; ++tries) {
@@ -287,7 +289,14 @@ void Daemon::readControlClient(ControlClient& c) {
   while ((nl = c.in.find('\n')) != std::string::npos) {
     const std::string line = c.in.substr(0, nl);
     c.in.erase(0, nl + 1);
-    if (!line.empty()) handleRequest(c, line);  // may not close c (closing happens only above)
+    if (line.empty()) continue;
+    // A request that throws gets an error reply; it never reaches the main loop.
+    try {
+      handleRequest(c, line);  // may not close c (closing happens only above)
+    } catch (const std::exception& e) {
+      logf(LogLevel::Warning, "control socket: request failed: %s", e.what());
+      reply(fd, {{"ok", false}, {"error", std::string("request failed: ") + e.what()}});
+    }
   }
 }
 
@@ -895,7 +904,7 @@ int Daemon::runBenchmark() {
   j["budget_ms"] = config_.cycle_budget_ms;
   j["camera"] = cell_->sourceDescription();
   j["vision"] = cell_->visionDescription();
-  std::printf("%s\n", j.dump(2).c_str());
+  std::printf("%s\n", j.dump(2, ' ', false, json::error_handler_t::replace).c_str());
   std::printf("\n| stage | p50 ms | p90 ms | p99 ms | max ms |\n|---|---|---|---|---|\n");
   for (const char* stage : {"total", "capture", "vision"})
     std::printf("| %s | %.1f | %.1f | %.1f | %.1f |\n", stage, stats_.percentileMs(stage, 50), stats_.percentileMs(stage, 90),
@@ -910,7 +919,7 @@ int Daemon::runBenchmark() {
       logf(LogLevel::Error, "cannot write %s: %s", options_.benchmarkJson.c_str(), std::strerror(errno));
       return 1;
     }
-    std::fprintf(f, "%s\n", j.dump(2).c_str());
+    std::fprintf(f, "%s\n", j.dump(2, ' ', false, json::error_handler_t::replace).c_str());
     std::fclose(f);
   }
   cell_.reset();

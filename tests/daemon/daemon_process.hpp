@@ -52,16 +52,17 @@ inline std::string simCellConfig(const fs::path& dir, int budgetMs = 1000, const
   return s.str();
 }
 
-inline json ctlRequest(const fs::path& socket, const json& request, int timeoutMs = 30000) {
+// Sends raw bytes (one request line and its newline) and returns the reply line, without its
+// newline; empty when the daemon does not answer.
+inline std::string ctlLine(const fs::path& socket, const std::string& line, int timeoutMs = 30000) {
   const int fd = ::socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
   sockaddr_un addr{};
   addr.sun_family = AF_UNIX;
   std::strncpy(addr.sun_path, socket.c_str(), sizeof addr.sun_path - 1);
   if (::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0) {
     ::close(fd);
-    return {{"ok", false}, {"error", "connect failed"}};
+    return {};
   }
-  const std::string line = request.dump() + "\n";
   ::send(fd, line.data(), line.size(), MSG_NOSIGNAL);
   std::string in;
   char buf[8192];
@@ -73,8 +74,14 @@ inline json ctlRequest(const fs::path& socket, const json& request, int timeoutM
     in.append(buf, static_cast<std::size_t>(n));
   }
   ::close(fd);
-  if (in.find('\n') == std::string::npos) return {{"ok", false}, {"error", "no answer"}};
-  return json::parse(in.substr(0, in.find('\n')));
+  if (in.find('\n') == std::string::npos) return {};
+  return in.substr(0, in.find('\n'));
+}
+
+inline json ctlRequest(const fs::path& socket, const json& request, int timeoutMs = 30000) {
+  const std::string reply = ctlLine(socket, request.dump() + "\n", timeoutMs);
+  if (reply.empty()) return {{"ok", false}, {"error", "no answer"}};
+  return json::parse(reply);
 }
 
 class DaemonProcess {

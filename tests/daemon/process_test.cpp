@@ -251,6 +251,16 @@ TEST_F(DaemonE2E, ControlSocketStatusStatsSnapshotAndTheRealCli) {
   EXPECT_EQ(proc->ctl({{"cmd", "calibrate"}, {"action", "compute"}})["ok"], false) << "no session";
   EXPECT_EQ(proc->ctl({{"cmd", "calibrate"}, {"action", "status"}})["session"]["active"], false);
   EXPECT_EQ(proc->ctl({{"cmd", "frobnicate"}})["ok"], false);
+  // Bytes that are not UTF-8 come back in the error text: the reply must still be valid JSON
+  // (invalid bytes replaced) and the daemon must go on answering.
+  for (const std::string raw : {std::string("\xff\n"), std::string("{\"cmd\": \"\xc3\x28\"}\n"),
+                                std::string("{\"cmd\": \"part\", \"recipe\": \"\xfe\"}\n")}) {
+    const std::string answer = ctlLine(proc->socket(), raw);
+    ASSERT_FALSE(answer.empty()) << "no answer to a request with invalid UTF-8";
+    const json bad = json::parse(answer);
+    EXPECT_EQ(bad["ok"], false) << answer;
+  }
+  EXPECT_EQ(proc->ctl({{"cmd", "status"}})["state"], "ready") << "the daemon survives invalid UTF-8";
 
   // mfcd-ctl itself.
   const std::string cmd = std::string(MFCD_CTL) + " -s " + proc->socket().string() + " status > " + (proc->dir() / "cli.json").string();
