@@ -334,8 +334,9 @@ void Cell::runCycle(FrameSlot& slot, CycleResult& out) {
         if (pose) c.base = *pose;
         // Grasp visibility: the pipeline's estimate for the recipes' grasp features (1 without any).
         c.grasp_visibility = static_cast<float>(pc.grasp_visibility);
+        c.ambiguous = pc.ambiguous;
         choice[static_cast<std::size_t>(i)] = {c.score, static_cast<float>(config_.pick.bin_floor_distance_mm - pc.t_m2c_mm[2]),
-                                               c.grasp_visibility};
+                                               c.grasp_visibility, c.ambiguous};
         const auto u = motion::pick_utility(choice[static_cast<std::size_t>(i)], config_.pick.choice);
         c.utility = u ? *u : -1.0f;
       }

@@ -407,8 +407,10 @@ DaemonConfig parseConfig(const std::string& yamlText, const std::string& source,
     p.weight_height = static_cast<float>(s.number("weight_height", 0.5, 0, 100));
     p.weight_grasp = static_cast<float>(s.number("weight_grasp", 0.0, 0, 100));
     p.height_scale_mm = static_cast<float>(s.number("height_scale_mm", 200, 1, 10000));
-    p.min_score = static_cast<float>(s.number("min_score", 0.1, 0, 1));
+    const motion::PickChoiceConfig defaults;
+    p.min_score = static_cast<float>(s.number("min_score", defaults.min_score, 0, 1));
     p.min_grasp_visibility = static_cast<float>(s.number("min_grasp_visibility", 0, 0, 1));
+    p.skip_ambiguous = s.boolean("skip_ambiguous", defaults.skip_ambiguous);
     c.pick.bin_floor_distance_mm = s.number("bin_floor_distance_mm", 330, 1, 10000);
     if (std::string e = p.validate(); !e.empty()) s.fail(s.key(""), s.line(), e);
     s.finish();

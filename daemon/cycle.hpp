@@ -111,6 +111,7 @@ struct CandidateOut {
   bool base_valid = false;
   float utility = -1;     // pick-choice utility, -1 = not eligible
   float grasp_visibility = 1;  // vision::PoseCandidate::grasp_visibility
+  bool ambiguous = false;      // vision::PoseCandidate::ambiguous
 };
 
 // One cycle's outcome, vision -> main thread.

@@ -74,7 +74,8 @@ json resultJson(const CycleResult& r, const DaemonConfig& config) {
   for (int i = 0; i < r.candidate_count; ++i) {
     const CandidateOut& c = r.candidates[static_cast<std::size_t>(i)];
     json cj = {{"obj_id", c.obj_id}, {"score", c.score}, {"cost_px", c.cost_px}, {"refined", c.refined},
-               {"utility", c.utility}, {"grasp_visibility", c.grasp_visibility}, {"R_cam", matJson(c.R_cam)},
+               {"utility", c.utility}, {"grasp_visibility", c.grasp_visibility}, {"ambiguous", c.ambiguous},
+               {"R_cam", matJson(c.R_cam)},
                {"t_cam_mm", {c.t_cam_mm[0], c.t_cam_mm[1], c.t_cam_mm[2]}}};
     if (c.base_valid) cj["base"] = poseJson(c.base);
     cands.push_back(std::move(cj));
@@ -166,7 +167,7 @@ std::string saveSnapshot(const DaemonConfig& config, const FrameSlot& slot, cons
   CycleResult withDir = result;
   copyMessage(withDir.snapshot_dir, sizeof withDir.snapshot_dir, dir.c_str());
   std::ofstream out(dir / "result.json");
-  out << resultJson(withDir, config).dump(2) << "\n";
+  out << resultJson(withDir, config).dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
   if (!out) throw std::runtime_error("snapshot: cannot write " + (dir / "result.json").string());
   return dir.string();
 }

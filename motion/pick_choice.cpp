@@ -29,6 +29,8 @@ std::optional<float> pick_utility(const PickCandidate &c, const PickChoiceConfig
 		return std::nullopt;
 	if (c.score < config.min_score || c.grasp_visibility < config.min_grasp_visibility)
 		return std::nullopt;
+	if (c.ambiguous && config.skip_ambiguous)
+		return std::nullopt;
 	const float height = std::clamp(c.height_mm / config.height_scale_mm, 0.0f, 1.0f);
 	const float grasp = std::clamp(c.grasp_visibility, 0.0f, 1.0f);
 	return config.weight_score * c.score + config.weight_height * height + config.weight_grasp * grasp;

@@ -15,6 +15,7 @@ struct PickCandidate {
 	float score = 0;             // matcher score, 0..1
 	float height_mm = 0;         // part origin above the bin floor
 	float grasp_visibility = 0;  // fraction of the grasp feature seen, 0..1
+	bool ambiguous = false;      // the image does not tell its pose from another (vision::PoseCandidate::ambiguous)
 };
 
 struct PickChoiceConfig {
@@ -22,8 +23,9 @@ struct PickChoiceConfig {
 	float weight_height = 0.5f;
 	float weight_grasp = 0.5f;
 	float height_scale_mm = 200.0f; // height at which the height term saturates at 1 (bin depth)
-	float min_score = 0.1f;         // candidates below are never picked (the pipeline's fitted rank, docs/configuration.md)
+	float min_score = 0.3f;         // candidates below are never picked (score: the probability that the pose is right)
 	float min_grasp_visibility = 0.0f;
+	bool skip_ambiguous = true;     // ambiguous candidates are never picked
 
 	// Empty when valid; else names the key and the reason.
 	std::string validate() const;

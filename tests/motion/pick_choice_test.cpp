@@ -18,7 +18,8 @@ std::vector<std::uint16_t> reference_rank(const std::vector<PickCandidate> &cand
 	for (std::size_t i = 0; i < cands.size(); ++i) {
 		const PickCandidate &c = cands[i];
 		if (std::isnan(c.score) || std::isnan(c.height_mm) || std::isnan(c.grasp_visibility) ||
-		    std::isinf(c.height_mm) || c.score < cfg.min_score || c.grasp_visibility < cfg.min_grasp_visibility)
+		    std::isinf(c.height_mm) || c.score < cfg.min_score || c.grasp_visibility < cfg.min_grasp_visibility ||
+		    (c.ambiguous && cfg.skip_ambiguous))
 			continue;
 		float h = c.height_mm / cfg.height_scale_mm;
 		h = h < 0 ? 0 : (h > 1 ? 1 : h);
@@ -61,6 +62,23 @@ TEST(PickChoice, NothingEligible)
 	EXPECT_EQ(rank_picks(c, PickChoiceConfig{}, order), 0u);
 }
 
+TEST(PickChoice, AmbiguousCandidateIsPassedOver)
+{
+	// The better candidate's pose cannot be told from another: the cell takes the next one.
+	PickCandidate c[] = {{0.9f, 100.0f, 1.0f}, {0.6f, 100.0f, 1.0f}};
+	c[0].ambiguous = true;
+	PickChoiceConfig cfg;
+	EXPECT_EQ(choose_pick(c, cfg), 1u);
+	std::uint16_t order[2];
+	ASSERT_EQ(rank_picks(c, cfg, order), 1u);
+	EXPECT_EQ(order[0], 1u);
+	cfg.skip_ambiguous = false;
+	EXPECT_EQ(choose_pick(c, cfg), 0u);
+	c[1].ambiguous = true;
+	cfg.skip_ambiguous = true;
+	EXPECT_FALSE(choose_pick(c, cfg)) << "nothing unambiguous: no pick";
+}
+
 TEST(PickChoice, TiesGoToTheLowerIndex)
 {
 	const PickCandidate c[] = {{0.7f, 50.0f, 0.5f}, {0.7f, 50.0f, 0.5f}};
@@ -78,6 +96,7 @@ TEST(PickChoice, MatchesReferenceRankingOnRandomCandidates)
 		cfg.weight_height = weight(rng);
 		cfg.weight_grasp = weight(rng);
 		cfg.min_score = unit(rng) * 0.6f;
+		cfg.skip_ambiguous = unit(rng) < 0.5f;
 		ASSERT_TRUE(cfg.validate().empty());
 		std::vector<PickCandidate> cands(count(rng));
 		for (auto &c : cands) {
@@ -87,6 +106,7 @@ TEST(PickChoice, MatchesReferenceRankingOnRandomCandidates)
 				c = {unit(rng), height(rng), unit(rng)};
 			if (unit(rng) < 0.02f)
 				c.height_mm = std::nanf("");
+			c.ambiguous = unit(rng) < 0.2f;
 		}
 		const auto want = reference_rank(cands, cfg);
 		const auto best = choose_pick(cands, cfg);

@@ -15,7 +15,9 @@ import statistics
 import sys
 from pathlib import Path
 
-MIN_SCORE = 0.08  # config/sim.yaml's pick.min_score: the cell withholds a pick scoring below it
+from fit_confidence import auc, reliability
+
+MIN_SCORE = 0.08  # pick.min_score of results that do not name theirs (mfc-eval before --pick-min-score)
 CAUSES = ["nothing found", "wrong place", "depth only", "turned in plane", "turned over"]
 CRITERIA = """\
 A trial is one (image, part type present in it): mfc-detect's pipeline run for that type alone
@@ -153,8 +155,10 @@ def split_section(split, run, parts, lines, plots):
     right, wrong, withheld = cell_view(result)
     delivered = right + wrong
     lines.append(f"### The cell's view (recipe 0: all {len(set(t['obj_id'] for t in trials))} types at once)\n")
+    min_score = result.get("pick_min_score", MIN_SCORE)
+    skip = " and ambiguous candidates passed over" if result.get("pick_skip_ambiguous") else ""
     lines.append(f"Per image, the pick the daemon would deliver (motion::choose_pick with config/sim.yaml's "
-                 f"weights, `pick.min_score` {MIN_SCORE}):\n")
+                 f"weights, `pick.min_score` {min_score:g}{skip}):\n")
     lines.append("| right | wrong | withheld | wrong share of delivered | images with a pick |")
     lines.append("|---:|---:|---:|---:|---:|")
     lines.append(f"| {right} | {wrong} | {withheld} | "
@@ -167,11 +171,13 @@ def split_section(split, run, parts, lines, plots):
                  f"({len(sr)}), of wrong ones {statistics.median(sw) if sw else float('nan'):.3f} ({len(sw)}).\n")
     lines.append("| threshold | right kept | wrong kept |")
     lines.append("|---:|---:|---:|")
-    for th in (0.08, 0.1, 0.2, 0.3, 0.4):
+    for th in (0.1, 0.2, 0.3, 0.5, 0.7, 0.9):
         kr = sum(s >= th for s in sr) / len(sr) if sr else float("nan")
         kw = sum(s >= th for s in sw) / len(sw) if sw else float("nan")
         lines.append(f"| {th:.2f} | {kr:.2f} | {kw:.2f} |")
     lines.append("")
+    conf = confidence_section(result, lines)
+    conf["min_score"] = min_score
     times = [t["times"]["total"] for t in trials]
     stages = ["edges", "lines", "dt", "search", "pose", "refine"]
     all_t = [p["times"]["total"] for p in result.get("all_types", [])]
@@ -184,14 +190,41 @@ def split_section(split, run, parts, lines, plots):
         lines.append(f" Teaching (mfc-teach defaults, K = 300), as timed when each part was taught: median "
                      f"{statistics.median(teach):.0f} s per part, max {max(teach):.0f} s, {len(teach)} parts.")
     lines.append("")
-    plots.append((split, fam, sr, sw))
+    plots.append((split, fam, sr, sw, conf))
     return {"split": split, "images": n_images, "trials": len(trials), "failure_75": tot75, "failure_50": tot50,
             "causes_75": {c: sum(t["cause"] == c for t in all75) for c in CAUSES},
             "cell": {"right": right, "wrong": wrong, "withheld": withheld},
             "median_score_right": statistics.median(sr) if sr else None,
             "median_score_wrong": statistics.median(sw) if sw else None,
             "detect_ms_median": pct(times, 0.5), "detect_ms_p90": pct(times, 0.9),
-            "all_types_ms_median": pct(all_t, 0.5)}
+            "all_types_ms_median": pct(all_t, 0.5),
+            "confidence": {k: conf[k] for k in ("n", "right", "auc", "ece", "ambiguous", "ambiguous_right")}}
+
+
+def confidence_section(result, lines):
+    """Every candidate of every cycle (per type and all types): is its score the probability that
+    it is right? A reliability table, the ranking's AUC, and the ambiguous ones."""
+    import numpy as np
+    cands = [c for t in result["methods"]["fdcm"]["trials"] for c in t.get("candidates", [])]
+    cands += [c for p in result.get("all_types", []) for c in p.get("candidates", [])]
+    p = np.array([min(1.0, max(0.0, c["score"])) for c in cands])
+    y = np.array([1.0 if c["correct"] else 0.0 for c in cands])
+    amb = np.array([c.get("measures", {}).get("ambiguous", 0) > 0.5 for c in cands], dtype=bool)
+    bins, ece = reliability(p, y) if len(p) else ([], float("nan"))
+    out = {"n": int(len(p)), "right": int(y.sum()), "auc": auc(p, y) if len(p) else float("nan"), "ece": ece,
+           "bins": bins, "ambiguous": int(amb.sum()), "ambiguous_right": int(y[amb].sum()) if len(p) else 0}
+    lines.append("### Confidence: is the score the probability of a right pose?\n")
+    lines.append(f"Every candidate of every cycle (per type and all types at once), {out['n']} of them, "
+                 f"{out['right']} right. The score ranks right above wrong with AUC {out['auc']:.3f}; "
+                 f"expected calibration error {out['ece']:.3f} (the count-weighted gap between a bin's mean "
+                 f"score and its share of right poses). Flagged ambiguous: {out['ambiguous']}, of which "
+                 f"{out['ambiguous_right']} right.\n")
+    lines.append("| score | candidates | mean score | share right |")
+    lines.append("|---|---:|---:|---:|")
+    for b in bins:
+        lines.append(f"| {b['from']:.1f}-{b['to']:.1f} | {b['n']} | {b['predicted']:.2f} | {b['observed']:.2f} |")
+    lines.append("")
+    return out
 
 
 def save(fig, ax, title, path):
@@ -211,7 +244,7 @@ def draw(plots, img_dir):
     import matplotlib.pyplot as plt
     img_dir.mkdir(parents=True, exist_ok=True)
     names = []
-    for split, fam, sr, sw in plots:
+    for split, fam, sr, sw, conf in plots:
         fig, ax = plt.subplots(figsize=(8, 3.6))
         labels = [k for k, _, _ in fam]
         f75 = [f[0] / f[1] if f[1] else 0 for _, f, _ in fam]
@@ -227,11 +260,22 @@ def draw(plots, img_dir):
         bins = [i / 40 for i in range(41)]
         ax.hist(sr, bins=bins, alpha=0.6, label=f"right ({len(sr)})")
         ax.hist(sw, bins=bins, alpha=0.6, label=f"wrong ({len(sw)})")
-        ax.axvline(MIN_SCORE, color="k", lw=0.8, ls="--", label="pick.min_score")
+        ax.axvline(conf["min_score"], color="k", lw=0.8, ls="--", label="pick.min_score")
         ax.set_xlabel("score of the best estimate")
         ax.set_ylabel("trials")
         name2 = save(fig, ax, f"Score vs correctness, {split} split", img_dir / f"generalize-{split}-scores.png")
-        names.append((split, name, name2))
+        fig, ax = plt.subplots(figsize=(4.2, 4.2))
+        ax.plot([0, 1], [0, 1], color="k", lw=0.8, ls="--", label="perfectly calibrated")
+        b = conf["bins"]
+        ax.plot([x["predicted"] for x in b], [x["observed"] for x in b], "o-", label="candidates per score bin")
+        for x in b:
+            ax.annotate(str(x["n"]), (x["predicted"], x["observed"]), fontsize=7, xytext=(3, -8),
+                        textcoords="offset points")
+        ax.set_xlim(0, 1), ax.set_ylim(0, 1)
+        ax.set_xlabel("score (predicted probability right)")
+        ax.set_ylabel("share right")
+        name3 = save(fig, ax, f"Reliability, {split} split", img_dir / f"generalize-{split}-reliability.png")
+        names.append((split, name, name2, name3))
     return names
 
 
@@ -256,7 +300,7 @@ def main():
                f"(rendering and teaching included unless cached), Cycles {run['samples']} samples per pixel. "
                "Commands: " + "; ".join(f"`{r['eval_command']}`" for r in run["runs"]) + ".\n")
     figs = "\n".join(f"![failure per family, {s}](img/{a})\n![score vs correctness, {s}](img/{b})\n"
-                     for s, a, b in names)
+                     f"![reliability, {s}](img/{c})\n" for s, a, b, c in names)
     text = head + "\n## How a trial is scored\n\n" + CRITERIA + "\n\n" + run_par + "\n" + body + "\n" + figs
     (args.docs / "generalization.md").write_text(text)
     print(f"wrote {args.docs / 'generalization.md'}", file=sys.stderr)

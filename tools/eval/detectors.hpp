@@ -27,6 +27,7 @@ struct Estimate {
   double grasp_visibility = 1;  // pipeline detectors: PoseCandidate::grasp_visibility
   // Traced hypotheses (--set trace=1): the measures the rank is made of, by name (HypothesisTrace).
   std::vector<std::pair<std::string, double>> measures;
+  bool ambiguous = false;  // pipeline detectors: PoseCandidate::ambiguous
 };
 
 struct Detection {

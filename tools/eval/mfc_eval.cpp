@@ -94,6 +94,9 @@ detect: for every image and every part type present in it, runs each method for 
                          weights) without and with the grasp features
   --pick-grasp W,V       the cell's pick with grasp features: weight_grasp W and min_grasp_visibility V
                          (default 0.5,0.3, config/sim.yaml's)
+  --pick-min-score S     the cell's pick.min_score (default motion::PickChoiceConfig's, the daemon's);
+                         ambiguous candidates are passed over (pick.skip_ambiguous) unless
+  --pick-ambiguous       is given
   --quiet                no per-image lines
 
 refine: each part alone in random poses (random orientation, centre within +-25, +-20 mm of the
@@ -150,6 +153,8 @@ struct Options {
   int max_images = 0, threads = 0, refine_candidates = -1;
   std::filesystem::path grasp_features;  // --grasp-features: the parts' grasp features (pick evaluation)
   double grasp_weight = 0.5, min_grasp_visibility = 0.3;  // --pick-grasp W,V (config/sim.yaml's)
+  double pick_min_score = motion::PickChoiceConfig{}.min_score;  // --pick-min-score
+  bool pick_ambiguous = false;                                  // --pick-ambiguous
   int timing_repeats = 1;  // --timing-repeats
   double floor_mm = 0;  // --floor
   std::vector<double> distances_mm;
@@ -192,6 +197,8 @@ Options parse(int argc, char** argv) {
       o.grasp_weight = to_double(a, v.substr(0, comma));
       o.min_grasp_visibility = to_double(a, v.substr(comma + 1));
     }
+    else if (a == "--pick-min-score") o.pick_min_score = to_double(a, value());
+    else if (a == "--pick-ambiguous") o.pick_ambiguous = true;
     else if (a == "--threads") o.threads = to_int(a, value());
     else if (a == "--timing-repeats") o.timing_repeats = to_int(a, value());
     else if (a == "--all-types") o.all_types = true;
@@ -235,6 +242,7 @@ Options parse(int argc, char** argv) {
   if (o.templates.empty()) throw Usage("--templates is required");
   if (o.out.empty()) throw Usage("--out is required");
   if (o.max_images < 0) throw Usage("--max-images must be >= 0");
+  if (!(o.pick_min_score >= 0 && o.pick_min_score <= 1)) throw Usage("--pick-min-score must be in 0..1");
   if (!(o.grasp_weight >= 0 && o.grasp_weight <= 100) || !(o.min_grasp_visibility >= 0 && o.min_grasp_visibility <= 1))
     throw Usage("--pick-grasp: the weight must be in 0..100 and the minimum visibility in 0..1");
   if (o.timing_repeats < 1 || o.timing_repeats > 10) throw Usage("--timing-repeats must be in 1..10");
@@ -365,6 +373,8 @@ int run_detect(const Options& o) {
   out["parts"] = jparts;
   out["distances_mm"] = o.distances_mm;
   out["floor_mm"] = o.floor_mm;
+  out["pick_min_score"] = o.pick_min_score;
+  out["pick_skip_ambiguous"] = !o.pick_ambiguous;
   out["refine_candidates"] = o.refine_candidates >= 0 ? o.refine_candidates : vision::PipelineConfig{}.refine_candidates;
   out["line2d_options"] = {{"inplane_step_deg", o.line2d.inplane_step_deg}, {"view_stride", o.line2d.view_stride},
                            {"min_similarity", o.line2d.min_similarity}};
@@ -409,7 +419,7 @@ int run_detect(const Options& o) {
     return times_json(best);
   };
   // The cell's pick among an all-types cycle's candidates (motion::choose_pick, config/sim.yaml's
-  // weights: score 1, height 0.5 over 100 mm, min_score 0.08), once without the grasp features
+  // weights: score 1, height 0.5 over 100 mm; --pick-min-score), once without the grasp features
   // (weight 0, as when none are configured) and once with them (--pick-grasp W,V). For each:
   // the chosen candidate, whether its pose is right (Table 1's criterion, any instance of its
   // type) and, if so, how free the grasp feature of that instance truly is.
@@ -418,7 +428,7 @@ int run_detect(const Options& o) {
     std::vector<motion::PickCandidate> candidates;
     for (const Estimate& e : det_out.estimates)
       candidates.push_back({static_cast<float>(e.score), static_cast<float>(floor_mm - e.t_mm[2]),
-                            static_cast<float>(e.grasp_visibility)});
+                            static_cast<float>(e.grasp_visibility), e.ambiguous});
     json settings = json::array();
     // Every candidate the cell chose from: its score, height, grasp estimate, and whether its
     // pose is right (then how free its instance's grasp feature truly is).
@@ -432,12 +442,16 @@ int run_detect(const Options& o) {
           right = true;
           free = std::max(free, true_grasp(ref, j, gt.gt[j]));
         }
-      listed.push_back({{"obj_id", e.obj_id}, {"score", e.score}, {"height_mm", candidates[i].height_mm},
-                        {"grasp_estimated", e.grasp_visibility}, {"correct", right}, {"grasp_true", free}});
+      json entry = {{"obj_id", e.obj_id}, {"score", e.score}, {"height_mm", candidates[i].height_mm},
+                    {"grasp_estimated", e.grasp_visibility}, {"correct", right}, {"grasp_true", free}};
+      for (const auto& [name, value] : e.measures) entry["measures"][name] = value;
+      listed.push_back(entry);
     }
     for (const bool with_grasp : {false, true}) {
       motion::PickChoiceConfig pc;
-      pc.weight_score = 1.0f, pc.weight_height = 0.5f, pc.height_scale_mm = 100.0f, pc.min_score = 0.08f;
+      pc.weight_score = 1.0f, pc.weight_height = 0.5f, pc.height_scale_mm = 100.0f;
+      pc.min_score = static_cast<float>(o.pick_min_score);
+      pc.skip_ambiguous = !o.pick_ambiguous;
       pc.weight_grasp = with_grasp ? static_cast<float>(o.grasp_weight) : 0.0f;
       pc.min_grasp_visibility = with_grasp ? static_cast<float>(o.min_grasp_visibility) : 0.0f;
       const auto chosen = motion::choose_pick(candidates, pc);
@@ -597,6 +611,19 @@ int run_detect(const Options& o) {
           for (size_t c = 0; c < d.estimates.size() && first < 0; ++c)
             if (match(d.estimates[c], false).correct) first = static_cast<int>(c);
           trial["first_correct_rank"] = first;
+        }
+        // Every candidate with its measures and whether its pose is right: the confidence
+        // model's data (tools/bench/fit_confidence.py).
+        {
+          json listed = json::array();
+          for (const Estimate& e : d.estimates) {
+            const InstanceMatch near = match(e, false);
+            json entry = {{"obj_id", e.obj_id}, {"score", e.score}, {"correct", near.correct},
+                          {"position_mm", near.error.position_mm}, {"rotation_deg", near.error.rotation_deg}};
+            for (const auto& [name, value] : e.measures) entry["measures"][name] = value;
+            listed.push_back(entry);
+          }
+          trial["candidates"] = listed;
         }
         // With --set trace=1: the hypothesis nearest the truth (any instance), before and after
         // the fit: a search miss has none near it, a fit miss loses it in the fit.

@@ -47,10 +47,14 @@ class PipelineDetector final : public Detector {
       out.estimates.push_back({c.obj_id, c.R_m2c, c.t_m2c_mm, c.score, c.rank_px, c.fit_rank, c.grasp_visibility,
                                {{"fit_rank", c.fit_rank},
                                 {"coverage", c.coverage},
+                                {"inlier_fraction", c.inlier_fraction},
+                                {"fit_cost_px", c.fit_cost_px},
+                                {"ambiguous", c.ambiguous ? 1.0 : 0.0},
                                 {"has_alternative", c.has_alternative ? 1.0 : 0.0},
                                 {"alternative_rank", c.alternative_rank},
                                 {"alternative_differs", c.alternative_differs},
-                                {"alternative_support", c.alternative_support}}});
+                                {"alternative_support", c.alternative_support}},
+                               c.ambiguous});
     out.times = result_.times;
     out.views_searched = result_.views_searched;
     out.evaluated = result_.hypotheses;

@@ -12,6 +12,7 @@
 #include "vision/camera/camera.hpp"
 #include "vision/camera/mfc_frames.hpp"
 #include "vision/edges/depth_edges.hpp"
+#include "vision/pipeline/confidence_fitted.hpp"
 #include "vision/pose/bin_floor.hpp"
 #include "vision/pose/grasp_visibility.hpp"
 
@@ -100,6 +101,11 @@ struct PipelineConfig {
   int max_candidates = 8;           // best first
   double candidate_overlap = 0.3;   // search boxes overlapping more (IoU) are one part
   double alternative_min_differ = 0.25;  // PoseCandidate::alternative_*
+  // A candidate whose edges favour it over its alternative's by less than this share of the
+  // points where the two differ is ambiguous (PoseCandidate::ambiguous).
+  double ambiguous_support = 0.1;
+  // PoseCandidate::score of a fitted candidate: the probability that its pose is right.
+  ConfidenceModel confidence = kFittedConfidence;
   // The candidates' poses polished with the templates' edge offset profiles; ranking is without it.
   bool edge_offset_correction = true;
   int refine_candidates = 0;        // render-based PoseRefiner on the best n; 0 = fitted pose kept
@@ -118,13 +124,16 @@ struct PoseCandidate {
   int view = -1;                // template view (out-of-plane rotation) that matched
   cv::Matx33d R_m2c = cv::Matx33d::eye();  // model -> camera rotation
   cv::Vec3d t_m2c_mm{0, 0, 0};  // model origin in the camera frame, mm
-  double score = 0;             // 0..1, higher is better: the fitted rank (TemplatePoseFit score less the
-                                // unexplained-edge penalty), clamped; without the fit (baselines)
-                                // 1 / (1 + c / 2 px) of the search cost c with the penalty
+  // 0..1: the estimated probability that the pose is right (within 5 mm and 10 degrees of a true
+  // pose; PipelineConfig::confidence of evidence()); without the fit (the paper's baselines)
+  // 1 / (1 + c / 2 px) of the search cost c with the unexplained-edge penalty, a rank only.
+  double score = 0;
   double cost_px = 0;           // mean directional chamfer cost at the final pose
   double coverage = 0;          // fraction of image edges inside the part's outline it explains
   double rank_px = 0;           // the search's ranking measure: cost_px + the unexplained-edge penalty
   double fit_rank = 0;          // the rank after TemplatePoseFit (fit score less unexplained edges)
+  double inlier_fraction = 0;   // the fit's share of view points within its inlier cost
+  double fit_cost_px = 0;       // the fit's mean directional cost, px
   bool refined = false;         // false: coarse pose only (refinement skipped or failed)
   // 0..1: how clearly its best grasp feature is on top and facing the camera at the final pose
   // (vision/pose/grasp_visibility.hpp); 1 when its part type has no grasp feature configured.
@@ -141,6 +150,11 @@ struct PoseCandidate {
   double alternative_differs = 0;  // share of the two poses' edge points that differ
   // On the differing points: the share on image edges of this pose's less the alternative's.
   double alternative_support = 0;
+  // The edges do not tell this pose from its alternative: alternative_support below
+  // PipelineConfig::ambiguous_support. The cell's pick passes it over (pick.skip_ambiguous).
+  bool ambiguous = false;
+
+  PoseEvidence evidence() const;  // the measures above, as the confidence model takes them
 };
 
 struct StageTimes {

@@ -6,6 +6,18 @@
 
 namespace mfcd::vision {
 
+PoseEvidence PoseCandidate::evidence() const {
+  PoseEvidence e;
+  e.fit_rank = fit_rank;
+  e.coverage = coverage;
+  e.inlier_fraction = inlier_fraction;
+  e.fit_cost_px = fit_cost_px;
+  e.has_alternative = has_alternative;
+  e.alternative_margin = has_alternative ? fit_rank - alternative_rank : 0;
+  e.alternative_support = has_alternative ? alternative_support : 0;
+  return e;
+}
+
 void BinPickingPipeline::Impl::find_alternative(size_t index, PoseCandidate& c) {
   const Verified& v = verified[index];
   const PartModel& part = parts[v.hit.part];
@@ -49,11 +61,13 @@ void BinPickingPipeline::Impl::make_candidates(Clock::time_point deadline, Pipel
     c.coverage = v.coverage;
     c.rank_px = v.combined;
     c.fit_rank = v.fit_rank;
-    // 1 at a perfect match, 0.5 at 2 px of combined cost, falling slowly so that a correct but
-    // unrefined match of a large part (3-4 px) still ranks above nothing.
-    c.score = v.fit_score >= 0 ? std::clamp(v.fit_rank, 0.0, 1.0) : 1.0 / (1.0 + v.combined / 2.0);
+    c.inlier_fraction = v.fit.inlier_fraction;
+    c.fit_cost_px = v.fit.mean_cost_px;
     c.box = h.box;
     if (v.fit_score >= 0 && Clock::now() < deadline) find_alternative(static_cast<size_t>(&v - verified.data()), c);
+    c.ambiguous = c.has_alternative && c.alternative_support < config.ambiguous_support;
+    // Unfitted (the baselines): 1 at a perfect match, 0.5 at 2 px of combined cost.
+    c.score = v.fit_score >= 0 ? config.confidence.probability(c.evidence()) : 1.0 / (1.0 + v.combined / 2.0);
     // (Past the deadline the candidate keeps the ranking fit's pose.)
     if (v.fit_score >= 0 && config.edge_offset_correction && Clock::now() < deadline) {
       if (!final_prepared) final_fitter.share_prepared(fitter), final_prepared = true;

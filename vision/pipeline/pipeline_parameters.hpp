@@ -18,7 +18,7 @@ struct PipelineParameter {
   const char* key;      // the PipelineConfig field's name (nested fields: with the struct's prefix)
   Type type;
   double min, max;      // inclusive; booleans 0..1
-  const char* unit;     // "px", "mm", "DN" (grey levels); "" for counts, ratios and switches
+  const char* unit;     // "px", "mm", "DN" (grey levels), "1/px"; "" for counts, ratios and switches
   const char* meaning;  // one line, for the docs table and error messages
   // false: a diagnostic or experiment setting mfc-eval may change but a cell's configuration
   // does not offer (it allocates per cycle, or only the evaluation knows its value).

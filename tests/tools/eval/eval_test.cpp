@@ -648,7 +648,9 @@ TEST_F(EvalFiles, GraspFeaturesAreEstimatedScoredAndUsedForTheCellsPick) {
     EXPECT_FLOAT_EQ(pick["cell"][1]["min_grasp_visibility"].get<float>(), 0.3f);
     for (const auto& c : pick["cell"])
       if (c["picked"].get<bool>()) {
-        EXPECT_GE(c["score"].get<double>(), 0.08) << c.dump();  // the cell's min_score
+        EXPECT_GE(c["score"].get<double>(), out["pick_min_score"].get<double>()) << c.dump();  // the cell's min_score
+        const auto& chosen = pick["candidates"].at(c["index"].get<size_t>());
+        EXPECT_LT(chosen["measures"]["ambiguous"].get<double>(), 0.5) << "an ambiguous candidate was picked";
         if (c["grasp_weight"].get<double>() > 0) {
           EXPECT_GE(c["grasp_estimated"].get<double>(), 0.3) << c.dump();
         }

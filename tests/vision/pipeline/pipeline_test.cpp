@@ -876,6 +876,13 @@ TEST(Pipeline, AlternativeIsTheBestDistinctHypothesisAtThePlace) {
     for (size_t i = 0; i < shipped.size(); ++i) {
       const PoseCandidate& c = shipped[i];
       EXPECT_EQ(loose[i].fit_rank, c.fit_rank);  // the alternative changes nothing else
+      // The score is the confidence model's probability of what was measured; ambiguous is the
+      // alternative's support below the threshold.
+      const PipelineConfig shipped_config;
+      EXPECT_NEAR(c.score, shipped_config.confidence.probability(c.evidence()), 1e-12) << "candidate " << i;
+      EXPECT_EQ(c.ambiguous, c.has_alternative && c.alternative_support < shipped_config.ambiguous_support)
+          << "candidate " << i;
+      if (!strict[i].has_alternative) EXPECT_FALSE(strict[i].ambiguous) << "candidate " << i;
       if (c.has_alternative) {
         ++with_alternative;
         EXPECT_LE(c.alternative_rank, c.fit_rank) << "candidate " << i;
