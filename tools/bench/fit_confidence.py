@@ -36,27 +36,26 @@ def evidence(m):
 
 
 def samples(paths):
-    """(X, y, scene, ambiguous, score, group) over every candidate; group 0 = per-type, 1 = all types."""
+    """Every candidate with measures: X, y, scene (file, scene id), the input's ambiguous flag and
+    score, and for those of an all-types cycle the cycle (file, scene, image) and the height the
+    cell's pick weighs (None and 0 for per-type trials)."""
     rows = []
     for path in paths:
         data = json.loads(Path(path).read_text())
-        fdcm = data["methods"]["fdcm"]
-        for t in fdcm["trials"]:
-            for c in t.get("candidates", []):
+        cycles = [(t, None) for t in data["methods"]["fdcm"]["trials"]]
+        cycles += [(p, (path, p["scene"], p["image"])) for p in data.get("all_types", [])]
+        for cycle, key in cycles:
+            for c in cycle.get("candidates", []):
                 if "measures" in c:
-                    rows.append((evidence(c["measures"]), c["correct"], (path, t["scene"]),
-                                 c["measures"].get("ambiguous", 0) > 0.5, c["score"], 0))
-        for p in data.get("all_types", []):
-            for c in p.get("candidates", []):
-                if "measures" in c:
-                    rows.append((evidence(c["measures"]), c["correct"], (path, p["scene"]),
-                                 c["measures"].get("ambiguous", 0) > 0.5, c["score"], 1))
+                    rows.append((evidence(c["measures"]), c["correct"], (path, cycle["scene"]),
+                                 c["measures"].get("ambiguous", 0) > 0.5, c["score"], key,
+                                 c.get("height_mm", 0.0)))
     if not rows:
         raise SystemExit("fit_confidence: no candidates with measures (an mfc-eval older than the confidence model?)")
     X = np.array([r[0] for r in rows], dtype=float)
     y = np.array([1.0 if r[1] else 0.0 for r in rows])
-    scenes = [r[2] for r in rows]
-    return X, y, scenes, np.array([r[3] for r in rows]), np.array([r[4] for r in rows]), np.array([r[5] for r in rows])
+    return (X, y, [r[2] for r in rows], np.array([r[3] for r in rows]), np.array([r[4] for r in rows]),
+            [r[5] for r in rows], np.array([r[6] for r in rows], dtype=float))
 
 
 def sigmoid(z):
@@ -139,32 +138,30 @@ def cross_validate(X, y, scenes):
     return p
 
 
-def cell_sweep(paths, model, held_out_of, thresholds, supports):
+def cell_sweep(prob, y, X, cycle, height, thresholds, supports):
     """The cell's pick per all-types cycle (motion::choose_pick with config/sim.yaml's weights:
-    score 1, height 0.5 over 100 mm) at each min_score and ambiguity threshold, with each
-    candidate's held-out probability: right, wrong and withheld images."""
+    score 1, height 0.5 over 100 mm) at each min_score and ambiguity threshold, with the
+    candidates' probabilities `prob`: right, wrong and withheld images."""
+    cycles = {}
+    for k, key in enumerate(cycle):
+        if key is not None:
+            cycles.setdefault(key, []).append(k)
+    has_alt, support = X[:, FEATURES.index("has_alternative")] > 0.5, X[:, FEATURES.index("alternative_support")]
     out = []
-    cycles = []
-    for path in paths:
-        for p in json.loads(Path(path).read_text()).get("all_types", []):
-            cands = [c for c in p.get("candidates", []) if "measures" in c]
-            cycles.append([(held_out_of(path, p["scene"], c), c["height_mm"], c["correct"],
-                            c["measures"]["has_alternative"] > 0.5, c["measures"]["alternative_support"])
-                           for c in cands])
     for s in supports:
         for th in thresholds:
             right = wrong = withheld = 0
-            for cands in cycles:
+            for members in cycles.values():
                 best, best_u = None, None
-                for prob, height, correct, alt, support in cands:
-                    if prob < th or (alt and support < s):
+                for k in members:
+                    if prob[k] < th or (has_alt[k] and support[k] < s):
                         continue
-                    u = prob + 0.5 * min(1.0, max(0.0, height / 100.0))
+                    u = prob[k] + 0.5 * min(1.0, max(0.0, height[k] / 100.0))
                     if best_u is None or u > best_u:
-                        best, best_u = correct, u
+                        best, best_u = k, u
                 if best is None:
                     withheld += 1
-                elif best:
+                elif y[best] > 0.5:
                     right += 1
                 else:
                     wrong += 1
@@ -199,7 +196,7 @@ def main():
     ap.add_argument("--write", action="store_true", help=f"write {FITTED.relative_to(ROOT)}")
     ap.add_argument("--json", type=Path, help="the figures as JSON")
     args = ap.parse_args()
-    X, y, scenes, ambiguous, score, group = samples(args.results)
+    X, y, scenes, ambiguous, score, cycle, height = samples(args.results)
     model = fit(X, y)
     held_out = cross_validate(X, y, scenes)
     report = {
@@ -236,16 +233,7 @@ def main():
           f"others {a['unflagged']} ({a['unflagged_right']} right)")
     print("held-out reliability: " + ", ".join(f"{b['from']:.1f}-{b['to']:.1f}: {b['observed']:.2f} of {b['n']}"
                                                for b in report["held_out"]["bins"]))
-    # Held-out probabilities of the all-types candidates, looked up by (file, scene, measures).
-    lookup = {}
-    for k, (x, sc, g) in enumerate(zip(X, scenes, group)):
-        if g == 1:
-            lookup.setdefault((sc, tuple(np.round(x, 9))), held_out[k])
-
-    def held_out_of(path, scene, c):
-        return lookup[((path, scene), tuple(np.round(np.array(evidence(c["measures"])), 9)))]
-
-    sweep = cell_sweep(args.results, model, held_out_of, (0.0, 0.1, 0.3, 0.5, 0.7, 0.8, 0.9),
+    sweep = cell_sweep(held_out, y, X, cycle, height, (0.0, 0.1, 0.3, 0.5, 0.7, 0.8, 0.9),
                        (-2.0, 0.0, 0.05, 0.1, 0.2))
     report["cell_sweep"] = sweep
     print("cell's pick, held-out probabilities (ambiguous_support, min_score: right/wrong/withheld):")

@@ -423,6 +423,12 @@ int run_detect(const Options& o) {
   // (weight 0, as when none are configured) and once with them (--pick-grasp W,V). For each:
   // the chosen candidate, whether its pose is right (Table 1's criterion, any instance of its
   // type) and, if so, how free the grasp feature of that instance truly is.
+  // A candidate as the JSON lists it: its part, score and what the pipeline measured of it.
+  auto candidate_json = [](const Estimate& e) {
+    json entry = {{"obj_id", e.obj_id}, {"score", e.score}};
+    for (const auto& [name, value] : e.measures) entry["measures"][name] = value;
+    return entry;
+  };
   auto cell_picks = [&](const ImageRef& ref, const ImageGt& gt, const Detection& det_out) {
     const double floor_mm = o.floor_mm > 0 ? o.floor_mm : camera.working_distance_mm;
     std::vector<motion::PickCandidate> candidates;
@@ -442,9 +448,9 @@ int run_detect(const Options& o) {
           right = true;
           free = std::max(free, true_grasp(ref, j, gt.gt[j]));
         }
-      json entry = {{"obj_id", e.obj_id}, {"score", e.score}, {"height_mm", candidates[i].height_mm},
-                    {"grasp_estimated", e.grasp_visibility}, {"correct", right}, {"grasp_true", free}};
-      for (const auto& [name, value] : e.measures) entry["measures"][name] = value;
+      json entry = candidate_json(e);
+      entry.update({{"height_mm", candidates[i].height_mm}, {"grasp_estimated", e.grasp_visibility},
+                    {"correct", right}, {"grasp_true", free}});
       listed.push_back(entry);
     }
     for (const bool with_grasp : {false, true}) {
@@ -618,9 +624,9 @@ int run_detect(const Options& o) {
           json listed = json::array();
           for (const Estimate& e : d.estimates) {
             const InstanceMatch near = match(e, false);
-            json entry = {{"obj_id", e.obj_id}, {"score", e.score}, {"correct", near.correct},
-                          {"position_mm", near.error.position_mm}, {"rotation_deg", near.error.rotation_deg}};
-            for (const auto& [name, value] : e.measures) entry["measures"][name] = value;
+            json entry = candidate_json(e);
+            entry.update({{"correct", near.correct}, {"position_mm", near.error.position_mm},
+                          {"rotation_deg", near.error.rotation_deg}});
             listed.push_back(entry);
           }
           trial["candidates"] = listed;
