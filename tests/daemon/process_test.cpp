@@ -253,7 +253,7 @@ TEST_F(DaemonE2E, ControlSocketStatusStatsSnapshotAndTheRealCli) {
   EXPECT_EQ(proc->ctl({{"cmd", "frobnicate"}})["ok"], false);
   // Bytes that are not UTF-8 come back in the error text: the reply must still be valid JSON
   // (invalid bytes replaced) and the daemon must go on answering.
-  for (const std::string raw : {std::string("\xff\n"), std::string("{\"cmd\": \"\xc3\x28\"}\n"),
+  for (const std::string& raw : {std::string("\xff\n"), std::string("{\"cmd\": \"\xc3\x28\"}\n"),
                                 std::string("{\"cmd\": \"part\", \"recipe\": \"\xfe\"}\n")}) {
     const std::string answer = ctlLine(proc->socket(), raw);
     ASSERT_FALSE(answer.empty()) << "no answer to a request with invalid UTF-8";

@@ -882,7 +882,9 @@ TEST(Pipeline, AlternativeIsTheBestDistinctHypothesisAtThePlace) {
       EXPECT_NEAR(c.score, shipped_config.confidence.probability(c.evidence()), 1e-12) << "candidate " << i;
       EXPECT_EQ(c.ambiguous, c.has_alternative && c.alternative_support < shipped_config.ambiguous_support)
           << "candidate " << i;
-      if (!strict[i].has_alternative) EXPECT_FALSE(strict[i].ambiguous) << "candidate " << i;
+      if (!strict[i].has_alternative) {
+        EXPECT_FALSE(strict[i].ambiguous) << "candidate " << i;
+      }
       if (c.has_alternative) {
         ++with_alternative;
         EXPECT_LE(c.alternative_rank, c.fit_rank) << "candidate " << i;
