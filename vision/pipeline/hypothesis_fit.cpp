@@ -2,6 +2,8 @@
 // and the measures its rank is made of.
 #include "vision/pipeline/stage.hpp"
 
+#include "vision/common/parallel_for.hpp"
+
 #include <omp.h>
 
 #include <algorithm>
@@ -114,8 +116,7 @@ void BinPickingPipeline::Impl::fit(Cycle& cycle, size_t first, const IntegralDis
   std::atomic<bool> fit_late{false};
   const BinFloor& floor = m.config.floor;
   const int begin = static_cast<int>(first);
-#pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
-  for (int i = begin; i < static_cast<int>(m.verified.size()); ++i) {
+  parallel_for(begin, static_cast<int>(m.verified.size()), threads, 1, [&](int i) {
     Verified& v = m.verified[i];
     v.fit_score = -1;
     // Past the deadline only the first few (the best by search cost) are still fitted, so that a
@@ -124,7 +125,7 @@ void BinPickingPipeline::Impl::fit(Cycle& cycle, size_t first, const IntegralDis
     v.skipped = !always && (fit_late.load(std::memory_order_relaxed) || Clock::now() > cycle.deadline);
     if (v.skipped) {
       fit_late = true;
-      continue;
+      return;
     }
     const Hit& h = v.hit;
     const PartModel& part = m.parts[h.part];
@@ -147,18 +148,18 @@ void BinPickingPipeline::Impl::fit(Cycle& cycle, size_t first, const IntegralDis
         v.fitted = floor.onto_if_below(part.db.mesh, v.coarse, part.db.center_mm);
         v.fit_score = 0;
         v.fit_rank = -1;
-        continue;
+        return;
       }
       // No part can lie there. About half of the fitted hypotheses of a full bin do (dev set 7:
       // 555 of 1000); fitting them again from the floor cost ~5 ms a cycle for no measured gain.
       v.below_floor = floor.below(part.db.mesh, f.pose);
-      if (v.below_floor) continue;
+      if (v.below_floor) return;
       v.take(f, fitted_rank(f, part.db, m.config));
     } else {
       // The search's distance is one of a few guesses: a pose below the floor goes onto it.
       v.fitted = floor.onto_if_below(part.db.mesh, v.coarse, part.db.center_mm);
     }
-  }
+  });
   // Hypotheses the deadline left unfitted are dropped (the best-so-far result is flagged degraded),
   // and so are fitted ones no part could take (below the floor).
   m.verified.erase(std::remove_if(m.verified.begin() + begin, m.verified.end(),

@@ -2,6 +2,8 @@
 // and turn checks, the spin check).
 #include "vision/pipeline/stage.hpp"
 
+#include "vision/common/parallel_for.hpp"
+
 #include <omp.h>
 
 #include <algorithm>
@@ -40,12 +42,11 @@ void BinPickingPipeline::Impl::rank(const Cycle& cycle, size_t first) {
   // Each check runs on the best `n` hypotheses that have a fit, shared out among the threads,
   // until the deadline; then the hypotheses are ordered by their ranks again.
   auto check_leaders = [&](int n, auto&& check) {
-#pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
-    for (int i = begin; i < begin + n; ++i) {
+    parallel_for(begin, begin + n, threads, 1, [&](int i) {
       Verified& v = m.verified[i];
-      if (v.fit_score <= 0 || Clock::now() > cycle.deadline) continue;
+      if (v.fit_score <= 0 || Clock::now() > cycle.deadline) return;
       check(i, v, m.parts[v.hit.part]);
-    }
+    });
     if (n > 0) sort_verified(first);
   };
   // Rescoring: the fit scores a pose with at most TemplateFitParams::max_points of its view's

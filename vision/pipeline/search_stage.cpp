@@ -2,6 +2,8 @@
 // hits, later rounds and the escalation's wide search.
 #include "vision/pipeline/stage.hpp"
 
+#include "vision/common/parallel_for.hpp"
+
 #include <omp.h>
 
 #include <algorithm>
@@ -65,16 +67,15 @@ void BinPickingPipeline::Impl::search(Cycle& cycle, const LineSet& query, const 
   std::fill(m.thread_views.begin(), m.thread_views.end(), 0);
   const int threads = static_cast<int>(m.thread_hits.size());
   auto search_jobs = [&](size_t first) {
-#pragma omp parallel for schedule(dynamic, 4) num_threads(threads)
-    for (int j = static_cast<int>(first); j < static_cast<int>(m.jobs.size()); ++j) {
+    parallel_for(static_cast<int>(first), static_cast<int>(m.jobs.size()), threads, 4, [&](int j) {
       // The first few views of every part are searched even when late (the jobs interleave the
       // parts), so that a late cycle still has hypotheses to give its best-so-far picks from.
       const bool always =
           cycle.minimum_past_deadline && static_cast<size_t>(j) < kAlwaysSearchedPerPart * cycle.selected_parts;
-      if (!always && late.load(std::memory_order_relaxed)) continue;
+      if (!always && late.load(std::memory_order_relaxed)) return;
       if (!always && Clock::now() > cycle.search_deadline) {
         late = true;
-        continue;
+        return;
       }
       const auto [p, v] = m.jobs[j];
       const auto& list = m.parts[p].oriented[v];
@@ -100,7 +101,7 @@ void BinPickingPipeline::Impl::search(Cycle& cycle, const LineSet& query, const 
         if (best.size() == useful)
           SharedCostBound::lower(m.shared_bound, best.front().sum, static_cast<uint32_t>(best.front().pixels));
       }
-    }
+    });
   };
   // Every thread's hits so far in one list, best first (hit_order: independent of the threads).
   auto gather_hits = [&] {
@@ -150,15 +151,14 @@ void BinPickingPipeline::Impl::verify(size_t count) {
   }
   // The coverages are independent of each other: shared out among the threads.
   const int threads = static_cast<int>(m.thread_hits.size());
-#pragma omp parallel for schedule(dynamic, 2) num_threads(threads)
-  for (int i = static_cast<int>(first); i < static_cast<int>(m.verified.size()); ++i) {
+  parallel_for(static_cast<int>(first), static_cast<int>(m.verified.size()), threads, 2, [&](int i) {
     Verified& v = m.verified[i];
     const Hit& h = v.hit;
     const PartModel& part = m.parts[h.part];
     v.coverage = explained_fraction(part.db.views[h.view], part.warps[h.warp], h.c.tx * down, h.c.ty * down,
                                     m.edges.edges, m.fit_workspaces[omp_get_thread_num()]);
     v.combined = h.c.cost() * down + kUnexplainedPenaltyPx * (1.0 - v.coverage);
-  }
+  });
 }
 
 void BinPickingPipeline::Impl::add_search(const Cycle& cycle, const LineSet& query,
