@@ -465,6 +465,7 @@ DaemonConfig parseConfig(const std::string& yamlText, const std::string& source,
     m.word_order = s.choice("word_order", motion::WordOrder::ABCD, {{"ABCD", motion::WordOrder::ABCD}, {"CDAB", motion::WordOrder::CDAB}});
     m.max_clients = static_cast<unsigned>(s.integer("max_clients", 8, 1, 64));
     m.frame_timeout = std::chrono::milliseconds(s.integer("frame_timeout_ms", 2000, 10, 60000));
+    m.idle_timeout = std::chrono::milliseconds(s.integer("idle_timeout_ms", 60000, 100, 3600000));
     YAML::Node allow = s.child("allow_list");
     if (allow.IsDefined() && !allow.IsNull()) {
       if (!allow.IsSequence()) s.fail(s.key("allow_list"), lineOf(allow), "must be a list of addresses or CIDR prefixes");

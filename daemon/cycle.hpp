@@ -29,6 +29,7 @@ enum class CycleError : std::uint16_t {
   Transform = 4,      // the chosen pick could not be transformed into the robot base frame
   Abandoned = 5,      // the daemon stopped before the cycle finished
   Calibrating = 6,    // a calibration session is running (mfcd-ctl calibrate): picking is paused
+  Unavailable = 7,    // the cell could not take the job (no cell running, or its request queue full)
 };
 
 // Where the simulated cell puts its calibration plate for a calibration capture (real cells

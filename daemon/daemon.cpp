@@ -100,6 +100,13 @@ private:
   std::optional<std::uint64_t> startCycle(CycleOrigin origin, std::uint16_t job, std::uint16_t recipe, std::uint16_t mode,
                                           bool snapshot);
   void onPlcCommand(const motion::PlcCommand& cmd);
+  // Ends a PLC job that will not run: JOB_ID_ECHO = job, PICK_VALID 0, ERROR_CODE = error.
+  void answerJob(std::uint16_t job, std::uint16_t recipe, CycleError error, const char* why);
+  // Hands a request to the cell and extends the time its threads may be busy with it.
+  bool submit(const CycleRequest& r);
+  // True while every frame-path thread has woken within `grace`, or is allowed to be busy with
+  // a request (until that request's deadline + grace).
+  bool framePathMoving(Clock::time_point now, std::chrono::milliseconds grace) const;
   void onResult(const CycleResult& r);
   void afterCycle();
   bool reload(std::string& message);
@@ -151,6 +158,9 @@ private:
   Clock::time_point acqMoved_ = Clock::now(), visionMoved_ = Clock::now();
   std::string lastStatus_;
   bool stuckLogged_ = false;
+  bool linkDownLogged_ = false;
+  bool framesOk_ = true;            // the last cycle captured and ran its vision stage (VISION_OK)
+  Clock::time_point busyUntil_{};   // the latest deadline of a request handed to the cell
 };
 
 void Daemon::lockMemory() {
@@ -357,7 +367,7 @@ void Daemon::updateReady() {
   // A calibration session pauses picking: the camera looks at the calibration plate, not the bin.
   const std::uint16_t ready =
       cellOk_ && !inFlight_ && !reloadPending_ && !stopping_ && !calibrating() && config_.mode == RunMode::Triggered;
-  const std::uint16_t visionOk = cellOk_;
+  const std::uint16_t visionOk = cellOk_ && framesOk_;
   if (ready != report_.ready || visionOk != report_.vision_ok) {
     report_.ready = ready;
     report_.vision_ok = visionOk;
@@ -390,7 +400,7 @@ std::optional<std::uint64_t> Daemon::startCycle(CycleOrigin origin, std::uint16_
     return r.cycle_id;
   }
   r.obj_id = rc->obj_id;
-  if (!cell_->submit(r)) return std::nullopt;
+  if (!submit(r)) return std::nullopt;
   inFlight_ = r;
   updateReady();
   return r.cycle_id;
@@ -420,7 +430,30 @@ void Daemon::onPlcCommand(const motion::PlcCommand& cmd) {
     pendingPlc_ = cmd;  // accepted by the server during a local cycle: runs right after it
     return;
   }
-  startCycle(CycleOrigin::Plc, cmd.job_id, cmd.recipe_id, cmd.mode, false);
+  if (!startCycle(CycleOrigin::Plc, cmd.job_id, cmd.recipe_id, cmd.mode, false))
+    answerJob(cmd.job_id, cmd.recipe_id, CycleError::Unavailable, cell_ ? "the cell's request queue is full" : "no cell is running");
+}
+
+void Daemon::answerJob(std::uint16_t job, std::uint16_t recipe, CycleError error, const char* why) {
+  logf(LogLevel::Error, "PLC: job %u (recipe %u) not run: %s; answered with error code %u", job, recipe, why,
+       static_cast<unsigned>(error));
+  report_.job_id = job;
+  report_.recipe_id = recipe;
+  report_.error_code = static_cast<std::uint16_t>(error);
+  report_.pick_valid = 0;
+  report_.candidate_count = 0;
+  report_.candidate_index = 0;
+  report_.objects_remaining = 0;
+  report_.pick = motion::PickPose{};
+  report_.score = 0.0f;
+  publish();
+}
+
+bool Daemon::submit(const CycleRequest& r) {
+  if (!cell_ || !cell_->submit(r)) return false;
+  const auto budget = std::chrono::milliseconds(config_.cycle_budget_ms);
+  busyUntil_ = std::max(busyUntil_, r.kind == CycleRequest::Kind::Capture ? r.deadline : Clock::now() + budget);
+  return true;
 }
 
 void Daemon::onResult(const CycleResult& r) {
@@ -447,6 +480,14 @@ void Daemon::onResult(const CycleResult& r) {
     return;
   }
   if (inFlight_ && inFlight_->cycle_id == r.request.cycle_id) inFlight_.reset();
+  if (r.error == CycleError::Capture || r.error == CycleError::Vision) {
+    if (framesOk_) logf(LogLevel::Error, "VISION_OK cleared: %s; the next cycle retries", r.message);
+    framesOk_ = false;
+  } else if (r.error != CycleError::UnknownRecipe) {  // captured and processed: camera and vision work
+    if (!framesOk_) logf(LogLevel::Notice, "VISION_OK set again: cycle %llu captured and processed its frames",
+                         static_cast<unsigned long long>(r.request.cycle_id));
+    framesOk_ = true;
+  }
   const bool overrun = stats_.add(r, config_.cycle_budget_ms);
   lastResult_ = resultJson(r, config_);
   const unsigned long long id = r.request.cycle_id;
@@ -491,13 +532,13 @@ void Daemon::onResult(const CycleResult& r) {
     CycleRequest take;
     take.kind = CycleRequest::Kind::RemovePicked;
     take.picked_t_cam_mm = r.candidates[static_cast<std::size_t>(r.chosen)].t_cam_mm;
-    cell_->submit(take);
+    submit(take);
   } else if (r.error == CycleError::None && r.candidate_count == 0 && r.truth.count > 0 && cell_) {
     // Simulated cell: vision sees nothing in a bin that still holds parts (all unrecognised); like
     // an operator would, tip in a fresh bin so the cell does not stall on one scene.
     CycleRequest refill;
     refill.kind = CycleRequest::Kind::Refill;
-    cell_->submit(refill);
+    submit(refill);
   }
   for (auto it = waiters_.begin(); it != waiters_.end();) {
     if (it->what == Waiter::What::Trigger && it->cycle == r.request.cycle_id) {
@@ -538,7 +579,8 @@ void Daemon::afterCycle() {
   if (pendingPlc_) {
     const auto cmd = *pendingPlc_;
     pendingPlc_.reset();
-    startCycle(CycleOrigin::Plc, cmd.job_id, cmd.recipe_id, cmd.mode, false);
+    if (!startCycle(CycleOrigin::Plc, cmd.job_id, cmd.recipe_id, cmd.mode, false))
+      answerJob(cmd.job_id, cmd.recipe_id, CycleError::Unavailable, cell_ ? "the cell's request queue is full" : "no cell is running");
     return;
   }
   if (config_.mode == RunMode::Continuous && cellOk_ && !calibrating()) {
@@ -561,6 +603,7 @@ bool Daemon::reload(std::string& message) {
   }
   if (next.modbus.bind_address != config_.modbus.bind_address || next.modbus.port != config_.modbus.port ||
       next.modbus.word_order != config_.modbus.word_order || next.modbus.max_clients != config_.modbus.max_clients ||
+      next.modbus.frame_timeout != config_.modbus.frame_timeout || next.modbus.idle_timeout != config_.modbus.idle_timeout ||
       next.modbus.allow_list != config_.modbus.allow_list)
     logf(LogLevel::Warning, "reload: modbus.* changed; the Modbus server keeps its settings until mfcd restarts "
          "(reloading keeps PLC connections open)");
@@ -614,7 +657,19 @@ void Daemon::notifyStatus() {
   }
 }
 
+bool Daemon::framePathMoving(Clock::time_point now, std::chrono::milliseconds grace) const {
+  if (!cell_) return true;
+  const bool busy = now < busyUntil_ + grace;
+  return (busy || now - acqMoved_ < grace) && (busy || now - visionMoved_ < grace);
+}
+
+// Every tick (at most 500 ms apart): liveness for the PLC and for systemd. HEARTBEAT gets a
+// lease of one second while the frame path moves within kHeartbeatGrace (an idle thread wakes
+// every 200 ms), so a hang of the main thread (no tick), of a frame-path thread or of a cycle
+// past its deadline freezes HEARTBEAT within ~2.5 s. The systemd watchdog, which restarts mfcd,
+// waits longer (stall) and is also withheld once the robot link's thread has died.
 void Daemon::onTimer() {
+  constexpr std::chrono::milliseconds kHeartbeatGrace{1000}, kHeartbeatLease{1000};
   std::uint64_t expirations;
   [[maybe_unused]] ssize_t n = ::read(timerFd_, &expirations, sizeof expirations);
   const auto now = Clock::now();
@@ -622,16 +677,25 @@ void Daemon::onTimer() {
     if (cell_->acquisitionHeartbeat() != lastAcqBeat_) lastAcqBeat_ = cell_->acquisitionHeartbeat(), acqMoved_ = now;
     if (cell_->visionHeartbeat() != lastVisionBeat_) lastVisionBeat_ = cell_->visionHeartbeat(), visionMoved_ = now;
   }
+  const bool linkUp = !modbus_ || modbus_->serving();
+  if (framePathMoving(now, kHeartbeatGrace)) {
+    if (modbus_) modbus_->lease_health(now + kHeartbeatLease);
+    if (can_) can_->lease_health(now + kHeartbeatLease);
+  }
+  if (!linkUp && !linkDownLogged_) {
+    logf(LogLevel::Error, "the Modbus server thread has ended; withholding the systemd watchdog so mfcd is restarted");
+    linkDownLogged_ = true;
+  }
   // A thread is stuck when it has not woken for longer than any cycle may take.
   const auto stall = std::max<std::chrono::milliseconds>(std::chrono::seconds(5), 3 * std::chrono::milliseconds(config_.cycle_budget_ms));
-  const bool alive = !cell_ || (now - acqMoved_ < stall && now - visionMoved_ < stall);
-  if (watchdogUsec_ && alive) sd_notify(0, "WATCHDOG=1");
-  if (!alive && !stuckLogged_) {
+  const bool moving = framePathMoving(now, stall);
+  if (watchdogUsec_ && moving && linkUp) sd_notify(0, "WATCHDOG=1");
+  if (!moving && !stuckLogged_) {
     logf(LogLevel::Error, "a frame-path thread has not moved for %lld ms; withholding the systemd watchdog",
          static_cast<long long>(stall.count()));
     stuckLogged_ = true;
   }
-  if (alive) stuckLogged_ = false;
+  if (moving) stuckLogged_ = false;
   notifyStatus();
 }
 
@@ -790,7 +854,7 @@ void Daemon::handleCalibrate(ControlClient& c, const json& req) {
       r.trigger = Clock::now();
       r.deadline = r.trigger + std::chrono::milliseconds(config_.cycle_budget_ms);
       r.plate = plate;
-      if (!cell_->submit(r)) return refuse("busy: the acquisition queue is full");
+      if (!submit(r)) return refuse("busy: the acquisition queue is full");
       inFlight_ = r;
       capture_ = PendingCapture{c.id, r.cycle_id, check, flange, std::move(about)};
       updateReady();
@@ -978,7 +1042,8 @@ int Daemon::run() {
   signalFd_ = ::signalfd(-1, &mask, SFD_CLOEXEC | SFD_NONBLOCK);
   timerFd_ = ::timerfd_create(CLOCK_MONOTONIC, TFD_CLOEXEC | TFD_NONBLOCK);
   if (sd_watchdog_enabled(0, &watchdogUsec_) <= 0) watchdogUsec_ = 0;
-  const std::uint64_t tickUs = watchdogUsec_ ? std::max<std::uint64_t>(watchdogUsec_ / 2, 1000) : 1'000'000;
+  // At most 500 ms: the HEARTBEAT lease (onTimer) and half the systemd watchdog interval.
+  const std::uint64_t tickUs = watchdogUsec_ ? std::clamp<std::uint64_t>(watchdogUsec_ / 2, 1000, 500'000) : 500'000;
   itimerspec its{};
   its.it_interval.tv_sec = static_cast<time_t>(tickUs / 1'000'000);
   its.it_interval.tv_nsec = static_cast<long>((tickUs % 1'000'000) * 1000);
@@ -986,6 +1051,8 @@ int Daemon::run() {
   ::timerfd_settime(timerFd_, 0, &its, nullptr);
 
   report_.vision_ok = 1;
+  modbus_->lease_health(Clock::now() + std::chrono::seconds(1));
+  if (can_) can_->lease_health(Clock::now() + std::chrono::seconds(1));
   updateReady();
   publish();
   sd_notify(0, "READY=1");
@@ -1053,8 +1120,10 @@ int Daemon::run() {
     }
     if (fds[1].revents & POLLIN) {
       while (auto cmd = modbus_->next_command()) {
-        if (stopping_) continue;
-        onPlcCommand(*cmd);
+        if (!stopping_)
+          onPlcCommand(*cmd);
+        else if (cmd->kind == motion::PlcCommand::Kind::Trigger)
+          answerJob(cmd->job_id, cmd->recipe_id, CycleError::Abandoned, "mfcd is stopping");
       }
     }
     if (fds[3].revents & POLLIN) onTimer();
@@ -1073,6 +1142,9 @@ int Daemon::run() {
   }
 
   // Clean stop: no more triggers, cell stopped (LEDs off), robot link closed.
+  if (pendingPlc_ && pendingPlc_->kind == motion::PlcCommand::Kind::Trigger)
+    answerJob(pendingPlc_->job_id, pendingPlc_->recipe_id, CycleError::Abandoned, "mfcd is stopping");
+  pendingPlc_.reset();
   report_.ready = 0;
   publish();
   for (const auto& w : waiters_) reply(w.fd, {{"ok", false}, {"error", "mfcd is stopping"}});
@@ -1080,6 +1152,9 @@ int Daemon::run() {
   calib_.reset();  // joins the worker after the job it is running (an abandoned session writes nothing)
   cell_.reset();
   if (can_) can_->stop();
+  // The last report (a final job's result, READY 0) reaches every connected PLC before the
+  // connections close: each gets up to one second to poll once more.
+  if (!modbus_->drain(std::chrono::seconds(1))) logf(LogLevel::Notice, "stopping: a Modbus client did not poll within 1 s");
   modbus_->stop();
   shutdownFds();
   logf(LogLevel::Notice, "mfcd stopped");

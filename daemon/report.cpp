@@ -43,6 +43,7 @@ const char* errorName(CycleError e) {
     case CycleError::Transform: return "pick transform failed";
     case CycleError::Abandoned: return "abandoned";
     case CycleError::Calibrating: return "calibrating";
+    case CycleError::Unavailable: return "cell unavailable";
   }
   return "?";
 }

@@ -244,8 +244,10 @@ void CanPublisher::run()
 		                     report.error_code != last_status_error ||
 		                     report.objects_remaining != last_status_objects;
 		const bool beat_due = now >= next_beat;
+		const bool healthy = now.time_since_epoch().count() < health_until_ns_.load(std::memory_order_acquire);
 		if (beat_due) {
-			send(encode_heartbeat(heartbeat++, report, config_.id_base));
+			if (healthy)
+				send(encode_heartbeat(heartbeat++, report, config_.id_base));
 			next_beat += config_.heartbeat_period;
 			if (next_beat < now)
 				next_beat = now + config_.heartbeat_period;

@@ -14,6 +14,7 @@
 #include <atomic>
 #include <chrono>
 #include <cstdint>
+#include <limits>
 #include <mutex>
 #include <string>
 #include <thread>
@@ -55,6 +56,14 @@ public:
 	// pick_valid set is sent as a pick; status goes out on every change and with each heartbeat.
 	void publish(const RobotReport &report) noexcept;
 
+	// The heartbeat frame goes out only while now < `until` (the daemon renews this lease while
+	// its threads move, as for the Modbus HEARTBEAT): a receiver's heartbeat timeout then means
+	// mfcd is down or hung. Until the first lease the publisher beats on its own.
+	void lease_health(std::chrono::steady_clock::time_point until) noexcept
+	{
+		health_until_ns_.store(until.time_since_epoch().count(), std::memory_order_release);
+	}
+
 	CanLinkState state() const noexcept { return state_.load(); }
 	std::string last_error() const;
 	CanPublisherStats stats() const noexcept;
@@ -75,6 +84,7 @@ private:
 	int socket_fd_ = -1;
 	std::thread thread_;
 	std::atomic<CanLinkState> state_{CanLinkState::Down};
+	std::atomic<std::int64_t> health_until_ns_{std::numeric_limits<std::int64_t>::max()};
 	mutable std::mutex error_mutex_; // diagnostics only; never taken by publish()
 	std::string last_error_;
 	std::atomic<std::uint64_t> sent_{0}, dropped_{0}, picks_{0}, attempts_{0}, bus_offs_{0};

@@ -41,6 +41,7 @@ TEST(Config, MinimalFileGetsTheDocumentedDefaults) {
   EXPECT_EQ(c.mode, RunMode::Triggered);
   EXPECT_EQ(c.cycle_budget_ms, 1000);
   EXPECT_EQ(c.modbus.port, 502);
+  EXPECT_EQ(c.modbus.idle_timeout, std::chrono::milliseconds(60000));
   EXPECT_EQ(c.control_socket, "/run/mfcd/control.sock");
   EXPECT_EQ(c.camera.model, fs::path(MFC_SOURCE_DIR "/config/camera-sim.yaml"));
   EXPECT_FALSE(c.can_enabled);
@@ -64,6 +65,11 @@ TEST(Config, WrongTypeAndRangeNameKeyAndLine) {
   EXPECT_EQ(e.key(), "modbus.port");
   EXPECT_EQ(e.line(), 7);
   EXPECT_NE(std::string(e.what()).find("out of range 0..65535"), std::string::npos) << e.what();
+
+  e = errorOf(minimal("modbus:\n  idle_timeout_ms: 50\n"));
+  EXPECT_EQ(e.key(), "modbus.idle_timeout_ms");
+  EXPECT_EQ(e.line(), 6);
+  EXPECT_NE(std::string(e.what()).find("out of range 100..3600000"), std::string::npos) << e.what();
 
   e = errorOf(minimal("daemon:\n  mode: sometimes\n"));
   EXPECT_EQ(e.key(), "daemon.mode");

@@ -12,6 +12,7 @@
 #include <atomic>
 
 #include "daemon_process.hpp"
+#include "plc_test_client.hpp"
 #include "motion/float_codec.h"
 #include "motion/register_map.h"
 
@@ -20,48 +21,6 @@ using namespace mfcd::motion;
 using namespace std::chrono_literals;
 
 namespace {
-
-struct Regs {
-  std::uint16_t r[28]{};
-  std::uint16_t at(int addr) const { return r[addr - reg::kStatus]; }
-  float f(int addr) const { return decode_float(at(addr), at(addr + 1), WordOrder::ABCD); }
-};
-
-struct Client {
-  explicit Client(int port) {
-    ctx = modbus_new_tcp("127.0.0.1", port);
-    connected = ctx && modbus_connect(ctx) == 0;
-    modbus_set_response_timeout(ctx, 3, 0);
-  }
-  ~Client() {
-    modbus_close(ctx);
-    modbus_free(ctx);
-  }
-  bool read(Regs& out) { return modbus_read_registers(ctx, reg::kStatus, 28, out.r) == 28; }
-  int trigger(std::uint16_t job, std::uint16_t recipe, std::uint16_t mode = 0) {
-    const std::uint16_t cmd[4] = {1, job, recipe, mode};
-    return modbus_write_registers(ctx, reg::kCommand, 4, cmd) == 4 ? 0 : errno;
-  }
-  bool waitFor(std::uint16_t job, Regs& out, int timeoutMs = 20000) {
-    const auto end = std::chrono::steady_clock::now() + std::chrono::milliseconds(timeoutMs);
-    while (std::chrono::steady_clock::now() < end) {
-      if (read(out) && out.at(reg::kJobIdEcho) == job) return true;
-      std::this_thread::sleep_for(5ms);
-    }
-    return false;
-  }
-  bool waitReady(int timeoutMs = 20000) {
-    Regs r;
-    const auto end = std::chrono::steady_clock::now() + std::chrono::milliseconds(timeoutMs);
-    while (std::chrono::steady_clock::now() < end) {
-      if (read(r) && (r.at(reg::kStatus) & reg::kReady)) return true;
-      std::this_thread::sleep_for(5ms);
-    }
-    return false;
-  }
-  modbus_t* ctx = nullptr;
-  bool connected = false;
-};
 
 // Distance of a published pick to the nearest simulated part (robot base frame), and that part.
 double distanceToTruth(const json& last, float x, float y, float z, int* objId = nullptr) {

@@ -1,5 +1,7 @@
 // mfcd with the test vision backend (TruthVisionStage) below VisionStage; everything else is the
-// real daemon. MFCD_TEST_VISION_MS sets the backend's work time (default 20 ms).
+// real daemon. MFCD_TEST_VISION_MS sets the backend's work time (default 20 ms);
+// MFCD_TEST_VISION_HANG=1 makes it ignore the cycle's deadline (a hung vision stage);
+// MFCD_TEST_VISION_FAIL_FIRST=N makes its first N cycles throw.
 #include <cstdlib>
 
 #include "daemon/daemon.hpp"
@@ -8,7 +10,11 @@
 int main(int argc, char** argv) {
   const char* ms = std::getenv("MFCD_TEST_VISION_MS");
   const std::chrono::milliseconds work(ms ? std::atoi(ms) : 20);
-  return mfcd::daemon::daemonMain(argc, argv, [work](const mfcd::daemon::DaemonConfig&) {
-    return std::make_unique<mfcd::daemon::test::TruthVisionStage>(work);
+  const char* hang = std::getenv("MFCD_TEST_VISION_HANG");
+  const char* fail = std::getenv("MFCD_TEST_VISION_FAIL_FIRST");
+  const bool honourDeadline = !(hang && std::atoi(hang) != 0);
+  const int failFirst = fail ? std::atoi(fail) : 0;
+  return mfcd::daemon::daemonMain(argc, argv, [=](const mfcd::daemon::DaemonConfig&) {
+    return std::make_unique<mfcd::daemon::test::TruthVisionStage>(work, honourDeadline, failFirst);
   });
 }

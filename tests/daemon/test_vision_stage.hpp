@@ -6,6 +6,7 @@
 // threads, queue, budget accounting, robot link and control socket be tested independently of the
 // matcher's accuracy.
 #include <chrono>
+#include <stdexcept>
 #include <thread>
 
 #include <opencv2/imgproc.hpp>
@@ -16,9 +17,14 @@ namespace mfcd::daemon::test {
 
 class TruthVisionStage final : public VisionStage {
 public:
-  explicit TruthVisionStage(std::chrono::milliseconds work, bool honourDeadline = true)
-      : work_(work), honourDeadline_(honourDeadline) {}
+  // failFirst: the first that many calls throw, as a failing vision stage does.
+  explicit TruthVisionStage(std::chrono::milliseconds work, bool honourDeadline = true, int failFirst = 0)
+      : work_(work), honourDeadline_(honourDeadline), failFirst_(failFirst) {}
   void process(const VisionInput& in, vision::PipelineResult& out) override {
+    if (calls < failFirst_) {
+      ++calls;
+      throw std::runtime_error("injected vision failure (test backend)");
+    }
     const auto start = Clock::now();
     auto until = start + work_;
     out.degraded = false;
@@ -62,6 +68,7 @@ public:
 private:
   std::chrono::milliseconds work_;
   bool honourDeadline_;
+  int failFirst_;
   vision::DepthEdges edges_;
   bool haveEdges_ = false;
 };

@@ -410,18 +410,51 @@ TEST(ModbusServer, AllowListRefusesOthers)
 	EXPECT_EQ(server.stats().connections_refused, 1u);
 }
 
-TEST(ModbusServer, MaxClientsRefusesExtraConnections)
+TEST(ModbusServer, MaxClientsEvictsTheLongestIdleClient)
 {
 	ModbusServerConfig config = loopback_config();
 	config.max_clients = 2;
 	ModbusServer server(config);
 	server.start();
-	LibmodbusClient a(server.port()), b(server.port());
-	EXPECT_EQ(a.read(reg::kTestVector, 1)[0], 0x47F1);
-	EXPECT_EQ(b.read(reg::kTestVector, 1)[0], 0x47F1);
-	RawClient third(server.port());
-	EXPECT_TRUE(third.closed_by_server());
-	EXPECT_EQ(a.read(reg::kTestVector, 1)[0], 0x47F1);
+	RawClient a(server.port()), b(server.port());
+	a.send(make_adu(1, {0x03, 0, reg::kTestVector, 0, 1}));
+	ASSERT_TRUE(a.receive(11));
+	std::this_thread::sleep_for(50ms);
+	b.send(make_adu(2, {0x03, 0, reg::kTestVector, 0, 1}));
+	ASSERT_TRUE(b.receive(11));
+	// A third connection (a PLC back from a power cycle, say) takes the slot of a, idle longest.
+	LibmodbusClient third(server.port());
+	EXPECT_EQ(third.read(reg::kTestVector, 1)[0], 0x47F1);
+	EXPECT_TRUE(a.closed_by_server());
+	b.send(make_adu(3, {0x03, 0, reg::kTestVector, 0, 1}));
+	const auto rsp = b.receive(11);
+	ASSERT_TRUE(rsp);
+	EXPECT_EQ(rsp->size(), 11u) << "b kept its connection";
+	const ModbusServerStats s = server.stats();
+	EXPECT_EQ(s.connections_evicted, 1u);
+	EXPECT_EQ(s.connections_refused, 0u);
+	EXPECT_EQ(s.clients_now, 2u);
+}
+
+TEST(ModbusServer, MaxClientsRefusesWhenEveryClientIsMidFrame)
+{
+	ModbusServerConfig config = loopback_config();
+	config.max_clients = 1;
+	config.frame_timeout = 2000ms;
+	ModbusServer server(config);
+	server.start();
+	RawClient a(server.port());
+	const std::vector<std::uint8_t> frame = make_adu(1, {0x03, 0, reg::kTestVector, 0, 1});
+	a.send({frame.begin(), frame.begin() + 4});
+	std::this_thread::sleep_for(100ms); // the server has taken a's first bytes
+	RawClient other(server.port());
+	EXPECT_TRUE(other.closed_by_server()) << "a is mid-frame: not evicted, the newcomer is refused";
+	a.send({frame.begin() + 4, frame.end()});
+	const auto rsp = a.receive(11);
+	ASSERT_TRUE(rsp);
+	EXPECT_EQ(rsp->size(), 11u);
+	EXPECT_EQ(server.stats().connections_refused, 1u);
+	EXPECT_EQ(server.stats().connections_evicted, 0u);
 }
 
 TEST(ModbusServer, BadConfigurationIsNamed)
@@ -436,6 +469,9 @@ TEST(ModbusServer, BadConfigurationIsNamed)
 	config = loopback_config();
 	config.max_clients = 0;
 	EXPECT_NE(config.validate().find("max_clients"), std::string::npos);
+	config = loopback_config();
+	config.idle_timeout = 50ms;
+	EXPECT_NE(config.validate().find("idle_timeout_ms 50"), std::string::npos);
 }
 
 TEST(ModbusServer, PortInUseIsNamed)

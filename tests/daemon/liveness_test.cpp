@@ -1,0 +1,118 @@
+// The daemon's signs of life on the robot link, end to end on the real process: HEARTBEAT
+// follows the health of the frame path, VISION_OK follows the frames, and the last result of a
+// stopping daemon reaches a polling PLC before the server closes.
+#include <gtest/gtest.h>
+
+#include <signal.h>
+
+#include <vector>
+
+#include "daemon_process.hpp"
+#include "plc_test_client.hpp"
+
+using namespace mfcd::daemon::test;
+using namespace mfcd::motion;
+using namespace std::chrono_literals;
+
+namespace {
+
+class DaemonLiveness : public ::testing::Test {
+protected:
+  void startDaemon(const std::string& name, int budgetMs, std::vector<std::string> env) {
+    proc = std::make_unique<DaemonProcess>(name);
+    proc->writeConfig(simCellConfig(proc->dir(), budgetMs));
+    proc->start(MFCD_TEST_DAEMON, {}, std::move(env));
+    if (!proc->waitReady()) {
+      const std::string log = proc->log();
+      if (log.find("EGL") != std::string::npos || log.find("OpenGL") != std::string::npos) GTEST_SKIP() << "no offscreen OpenGL: " << log;
+      FAIL() << "mfcd did not become ready:\n" << log;
+    }
+    port = proc->modbusPort();
+  }
+  std::unique_ptr<DaemonProcess> proc;
+  int port = 0;
+};
+
+double secondsSince(std::chrono::steady_clock::time_point t) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+}
+
+}  // namespace
+
+TEST_F(DaemonLiveness, HeartbeatFreezesWhileTheVisionStageHangsAndResumesAfter) {
+  // A vision stage that ignores its deadline: the cycle of budget 1 s hangs for 6 s.
+  startDaemon("hang", 1000, {"MFCD_TEST_VISION_MS=6000", "MFCD_TEST_VISION_HANG=1"});
+  Client plc(port);
+  ASSERT_TRUE(plc.waitReady());
+  Regs r;
+  ASSERT_TRUE(plc.read(r));
+  const auto t0 = std::chrono::steady_clock::now();
+  ASSERT_EQ(plc.trigger(3, 0), 0);
+  // Heartbeat changes seen while the stage hangs, after the deadline + 3 s (the PLC's rule).
+  std::uint16_t last = r.at(reg::kHeartbeat);
+  int changesWhileHung = 0, changesAfter = 0;
+  bool done = false;
+  double doneAt = 0;
+  while (secondsSince(t0) < 11.0) {
+    if (!plc.read(r)) continue;
+    const double t = secondsSince(t0);
+    const std::uint16_t hb = r.at(reg::kHeartbeat);
+    if (!done && r.at(reg::kJobIdEcho) == 3) done = true, doneAt = t;
+    if (hb != last) {
+      if (!done && t > 1.0 + 3.0) ++changesWhileHung;
+      if (done) ++changesAfter;
+      last = hb;
+    }
+    std::this_thread::sleep_for(100ms);
+  }
+  ASSERT_TRUE(done) << "the hung cycle ended and was published";
+  EXPECT_GT(doneAt, 5.5);
+  EXPECT_EQ(changesWhileHung, 0) << "HEARTBEAT must not advance while the vision thread hangs";
+  EXPECT_GE(changesAfter, 2) << "HEARTBEAT counts again once the frame path moves";
+  EXPECT_NE(proc->log().find("cycle 1 (plc job 3"), std::string::npos);
+}
+
+TEST_F(DaemonLiveness, VisionOkIsClearedByAFailedCycleAndSetByTheNextGoodOne) {
+  startDaemon("visionok", 1000, {"MFCD_TEST_VISION_FAIL_FIRST=1"});
+  Client plc(port);
+  ASSERT_TRUE(plc.waitReady());
+  Regs r;
+  ASSERT_TRUE(plc.read(r));
+  EXPECT_TRUE(r.at(reg::kStatus) & reg::kVisionOk);
+  ASSERT_EQ(plc.trigger(1, 0), 0);
+  ASSERT_TRUE(plc.waitFor(1, r));
+  EXPECT_EQ(r.at(reg::kErrorCode), 3) << "vision stage failed";
+  EXPECT_FALSE(r.at(reg::kStatus) & reg::kVisionOk);
+  ASSERT_EQ(modbus_write_register(plc.ctx, reg::kCommand, 2), 1);  // RESET
+  ASSERT_TRUE(plc.waitReady());
+  ASSERT_TRUE(plc.read(r));
+  EXPECT_FALSE(r.at(reg::kStatus) & reg::kVisionOk) << "RESET clears the error, not the health";
+  ASSERT_EQ(plc.trigger(2, 0), 0);
+  ASSERT_TRUE(plc.waitFor(2, r));
+  EXPECT_EQ(r.at(reg::kErrorCode), 0);
+  EXPECT_TRUE(r.at(reg::kStatus) & reg::kVisionOk);
+  EXPECT_TRUE(r.at(reg::kStatus) & reg::kPickValid);
+}
+
+TEST_F(DaemonLiveness, TheLastResultReachesAPollingPlcBeforeTheServerCloses) {
+  startDaemon("drain", 3000, {"MFCD_TEST_VISION_MS=800"});
+  Client plc(port);
+  ASSERT_TRUE(plc.waitReady());
+  ASSERT_EQ(plc.trigger(9, 0), 0);
+  std::this_thread::sleep_for(300ms);
+  proc->signal(SIGTERM);
+  // A slow PLC: one read every 400 ms, until the server closes the connection.
+  Regs r;
+  bool sawResult = false;
+  const auto t0 = std::chrono::steady_clock::now();
+  while (secondsSince(t0) < 10.0) {
+    if (!plc.read(r)) break;
+    if (r.at(reg::kJobIdEcho) == 9) sawResult = true;
+    std::this_thread::sleep_for(400ms);
+  }
+  EXPECT_TRUE(sawResult) << proc->log();
+  EXPECT_EQ(r.at(reg::kErrorCode), 0);
+  const auto code = proc->wait(10000);
+  ASSERT_TRUE(code.has_value());
+  EXPECT_EQ(*code, 0);
+}
