@@ -1,8 +1,9 @@
 #pragma once
-// mfcd's main thread: one poll() loop over the Modbus command eventfd, the cell's result eventfd,
-// the control socket and its clients, a signalfd (SIGTERM/SIGINT/SIGHUP) and a timerfd (systemd
-// watchdog, status). It owns the robot link (ModbusServer, CanPublisher) and is the single writer
-// of their reports. See docs/operations.md.
+// mfcd's entry points. The daemon's main thread runs one event loop over the robot link's command
+// eventfd, the cell's result eventfd, the control socket and its clients, a signalfd
+// (SIGTERM/SIGINT/SIGHUP) and a timerfd (systemd watchdog, HEARTBEAT lease, status); it is the
+// single writer of the robot link's reports. The class is in daemon_impl.hpp; see
+// docs/operations.md.
 #include <filesystem>
 #include <optional>
 #include <string>

@@ -1,0 +1,114 @@
+// The control socket's commands (docs/operations.md, "Control socket"): one handler per command,
+// registered in a table; argument checks go through RequestArgs, whose errors become the answer.
+#include <unistd.h>
+
+#include "daemon/daemon_impl.hpp"
+#include "daemon/log.hpp"
+#include "daemon/report.hpp"
+
+namespace mfcd::daemon {
+
+using nlohmann::json;
+
+void Daemon::registerCommands() {
+  control_.on("status", [this](ClientId c, const RequestArgs&) { control_.reply(c, statusJson()); });
+  control_.on("stats", [this](ClientId c, const RequestArgs&) {
+    json j = stats_.toJson();
+    j["ok"] = true;
+    j["budget_ms"] = config_.cycle_budget_ms;
+    control_.reply(c, j);
+  });
+  control_.on("last", [this](ClientId c, const RequestArgs&) {
+    control_.reply(c, {{"ok", !lastResult_.is_null()}, {"result", lastResult_}});
+  });
+  control_.on("trigger", [this](ClientId c, const RequestArgs& a) { startControlCycle(c, a, false); });
+  control_.on("snapshot", [this](ClientId c, const RequestArgs& a) { startControlCycle(c, a, true); });
+  control_.on("part", [this](ClientId c, const RequestArgs& a) { selectPart(c, a); });
+  control_.on("reload", [this](ClientId c, const RequestArgs&) {
+    reloadPending_ = true;
+    reloadWaiters_.emplace_back(c, json());
+    updateReady();
+    afterCycle();
+  });
+  control_.on("calibrate", [this](ClientId c, const RequestArgs& a) { handleCalibrate(c, a.request()); });
+  // What waits for a client that went away is forgotten; its jobs still run to their end.
+  control_.on_disconnect([this](ClientId c) {
+    std::erase_if(waiters_, [c](const Waiter& w) { return w.client == c; });
+    std::erase_if(reloadWaiters_, [c](const auto& w) { return w.first == c; });
+  });
+}
+
+void Daemon::startControlCycle(ClientId client, const RequestArgs& args, bool snapshot) {
+  const auto refuse = [&](const std::string& why) { control_.reply(client, {{"ok", false}, {"error", why}}); };
+  const int recipe = static_cast<int>(args.integer("recipe", selectedRecipe_, 0, 65535));
+  if (calibrating())
+    return refuse("busy: a calibration session is running (picking is paused; mfcd-ctl calibrate apply or abort ends it)");
+  if (stopping_ || reloadPending_ || inFlight_ || config_.mode == RunMode::Continuous || !cellOk_)
+    return refuse(config_.mode == RunMode::Continuous ? "busy: continuous mode runs cycles by itself"
+                                                      : "busy: a cycle is running or mfcd is not ready");
+  const auto id = startCycle(CycleOrigin::Control, 0, static_cast<std::uint16_t>(recipe), 0, snapshot);
+  if (!id) return refuse("busy");
+  // Replied to when the cycle (or its snapshot) is done; an unknown recipe has answered already.
+  if (!lastResult_.is_null() && lastResult_["cycle"] == *id &&
+      lastResult_["error_code"] == static_cast<int>(CycleError::UnknownRecipe)) {
+    control_.reply(client, {{"ok", false}, {"error", lastResult_.value("message", "unknown recipe")}, {"result", lastResult_}});
+    return;
+  }
+  waiters_.push_back({client, *id, snapshot ? Waiter::What::Snapshot : Waiter::What::Trigger});
+}
+
+void Daemon::selectPart(ClientId client, const RequestArgs& args) {
+  const int recipe = static_cast<int>(args.integer("recipe", -1, -1, 65535));
+  if (!config_.recipe(recipe)) {
+    control_.reply(client, {{"ok", false}, {"error", "part: give {\"recipe\": id} with an id from the configuration's recipes"}});
+    return;
+  }
+  selectedRecipe_ = recipe;
+  logf(LogLevel::Info, "recipe %d (%s) selected by the control socket", selectedRecipe_, config_.recipe(selectedRecipe_)->part.c_str());
+  control_.reply(client, {{"ok", true}, {"recipe", selectedRecipe_}, {"part", config_.recipe(selectedRecipe_)->part}});
+}
+
+json Daemon::statusJson() const {
+  json j;
+  j["ok"] = true;
+  j["pid"] = ::getpid();
+  j["config"] = config_.source;
+  j["mode"] = toString(config_.mode);
+  j["state"] = stopping_        ? "stopping"
+               : reloadPending_ ? "reloading"
+               : calibrating()  ? "calibrating"
+               : inFlight_      ? "busy"
+               : cellOk_        ? "ready"
+                                : "failed";
+  j["ready"] = report_.ready != 0;
+  j["vision_ok"] = report_.vision_ok != 0;
+  j["error_code"] = report_.error_code;
+  j["recipe"] = selectedRecipe_;
+  j["cycle_budget_ms"] = config_.cycle_budget_ms;
+  if (cell_) {
+    j["camera"] = cell_->sourceDescription();
+    j["vision"] = cell_->visionDescription();
+    j["realtime"] = cell_->realtime();
+    json parts = json::array();
+    for (const auto& [id, name] : cell_->parts()) parts.push_back({{"obj_id", id}, {"name", name}});
+    j["parts"] = parts;
+  }
+  json recipes = json::array();
+  for (const auto& r : config_.recipes) recipes.push_back({{"id", r.id}, {"part", r.part}, {"obj_id", r.obj_id}});
+  j["recipes"] = recipes;
+  link_.describe(j);
+  j["cycles"] = stats_.cycles();
+  j["overruns"] = stats_.overruns();
+  if (calib_) {
+    j["calibration"] = calib_->state();
+    if (calib_->busy()) j["calibration"]["working"] = calib_->working();
+  }
+  if (!lastResult_.is_null()) {
+    j["last_cycle"] = {{"cycle", lastResult_["cycle"]}, {"total_ms", lastResult_["times_ms"]["total"]},
+                       {"overrun", lastResult_["overrun"]}, {"degraded", lastResult_["degraded"]},
+                       {"error", lastResult_["error"]}, {"candidates", lastResult_["candidates"].size()}};
+  }
+  return j;
+}
+
+}  // namespace mfcd::daemon

@@ -1,0 +1,244 @@
+// The daemon's cycle bookkeeping: starting cycles for the PLC, the control socket and continuous
+// mode, publishing their results on the robot link, and answering every accepted job.
+#include <algorithm>
+
+#include "daemon/daemon_impl.hpp"
+#include "daemon/log.hpp"
+#include "daemon/report.hpp"
+
+namespace mfcd::daemon {
+
+using nlohmann::json;
+
+void Daemon::publish() {
+  link_.publish(report_);
+}
+
+void Daemon::updateReady() {
+  // A calibration session pauses picking: the camera looks at the calibration plate, not the bin.
+  const std::uint16_t ready =
+      cellOk_ && !inFlight_ && !reloadPending_ && !stopping_ && !calibrating() && config_.mode == RunMode::Triggered;
+  const std::uint16_t visionOk = cellOk_ && framesOk_;
+  if (ready != report_.ready || visionOk != report_.vision_ok) {
+    report_.ready = ready;
+    report_.vision_ok = visionOk;
+    publish();
+  }
+}
+
+std::optional<std::uint64_t> Daemon::startCycle(CycleOrigin origin, std::uint16_t job, std::uint16_t recipe, std::uint16_t mode,
+                                                bool snapshot) {
+  if (!cell_ || inFlight_) return std::nullopt;
+  CycleRequest r;
+  r.origin = origin;
+  r.cycle_id = nextCycle_++;
+  r.job_id = job;
+  r.recipe_id = recipe;
+  r.mode = mode;
+  r.snapshot = snapshot;
+  r.trigger = Clock::now();
+  // The pipeline gets the budget minus a reserve for pick choice and publishing.
+  const auto budget = std::chrono::milliseconds(config_.cycle_budget_ms);
+  r.deadline = r.trigger + budget - std::min<std::chrono::milliseconds>(std::chrono::milliseconds(50), budget / 10);
+  const RecipeConfig* rc = config_.recipe(recipe);
+  if (!rc) {
+    CycleResult fail;
+    fail.request = r;
+    fail.error = CycleError::UnknownRecipe;
+    const std::string msg = "recipe " + std::to_string(recipe) + " is not in the configuration (" + config_.source + ")";
+    copyMessage(fail.message, sizeof fail.message, msg.c_str());
+    onResult(fail);
+    return r.cycle_id;
+  }
+  r.obj_id = rc->obj_id;
+  if (!submit(r)) return std::nullopt;
+  inFlight_ = r;
+  updateReady();
+  return r.cycle_id;
+}
+
+void Daemon::onPlcCommand(const motion::PlcCommand& cmd) {
+  if (cmd.kind == motion::PlcCommand::Kind::Reset) {
+    logf(LogLevel::Info, "PLC: RESET (error code %u cleared)", report_.error_code);
+    report_.error_code = 0;
+    pendingPlc_.reset();
+    publish();
+    return;
+  }
+  logf(LogLevel::Debug, "PLC: TRIGGER job %u recipe %u mode %u", cmd.job_id, cmd.recipe_id, cmd.mode);
+  if (calibrating()) {
+    // READY is clear during a session, so only a trigger racing the session's start gets here:
+    // it is answered at once with ERROR_CODE 6 rather than left pending.
+    logf(LogLevel::Warning, "PLC: TRIGGER job %u refused: a calibration session is running", cmd.job_id);
+    report_.job_id = cmd.job_id;
+    report_.recipe_id = cmd.recipe_id;
+    report_.error_code = static_cast<std::uint16_t>(CycleError::Calibrating);
+    report_.pick_valid = 0;
+    publish();
+    return;
+  }
+  if (inFlight_ || reloadPending_) {
+    pendingPlc_ = cmd;  // accepted by the server during a local cycle: runs right after it
+    return;
+  }
+  if (!startCycle(CycleOrigin::Plc, cmd.job_id, cmd.recipe_id, cmd.mode, false))
+    answerJob(cmd.job_id, cmd.recipe_id, CycleError::Unavailable, cell_ ? "the cell's request queue is full" : "no cell is running");
+}
+
+void Daemon::answerJob(std::uint16_t job, std::uint16_t recipe, CycleError error, const char* why) {
+  logf(LogLevel::Error, "PLC: job %u (recipe %u) not run: %s; answered with error code %u", job, recipe, why,
+       static_cast<unsigned>(error));
+  report_.job_id = job;
+  report_.recipe_id = recipe;
+  report_.error_code = static_cast<std::uint16_t>(error);
+  report_.pick_valid = 0;
+  report_.candidate_count = 0;
+  report_.candidate_index = 0;
+  report_.objects_remaining = 0;
+  report_.pick = motion::PickPose{};
+  report_.score = 0.0f;
+  publish();
+}
+
+bool Daemon::submit(const CycleRequest& r) {
+  if (!cell_ || !cell_->submit(r)) return false;
+  const auto budget = std::chrono::milliseconds(config_.cycle_budget_ms);
+  busyUntil_ = std::max(busyUntil_, r.kind == CycleRequest::Kind::Capture ? r.deadline : Clock::now() + budget);
+  return true;
+}
+
+void Daemon::onResult(const CycleResult& r) {
+  if (r.kind == CycleResult::Kind::CalibrationImage) {
+    onCalibrationImage(r);
+    return;
+  }
+  if (r.kind == CycleResult::Kind::SnapshotSaved) {
+    if (r.snapshot_dir[0])
+      logf(LogLevel::Info, "snapshot of cycle %llu saved in %s", static_cast<unsigned long long>(r.request.cycle_id), r.snapshot_dir);
+    else
+      logf(LogLevel::Warning, "snapshot of cycle %llu failed: %s", static_cast<unsigned long long>(r.request.cycle_id), r.message);
+    for (auto it = waiters_.begin(); it != waiters_.end();) {
+      if (it->what == Waiter::What::Snapshot && it->cycle == r.request.cycle_id) {
+        if (r.snapshot_dir[0])
+          control_.reply(it->client, {{"ok", true}, {"snapshot", r.snapshot_dir}, {"result", resultJson(r, config_)}});
+        else
+          control_.reply(it->client, {{"ok", false}, {"error", r.message}});
+        it = waiters_.erase(it);
+      } else {
+        ++it;
+      }
+    }
+    return;
+  }
+  if (inFlight_ && inFlight_->cycle_id == r.request.cycle_id) inFlight_.reset();
+  if (r.error == CycleError::Capture || r.error == CycleError::Vision) {
+    if (framesOk_) logf(LogLevel::Error, "VISION_OK cleared: %s; the next cycle retries", r.message);
+    framesOk_ = false;
+  } else if (r.error != CycleError::UnknownRecipe) {  // captured and processed: camera and vision work
+    if (!framesOk_) logf(LogLevel::Notice, "VISION_OK set again: cycle %llu captured and processed its frames",
+                         static_cast<unsigned long long>(r.request.cycle_id));
+    framesOk_ = true;
+  }
+  const bool overrun = stats_.add(r, config_.cycle_budget_ms);
+  lastResult_ = resultJson(r, config_);
+  const unsigned long long id = r.request.cycle_id;
+  if (r.error != CycleError::None)
+    logf(LogLevel::Error, "cycle %llu (%s job %u recipe %u): error %u: %s", id, toString(r.request.origin), r.request.job_id,
+         r.request.recipe_id, static_cast<unsigned>(r.error), r.message);
+  else if (r.chosen >= 0) {
+    const auto& p = r.candidates[static_cast<std::size_t>(r.chosen)].base;
+    logf(LogLevel::Info, "cycle %llu (%s job %u recipe %u): pick obj %d at %.1f %.1f %.1f / %.1f %.1f %.1f score %.3f, %d found, %.0f ms%s",
+         id, toString(r.request.origin), r.request.job_id, r.request.recipe_id, r.candidates[static_cast<std::size_t>(r.chosen)].obj_id,
+         p.x_mm, p.y_mm, p.z_mm, p.rx_deg, p.ry_deg, p.rz_deg, r.candidates[static_cast<std::size_t>(r.chosen)].score,
+         r.candidate_count, r.total_ms, r.degraded ? " (degraded)" : "");
+  } else {
+    logf(LogLevel::Notice, "cycle %llu (%s job %u recipe %u): no pick, %d found, %.0f ms", id, toString(r.request.origin),
+         r.request.job_id, r.request.recipe_id, r.candidate_count, r.total_ms);
+  }
+  if (overrun)
+    logf(LogLevel::Warning, "cycle %llu overran its budget: %.0f ms > %d ms (capture %.0f, vision %.0f; %s)", id, r.total_ms,
+         config_.cycle_budget_ms, r.capture_ms, r.vision_ms, r.degraded ? "degraded result" : "full result");
+  if (!r.leds_off) logf(LogLevel::Error, "cycle %llu: LEDs were not all off after the capture", id);
+
+  // Robot link: PLC jobs and continuous cycles are published; control-socket cycles are not (they
+  // would change JOB_ID_ECHO under the PLC's handshake).
+  if (r.request.origin == CycleOrigin::Plc || r.request.origin == CycleOrigin::Continuous) {
+    report_.job_id = r.request.job_id;
+    report_.recipe_id = r.request.recipe_id;
+    report_.error_code = static_cast<std::uint16_t>(r.error);
+    report_.objects_remaining = static_cast<std::uint16_t>(r.candidate_count);
+    report_.cycle_time_ms = static_cast<std::uint16_t>(std::min(65535.0, r.total_ms));
+    report_.candidate_count = static_cast<std::uint16_t>(r.candidate_count);
+    report_.candidate_index = static_cast<std::uint16_t>(std::max(0, r.chosen));
+    report_.pick_valid = r.chosen >= 0;
+    report_.pick = r.chosen >= 0 ? r.candidates[static_cast<std::size_t>(r.chosen)].base : motion::PickPose{};
+    report_.score = r.chosen >= 0 ? r.candidates[static_cast<std::size_t>(r.chosen)].score : 0.0f;
+  }
+  report_.ready = 0;  // recomputed below, in the same publish
+  updateReady();
+  publish();
+
+  // The simulated robot takes the part it was given.
+  if (r.chosen >= 0 && cell_) {
+    CycleRequest take;
+    take.kind = CycleRequest::Kind::RemovePicked;
+    take.picked_t_cam_mm = r.candidates[static_cast<std::size_t>(r.chosen)].t_cam_mm;
+    submit(take);
+  } else if (r.error == CycleError::None && r.candidate_count == 0 && r.truth.count > 0 && cell_) {
+    // Simulated cell: vision sees nothing in a bin that still holds parts (all unrecognised); like
+    // an operator would, tip in a fresh bin so the cell does not stall on one scene.
+    CycleRequest refill;
+    refill.kind = CycleRequest::Kind::Refill;
+    submit(refill);
+  }
+  for (auto it = waiters_.begin(); it != waiters_.end();) {
+    if (it->what == Waiter::What::Trigger && it->cycle == r.request.cycle_id) {
+      json j = {{"ok", r.error == CycleError::None}, {"result", lastResult_}};
+      if (r.error != CycleError::None) j["error"] = r.message;
+      control_.reply(it->client, j);
+      it = waiters_.erase(it);
+    } else {
+      ++it;
+    }
+  }
+  notifyStatus();
+}
+
+void Daemon::afterCycle() {
+  if (inFlight_) return;
+  if (stopping_) return;
+  if (reloadPending_) {
+    std::string message;
+    const bool ok = reload(message);
+    for (auto& [client, base] : reloadWaiters_) {
+      json j = base.is_object() ? base : json::object();
+      if (ok) {
+        j["ok"] = j.value("ok", true);
+        j["reload"] = message;
+      } else {
+        j["ok"] = false;
+        j["error"] = j.contains("message") ? j.value("message", "") + "; but " + message : message;
+      }
+      if (!base.is_object()) j["message"] = message;
+      control_.reply(client, j);
+    }
+    reloadWaiters_.clear();
+    reloadPending_ = false;
+    updateReady();
+    notifyStatus();
+  }
+  if (pendingPlc_) {
+    const auto cmd = *pendingPlc_;
+    pendingPlc_.reset();
+    if (!startCycle(CycleOrigin::Plc, cmd.job_id, cmd.recipe_id, cmd.mode, false))
+      answerJob(cmd.job_id, cmd.recipe_id, CycleError::Unavailable, cell_ ? "the cell's request queue is full" : "no cell is running");
+    return;
+  }
+  if (config_.mode == RunMode::Continuous && cellOk_ && !calibrating()) {
+    const std::uint16_t job = nextContinuousJob_;
+    nextContinuousJob_ = static_cast<std::uint16_t>(nextContinuousJob_ == 65535 ? 1 : nextContinuousJob_ + 1);
+    startCycle(CycleOrigin::Continuous, job, static_cast<std::uint16_t>(selectedRecipe_), 0, false);
+  }
+}
+
+}  // namespace mfcd::daemon

@@ -1,0 +1,205 @@
+// ControlServer on a real Unix socket in a temporary directory, driven through a real EventLoop:
+// the command table, the exception barrier, invalid UTF-8, line and client limits, and
+// descriptor exhaustion (a real EMFILE).
+#include <gtest/gtest.h>
+
+#include <sys/resource.h>
+#include <sys/socket.h>
+#include <sys/un.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "daemon/control_server.hpp"
+#include "daemon/event_loop.hpp"
+
+using namespace mfcd::daemon;
+using mfcd::motion::UniqueFd;
+using nlohmann::json;
+namespace fs = std::filesystem;
+
+namespace {
+
+class Peer {
+ public:
+  explicit Peer(const fs::path& path) : fd_(::socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0)) {
+    sockaddr_un addr{};
+    addr.sun_family = AF_UNIX;
+    std::strncpy(addr.sun_path, path.c_str(), sizeof addr.sun_path - 1);
+    connected_ = ::connect(fd_.get(), reinterpret_cast<sockaddr*>(&addr), sizeof addr) == 0;
+  }
+  bool connected() const { return connected_; }
+  void send(const std::string& bytes) { ::send(fd_.get(), bytes.data(), bytes.size(), MSG_NOSIGNAL); }
+  // One reply line, or "" when the server closed without one (nothing within the loop's rounds).
+  std::string line(EventLoop& loop) {
+    std::string out;
+    for (int round = 0; round < 50; ++round) {
+      loop.run_once(20);
+      char c;
+      while (::recv(fd_.get(), &c, 1, MSG_DONTWAIT) == 1) {
+        if (c == '\n') return out;
+        out += c;
+      }
+    }
+    return out;
+  }
+  bool closed_by_server(EventLoop& loop) {
+    for (int round = 0; round < 50; ++round) {
+      loop.run_once(20);
+      char c;
+      const ssize_t n = ::recv(fd_.get(), &c, 1, MSG_DONTWAIT);
+      if (n == 0) return true;
+    }
+    return false;
+  }
+
+ private:
+  UniqueFd fd_;
+  bool connected_ = false;
+};
+
+class ControlServerTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir = fs::temp_directory_path() / ("mfcd-ctl-test-" + std::to_string(::getpid()));
+    fs::create_directories(dir);
+    path = dir / "ctl.sock";
+    server.on("echo", [this](ControlServer::ClientId c, const RequestArgs& a) {
+      server.reply(c, {{"ok", true}, {"text", a.string("text", "")}, {"n", a.integer("n", 0, 0, 10)}});
+    });
+    server.on("boom", [](ControlServer::ClientId, const RequestArgs&) { throw std::runtime_error("exploded"); });
+    server.on_disconnect([this](ControlServer::ClientId c) { disconnected.push_back(c); });
+    server.open(path);
+  }
+  void TearDown() override {
+    server.close();
+    fs::remove_all(dir);
+  }
+  json ask(Peer& p, const std::string& line) {
+    p.send(line);
+    const std::string answer = p.line(loop);
+    return json::parse(answer);  // throws (fails the test) unless the reply is valid JSON
+  }
+  fs::path dir, path;
+  EventLoop loop;
+  ControlServer server{loop};
+  std::vector<ControlServer::ClientId> disconnected;
+};
+
+}  // namespace
+
+TEST_F(ControlServerTest, CommandsGoThroughTheTableWithTypedArguments) {
+  Peer p(path);
+  ASSERT_TRUE(p.connected());
+  json r = ask(p, R"({"cmd":"echo","text":"hi","n":3})" "\n");
+  EXPECT_EQ(r["ok"], true);
+  EXPECT_EQ(r["text"], "hi");
+  EXPECT_EQ(r["n"], 3);
+  r = ask(p, R"({"cmd":"echo","n":11})" "\n");
+  EXPECT_EQ(r["ok"], false);
+  EXPECT_EQ(r["error"], "echo: n must be an integer 0..10");
+  r = ask(p, R"({"cmd":"echo","text":5})" "\n");
+  EXPECT_EQ(r["error"], "echo: text must be a string");
+  r = ask(p, R"({"cmd":"nope"})" "\n");
+  EXPECT_EQ(r["error"], "unknown command 'nope' (boom, echo)");
+  r = ask(p, "not json\n");
+  EXPECT_NE(r["error"].get<std::string>().find("bad request (one JSON object per line)"), std::string::npos);
+}
+
+TEST_F(ControlServerTest, AThrowingHandlerIsAnsweredAndTheServerGoesOn) {
+  Peer p(path);
+  json r = ask(p, R"({"cmd":"boom"})" "\n");
+  EXPECT_EQ(r["ok"], false);
+  EXPECT_EQ(r["error"], "request failed: exploded");
+  r = ask(p, R"({"cmd":"echo","text":"still here"})" "\n");
+  EXPECT_EQ(r["text"], "still here");
+}
+
+TEST_F(ControlServerTest, InvalidUtf8IsAnsweredWithValidJson) {
+  // The two bytes that used to end mfcd: json::dump() threw on the raw byte in the parse error.
+  Peer p(path);
+  json r = ask(p, "\xff\n");
+  EXPECT_EQ(r["ok"], false);
+  r = ask(p, "{\"cmd\":\"echo\",\"text\":\"caf\xe9\"}\n");  // Latin-1 é inside a string
+  EXPECT_EQ(r["ok"], false);
+  r = ask(p, R"({"cmd":"echo","text":"ok"})" "\n");
+  EXPECT_EQ(r["text"], "ok");
+}
+
+TEST_F(ControlServerTest, AnOverlongLineIsRefusedAndTheClientClosed) {
+  Peer p(path);
+  p.send(std::string(ControlServer::kMaxLine + 10, 'x'));
+  const json r = json::parse(p.line(loop));
+  EXPECT_NE(r["error"].get<std::string>().find("request line too long"), std::string::npos);
+  EXPECT_TRUE(p.closed_by_server(loop));
+  EXPECT_EQ(disconnected.size(), 1u);
+  EXPECT_EQ(server.clients(), 0u);
+}
+
+TEST_F(ControlServerTest, ClientsAreBoundedAndASlotFreesOnClose) {
+  std::vector<std::unique_ptr<Peer>> peers;
+  for (std::size_t i = 0; i < ControlServer::kMaxClients; ++i) {
+    peers.push_back(std::make_unique<Peer>(path));
+    loop.run_once(20);
+  }
+  EXPECT_EQ(server.clients(), ControlServer::kMaxClients);
+  Peer extra(path);
+  const json r = json::parse(extra.line(loop));
+  EXPECT_NE(r["error"].get<std::string>().find("too many control clients"), std::string::npos);
+  EXPECT_TRUE(extra.closed_by_server(loop));
+  peers.pop_back();  // one leaves
+  for (int i = 0; i < 5; ++i) loop.run_once(20);
+  EXPECT_EQ(server.clients(), ControlServer::kMaxClients - 1);
+  Peer next(path);
+  EXPECT_EQ(ask(next, R"({"cmd":"echo","text":"in"})" "\n")["text"], "in");
+}
+
+TEST_F(ControlServerTest, OutOfDescriptorsRefusesTheNewcomerWithoutSpinning) {
+  // Connect first (the client's socket exists), then let the process run out of descriptors:
+  // accept4() fails with EMFILE, the spare descriptor is given up to take and refuse the client.
+  Peer p(path);
+  ASSERT_TRUE(p.connected());
+  rlimit saved{};
+  ASSERT_EQ(::getrlimit(RLIMIT_NOFILE, &saved), 0);
+  rlimit low = saved;
+  low.rlim_cur = 256;
+  ASSERT_EQ(::setrlimit(RLIMIT_NOFILE, &low), 0);
+  std::vector<UniqueFd> filler;  // every free descriptor number below the limit
+  for (int fd; (fd = ::dup(0)) >= 0;) filler.emplace_back(fd);
+  ASSERT_EQ(errno, EMFILE);
+  loop.run_once(100);
+  loop.run_once(100);  // the listener is not left readable: nothing more to do, no spinning
+  filler.clear();
+  ASSERT_EQ(::setrlimit(RLIMIT_NOFILE, &saved), 0);
+  const json r = json::parse(p.line(loop));
+  EXPECT_NE(r["error"].get<std::string>().find("out of file descriptors"), std::string::npos) << r.dump();
+  EXPECT_EQ(server.refused(), 1u);
+  EXPECT_EQ(server.clients(), 0u);
+  Peer later(path);
+  EXPECT_EQ(ask(later, R"({"cmd":"echo","text":"back"})" "\n")["text"], "back") << "the spare descriptor is back";
+}
+
+TEST(EventLoop, CallsReadySourcesInOrderAndSkipsOnesRemovedInTheRound) {
+  int a[2], b[2];
+  ASSERT_EQ(::pipe(a), 0);
+  ASSERT_EQ(::pipe(b), 0);
+  UniqueFd ar(a[0]), aw(a[1]), br(b[0]), bw(b[1]);
+  EventLoop loop;
+  std::vector<char> calls;
+  loop.add(ar.get(), [&] {
+    calls.push_back('a');
+    loop.remove(br.get());  // b is ready in this round too, but is gone now
+  });
+  loop.add(br.get(), [&] { calls.push_back('b'); });
+  loop.add(-1, [&] { calls.push_back('x'); });  // ignored
+  EXPECT_EQ(loop.size(), 2u);
+  ASSERT_EQ(::write(aw.get(), "1", 1), 1);
+  ASSERT_EQ(::write(bw.get(), "1", 1), 1);
+  ASSERT_TRUE(loop.run_once(100));
+  EXPECT_EQ(calls, (std::vector<char>{'a'}));
+  EXPECT_FALSE(loop.watches(br.get()));
+  EXPECT_TRUE(loop.run_once(0)) << "a timeout is not a failure";
+}
