@@ -15,6 +15,7 @@
 #include <cstring>
 
 #include "daemon/daemon_impl.hpp"
+#include "daemon/frame_source.hpp"
 #include "daemon/log.hpp"
 
 namespace mfcd::daemon {
@@ -24,11 +25,12 @@ using nlohmann::json;
 namespace {
 
 constexpr const char* kUsage =
-    "usage: mfcd [-c FILE] [--data-dir DIR] [-f] [--check-config] [--benchmark N [--benchmark-json FILE]]\n"
+    "usage: mfcd [-c FILE] [--data-dir DIR] [-f] [--check-config] [--leds-off] [--benchmark N [--benchmark-json FILE]]\n"
     "  -c, --config FILE     configuration (default: the embedded config/sim.yaml, the simulated cell)\n"
     "      --data-dir DIR    searched for relative paths after the config file's directory\n"
     "  -f, --foreground      also log to stderr\n"
     "      --check-config    validate the configuration (and its files) and exit: 0 valid, 2 invalid\n"
+    "      --leds-off        drive every LED line of the configuration off and exit (after a crash)\n"
     "      --benchmark N     run N cycles back to back (no robot link), print cycle-time percentiles\n"
     "      --benchmark-json FILE   also write them as JSON\n";
 
@@ -297,8 +299,11 @@ bool Daemon::startServices() {
 void Daemon::mainLoop() {
   for (;;) {
     if (stopping_) {
-      // Finish the cycle in flight (bounded by its deadline); abandon it if it outlives the grace.
-      const bool graceOver = msSince(stopRequested_) > config_.cycle_budget_ms + 2000;
+      // Finish the cycle in flight (bounded by its deadline); abandon it if it outlives the grace:
+      // its budget, at most kStopGraceMs, + 2 s. With the 1 s drain and the joins this stays
+      // inside the unit's TimeoutStopSec=20 for any budget.
+      constexpr int kStopGraceMs = 10000;
+      const bool graceOver = msSince(stopRequested_) > std::min(config_.cycle_budget_ms, kStopGraceMs) + 2000;
       if (!inFlight_ || graceOver) {
         if (inFlight_) {
           logf(LogLevel::Warning, "stopping: abandoning cycle %llu", static_cast<unsigned long long>(inFlight_->cycle_id));
@@ -352,6 +357,17 @@ int Daemon::run() {
     std::printf("%s: valid\n", config_.source.c_str());
     return 0;
   }
+  if (options_.ledsOff) {
+    try {
+      const std::string done = switchLedsOff(config_);
+      logf(LogLevel::Notice, "%s", done.c_str());
+      std::printf("%s\n", done.c_str());
+      return 0;
+    } catch (const std::exception& e) {
+      logf(LogLevel::Error, "switching the LEDs off: %s", e.what());
+      return 1;
+    }
+  }
   selectedRecipe_ = config_.default_recipe;
 
   // Signals are taken through a signalfd: block them before any thread starts so all inherit it.
@@ -402,6 +418,7 @@ std::optional<DaemonOptions> parseCommandLine(int argc, char** argv, int& exitCo
       else if (a == "--data-dir") o.dataDir = value("--data-dir");
       else if (a == "-f" || a == "--foreground") o.foreground = true;
       else if (a == "--check-config") o.checkConfig = true;
+      else if (a == "--leds-off") o.ledsOff = true;
       else if (a == "--benchmark") o.benchmarkCycles = std::stoi(value("--benchmark"));
       else if (a == "--benchmark-json") o.benchmarkJson = value("--benchmark-json");
       else if (a == "-h" || a == "--help") {

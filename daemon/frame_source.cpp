@@ -273,4 +273,15 @@ std::unique_ptr<FrameSource> makeFrameSource(const DaemonConfig& config) {
   return std::make_unique<HardwareFrameSource>(config);
 }
 
+std::string switchLedsOff(const DaemonConfig& config) {
+  if (config.lights.type == LightsType::Simulated) return "simulated LEDs: no lines to switch off";
+  hal::GpiodLightRingConfig g;
+  g.chip = config.lights.chip;
+  g.offsets = config.lights.offsets;
+  g.activeLow = config.lights.active_low;
+  hal::GpiodLightRing lights(g);
+  lights.configure();  // requests the lines as outputs, all off; released (still off) at scope end
+  return lights.describe() + ": all 8 LED lines driven off";
+}
+
 }  // namespace mfcd::daemon

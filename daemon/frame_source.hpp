@@ -36,4 +36,9 @@ public:
 // device or file.
 std::unique_ptr<FrameSource> makeFrameSource(const DaemonConfig& config);
 
+// Drives every LED line of `config` off and releases it (mfcd --leds-off, the unit's
+// ExecStopPost=: after a crash or SIGKILL a GPIO line keeps the level it was last driven to).
+// Returns what was done; throws hal::HalError naming the chip and line when they cannot be driven.
+std::string switchLedsOff(const DaemonConfig& config);
+
 }  // namespace mfcd::daemon

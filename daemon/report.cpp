@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <ctime>
+#include <cstring>
 #include <fstream>
 #include <stdexcept>
 
@@ -169,7 +170,9 @@ std::string saveSnapshot(const DaemonConfig& config, const FrameSlot& slot, cons
   copyMessage(withDir.snapshot_dir, sizeof withDir.snapshot_dir, dir.c_str());
   std::ofstream out(dir / "result.json");
   out << resultJson(withDir, config).dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
-  if (!out) throw std::runtime_error("snapshot: cannot write " + (dir / "result.json").string());
+  // close() flushes: a full disk shows here, not in the << above.
+  out.close();
+  if (out.fail()) throw std::runtime_error("snapshot: cannot write " + (dir / "result.json").string() + ": " + std::strerror(errno));
   return dir.string();
 }
 

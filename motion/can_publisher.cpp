@@ -122,7 +122,11 @@ bool CanPublisher::open_link()
 	}
 	const int fd = ::socket(PF_CAN, SOCK_RAW | SOCK_NONBLOCK | SOCK_CLOEXEC, CAN_RAW);
 	if (fd < 0) {
-		set_error(where + "cannot open CAN_RAW socket: " + std::strerror(errno));
+		const int err = errno;
+		// RestrictAddressFamilies= in the systemd unit refuses AF_CAN unless the can.conf drop-in
+		// is installed (docs/operations.md, "systemd").
+		set_error(where + "cannot open CAN_RAW socket: " + std::strerror(err) +
+		          (err == EAFNOSUPPORT ? " (AF_CAN not permitted: install systemd/mfcd.service.d/can.conf)" : ""));
 		return false;
 	}
 	// Receive no data frames, only the controller errors that change the link state.

@@ -354,6 +354,20 @@ TEST(DaemonProcessErrors, BadConfigExitsWithFileLineAndKey) {
   EXPECT_EQ(proc.wait(10000), 0) << proc.log();
 }
 
+TEST(DaemonProcessErrors, LedsOffNamesAMissingChipAndPassesOnTheSimulatedRing) {
+  // The unit's ExecStopPost=: on the simulated ring there is nothing to drive; on a GPIO chip that
+  // is not there the error names it (driving real lines is in the HIL tier, gpio-sim).
+  DaemonProcess proc("ledsoff");
+  proc.writeConfig(simCellConfig(proc.dir()));
+  proc.start(MFCD_TEST_DAEMON, {"--leds-off"});
+  EXPECT_EQ(proc.wait(10000), 0) << proc.log();
+  EXPECT_NE(proc.log().find("simulated LEDs"), std::string::npos) << proc.log();
+  proc.writeConfig(simCellConfig(proc.dir()) + "lights:\n  type: gpiod\n  chip: no-such-chip-mfcd-test\n");
+  proc.start(MFCD_TEST_DAEMON, {"--leds-off"});
+  EXPECT_EQ(proc.wait(10000), 1) << proc.log();
+  EXPECT_NE(proc.log().find("no-such-chip-mfcd-test"), std::string::npos) << proc.log();
+}
+
 TEST(DaemonProcessErrors, PortInUseIsReportedAndExits) {
   DaemonProcess a("port-a");
   std::string text = simCellConfig(a.dir());
