@@ -141,7 +141,7 @@ bool Cell::submit(const CycleRequest& request) noexcept {
 
 CycleResult* Cell::beginResult() noexcept {
   drainFd(resultFd_);  // before looking, so a result queued after this is never without a wake-up
-  return results_.beginRead();
+  return results_.begin_read();
 }
 
 void Cell::acquisitionMain(std::promise<void>& ready) {
@@ -179,14 +179,14 @@ void Cell::acquisitionMain(std::promise<void>& ready) {
       const auto request = requests_.pop();
       if (!request) break;
       if (request->kind == CycleRequest::Kind::RemovePicked) {
-        source_->removePicked(request->picked_t_cam_mm);  // simulated world: may allocate
+        if (SimulatedWorld* sim = source_->simulation()) sim->removePicked(request->picked_t_cam_mm);  // may allocate
         continue;
       }
       if (request->kind == CycleRequest::Kind::Refill) {
-        source_->refill();
+        if (SimulatedWorld* sim = source_->simulation()) sim->refill();
         continue;
       }
-      FrameSlot* slot = frames_.beginWrite();
+      FrameSlot* slot = frames_.begin_write();
       if (!slot) {  // cannot happen while the main thread keeps at most one cycle in flight
         framesDropped_.fetch_add(1, std::memory_order_relaxed);
         continue;
@@ -198,7 +198,8 @@ void Cell::acquisitionMain(std::promise<void>& ready) {
       try {
         // A calibration capture (operator-driven, picking paused) may re-stage the simulated
         // scene; that allocates, which the cycle path never does.
-        if (calibration) source_->showPlate(request->plate);
+        // A real cell ignores the plate request: the plate is really there.
+        if (calibration && source_->simulation()) source_->simulation()->showPlate(request->plate);
         const hal::FrameSet& set = source_->capture();
         copyFrameSet(set, slot->frames);
         slot->ok = true;
@@ -208,7 +209,7 @@ void Cell::acquisitionMain(std::promise<void>& ready) {
       }
       if (calibration) {
         try {
-          source_->showPlate({});
+          if (source_->simulation()) source_->simulation()->showPlate({});
         } catch (const std::exception& e) {
           logf(LogLevel::Error, "simulated cell: putting the bin back after a calibration capture: %s", e.what());
         }
@@ -216,8 +217,9 @@ void Cell::acquisitionMain(std::promise<void>& ready) {
       slot->captured = Clock::now();
       slot->capture_ms = msBetween(t0, slot->captured);
       slot->leds_after = source_->leds();
-      source_->truth(slot->truth);
-      frames_.endWrite();
+      slot->truth.count = 0;
+      if (const SimulatedWorld* sim = source_->simulation()) sim->truth(slot->truth);
+      frames_.end_write();
       signalFd(visionWake_);
     }
   }
@@ -243,8 +245,8 @@ void Cell::visionMain(std::promise<void>& ready) {
   while (!stop_.load()) {
     waitFd(visionWake_, 200);
     visionBeat_.fetch_add(1, std::memory_order_relaxed);
-    while (FrameSlot* slot = frames_.beginRead()) {
-      CycleResult* out = results_.beginWrite();
+    while (FrameSlot* slot = frames_.begin_read()) {
+      CycleResult* out = results_.begin_write();
       if (!out) {  // main thread not consuming: wait rather than drop a cycle's answer
         if (stop_.load()) return;
         waitFd(visionWake_, 10);
@@ -252,9 +254,9 @@ void Cell::visionMain(std::promise<void>& ready) {
       }
       if (slot->request.kind == CycleRequest::Kind::CalibrationCapture) {
         handOverCalibrationImage(*slot, *out);
-        results_.endWrite();
+        results_.end_write();
         signalFd(resultFd_);
-        frames_.endRead();
+        frames_.end_read();
         continue;
       }
       runCycle(*slot, *out);
@@ -263,10 +265,10 @@ void Cell::visionMain(std::promise<void>& ready) {
                                  (out->error != CycleError::None || out->candidate_count == 0));
       CycleResult copy;
       if (wantSnapshot) copy = *out;
-      results_.endWrite();
+      results_.end_write();
       signalFd(resultFd_);
       if (wantSnapshot) writeSnapshot(*slot, copy);
-      frames_.endRead();
+      frames_.end_read();
     }
   }
   stage_.reset();
@@ -372,10 +374,10 @@ void Cell::writeSnapshot(const FrameSlot& slot, const CycleResult& result) {
     copyMessage(saved.message, sizeof saved.message, e.what());
   }
   CycleResult* out = nullptr;
-  while (!(out = results_.beginWrite()) && !stop_.load()) waitFd(visionWake_, 10);
+  while (!(out = results_.begin_write()) && !stop_.load()) waitFd(visionWake_, 10);
   if (!out) return;
   *out = saved;
-  results_.endWrite();
+  results_.end_write();
   signalFd(resultFd_);
 }
 

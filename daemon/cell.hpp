@@ -3,7 +3,7 @@
 // vision worker, joined by a lock-free SPSC ring of preallocated FrameSlots; results go to the main
 // thread through a second SPSC ring of CycleResults, with an eventfd to wake its poll loop.
 //
-//   main --requests(SpscQueue)--> acquisition --FrameSlots(SpscRing)--> vision --CycleResults(SpscRing)--> main
+//   main --requests(SpscRing)--> acquisition --FrameSlots(SpscRing)--> vision --CycleResults(SpscRing)--> main
 //
 // In steady state nothing on this path allocates, locks or does blocking I/O besides the device
 // reads themselves and eventfd wake-ups; snapshots (explicitly requested, or of failed cycles) are
@@ -19,9 +19,8 @@
 #include "daemon/config.hpp"
 #include "daemon/cycle.hpp"
 #include "daemon/frame_source.hpp"
-#include "daemon/spsc_ring.hpp"
 #include "daemon/vision_stage.hpp"
-#include "motion/spsc_queue.h"
+#include "motion/spsc_ring.h"
 
 namespace mfcd::daemon {
 
@@ -47,7 +46,7 @@ public:
   bool submit(const CycleRequest& request) noexcept;  // false when the request queue is full
   int resultFd() const { return resultFd_; }            // readable when results are queued
   CycleResult* beginResult() noexcept;                  // drains the eventfd; nullptr when none
-  void endResult() noexcept { results_.endRead(); }
+  void endResult() noexcept { results_.end_read(); }
 
   // The ambient image of the last CalibrationCapture (see CycleResult::Kind::CalibrationImage);
   // preallocated, written by the vision thread before it posts that result.
@@ -76,9 +75,9 @@ private:
   VisionStageFactory visionFactory_;
   FrameSourceFactory sourceFactory_;
 
-  motion::SpscQueue<CycleRequest, 16> requests_;
-  SpscRing<FrameSlot, kFrameSlots> frames_;
-  SpscRing<CycleResult, kResultSlots> results_;
+  motion::SpscRing<CycleRequest, 16> requests_;
+  motion::SpscRing<FrameSlot, kFrameSlots> frames_;
+  motion::SpscRing<CycleResult, kResultSlots> results_;
   int acqWake_ = -1, visionWake_ = -1, resultFd_ = -1;
   std::atomic<bool> stop_{false};
   std::thread acquisition_, vision_;

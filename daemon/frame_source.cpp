@@ -69,7 +69,7 @@ private:
 // The simulated cell: a bin of CAD parts lying on the floor at random positions and yaw (fixed
 // seed), rendered through SimulatedCamera + SimulatedLightRing by the HAL sequencer. Without any
 // recipe mesh it serves the HAL's deterministic test pattern instead (no OpenGL needed).
-class SimulatedCellSource final : public FrameSource {
+class SimulatedCellSource final : public FrameSource, public SimulatedWorld {
 public:
   explicit SimulatedCellSource(const DaemonConfig& c) : sim_(c.simulation), rng_(c.simulation.seed) {
     model_ = vision::load_camera_config(c.camera.model);
@@ -119,6 +119,7 @@ public:
                        (sim_.plate.enabled ? ", calibration plate" : "") + ", " + renderer_->gl_renderer() + ")"
                  : "simulated camera (test pattern)";
   }
+  SimulatedWorld* simulation() noexcept override { return this; }
   void truth(SimTruth& out) const override {
     out.count = 0;
     for (const auto& p : bin_) {

@@ -13,6 +13,21 @@
 
 namespace mfcd::daemon {
 
+// What only the simulated cell can do, below the FrameSource interface: its ground truth, the
+// robot taking a part, a fresh bin, the calibration plate. A real cell has none of it.
+class SimulatedWorld {
+public:
+  virtual ~SimulatedWorld() = default;
+  // The bin's ground truth for the frame set just captured.
+  virtual void truth(SimTruth& out) const = 0;
+  // The robot takes the part nearest `t_cam_mm` (mm, camera frame). May allocate.
+  virtual void removePicked(const cv::Vec3d& t_cam_mm) = 0;
+  virtual void refill() = 0;
+  // Shows the calibration plate as asked for the next capture(s); Kind::None brings the bin back.
+  // Throws std::runtime_error when the cell cannot show it.
+  virtual void showPlate(const PlateRequest& plate) = 0;
+};
+
 class FrameSource {
 public:
   virtual ~FrameSource() = default;
@@ -23,13 +38,8 @@ public:
   virtual hal::ImageFormat format() const = 0;
   virtual hal::LedMask leds() const = 0;
   virtual std::string describe() const = 0;
-  // Simulated cell only: the bin's ground truth, and the robot taking the part at `t_cam_mm`.
-  virtual void truth(SimTruth& out) const { out.count = 0; }
-  virtual void removePicked(const cv::Vec3d& /*t_cam_mm*/) {}
-  virtual void refill() {}
-  // Simulated cell only: shows the calibration plate as asked for the next capture(s); Kind::None
-  // brings the bin back. Throws std::runtime_error when the cell cannot show it.
-  virtual void showPlate(const PlateRequest& /*plate*/) {}
+  // The simulated world behind this source, or nullptr for real devices.
+  virtual SimulatedWorld* simulation() noexcept { return nullptr; }
 };
 
 // Builds the source the configuration asks for. Throws (HalError, std::runtime_error) naming the

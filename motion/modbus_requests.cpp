@@ -14,7 +14,7 @@ namespace mfcd::motion {
 namespace {
 
 constexpr RegisterPolicy kPolicy{reg::kBlockSize, 0, reg::kWritableEnd, reg::kRobotPoseBegin, reg::kRobotPoseEnd};
-constexpr std::size_t kCommandQueueDepth = 16; // SpscQueue<PlcCommand, 16> in modbus_server.h
+constexpr std::size_t kCommandQueueDepth = 16; // SpscRing<PlcCommand, 16> in modbus_server.h
 
 std::uint16_t be16(const std::uint8_t *p) noexcept
 {

@@ -20,7 +20,7 @@
 #include "motion/float_codec.h"
 #include "motion/robot_report.h"
 #include "motion/seqlock.h"
-#include "motion/spsc_queue.h"
+#include "motion/spsc_ring.h"
 #include "motion/unique_fd.h"
 
 #include <atomic>
@@ -136,7 +136,7 @@ private:
 	std::unique_ptr<Impl> impl_;
 	SeqlockSnapshot<RobotReport> report_;
 	SeqlockSnapshot<RobotPoseReading> robot_pose_;
-	SpscQueue<PlcCommand, 16> commands_;
+	SpscRing<PlcCommand, 16> commands_;
 	UniqueFd command_event_fd_;
 	UniqueFd stop_event_fd_;
 	UniqueFd listen_fd_;

@@ -1,6 +1,6 @@
 #include "motion/robot_report.h"
 #include "motion/seqlock.h"
-#include "motion/spsc_queue.h"
+#include "motion/spsc_ring.h"
 
 #include <gtest/gtest.h>
 
@@ -69,9 +69,9 @@ TEST(Seqlock, ReadersNeverSeeATornReport)
 	EXPECT_EQ(board.read().pick.x_mm, static_cast<float>(kWrites));
 }
 
-TEST(SpscQueue, DeliversEverythingInOrderAcrossThreads)
+TEST(SpscRingByValue, DeliversEverythingInOrderAcrossThreads)
 {
-	SpscQueue<PlcCommand, 16> queue;
+	SpscRing<PlcCommand, 16> queue;
 	constexpr int kCount = 100000;
 	std::thread producer([&] {
 		for (int i = 1; i <= kCount;) {
@@ -94,9 +94,9 @@ TEST(SpscQueue, DeliversEverythingInOrderAcrossThreads)
 	EXPECT_FALSE(queue.pop().has_value());
 }
 
-TEST(SpscQueue, FullQueueRefusesPush)
+TEST(SpscRingByValue, FullQueueRefusesPush)
 {
-	SpscQueue<int, 4> queue;
+	SpscRing<int, 4> queue;
 	for (int i = 0; i < 4; ++i)
 		EXPECT_TRUE(queue.push(i));
 	EXPECT_FALSE(queue.push(99));

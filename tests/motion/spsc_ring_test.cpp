@@ -6,9 +6,9 @@
 #include <random>
 #include <thread>
 
-#include "daemon/spsc_ring.hpp"
+#include "motion/spsc_ring.h"
 
-using mfcd::daemon::SpscRing;
+using mfcd::motion::SpscRing;
 
 namespace {
 struct Payload {
@@ -24,25 +24,25 @@ TEST(SpscRing, MatchesAQueueModelOnRandomOperations) {
   std::uint64_t next = 1;
   for (int op = 0; op < 200000; ++op) {
     if (rng() % 2) {
-      Payload* p = ring.beginWrite();
+      Payload* p = ring.begin_write();
       ASSERT_EQ(p == nullptr, model.size() == 8) << "full exactly when the model holds 8";
       if (p) {
         p->seq = next;
         p->words.fill(next * 3);
-        ring.endWrite();
+        ring.end_write();
         model.push_back(next++);
       }
     } else {
-      Payload* p = ring.beginRead();
+      Payload* p = ring.begin_read();
       ASSERT_EQ(p == nullptr, model.empty());
       if (p) {
         ASSERT_EQ(p->seq, model.front());
         ASSERT_EQ(p->words[31], model.front() * 3);
-        ring.endRead();
+        ring.end_read();
         model.pop_front();
       }
     }
-    ASSERT_EQ(ring.sizeApprox(), model.size());
+    ASSERT_EQ(ring.size_approx(), model.size());
   }
 }
 
@@ -51,29 +51,29 @@ TEST(SpscRing, TwoThreadsSeeEverySlotWholeAndInOrder) {
   constexpr std::uint64_t kCount = 200000;
   std::thread producer([&] {
     for (std::uint64_t i = 1; i <= kCount;) {
-      Payload* p = ring.beginWrite();
+      Payload* p = ring.begin_write();
       if (!p) {
         std::this_thread::yield();
         continue;
       }
       p->seq = i;
       for (auto& w : p->words) w = i ^ 0x5a5a5a5aull;
-      ring.endWrite();
+      ring.end_write();
       ++i;
     }
   });
   std::uint64_t expected = 1;
   while (expected <= kCount) {
-    Payload* p = ring.beginRead();
+    Payload* p = ring.begin_read();
     if (!p) {
       std::this_thread::yield();
       continue;
     }
     ASSERT_EQ(p->seq, expected);
     for (auto w : p->words) ASSERT_EQ(w, expected ^ 0x5a5a5a5aull) << "torn slot";
-    ring.endRead();
+    ring.end_read();
     ++expected;
   }
   producer.join();
-  EXPECT_EQ(ring.sizeApprox(), 0u);
+  EXPECT_EQ(ring.size_approx(), 0u);
 }
