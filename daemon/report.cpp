@@ -114,9 +114,27 @@ std::uintmax_t directorySize(const fs::path& dir) {
   return total;
 }
 
-void writePng(const fs::path& file, const cv::Mat& image) {
-  if (!cv::imwrite(file.string(), image)) throw std::runtime_error("snapshot: cannot write " + file.string());
+// Why a write into `dir` failed, as far as the file system tells: a full disk is the usual cause.
+std::string writeFailure(const fs::path& file) {
+  std::error_code ec;
+  const fs::space_info space = fs::space(file.parent_path(), ec);
+  if (!ec && space.available < (1u << 20))
+    return "cannot write " + file.string() + ": no space left (" + std::to_string(space.available / 1024) + " kB free)";
+  return "cannot write " + file.string();
 }
+
+void writePng(const fs::path& file, const cv::Mat& image) {
+  bool ok = false;
+  try {
+    ok = cv::imwrite(file.string(), image);
+  } catch (const cv::Exception&) {
+    ok = false;
+  }
+  if (!ok) throw std::runtime_error("snapshot: " + writeFailure(file));
+}
+
+void writeSnapshotFiles(const fs::path& dir, const DaemonConfig& config, const FrameSlot& slot, const CycleResult& result,
+                        const vision::PipelineResult& pipeline, const VisionStage* stage);
 
 }  // namespace
 
@@ -153,7 +171,19 @@ std::string saveSnapshot(const DaemonConfig& config, const FrameSlot& slot, cons
   const fs::path dir = root / (std::string(stamp) + "-cycle" + std::to_string(result.request.cycle_id));
   fs::create_directories(dir, ec);
   if (ec) throw std::runtime_error("snapshot: cannot create " + dir.string() + ": " + ec.message());
+  try {
+    writeSnapshotFiles(dir, config, slot, result, pipeline, stage);
+  } catch (...) {
+    fs::remove_all(dir, ec);  // no half snapshot is left to be taken for a whole one
+    throw;
+  }
+  return dir.string();
+}
 
+namespace {
+
+void writeSnapshotFiles(const fs::path& dir, const DaemonConfig& config, const FrameSlot& slot, const CycleResult& result,
+                        const vision::PipelineResult& pipeline, const VisionStage* stage) {
   if (slot.ok) {
     for (int k = 0; k < hal::kLedCount; ++k) writePng(dir / ("flash" + std::to_string(k) + ".png"), slot.mfc.flash[static_cast<std::size_t>(k)]);
     writePng(dir / "ambient.png", slot.mfc.ambient);
@@ -172,8 +202,9 @@ std::string saveSnapshot(const DaemonConfig& config, const FrameSlot& slot, cons
   out << resultJson(withDir, config).dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
   // close() flushes: a full disk shows here, not in the << above.
   out.close();
-  if (out.fail()) throw std::runtime_error("snapshot: cannot write " + (dir / "result.json").string() + ": " + std::strerror(errno));
-  return dir.string();
+  if (out.fail()) throw std::runtime_error("snapshot: " + writeFailure(dir / "result.json"));
 }
+
+}  // namespace
 
 }  // namespace mfcd::daemon
