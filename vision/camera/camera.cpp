@@ -32,19 +32,44 @@ int read_int(const cv::FileNode& parent, const std::string& key, const std::stri
   return static_cast<int>(n);
 }
 
-cv::Mat read_matrix(const cv::FileNode& parent, const std::string& key, const std::string& source) {
+// The shape an !!opencv-matrix key must have, and how a refusal states it.
+struct MatrixShape {
+  int min_rows, max_rows, min_cols, max_cols;
+  const char* expected;
+};
+
+// Reads an !!opencv-matrix after checking its rows, cols, dt and data length against `shape`:
+// cv::read() sizes the matrix from rows x cols before it compares them with the data, so an
+// unchecked "rows: 2000000000" would allocate gigabytes before any refusal.
+cv::Mat read_matrix(const cv::FileNode& parent, const std::string& key, const std::string& source,
+                    const std::string& shown_key, const MatrixShape& shape) {
   cv::FileNode n = required(parent, key, source);
+  if (!n.isMap()) fail(source, shown_key, "expected an !!opencv-matrix");
+  const cv::FileNode rows = n["rows"], cols = n["cols"], dt = n["dt"], data = n["data"];
+  if (!rows.isInt() || !cols.isInt()) fail(source, shown_key, "expected integer 'rows' and 'cols'");
+  const int r = static_cast<int>(rows), c = static_cast<int>(cols);
+  if (r < shape.min_rows || r > shape.max_rows || c < shape.min_cols || c > shape.max_cols)
+    fail(source, shown_key,
+         "a " + std::to_string(r) + "x" + std::to_string(c) + " matrix, expected " + shape.expected);
+  // One channel of a number type: u c w s i f d (OpenCV's type letters).
+  const std::string type = dt.isString() ? static_cast<std::string>(dt) : std::string();
+  if (type.size() != 1 || std::string("ucwsifd").find(type[0]) == std::string::npos)
+    fail(source, shown_key, "expected 'dt' to be one number type (d, f, i, ...), got '" + type + "'");
+  if (!data.isSeq() || data.size() != static_cast<size_t>(r) * static_cast<size_t>(c))
+    fail(source, shown_key, "'data' must list rows x cols = " + std::to_string(r * c) + " numbers");
   cv::Mat m;
   try {
-    if (!n.isMap()) fail(source, key, "expected an !!opencv-matrix");
     n >> m;
   } catch (const cv::Exception& e) {
-    fail(source, key, std::string("malformed matrix: ") + e.what());
+    fail(source, shown_key, std::string("malformed matrix: ") + e.what());
   }
-  if (m.empty()) fail(source, key, "empty matrix");
+  if (m.rows != r || m.cols != c || m.channels() != 1) fail(source, shown_key, "malformed matrix");
   m.convertTo(m, CV_64F);
   return m;
 }
+
+// The number of LEDs of an MFC (docs/camera.md): flashes.count and flashes.positions_mm rows.
+constexpr int kLedCount = 8;
 
 }  // namespace
 
@@ -125,12 +150,13 @@ CameraConfig load_camera_config(const std::filesystem::path& file) {
   c.camera.image_size.width = read_int(root, "image_width", src, "image_width");
   c.camera.image_size.height = read_int(root, "image_height", src, "image_height");
 
-  const cv::Mat K = read_matrix(root, "camera_matrix", src);
-  if (K.rows != 3 || K.cols != 3) fail(src, "camera_matrix", "expected a 3x3 matrix");
+  const cv::Mat K = read_matrix(root, "camera_matrix", src, "camera_matrix", {3, 3, 3, 3, "3x3"});
   c.camera.K = cv::Matx33d(K);
 
-  const cv::Mat d = read_matrix(root, "distortion_coefficients", src);
+  const cv::Mat d =
+      read_matrix(root, "distortion_coefficients", src, "distortion_coefficients", {1, 14, 1, 14, "1xN or Nx1, N = 4..14"});
   if (d.rows != 1 && d.cols != 1) fail(src, "distortion_coefficients", "expected a row or column vector");
+  if (d.total() < 4) fail(src, "distortion_coefficients", "expected 4 to 14 coefficients");
   c.camera.distortion.assign(d.begin<double>(), d.end<double>());
 
   c.working_distance_mm = read_number(root, "working_distance_mm", src, "working_distance_mm");
@@ -138,8 +164,12 @@ CameraConfig load_camera_config(const std::filesystem::path& file) {
   const cv::FileNode fl = required(root, "flashes", src);
   if (!fl.isMap()) fail(src, "flashes", "expected a mapping");
   if (!fl["positions_mm"].empty()) {
-    const cv::Mat p = read_matrix(fl, "positions_mm", src);
-    if (p.cols != 3) fail(src, "flashes.positions_mm", "expected an Nx3 matrix (x, y, z per LED)");
+    const cv::Mat p =
+        read_matrix(fl, "positions_mm", src, "flashes.positions_mm", {kLedCount, kLedCount, 3, 3, "8x3 (x, y, z per LED)"});
+    // The ring keys are ignored beside measured positions, but a count that disagrees with them
+    // is a contradiction in the file.
+    if (!fl["count"].empty() && !(fl["count"].isInt() && static_cast<int>(fl["count"]) == p.rows))
+      fail(src, "flashes.count", "disagrees with the " + std::to_string(p.rows) + " rows of flashes.positions_mm");
     c.flashes = FlashRing{};
     for (int i = 0; i < p.rows; ++i)
       c.flashes.positions_mm.emplace_back(p.at<double>(i, 0), p.at<double>(i, 1), p.at<double>(i, 2));
@@ -150,6 +180,8 @@ CameraConfig load_camera_config(const std::filesystem::path& file) {
     r.step_deg = read_number(fl, "step_deg", src, "flashes.step_deg");
     r.plane_z_mm = read_number(fl, "plane_z_mm", src, "flashes.plane_z_mm");
     r.count = read_int(fl, "count", src, "flashes.count");
+    // Checked before FlashRing::regular allocates count positions.
+    if (r.count != kLedCount) fail(src, "flashes.count", "an MFC has 8 LEDs, got " + std::to_string(r.count));
     if (!(r.radius_mm > 0) || r.radius_mm > 1000) fail(src, "flashes.ring_radius_mm", "must be in (0, 1000] mm");
     c.flashes = FlashRing::regular(r);
   }
@@ -162,8 +194,7 @@ CameraConfig load_camera_config(const std::filesystem::path& file) {
     if (m == "eye_in_hand") h.mode = HandEye::Mode::eye_in_hand;
     else if (m == "eye_to_hand") h.mode = HandEye::Mode::eye_to_hand;
     else fail(src, "hand_eye.mode", "expected eye_in_hand or eye_to_hand");
-    const cv::Mat T = read_matrix(he, "camera_pose", src);
-    if (T.rows != 4 || T.cols != 4) fail(src, "hand_eye.camera_pose", "expected a 4x4 matrix");
+    const cv::Mat T = read_matrix(he, "camera_pose", src, "hand_eye.camera_pose", {4, 4, 4, 4, "4x4"});
     h.camera_pose = cv::Matx44d(T);
     h.reprojection_rms_px = read_number(he, "reprojection_rms_px", src, "hand_eye.reprojection_rms_px");
     h.residual_rms_mm = read_number(he, "residual_rms_mm", src, "hand_eye.residual_rms_mm");
