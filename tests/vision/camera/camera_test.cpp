@@ -250,6 +250,37 @@ TEST(CameraConfig, NotYamlOrMissingFileIsAnError) {
   EXPECT_NE(load_error(temp_file("does-not-exist.yaml")).find("does-not-exist.yaml"), std::string::npos);
 }
 
+// Inputs the fuzzer found (fuzz/corpus/camera_config/crash-*, timeout-*): each crashed, hung or
+// threw another exception than std::runtime_error while OpenCV's FileStorage read the files.
+TEST(CameraConfig, MalformedFilesFoundByFuzzingAreRefused) {
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"xml.yaml", std::string("<?xml n=\0", 9)},                   // OpenCV 4.6's XML parser: NULL dereference
+      {"sequence.yaml", "%YAML:1.0\n---\n- 640\n- 480\n"},        // cv::Exception: FileNode::operator[] on a non-map
+      {"empty-key.yaml", "%YAML:1.0\n---\na:\n   b: 3\n   :\n"},  // std::length_error from OpenCV's YAML parser
+      {"loop.yaml", "%YAML:1.\n t:d\no 0-\n"},                    // OpenCV 4.6's YAML parser never returns
+  };
+  for (const auto& [name, text] : cases) {
+    const fs::path p = temp_file(name);
+    std::ofstream(p, std::ios::binary) << text;
+    std::string err;
+    try {
+      load_camera_config(p);
+    } catch (const std::runtime_error& e) {
+      err = e.what();
+    }
+    EXPECT_NE(err.find(p.string()), std::string::npos) << name << ": " << err;
+  }
+}
+
+// save_camera_config writes YAML for any extension, so the file reads back.
+TEST(CameraConfig, SavedFileIsYamlWhateverItsName) {
+  const CameraConfig c = load_camera_config(kSimYaml);
+  const fs::path xml = temp_file("camera.xml");
+  save_camera_config(c, xml);
+  EXPECT_EQ(read_all(xml).rfind("%YAML:1.0", 0), 0u);
+  EXPECT_EQ(load_camera_config(xml).camera.K, c.camera.K);
+}
+
 // The closed-form shadow direction against the definition: the image of P + s (P - L)
 // for a small s > 0 (P moved away from the LED along the light ray).
 TEST(FlashEpipole, ShadowDirectionMatchesProjectedLightRay) {
