@@ -1,6 +1,13 @@
 #include "vision/camera/camera.hpp"
 
+#include <yaml-cpp/yaml.h>
+
+#include <cerrno>
 #include <cmath>
+#include <cstdlib>
+#include <fstream>
+#include <iterator>
+#include <limits>
 #include <numbers>
 #include <stdexcept>
 
@@ -12,38 +19,148 @@ namespace {
   throw std::runtime_error(source + ": key '" + key + "': " + why);
 }
 
-cv::FileNode required(const cv::FileNode& parent, const std::string& key, const std::string& source) {
-  cv::FileNode n = parent[key];
-  if (n.empty() || n.isNone()) fail(source, key, "missing");
-  return n;
-}
+// The number of LEDs of an MFC (docs/camera.md): flashes.count and flashes.positions_mm rows.
+constexpr int kLedCount = 8;
 
-double read_number(const cv::FileNode& parent, const std::string& key, const std::string& source,
-                   const std::string& shown_key) {
-  cv::FileNode n = required(parent, key, source);
-  if (!n.isReal() && !n.isInt()) fail(source, shown_key, "expected a number");
-  return n.real();
-}
+// The shape an !!opencv-matrix key must have, and how a refusal states it.
+struct MatrixShape {
+  int min_rows, max_rows, min_cols, max_cols;
+  const char* expected;
+};
 
-int read_int(const cv::FileNode& parent, const std::string& key, const std::string& source,
-             const std::string& shown_key) {
-  cv::FileNode n = required(parent, key, source);
-  if (!n.isInt()) fail(source, shown_key, "expected an integer");
-  return static_cast<int>(n);
-}
+// Reads the keys of a parsed camera file. Every refusal is a std::runtime_error
+// "<file>:<line>: key '<key>': <why>" (the line where yaml-cpp has a mark for the node).
+class Reader {
+ public:
+  explicit Reader(std::string source) : source_(std::move(source)) {}
 
-cv::Mat read_matrix(const cv::FileNode& parent, const std::string& key, const std::string& source) {
-  cv::FileNode n = required(parent, key, source);
-  cv::Mat m;
-  try {
-    if (!n.isMap()) fail(source, key, "expected an !!opencv-matrix");
-    n >> m;
-  } catch (const cv::Exception& e) {
-    fail(source, key, std::string("malformed matrix: ") + e.what());
+  [[noreturn]] void fail_at(const YAML::Node& n, const std::string& key, const std::string& why) const {
+    const int line = n.IsDefined() && n.Mark().line >= 0 ? n.Mark().line + 1 : 0;
+    fail(line > 0 ? source_ + ":" + std::to_string(line) : source_, key, why);
   }
-  if (m.empty()) fail(source, key, "empty matrix");
-  m.convertTo(m, CV_64F);
-  return m;
+
+  // The node under `name` of the mapping `parent` (shown as `key`), or an undefined node.
+  static YAML::Node child(const YAML::Node& parent, const char* name) {
+    if (!parent.IsMap()) return YAML::Node(YAML::NodeType::Undefined);
+    for (const auto& kv : parent)
+      if (kv.first.IsScalar() && kv.first.Scalar() == name) return kv.second;
+    return YAML::Node(YAML::NodeType::Undefined);
+  }
+  static bool present(const YAML::Node& n) { return n.IsDefined() && !n.IsNull(); }
+
+  YAML::Node required(const YAML::Node& parent, const char* name, const std::string& key) const {
+    const YAML::Node n = child(parent, name);
+    if (!present(n)) fail_at(parent, key, "missing");
+    return n;
+  }
+
+  int integer(const YAML::Node& n, const std::string& key) const {
+    const std::string s = n.IsScalar() ? n.Scalar() : std::string();
+    errno = 0;
+    char* end = nullptr;
+    const long long v = std::strtoll(s.c_str(), &end, 10);
+    if (s.empty() || *end != '\0' || errno == ERANGE || v < std::numeric_limits<int>::min() ||
+        v > std::numeric_limits<int>::max())
+      fail_at(n, key, "expected an integer");
+    return static_cast<int>(v);
+  }
+  int integer(const YAML::Node& parent, const char* name, const std::string& key) const {
+    return integer(required(parent, name, key), key);
+  }
+
+  double number(const YAML::Node& n, const std::string& key) const {
+    const std::string s = n.IsScalar() ? n.Scalar() : std::string();
+    char* end = nullptr;
+    const double v = std::strtod(s.c_str(), &end);
+    if (s.empty() || *end != '\0' || !std::isfinite(v)) fail_at(n, key, "expected a number");
+    return v;
+  }
+  double number(const YAML::Node& parent, const char* name, const std::string& key) const {
+    return number(required(parent, name, key), key);
+  }
+
+  // An !!opencv-matrix (rows, cols, dt, data), its size checked against `shape` and its data
+  // length against rows x cols before the matrix is allocated.
+  cv::Mat matrix(const YAML::Node& parent, const char* name, const std::string& key, const MatrixShape& shape) const {
+    const YAML::Node n = required(parent, name, key);
+    if (!n.IsMap()) fail_at(n, key, "expected an !!opencv-matrix");
+    const int r = integer(n, "rows", key + ".rows"), c = integer(n, "cols", key + ".cols");
+    if (r < shape.min_rows || r > shape.max_rows || c < shape.min_cols || c > shape.max_cols)
+      fail_at(n, key, "a " + std::to_string(r) + "x" + std::to_string(c) + " matrix, expected " + shape.expected);
+    // One channel of a number type: u c w s i f d (OpenCV's type letters).
+    const YAML::Node dt = required(n, "dt", key + ".dt");
+    const std::string type = dt.IsScalar() ? dt.Scalar() : std::string();
+    if (type.size() != 1 || std::string("ucwsifd").find(type[0]) == std::string::npos)
+      fail_at(dt, key, "expected 'dt' to be one number type (d, f, i, ...), got '" + type + "'");
+    const YAML::Node data = required(n, "data", key + ".data");
+    if (!data.IsSequence() || data.size() != static_cast<size_t>(r) * static_cast<size_t>(c))
+      fail_at(data, key, "'data' must list rows x cols = " + std::to_string(r * c) + " numbers");
+    cv::Mat m(r, c, CV_64F);
+    for (int i = 0; i < r * c; ++i) m.at<double>(i / c, i % c) = number(data[static_cast<size_t>(i)], key);
+    return m;
+  }
+
+ private:
+  std::string source_;
+};
+
+CameraConfig read_camera_config(const YAML::Node& root, const Reader& rd) {
+  CameraConfig c;
+  c.camera.image_size.width = rd.integer(root, "image_width", "image_width");
+  c.camera.image_size.height = rd.integer(root, "image_height", "image_height");
+  c.camera.K = cv::Matx33d(rd.matrix(root, "camera_matrix", "camera_matrix", {3, 3, 3, 3, "3x3"}));
+
+  const cv::Mat d = rd.matrix(root, "distortion_coefficients", "distortion_coefficients",
+                              {1, 14, 1, 14, "1xN or Nx1, N = 4..14"});
+  if ((d.rows != 1 && d.cols != 1) || d.total() < 4)
+    rd.fail_at(Reader::child(root, "distortion_coefficients"), "distortion_coefficients",
+               "expected 4 to 14 coefficients in a row or a column");
+  c.camera.distortion.assign(d.begin<double>(), d.end<double>());
+
+  c.working_distance_mm = rd.number(root, "working_distance_mm", "working_distance_mm");
+
+  const YAML::Node fl = rd.required(root, "flashes", "flashes");
+  if (!fl.IsMap()) rd.fail_at(fl, "flashes", "expected a mapping");
+  const YAML::Node count = Reader::child(fl, "count");
+  if (Reader::present(Reader::child(fl, "positions_mm"))) {
+    const cv::Mat p =
+        rd.matrix(fl, "positions_mm", "flashes.positions_mm", {kLedCount, kLedCount, 3, 3, "8x3 (x, y, z per LED)"});
+    // The ring keys are ignored beside measured positions, but a count that disagrees with them
+    // is a contradiction in the file.
+    if (Reader::present(count) && rd.integer(count, "flashes.count") != p.rows)
+      rd.fail_at(count, "flashes.count", "disagrees with the " + std::to_string(p.rows) + " rows of flashes.positions_mm");
+    c.flashes = FlashRing{};
+    for (int i = 0; i < p.rows; ++i)
+      c.flashes.positions_mm.emplace_back(p.at<double>(i, 0), p.at<double>(i, 1), p.at<double>(i, 2));
+  } else {
+    FlashRing::Ring r;
+    r.radius_mm = rd.number(fl, "ring_radius_mm", "flashes.ring_radius_mm");
+    r.first_angle_deg = rd.number(fl, "first_angle_deg", "flashes.first_angle_deg");
+    r.step_deg = rd.number(fl, "step_deg", "flashes.step_deg");
+    r.plane_z_mm = rd.number(fl, "plane_z_mm", "flashes.plane_z_mm");
+    r.count = rd.integer(fl, "count", "flashes.count");
+    // Checked before FlashRing::regular allocates count positions.
+    if (r.count != kLedCount) rd.fail_at(count, "flashes.count", "an MFC has 8 LEDs, got " + std::to_string(r.count));
+    if (!(r.radius_mm > 0) || r.radius_mm > 1000)
+      rd.fail_at(Reader::child(fl, "ring_radius_mm"), "flashes.ring_radius_mm", "must be in (0, 1000] mm");
+    c.flashes = FlashRing::regular(r);
+  }
+  const YAML::Node he = Reader::child(root, "hand_eye");
+  if (Reader::present(he)) {
+    if (!he.IsMap()) rd.fail_at(he, "hand_eye", "expected a mapping");
+    HandEye h;
+    const YAML::Node mode = rd.required(he, "mode", "hand_eye.mode");
+    const std::string m = mode.IsScalar() ? mode.Scalar() : std::string();
+    if (m == "eye_in_hand") h.mode = HandEye::Mode::eye_in_hand;
+    else if (m == "eye_to_hand") h.mode = HandEye::Mode::eye_to_hand;
+    else rd.fail_at(mode, "hand_eye.mode", "expected eye_in_hand or eye_to_hand");
+    h.camera_pose = cv::Matx44d(rd.matrix(he, "camera_pose", "hand_eye.camera_pose", {4, 4, 4, 4, "4x4"}));
+    h.reprojection_rms_px = rd.number(he, "reprojection_rms_px", "hand_eye.reprojection_rms_px");
+    h.residual_rms_mm = rd.number(he, "residual_rms_mm", "hand_eye.residual_rms_mm");
+    h.views = rd.integer(he, "views", "hand_eye.views");
+    c.hand_eye = h;
+  }
+  return c;
 }
 
 }  // namespace
@@ -114,61 +231,27 @@ void validate_camera_config(const CameraConfig& c, const std::string& source) {
 
 CameraConfig load_camera_config(const std::filesystem::path& file) {
   const std::string src = file.string();
-  cv::FileStorage fs;
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw std::runtime_error(src + ": cannot open camera config");
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  // Read with yaml-cpp, not cv::FileStorage, which save_camera_config writes with: OpenCV 4.6's
+  // parser picks XML by the content and dereferences NULL on "<?xml n=\0", and its YAML parser
+  // loops forever on "%YAML:1.\n t:d\no 0-\n" (docs/fuzzing.md). FileStorage's "%YAML:1.0"
+  // first line is an unknown directive to yaml-cpp, its !!opencv-matrix tag is not needed.
+  YAML::Node root;
   try {
-    if (!fs.open(src, cv::FileStorage::READ)) throw std::runtime_error(src + ": cannot open camera config");
-  } catch (const cv::Exception& e) {
-    throw std::runtime_error(src + ": not a valid OpenCV YAML file: " + e.what());
+    root = YAML::Load(text);
+  } catch (const YAML::Exception& e) {
+    throw std::runtime_error(src + (e.mark.line >= 0 ? ":" + std::to_string(e.mark.line + 1) : std::string()) +
+                             ": not valid YAML: " + e.msg);
   }
-  const cv::FileNode root = fs.root();
+  if (!root.IsMap()) throw std::runtime_error(src + ": not a camera config (the top level is not a mapping)");
   CameraConfig c;
-  c.camera.image_size.width = read_int(root, "image_width", src, "image_width");
-  c.camera.image_size.height = read_int(root, "image_height", src, "image_height");
-
-  const cv::Mat K = read_matrix(root, "camera_matrix", src);
-  if (K.rows != 3 || K.cols != 3) fail(src, "camera_matrix", "expected a 3x3 matrix");
-  c.camera.K = cv::Matx33d(K);
-
-  const cv::Mat d = read_matrix(root, "distortion_coefficients", src);
-  if (d.rows != 1 && d.cols != 1) fail(src, "distortion_coefficients", "expected a row or column vector");
-  c.camera.distortion.assign(d.begin<double>(), d.end<double>());
-
-  c.working_distance_mm = read_number(root, "working_distance_mm", src, "working_distance_mm");
-
-  const cv::FileNode fl = required(root, "flashes", src);
-  if (!fl.isMap()) fail(src, "flashes", "expected a mapping");
-  if (!fl["positions_mm"].empty()) {
-    const cv::Mat p = read_matrix(fl, "positions_mm", src);
-    if (p.cols != 3) fail(src, "flashes.positions_mm", "expected an Nx3 matrix (x, y, z per LED)");
-    c.flashes = FlashRing{};
-    for (int i = 0; i < p.rows; ++i)
-      c.flashes.positions_mm.emplace_back(p.at<double>(i, 0), p.at<double>(i, 1), p.at<double>(i, 2));
-  } else {
-    FlashRing::Ring r;
-    r.radius_mm = read_number(fl, "ring_radius_mm", src, "flashes.ring_radius_mm");
-    r.first_angle_deg = read_number(fl, "first_angle_deg", src, "flashes.first_angle_deg");
-    r.step_deg = read_number(fl, "step_deg", src, "flashes.step_deg");
-    r.plane_z_mm = read_number(fl, "plane_z_mm", src, "flashes.plane_z_mm");
-    r.count = read_int(fl, "count", src, "flashes.count");
-    if (!(r.radius_mm > 0) || r.radius_mm > 1000) fail(src, "flashes.ring_radius_mm", "must be in (0, 1000] mm");
-    c.flashes = FlashRing::regular(r);
-  }
-  const cv::FileNode he = root["hand_eye"];
-  if (!he.empty() && !he.isNone()) {
-    if (!he.isMap()) fail(src, "hand_eye", "expected a mapping");
-    HandEye h;
-    const cv::FileNode mode = required(he, "mode", src);
-    const std::string m = mode.isString() ? static_cast<std::string>(mode) : std::string();
-    if (m == "eye_in_hand") h.mode = HandEye::Mode::eye_in_hand;
-    else if (m == "eye_to_hand") h.mode = HandEye::Mode::eye_to_hand;
-    else fail(src, "hand_eye.mode", "expected eye_in_hand or eye_to_hand");
-    const cv::Mat T = read_matrix(he, "camera_pose", src);
-    if (T.rows != 4 || T.cols != 4) fail(src, "hand_eye.camera_pose", "expected a 4x4 matrix");
-    h.camera_pose = cv::Matx44d(T);
-    h.reprojection_rms_px = read_number(he, "reprojection_rms_px", src, "hand_eye.reprojection_rms_px");
-    h.residual_rms_mm = read_number(he, "residual_rms_mm", src, "hand_eye.residual_rms_mm");
-    h.views = read_int(he, "views", src, "hand_eye.views");
-    c.hand_eye = h;
+  try {
+    c = read_camera_config(root, Reader(src));
+  } catch (const YAML::Exception& e) {
+    // Reader checks each node's type before using it; a use yaml-cpp still refused is named too.
+    throw std::runtime_error(src + ": malformed camera config: " + e.what());
   }
   validate_camera_config(c, src);
   return c;
@@ -176,7 +259,9 @@ CameraConfig load_camera_config(const std::filesystem::path& file) {
 
 void save_camera_config(const CameraConfig& c, const std::filesystem::path& file) {
   validate_camera_config(c, file.string());
-  cv::FileStorage fs(file.string(), cv::FileStorage::WRITE);
+  // YAML whatever the file's extension (FileStorage would write XML or JSON for .xml, .json):
+  // load_camera_config reads YAML only.
+  cv::FileStorage fs(file.string(), cv::FileStorage::WRITE | cv::FileStorage::FORMAT_YAML);
   if (!fs.isOpened()) throw std::runtime_error(file.string() + ": cannot write camera config");
   fs << "image_width" << c.camera.image_size.width;
   fs << "image_height" << c.camera.image_size.height;

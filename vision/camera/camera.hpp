@@ -73,10 +73,13 @@ struct CameraConfig {
   std::optional<HandEye> hand_eye;     // absent until a hand-eye calibration is applied
 };
 
-// Reads a camera YAML. Throws std::runtime_error naming the file and the missing or
-// malformed key.
+// Reads a camera YAML (as save_camera_config writes it; read with yaml-cpp). Throws
+// std::runtime_error naming the file, the line (where the node has one) and the missing or
+// malformed key; every count and matrix size is checked against its range before anything is
+// allocated by it.
 CameraConfig load_camera_config(const std::filesystem::path& file);
-// Writes a camera YAML that load_camera_config reads back to an equal config.
+// Writes a camera YAML (whatever the extension) that load_camera_config reads back to an equal
+// config.
 void save_camera_config(const CameraConfig& config, const std::filesystem::path& file);
 // Checks the values are physically sensible; throws std::runtime_error naming the key.
 void validate_camera_config(const CameraConfig& config, const std::string& source = "camera config");

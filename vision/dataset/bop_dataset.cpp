@@ -4,9 +4,11 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <limits>
 #include <set>
 #include <stdexcept>
 
@@ -46,7 +48,8 @@ json read_json(const fs::path& file) {
   if (!in) fail(file, fs::exists(file) ? "cannot read" : "missing file");
   try {
     return json::parse(in);
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {
+    // parse_error, and out_of_range for a number beyond double's range (1e999).
     fail(file, std::string("bad JSON: ") + e.what());
   }
 }
@@ -64,9 +67,22 @@ struct Reader {
     if (!j.is_number()) fail(file, "'" + what + "' is not a number");
     return j.get<double>();
   }
+  // An integer in int's range (get<int> would wrap 4294967936 to 640).
   int integer(const json& j, const std::string& what) const {
     if (!j.is_number_integer()) fail(file, "'" + what + "' is not an integer");
+    const bool fits = j.is_number_unsigned()
+                          ? j.get<uint64_t>() <= static_cast<uint64_t>(std::numeric_limits<int>::max())
+                          : j.get<int64_t>() >= std::numeric_limits<int>::min() &&
+                                j.get<int64_t>() <= std::numeric_limits<int>::max();
+    if (!fits) fail(file, "'" + what + "' = " + j.dump() + " is out of range");
     return j.get<int>();
+  }
+  // A number that must convert to int (a pixel coordinate or size): the conversion of one
+  // outside int's range would be undefined.
+  int pixels(double v, const std::string& what) const {
+    if (!(v >= std::numeric_limits<int>::min() && v <= std::numeric_limits<int>::max()))
+      fail(file, "'" + what + "' = " + std::to_string(v) + " is out of range");
+    return static_cast<int>(v);
   }
   std::vector<double> numbers(const json& j, size_t n, const std::string& what) const {
     if (!j.is_array() || j.size() != n)
@@ -326,9 +342,11 @@ std::vector<int> BopDataset::images(int scene_id) const {
   if (!j.is_object()) fail(file, "top level is not a JSON object");
   std::vector<int> ids;
   for (const auto& [key, v] : j.items()) {
-    if (key.empty() || !std::all_of(key.begin(), key.end(), [](char c) { return c >= '0' && c <= '9'; }))
+    int id = 0;
+    const auto [end, ec] = std::from_chars(key.data(), key.data() + key.size(), id);
+    if (key.empty() || key[0] == '-' || ec != std::errc() || end != key.data() + key.size())
       fail(file, "key '" + key + "' is not an image id");
-    ids.push_back(std::stoi(key));
+    ids.push_back(id);
   }
   std::sort(ids.begin(), ids.end());
   return ids;
@@ -407,8 +425,9 @@ std::vector<BopGtInfo> BopDataset::ground_truth_info(int scene_id, int image_id)
   for (size_t g = 0; g < list.size(); ++g) {
     const std::string wg = w + "[" + std::to_string(g) + "]";
     auto box = [&](const char* k) {
-      const auto v = r.numbers(r.key(list[g], k, wg), 4, wg + "." + k);
-      return cv::Rect(static_cast<int>(v[0]), static_cast<int>(v[1]), static_cast<int>(v[2]), static_cast<int>(v[3]));
+      const std::string what = wg + "." + k;
+      const auto v = r.numbers(r.key(list[g], k, wg), 4, what);
+      return cv::Rect(r.pixels(v[0], what), r.pixels(v[1], what), r.pixels(v[2], what), r.pixels(v[3], what));
     };
     BopGtInfo i;
     i.bbox_obj = box("bbox_obj");

@@ -63,20 +63,29 @@ void weld_identical_vertices(Mesh& mesh) {
   mesh.vertices = std::move(unique);
 }
 
-}  // namespace
-
-MeshReport validate_mesh(const Mesh& mesh, const MeshLoadOptions& options, const std::string& source) {
+// What welding, the topology count and every later stage index by: each triangle's corners name
+// a vertex, and every vertex is finite (a NaN would break the weld's ordering and vanish into
+// a neighbour). Checked before anything reads vertices through a triangle.
+void check_indices_and_coordinates(const Mesh& mesh, const std::string& source) {
   if (mesh.vertices.empty() || mesh.triangles.empty())
     throw std::runtime_error(source + ": empty mesh (no triangles)");
   for (const auto& v : mesh.vertices)
     if (!std::isfinite(v[0]) || !std::isfinite(v[1]) || !std::isfinite(v[2]))
       throw std::runtime_error(source + ": non-finite vertex coordinate");
+  for (const auto& t : mesh.triangles)
+    for (uint32_t i : t)
+      if (i >= mesh.vertices.size())
+        throw std::runtime_error(source + ": triangle index " + std::to_string(i) + " out of range (" +
+                                 std::to_string(mesh.vertices.size()) + " vertices)");
+}
+
+}  // namespace
+
+MeshReport validate_mesh(const Mesh& mesh, const MeshLoadOptions& options, const std::string& source) {
+  check_indices_and_coordinates(mesh, source);
   MeshReport r;
   std::map<std::pair<uint32_t, uint32_t>, int> edge_use;
   for (const auto& t : mesh.triangles) {
-    for (uint32_t i : t)
-      if (i >= mesh.vertices.size())
-        throw std::runtime_error(source + ": triangle index " + std::to_string(i) + " out of range");
     const cv::Vec3f e1 = mesh.vertices[t[1]] - mesh.vertices[t[0]];
     const cv::Vec3f e2 = mesh.vertices[t[2]] - mesh.vertices[t[0]];
     if (cv::norm(e1.cross(e2)) < 1e-12) ++r.degenerate_triangles;
@@ -110,6 +119,7 @@ namespace {
 // What every format's loader ends with: shared vertices welded, the mesh validated, findings
 // reported (to `report`, else syslog).
 Mesh finish_loading(Mesh mesh, const MeshLoadOptions& options, MeshReport* report, const std::string& src) {
+  check_indices_and_coordinates(mesh, src);
   weld_identical_vertices(mesh);
   MeshReport r = validate_mesh(mesh, options, src);
   for (const auto& w : r.warnings)
@@ -128,23 +138,38 @@ Mesh load_mesh(const std::filesystem::path& file, const MeshLoadOptions& options
   std::string ext = file.extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   if (ext == ".ply") return finish_loading(read_ply(file, static_cast<float>(options.unit_mm)), options, report, src);
+  // assimp reads some 40 formats, most of them never meant for a part model; only its STL and
+  // OBJ importers are used, chosen by the extension (assimp sniffs the content only for an
+  // extension no importer claims, and refuses a file its extension's importer cannot read).
+  if (ext != ".stl" && ext != ".obj")
+    throw std::runtime_error(src + ": unsupported mesh format '" + ext + "'; accepted: .stl, .obj, .ply");
   Assimp::Importer importer;
-  const aiScene* scene = importer.ReadFile(src, aiProcess_Triangulate | aiProcess_SortByPType);
+  // ValidateDataStructure refuses a scene whose indices (faces into vertices, nodes into
+  // meshes) point outside their arrays; the walk below checks them again where it uses them.
+  const aiScene* scene =
+      importer.ReadFile(src, aiProcess_ValidateDataStructure | aiProcess_Triangulate | aiProcess_SortByPType);
   if (!scene || !scene->mRootNode) throw std::runtime_error(src + ": cannot read mesh: " + importer.GetErrorString());
+  const int used = importer.GetPropertyInteger("importerIndex", -1);
+  if (used >= 0 && static_cast<size_t>(used) != importer.GetImporterIndex(ext.c_str()))
+    throw std::runtime_error(src + ": read by another importer than the one for '" + ext + "'");
 
   Mesh mesh;
   mesh.name = file.stem().string();
   const auto scale = static_cast<float>(options.unit_mm);
-  // Walk the node tree so per-node transforms (OBJ groups, PLY none) are applied.
+  // Walk the node tree so per-node transforms (OBJ groups) are applied.
   struct Walker {
     const aiScene* scene;
+    const std::string& src;
     Mesh& out;
     float scale;
     void walk(const aiNode* node, const aiMatrix4x4& parent) {
       const aiMatrix4x4 m = parent * node->mTransformation;
       for (unsigned i = 0; i < node->mNumMeshes; ++i) {
+        if (node->mMeshes[i] >= scene->mNumMeshes) throw std::runtime_error(src + ": node names a missing mesh");
         const aiMesh* am = scene->mMeshes[node->mMeshes[i]];
         if (!(am->mPrimitiveTypes & aiPrimitiveType_TRIANGLE)) continue;
+        if (out.vertices.size() + am->mNumVertices > std::numeric_limits<uint32_t>::max())
+          throw std::runtime_error(src + ": more than 2^32 vertices");
         const auto base = static_cast<uint32_t>(out.vertices.size());
         for (unsigned v = 0; v < am->mNumVertices; ++v) {
           const aiVector3D p = m * am->mVertices[v];
@@ -153,13 +178,17 @@ Mesh load_mesh(const std::filesystem::path& file, const MeshLoadOptions& options
         for (unsigned f = 0; f < am->mNumFaces; ++f) {
           const aiFace& face = am->mFaces[f];
           if (face.mNumIndices != 3) continue;
+          for (unsigned k = 0; k < 3; ++k)
+            if (face.mIndices[k] >= am->mNumVertices)
+              throw std::runtime_error(src + ": face " + std::to_string(f) + " names vertex " +
+                                       std::to_string(face.mIndices[k]) + " of " + std::to_string(am->mNumVertices));
           out.triangles.push_back({base + face.mIndices[0], base + face.mIndices[1], base + face.mIndices[2]});
         }
       }
       for (unsigned c = 0; c < node->mNumChildren; ++c) walk(node->mChildren[c], m);
     }
   };
-  Walker{scene, mesh, scale}.walk(scene->mRootNode, aiMatrix4x4());
+  Walker{scene, src, mesh, scale}.walk(scene->mRootNode, aiMatrix4x4());
   return finish_loading(std::move(mesh), options, report, src);
 }
 

@@ -43,9 +43,10 @@ struct MeshReport {
 
 // Loads an STL (ASCII or binary) or OBJ with assimp, or a PLY (ASCII or binary) with read_ply
 // (vision/model/ply_reader.hpp), merges all its meshes into one,
-// scales to mm and validates. Throws std::runtime_error naming the file on an unreadable,
-// empty or absurdly sized mesh; non-manifold geometry only adds warnings to *report
-// (and to syslog when report is null).
+// scales to mm and validates. The extension (.stl, .obj, .ply, any case) picks the reader; any
+// other is refused. Throws std::runtime_error naming the file on an unsupported extension, an
+// unreadable, empty or absurdly sized mesh, a face index outside the vertices or a non-finite
+// vertex; non-manifold geometry only adds warnings to *report (and to syslog when report is null).
 Mesh load_mesh(const std::filesystem::path& file, const MeshLoadOptions& options = {}, MeshReport* report = nullptr);
 
 // Checks topology and size. Throws on an empty mesh, bad indices, non-finite vertices or

@@ -1,8 +1,13 @@
 #include "vision/camera/camera.hpp"
 
 #include <gtest/gtest.h>
+#include <sys/resource.h>
+#include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <random>
@@ -39,6 +44,62 @@ std::string load_error(const fs::path& p) {
 }
 
 const fs::path kSimYaml = fs::path(MFC_SOURCE_DIR) / "config" / "camera-sim.yaml";
+
+// The simulated camera's file with `from` replaced by `to` (which must occur), at `name`.
+fs::path edited_sim_yaml(const std::string& from, const std::string& to, const std::string& name) {
+  std::string text = read_all(kSimYaml);
+  const auto at = text.find(from);
+  if (at == std::string::npos) throw std::logic_error("camera-sim.yaml has no '" + from + "'");
+  text.replace(at, from.size(), to);
+  const fs::path p = temp_file(name);
+  write_all(p, text);
+  return p;
+}
+
+// Records the largest matrix OpenCV is asked to allocate while installed, and refuses (as
+// OpenCV's own out-of-memory error) any above 64 MB, so a size read from a file and used
+// unchecked shows up here instead of in the machine's memory.
+class LargestMatAllocation : public cv::MatAllocator {
+ public:
+  LargestMatAllocation() : std_(cv::Mat::getStdAllocator()), previous_(cv::Mat::getDefaultAllocator()) {
+    cv::Mat::setDefaultAllocator(this);
+  }
+  ~LargestMatAllocation() override { cv::Mat::setDefaultAllocator(previous_); }
+  double largest_bytes() const { return largest_; }
+
+  cv::UMatData* allocate(int dims, const int* sizes, int type, void* data, size_t* step, cv::AccessFlag flags,
+                         cv::UMatUsageFlags usage) const override {
+    double bytes = CV_ELEM_SIZE(type);
+    for (int i = 0; i < dims; ++i) bytes *= sizes[i];
+    largest_ = std::max(largest_, bytes);
+    if (bytes > 64e6) CV_Error(cv::Error::StsNoMem, "test allocator: refused " + std::to_string(bytes) + " bytes");
+    return std_->allocate(dims, sizes, type, data, step, flags, usage);
+  }
+  bool allocate(cv::UMatData* data, cv::AccessFlag flags, cv::UMatUsageFlags usage) const override {
+    return std_->allocate(data, flags, usage);
+  }
+  void deallocate(cv::UMatData* data) const override { std_->deallocate(data); }
+
+ private:
+  cv::MatAllocator* std_;
+  cv::MatAllocator* previous_;
+  mutable double largest_ = 0;
+};
+
+// Caps the process's address space at what it maps now plus `mb` (the count tests run this in a
+// death-test child). Not under AddressSanitizer or ThreadSanitizer, whose shadow memory maps
+// terabytes: there an oversized allocation aborts the test by itself.
+void cap_address_space(long mb) {
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+  (void)mb;
+#else
+  long pages = 0;
+  std::ifstream("/proc/self/statm") >> pages;
+  const auto cap = static_cast<rlim_t>(pages * ::sysconf(_SC_PAGESIZE) + (mb << 20));
+  const rlimit limit{cap, cap};
+  ::setrlimit(RLIMIT_AS, &limit);
+#endif
+}
 
 }  // namespace
 
@@ -113,11 +174,111 @@ TEST(CameraConfig, MalformedValuesAreNamed) {
   }
 }
 
+// Every matrix's rows, cols and data length are checked before OpenCV sizes a matrix by them
+// (cv::read allocates rows x cols before it compares them with the data).
+TEST(CameraConfig, MatrixSizesAreCheckedBeforeAllocating) {
+  struct Case {
+    std::string from, to, key;
+  };
+  const std::vector<Case> cases = {
+      {"rows: 3\n   cols: 3", "rows: 2000000000\n   cols: 3", "camera_matrix"},
+      {"rows: 3\n   cols: 3", "rows: -3\n   cols: 3", "camera_matrix"},
+      {"rows: 1\n   cols: 5", "rows: 1\n   cols: 2000000000", "distortion_coefficients"},
+      {"rows: 1\n   cols: 5", "rows: 1\n   cols: 3", "distortion_coefficients"},
+      {"data: [ 0., 0., 0., 0., 0. ]", "data: [ 0., 0., 0. ]", "distortion_coefficients"},
+      {"dt: d\n   data: [ 1100.", "dt: \"3d\"\n   data: [ 1100.", "camera_matrix"},
+      {"   ring_radius_mm: 40.",
+       "   positions_mm: !!opencv-matrix\n      rows: 2000000000\n      cols: 3\n      dt: d\n      data: [ 1., 2., 3. ]\n"
+       "   ring_radius_mm: 40.",
+       "flashes.positions_mm"},
+      {"working_distance_mm: 300.",
+       "working_distance_mm: 300.\nhand_eye:\n   mode: eye_to_hand\n   camera_pose: !!opencv-matrix\n      rows: 100000\n"
+       "      cols: 100000\n      dt: d\n      data: [ 1. ]\n   reprojection_rms_px: 0.\n   residual_rms_mm: 0.\n"
+       "   views: 1",
+       "hand_eye.camera_pose"},
+  };
+  for (const auto& c : cases) {
+    const fs::path p = edited_sim_yaml(c.from, c.to, "matrix-size.yaml");
+    LargestMatAllocation allocator;
+    const std::string err = load_error(p);
+    EXPECT_NE(err.find("'" + c.key + "'"), std::string::npos) << c.to << " -> " << err;
+    EXPECT_NE(err.find(p.string()), std::string::npos) << err;
+    EXPECT_LT(allocator.largest_bytes(), 1e6) << c.to;
+  }
+}
+
+// flashes.count is checked before the ring's positions are generated from it.
+TEST(CameraConfig, FlashCountIsCheckedBeforeTheRingIsBuilt) {
+  for (const char* count : {"count: 2000000000", "count: -8", "count: 0"}) {
+    const fs::path p = edited_sim_yaml("count: 8", count, "count.yaml");
+    EXPECT_EXIT(
+        {
+          cap_address_space(256);
+          const std::string err = load_error(p);
+          std::fprintf(stderr, "%s\n", err.c_str());
+          std::exit(err.find("'flashes.count'") != std::string::npos && err.find(p.string()) != std::string::npos ? 0
+                                                                                                                : 1);
+        },
+        ::testing::ExitedWithCode(0), "")
+        << count;
+  }
+}
+
+// Measured positions list exactly 8 rows, and a ring count beside them must agree.
+TEST(CameraConfig, MeasuredPositionsAgreeWithTheLedCount) {
+  CameraConfig c = load_camera_config(kSimYaml);
+  c.flashes.ring.reset();
+  const fs::path measured = temp_file("measured-count.yaml");
+  save_camera_config(c, measured);
+  const std::string text = read_all(measured);
+  const auto at = text.find("positions_mm");
+  ASSERT_NE(at, std::string::npos);
+  std::string with_count = text;
+  with_count.insert(at, "count: 6\n   ");
+  write_all(measured, with_count);
+  EXPECT_NE(load_error(measured).find("'flashes.count'"), std::string::npos) << load_error(measured);
+  with_count = text;
+  with_count.insert(at, "count: 8\n   ");
+  write_all(measured, with_count);
+  EXPECT_EQ(load_error(measured), "");
+}
+
 TEST(CameraConfig, NotYamlOrMissingFileIsAnError) {
   const fs::path p = temp_file("garbage.yaml");
   write_all(p, "%YAML:1.0\n---\nimage_width: [unclosed\n");
   EXPECT_NE(load_error(p).find(p.string()), std::string::npos);
   EXPECT_NE(load_error(temp_file("does-not-exist.yaml")).find("does-not-exist.yaml"), std::string::npos);
+}
+
+// Inputs the fuzzer found (fuzz/corpus/camera_config/crash-*, timeout-*): each crashed, hung or
+// threw another exception than std::runtime_error while OpenCV's FileStorage read the files.
+TEST(CameraConfig, MalformedFilesFoundByFuzzingAreRefused) {
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"xml.yaml", std::string("<?xml n=\0", 9)},                   // OpenCV 4.6's XML parser: NULL dereference
+      {"sequence.yaml", "%YAML:1.0\n---\n- 640\n- 480\n"},        // cv::Exception: FileNode::operator[] on a non-map
+      {"empty-key.yaml", "%YAML:1.0\n---\na:\n   b: 3\n   :\n"},  // std::length_error from OpenCV's YAML parser
+      {"loop.yaml", "%YAML:1.\n t:d\no 0-\n"},                    // OpenCV 4.6's YAML parser never returns
+  };
+  for (const auto& [name, text] : cases) {
+    const fs::path p = temp_file(name);
+    std::ofstream(p, std::ios::binary) << text;
+    std::string err;
+    try {
+      load_camera_config(p);
+    } catch (const std::runtime_error& e) {
+      err = e.what();
+    }
+    EXPECT_NE(err.find(p.string()), std::string::npos) << name << ": " << err;
+  }
+}
+
+// save_camera_config writes YAML for any extension, so the file reads back.
+TEST(CameraConfig, SavedFileIsYamlWhateverItsName) {
+  const CameraConfig c = load_camera_config(kSimYaml);
+  const fs::path xml = temp_file("camera.xml");
+  save_camera_config(c, xml);
+  EXPECT_EQ(read_all(xml).rfind("%YAML:1.0", 0), 0u);
+  EXPECT_EQ(load_camera_config(xml).camera.K, c.camera.K);
 }
 
 // The closed-form shadow direction against the definition: the image of P + s (P - L)

@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <functional>
 #include <fstream>
+#include <iterator>
 #include <random>
 
 using namespace mfcd::vision;
@@ -226,6 +227,34 @@ TEST_F(BopTiny, RefusesMissingOrIllTypedKeys) {
   expect_refused([&] { ds.ground_truth(1, 5); }, scene() / "scene_gt.json", "missing key 'scene.5'");
   edit_json(scene() / "scene_camera.json", [](auto& j) { j["1"]["flash_positions_mm"][2] = {1, 2}; });
   expect_refused([&] { ds.camera(1, 1); }, scene() / "scene_camera.json", "flash_positions_mm' must be an array of 3");
+}
+
+// Numbers JSON can hold but the reader's types cannot: each is refused naming the file and the key
+// (before: std::out_of_range from std::stoi, an undefined double-to-int conversion, a width
+// wrapped by get<int>, nlohmann's out_of_range exception for 1e999).
+TEST_F(BopTiny, RefusesNumbersOutsideTheirType) {
+  edit_json(scene() / "scene_camera.json", [](auto& j) { j["99999999999"] = j["0"]; });
+  {
+    const BopDataset ds(root);
+    expect_refused([&] { ds.images(1); }, scene() / "scene_camera.json", "key '99999999999' is not an image id");
+  }
+  edit_json(scene() / "scene_camera.json", [](auto& j) {
+    j.erase("99999999999");
+    j["0"]["width"] = 4294967936ull;  // 2^32 + 640
+  });
+  edit_json(scene() / "scene_gt_info.json", [](auto& j) { j["0"][0]["bbox_obj"][0] = 1e300; });
+  const BopDataset ds(root);
+  expect_refused([&] { ds.camera(1, 0); }, scene() / "scene_camera.json", "'0.width' = 4294967936 is out of range");
+  expect_refused([&] { ds.ground_truth_info(1, 0); }, scene() / "scene_gt_info.json", "'0[0].bbox_obj' = ...out of range");
+  edit_json(scene() / "scene_camera.json", [](auto& j) { j["1"]["cam_K"][0] = 12345.5; });
+  {
+    std::ifstream in(scene() / "scene_camera.json");
+    std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const auto at = text.find("12345.5");
+    ASSERT_NE(at, std::string::npos) << text;
+    std::ofstream(scene() / "scene_camera.json") << text.replace(at, 7, "1e999");  // beyond double
+  }
+  expect_refused([&] { ds.camera(1, 1); }, scene() / "scene_camera.json", "bad JSON...number overflow");
 }
 
 TEST_F(BopTiny, RefusesImagesOfTheWrongSize) {

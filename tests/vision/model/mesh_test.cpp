@@ -6,6 +6,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <numbers>
 
 using namespace mfcd::vision;
@@ -159,6 +160,51 @@ TEST(MeshLoad, EmptyMissingAndGarbageFilesAreErrors) {
   const fs::path garbage = temp_file("garbage.ply");
   std::ofstream(garbage) << "this is not a mesh\n";
   EXPECT_NE(load_error(garbage).find(garbage.string()), std::string::npos);
+}
+
+// assimp would read an OFF (and some 40 other formats); only .stl, .obj and .ply are accepted.
+TEST(MeshLoad, OnlyStlObjAndPlyExtensionsAreRead) {
+  const fs::path off = temp_file("box.off");
+  {
+    const Mesh box = make_box(40, 30, 20);
+    std::ofstream o(off);
+    o << "OFF\n" << box.vertices.size() << ' ' << box.triangles.size() << " 0\n";
+    for (const auto& v : box.vertices) o << v[0] << ' ' << v[1] << ' ' << v[2] << "\n";
+    for (const auto& t : box.triangles) o << "3 " << t[0] << ' ' << t[1] << ' ' << t[2] << "\n";
+  }
+  const std::string err = load_error(off);
+  EXPECT_NE(err.find(off.string()), std::string::npos) << err;
+  EXPECT_NE(err.find(".stl, .obj, .ply"), std::string::npos) << err;
+  fs::path bare = temp_file("box");
+  write_obj(make_box(40, 30, 20), bare);
+  EXPECT_NE(load_error(bare).find("unsupported mesh format"), std::string::npos) << load_error(bare);
+  const fs::path upper = temp_file("box.OBJ");
+  write_obj(make_box(40, 30, 20), upper);
+  EXPECT_EQ(load_error(upper), "");
+}
+
+// A non-finite coordinate is refused before welding, where it would compare equal to a finite
+// neighbour and vanish into it.
+TEST(MeshLoad, NonFiniteVertexIsRefusedBeforeWelding) {
+  Mesh m = make_box(10, 10, 10);
+  m.vertices.emplace_back(std::numeric_limits<float>::quiet_NaN(), -5.f, -5.f);  // (-5, -5, -5) is vertex 0
+  m.triangles.push_back({static_cast<uint32_t>(m.vertices.size() - 1), 1, 2});
+  const fs::path p = temp_file("nan.ply");
+  write_ply(m, p);
+  const std::string err = load_error(p);
+  EXPECT_NE(err.find("non-finite"), std::string::npos) << err;
+  EXPECT_NE(err.find(p.string()), std::string::npos) << err;
+}
+
+TEST(MeshLoad, FaceIndexOutsideTheVerticesIsRefused) {
+  Mesh m = make_box(10, 10, 10);
+  m.triangles.push_back({0, 1, 8});
+  for (const char* name : {"index.obj", "index.ply"}) {
+    const fs::path p = temp_file(name);
+    fs::path(name).extension() == ".obj" ? write_obj(m, p) : write_ply(m, p);
+    const std::string err = load_error(p);
+    EXPECT_NE(err.find(p.string()), std::string::npos) << err;
+  }
 }
 
 TEST(MeshValidate, OpenAndNonManifoldEdgesWarnButLoad) {
