@@ -23,16 +23,6 @@ ConfigError::ConfigError(std::string source, int line, std::string key, const st
       source_(std::move(source)), key_(std::move(key)), line_(line) {}
 
 const char* toString(RunMode m) { return m == RunMode::Triggered ? "triggered" : "continuous"; }
-const char* toString(LogLevel l) {
-  switch (l) {
-    case LogLevel::Error: return "error";
-    case LogLevel::Warning: return "warning";
-    case LogLevel::Notice: return "notice";
-    case LogLevel::Info: return "info";
-    case LogLevel::Debug: return "debug";
-  }
-  return "?";
-}
 
 const RecipeConfig* DaemonConfig::recipe(int id) const {
   for (const auto& r : recipes)

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "daemon/log.hpp"
 #include "motion/can_publisher.h"
 #include "motion/modbus_server.h"
 #include "motion/pick_choice.h"
@@ -37,10 +38,8 @@ private:
 enum class RunMode { Triggered, Continuous };
 enum class CameraType { Simulated, V4L2 };
 enum class LightsType { Simulated, Gpiod };
-enum class LogLevel { Error = 3, Warning = 4, Notice = 5, Info = 6, Debug = 7 };  // syslog values
 
 const char* toString(RunMode m);
-const char* toString(LogLevel l);
 
 // Where the gripper takes a part (vision::GraspFeature): a spot in the part's model frame that
 // must be on top and facing the camera for the pick to be worth trying (pick.weight_grasp,

@@ -8,6 +8,17 @@
 
 namespace mfcd::daemon {
 
+const char* toString(LogLevel l) {
+  switch (l) {
+    case LogLevel::Error: return "error";
+    case LogLevel::Warning: return "warning";
+    case LogLevel::Notice: return "notice";
+    case LogLevel::Info: return "info";
+    case LogLevel::Debug: return "debug";
+  }
+  return "?";
+}
+
 namespace {
 std::atomic<int> gLevel{LOG_INFO};
 std::atomic<bool> gStderr{true};

@@ -244,6 +244,31 @@ def daemon():
     write(n, "not-a-mapping.yaml", "- camera\n- recipes\n")
 
 
+# --- modbus_session: byte 0 picks the chunk sizes, the rest is the TCP stream -----------------
+def session():
+    n = "modbus_session"
+    read_all = mbap(1, 1, bytes([0x03, 0, 0, 0, 64]))
+    trigger = mbap(2, 1, bytes([0x10, 0, 0, 0, 4, 8, 0, 1, 0, 7, 0, 0, 0, 0]))
+    pose = mbap(3, 1, bytes([0x10, 0, 36, 0, 14, 28]) + bytes(24) + bytes([0, 1, 0, 9]))
+    write(n, "read-all", bytes([0x00]) + read_all)
+    write(n, "poll-then-trigger", bytes([0x5A]) + read_all + trigger + read_all)
+    write(n, "robot-pose", bytes([0xFF]) + pose)
+    write(n, "pipelined", bytes([0x13]) + read_all * 6)
+    write(n, "cut-off", bytes([0x01]) + read_all[:9])
+    write(n, "bad-protocol", bytes([0x07]) + mbap(4, 1, bytes([0x03, 0, 0, 0, 1]), protocol=1) + read_all)
+
+
+# --- control_line: one JSON request per line ---------------------------------------------------
+def control():
+    n = "control_line"
+    write(n, "status", '{"cmd":"status"}\n')
+    write(n, "trigger", '{"cmd":"trigger","recipe":3}\n{"cmd":"trigger","recipe":70000}\n{"cmd":"trigger","recipe":"x"}\n')
+    write(n, "calibrate", '{"cmd":"calibrate","action":"capture","pose":[1,2,3,4,5,6],"confirm":true}\n'
+          '{"cmd":"calibrate","action":5}\n{"cmd":"calibrate","pose":["a",2,3,4,5,6]}\n')
+    write(n, "unknown-and-garbage", '{"cmd":"nope"}\n[1,2]\nnot json\n\n{"cmd":7}\n')
+    write(n, "invalid-utf8", b'\xff\n{"cmd":"calibrate","action":"caf\xe9"}\n')
+
+
 if __name__ == "__main__":
     modbus()
     camera()
@@ -251,3 +276,5 @@ if __name__ == "__main__":
     templates()
     bop()
     daemon()
+    session()
+    control()

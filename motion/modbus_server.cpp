@@ -359,6 +359,14 @@ void ModbusServer::Impl::accept_clients()
 		const Clock::time_point now = Clock::now();
 		Client *slot = free_slot(now);
 		if (!slot) {
+			// Every client is mid-frame; some may have gone already (a PLC that dropped mid-request
+			// and reconnects at once): reap the closes not yet read before refusing the newcomer.
+			for (Client &c : clients)
+				if (c.fd)
+					read_client(c);
+			slot = free_slot(now);
+		}
+		if (!slot) {
 			syslog(LOG_WARNING, "modbus: refused client: max_clients %u reached, all mid-frame", config.max_clients);
 			server.refused_.fetch_add(1);
 			continue;
