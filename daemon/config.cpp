@@ -165,14 +165,17 @@ public:
     }
     const fs::path p = scalar(k, n);
     if (p.empty()) fail(key(k), lineOf(n), "must not be empty");
+    // The error_code overloads: a name the file system cannot even look up (ENAMETOOLONG, a
+    // path through a file) is "not found" here, named with its key, not a filesystem_error.
+    std::error_code ec;
     if (p.is_absolute()) {
-      if (!fs::exists(p)) fail(key(k), lineOf(n), "file " + p.string() + " does not exist");
+      if (!fs::exists(p, ec)) fail(key(k), lineOf(n), "file " + p.string() + " does not exist" + (ec ? " (" + ec.message() + ")" : ""));
       return p;
     }
     std::string tried;
     for (const auto& dir : *ctx_.searchPath) {
       const fs::path candidate = dir / p;
-      if (fs::exists(candidate)) return fs::absolute(candidate).lexically_normal();
+      if (fs::exists(candidate, ec)) return fs::absolute(candidate).lexically_normal();
       tried += (tried.empty() ? "" : ", ") + dir.string();
     }
     fail(key(k), lineOf(n), "file '" + p.string() + "' not found in the search path (" + tried +

@@ -66,6 +66,11 @@ TEST(Config, WrongTypeAndRangeNameKeyAndLine) {
   EXPECT_EQ(e.line(), 7);
   EXPECT_NE(std::string(e.what()).find("out of range 0..65535"), std::string::npos) << e.what();
 
+  // A file name longer than NAME_MAX (found by the daemon_config fuzz harness): named, not thrown.
+  e = errorOf("camera:\n  model: " + std::string(300, 'a') + "\nrecipes:\n  - {id: 0, part: any, obj_id: 0}\n");
+  EXPECT_EQ(e.key(), "camera.model");
+  EXPECT_NE(std::string(e.what()).find("not found in the search path"), std::string::npos) << e.what();
+
   e = errorOf(minimal("modbus:\n  idle_timeout_ms: 50\n"));
   EXPECT_EQ(e.key(), "modbus.idle_timeout_ms");
   EXPECT_EQ(e.line(), 6);
