@@ -39,7 +39,7 @@ class Reader {
     fail(line > 0 ? source_ + ":" + std::to_string(line) : source_, key, why);
   }
 
-  // The node under `name` of the mapping `parent` (shown as `key`), or an undefined node.
+  // The node under `name` of the mapping `parent`, or an undefined node.
   static YAML::Node child(const YAML::Node& parent, const char* name) {
     if (!parent.IsMap()) return YAML::Node(YAML::NodeType::Undefined);
     for (const auto& kv : parent)
