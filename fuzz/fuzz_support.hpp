@@ -4,8 +4,10 @@
 // its API documents, so anything else (a crash, a sanitizer report, another exception type, a
 // timeout, an allocation over libFuzzer's -rss_limit_mb) is a finding.
 
+#include <signal.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
@@ -17,7 +19,8 @@
 namespace mfcd::fuzz {
 
 // A directory private to this process, on /dev/shm when there is one (inputs are written
-// there for every execution), removed at a normal exit (a crashed run leaves it behind).
+// there for every execution), removed at a normal exit. A crashed run leaves its directory
+// behind; those of processes that no longer exist are removed when the next one starts.
 inline const std::filesystem::path& scratch_dir() {
   // Never destroyed, so the exit handler below can still read it.
   static const std::filesystem::path* const dir = [] {
@@ -25,7 +28,15 @@ inline const std::filesystem::path& scratch_dir() {
     std::filesystem::path base = "/dev/shm";
     if (!std::filesystem::is_directory(base, ec) || ::access(base.c_str(), W_OK) != 0)
       base = std::filesystem::temp_directory_path();
-    auto* d = new std::filesystem::path(base / ("mfcd-fuzz-" + std::to_string(::getpid())));
+    const std::string prefix = "mfcd-fuzz-";
+    for (const auto& e : std::filesystem::directory_iterator(base, ec)) {
+      const std::string name = e.path().filename().string();
+      if (name.rfind(prefix, 0) != 0) continue;
+      const long pid = std::strtol(name.c_str() + prefix.size(), nullptr, 10);
+      if (pid > 0 && ::kill(static_cast<pid_t>(pid), 0) != 0 && errno == ESRCH)
+        std::filesystem::remove_all(e.path(), ec);
+    }
+    auto* d = new std::filesystem::path(base / (prefix + std::to_string(::getpid())));
     std::filesystem::create_directories(*d);
     std::atexit([] {
       std::error_code ignored;
