@@ -81,6 +81,10 @@ void Daemon::onPlcCommand(const motion::PlcCommand& cmd) {
     pendingPlc_ = cmd;  // accepted by the server during a local cycle: runs right after it
     return;
   }
+  startPlcJob(cmd);
+}
+
+void Daemon::startPlcJob(const motion::PlcCommand& cmd) {
   if (!startCycle(CycleOrigin::Plc, cmd.job_id, cmd.recipe_id, cmd.mode, false))
     answerJob(cmd.job_id, cmd.recipe_id, CycleError::Unavailable, cell_ ? "the cell's request queue is full" : "no cell is running");
 }
@@ -230,8 +234,7 @@ void Daemon::afterCycle() {
   if (pendingPlc_) {
     const auto cmd = *pendingPlc_;
     pendingPlc_.reset();
-    if (!startCycle(CycleOrigin::Plc, cmd.job_id, cmd.recipe_id, cmd.mode, false))
-      answerJob(cmd.job_id, cmd.recipe_id, CycleError::Unavailable, cell_ ? "the cell's request queue is full" : "no cell is running");
+    startPlcJob(cmd);
     return;
   }
   if (config_.mode == RunMode::Continuous && cellOk_ && !calibrating()) {

@@ -69,6 +69,8 @@ private:
   std::optional<std::uint64_t> startCycle(CycleOrigin origin, std::uint16_t job, std::uint16_t recipe, std::uint16_t mode,
                                           bool snapshot);
   void onPlcCommand(const motion::PlcCommand& cmd);
+  // Starts a TRIGGER's cycle now, or answers the job with ERROR_CODE 7 when the cell cannot take it.
+  void startPlcJob(const motion::PlcCommand& cmd);
   // Ends a PLC job that will not run: JOB_ID_ECHO = job, PICK_VALID 0, ERROR_CODE = error.
   void answerJob(std::uint16_t job, std::uint16_t recipe, CycleError error, const char* why);
   // Hands a request to the cell and extends the time its threads may be busy with it.

@@ -14,7 +14,6 @@ namespace mfcd::motion {
 namespace {
 
 constexpr RegisterPolicy kPolicy{reg::kBlockSize, 0, reg::kWritableEnd, reg::kRobotPoseBegin, reg::kRobotPoseEnd};
-constexpr std::size_t kCommandQueueDepth = 16; // SpscRing<PlcCommand, 16> in modbus_server.h
 
 std::uint16_t be16(const std::uint8_t *p) noexcept
 {
@@ -91,7 +90,7 @@ ModbusException ModbusServer::Impl::decide_command(const RegisterWrite &w, const
 	std::copy(regs, regs + reg::kControlEnd, control);
 	for (std::uint16_t i = 0; i < w.count && w.address + i < reg::kControlEnd; ++i)
 		control[w.address + i] = be16(w.values + 2 * i);
-	const bool queue_full = server.commands_.size_approx() >= kCommandQueueDepth;
+	const bool queue_full = server.commands_.size_approx() >= server.commands_.capacity();
 	const PlcCommand asked{PlcCommand::Kind::Trigger, control[reg::kJobId], control[reg::kRecipeId],
 	                       control[reg::kMode]};
 	switch (static_cast<reg::Command>(control[reg::kCommand])) {
