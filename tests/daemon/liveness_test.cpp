@@ -7,6 +7,7 @@
 
 #include <vector>
 
+#include "daemon_fixture.hpp"
 #include "daemon_process.hpp"
 #include "plc_test_client.hpp"
 
@@ -16,22 +17,7 @@ using namespace std::chrono_literals;
 
 namespace {
 
-class DaemonLiveness : public ::testing::Test {
-protected:
-  void startDaemon(const std::string& name, int budgetMs, std::vector<std::string> env) {
-    proc = std::make_unique<DaemonProcess>(name);
-    proc->writeConfig(simCellConfig(proc->dir(), budgetMs));
-    proc->start(MFCD_TEST_DAEMON, {}, std::move(env));
-    if (!proc->waitReady()) {
-      const std::string log = proc->log();
-      if (log.find("EGL") != std::string::npos || log.find("OpenGL") != std::string::npos) GTEST_SKIP() << "no offscreen OpenGL: " << log;
-      FAIL() << "mfcd did not become ready:\n" << log;
-    }
-    port = proc->modbusPort();
-  }
-  std::unique_ptr<DaemonProcess> proc;
-  int port = 0;
-};
+class DaemonLiveness : public DaemonFixture {};
 
 double secondsSince(std::chrono::steady_clock::time_point t) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();

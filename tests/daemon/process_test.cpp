@@ -11,6 +11,7 @@
 
 #include <atomic>
 
+#include "daemon_fixture.hpp"
 #include "daemon_process.hpp"
 #include "plc_test_client.hpp"
 #include "motion/float_codec.h"
@@ -35,22 +36,7 @@ double distanceToTruth(const json& last, float x, float y, float z, int* objId =
   return best;
 }
 
-class DaemonE2E : public ::testing::Test {
-protected:
-  void startDaemon(const std::string& name, int budgetMs = 1000, std::vector<std::string> env = {}, const std::string& extra = "") {
-    proc = std::make_unique<DaemonProcess>(name);
-    proc->writeConfig(simCellConfig(proc->dir(), budgetMs, extra));
-    proc->start(MFCD_TEST_DAEMON, {}, std::move(env));
-    if (!proc->waitReady()) {
-      const std::string log = proc->log();
-      if (log.find("EGL") != std::string::npos || log.find("OpenGL") != std::string::npos) GTEST_SKIP() << "no offscreen OpenGL: " << log;
-      FAIL() << "mfcd did not become ready:\n" << log;
-    }
-    port = proc->modbusPort();
-  }
-  std::unique_ptr<DaemonProcess> proc;
-  int port = 0;
-};
+class DaemonE2E : public DaemonFixture {};
 
 }  // namespace
 
