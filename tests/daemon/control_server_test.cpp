@@ -158,6 +158,10 @@ TEST_F(ControlServerTest, ClientsAreBoundedAndASlotFreesOnClose) {
 }
 
 TEST_F(ControlServerTest, OutOfDescriptorsRefusesTheNewcomerWithoutSpinning) {
+#ifdef MFC_UBSAN
+  GTEST_SKIP() << "descriptors used up: UBSan's vptr check cannot probe memory (pipe fails) and "
+                  "reports a false 'invalid vptr'; the release build runs this test";
+#endif
   // Connect first (the client's socket exists), then let the process run out of descriptors:
   // accept4() fails with EMFILE, the spare descriptor is given up to take and refuse the client.
   Peer p(path);

