@@ -46,8 +46,7 @@ PartModel load_part_model(const std::filesystem::path& file, const CameraConfig&
   }
   part.neighbours = view_neighbours(part.db, config.view_stride);
   part.searched.assign(part.db.views.size(), 0);
-  part.flips = turned_over(part.db);
-  for (PartModel::Turn& t : phase_turns(part.db)) part.flips.push_back(std::move(t));
+  part.flips = mesh_turns(part.db);
   for (PartModel::Turn& t : plate_turns(part.db)) part.flips.push_back(std::move(t));
   return part;
 }

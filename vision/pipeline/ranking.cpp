@@ -98,6 +98,15 @@ void BinPickingPipeline::Impl::rank(const Cycle& cycle, size_t first) {
       RigidPose turned;
       turned.R = current.pose.R * S;
       turned.t_mm = current.pose.t_mm + current.pose.R * (turn.pivot_mm - S * turn.pivot_mm);
+      if (turn.screen) {
+        TemplateFitResult twin = current;
+        twin.pose = turned;
+        twin.view = TemplatePoseFit::nearest_view(part.db, m.camera.camera, twin.pose);
+        turned = twin.pose;
+        if (!turn_is_better(m.fitter.compare(part.db, current, twin, m.camera.camera, ws,
+                                             turn.flags_of_pose(current.view), turn.flags_of_turned(twin.view))))
+          continue;
+      }
       const TemplateFitResult f = fit_from(i, part.db, turned);
       if (moved_too_far_in_depth(part.db, v.coarse, f.pose) || f.score < kFlipMinScoreRatio * current.score ||
           floor.below(part.db.mesh, f.pose))
@@ -105,11 +114,9 @@ void BinPickingPipeline::Impl::rank(const Cycle& cycle, size_t first) {
       if (turn.by_rank) {
         if (v.fit_rank < kPlateTurnMinRank || fitted_rank(f, part.db, m.config) <= v.fit_rank) continue;
       } else {
-        const bool feature = !turn.differs.empty();
-        const TemplatePoseFit::Difference d =
-            m.fitter.compare(part.db, current, f, m.camera.camera, ws,
-                             feature ? &turn.differs[static_cast<size_t>(current.view)] : nullptr,
-                             feature ? &turn.differs[static_cast<size_t>(f.view)] : nullptr);
+        const TemplatePoseFit::Difference d = m.fitter.compare(part.db, current, f, m.camera.camera, ws,
+                                                               turn.flags_of_pose(current.view),
+                                                               turn.flags_of_turned(f.view));
         if (!turn_is_better(d)) continue;
       }
       current = f;

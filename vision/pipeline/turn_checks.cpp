@@ -1,62 +1,41 @@
 #include "vision/pipeline/turn_checks.hpp"
 
 #include "vision/common/rotation.hpp"
+#include "vision/model/mesh_turns.hpp"
 #include "vision/model/surface_grid.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <utility>
 
 namespace mfcd::vision::detail {
 
-// A turn that moves at most this share of the part's edge points off its surface is a
-// near-symmetry: the two poses are compared on the points of the feature that breaks it, as well
-// as apart in the image. The image distance alone also counts points the two poses' template
-// views disagree on only because the views are sampled apart, which say nothing about the turn.
-// The breaker's half turn about z moves 5 % of its points (the toggle) and the wheel's 10 %;
-// turned face down, the ellipse moves 67 % and the diamond 84 %. Measured on the three dev sets
-// (mfc-sim seeds 7, 13, 19; 283 trials): 90 failures with the image distance alone, 88 with the
-// feature's points for near-symmetries (breaker 10 -> 8), 89 when the feature's points replace the
-// image distance, 91 when they replace it for every turn (the ellipse turned face down 3 more).
-constexpr double kNearSymmetryShare = 0.25;
-
-std::vector<PoseTurn> turned_over(const TemplateDatabase& db) {
-  const PartSymmetry& sym = db.symmetry;
-  const cv::Matx33d rx(1, 0, 0, 0, -1, 0, 0, 0, -1), ry(-1, 0, 0, 0, 1, 0, 0, 0, -1), rz(-1, 0, 0, 0, -1, 0, 0, 0, 1);
-  const bool half_turn_z = sym.kind == PartSymmetry::Kind::continuous_z ||
-                           (sym.kind == PartSymmetry::Kind::discrete_z && sym.order % 2 == 0);
-  // With the half turn about z a symmetry, the turn about y is the one about x followed by it.
-  std::vector<PoseTurn> out;
-  const SurfaceGrid surface = part_surface(db);
-  for (const cv::Matx33d& S : half_turn_z ? std::vector<cv::Matx33d>{rx} : std::vector<cv::Matx33d>{rx, ry, rz}) {
-    PoseTurn& t = out.emplace_back();
-    t.S = S;
-    t.pivot_mm = db.center_mm;
-    double share = 1;
-    auto flags = asymmetric_points(db, surface, S, &share);
-    if (share <= kNearSymmetryShare) t.differs = std::move(flags);
-  }
-  return out;
+// What is a turn's surface for mesh_turns: within 0.2 % of the part's diameter (at least 0.1 mm,
+// at most part_surface's 0.5 mm), the tolerance the bench's model symmetries are found with: a
+// hex head turned by 15 degrees moves its corners by ~3 % of its width, which a 0.5 mm tolerance
+// calls the same part when the head is 10 mm across. Voxels at most half of it, coarser for a part
+// whose box would need more than 64 M of them.
+SurfaceGrid turn_surface(const Mesh& mesh, double diameter_mm) {
+  const double tolerance = std::clamp(0.002 * diameter_mm, 0.1, 0.5);
+  const cv::Vec3f size = mesh.bbox_max() - mesh.bbox_min();
+  const double volume = (size[0] + 2 * tolerance) * (size[1] + 2 * tolerance) * (size[2] + 2 * tolerance);
+  return SurfaceGrid(mesh, std::max(tolerance / 2, std::cbrt(volume / 64e6)), tolerance);
 }
 
-// Phase turns: a part with an N-fold symmetry about z (N >= 3) has flutes or spokes, and a fit can
-// settle with each flute's flank on its neighbour's opposite flank: the knob's 10 flutes are ~22
-// degrees wide in a 36 degree period, and fits from 5-9 degrees off the truth converge to it,
-// while from 14-18 degrees off they converge to +-14.5 degrees, where the flanks (edges of the
-// same orientation) all find edges and only the flutes' bottoms do not. The fit score alone
-// prefers that twin in clutter (measured: 0.26 against 0.31 for a fully visible knob); the
-// points where the two differ do not (TemplatePoseFit::compare). Turning by +-0.4 of the period
-// starts the fit in the other basin from either twin. The part's symmetry decides, not the views'
-// fold: the knob's views are folded 2-fold by its pointer groove (db.views_symmetry), its flutes
-// still make it 10-fold.
-constexpr double kPhaseTurnShare = 0.4;
-
-std::vector<PoseTurn> phase_turns(const TemplateDatabase& db) {
-  const PartSymmetry& sym = db.symmetry;
+std::vector<PoseTurn> mesh_turns(const TemplateDatabase& db) {
+  const SurfaceGrid surface = part_surface(db);
+  const MeshTurns found = find_mesh_turns(db.mesh, turn_surface(db.mesh, db.diameter_mm));
   std::vector<PoseTurn> out;
-  if (sym.kind != PartSymmetry::Kind::discrete_z || sym.order < 3) return out;
-  for (const double sign : {1.0, -1.0}) {
+  for (const MeshTurn& m : found.alternatives) {
     PoseTurn& t = out.emplace_back();
-    t.S = rotation_about_z(sign * kPhaseTurnShare * 2 * CV_PI / sym.order);
+    t.S = m.R;
+    t.pivot_mm = m.pivot_mm;
+    if (m.kind == MeshTurn::Kind::near_symmetry) {
+      t.differs = asymmetric_points(db, surface, m.R.t(), nullptr, &m.pivot_mm);
+      if (cv::norm(m.R - m.R.t(), cv::NORM_INF) > 1e-9)
+        t.differs_turned = asymmetric_points(db, surface, m.R, nullptr, &m.pivot_mm);
+      t.screen = true;
+    }
   }
   return out;
 }

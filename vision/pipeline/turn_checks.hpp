@@ -15,28 +15,39 @@
 
 namespace mfcd::vision::detail {
 
-// The turns the fit checks its best poses against: by 180 degrees about the model axes through
-// the centre that are not symmetries of the part (turned_over), and for an N-fold symmetry about
-// z (N >= 3) by +-0.4 of the period about z (phase_turns).
+// The turns the fit checks its best poses against, found from the mesh (mesh_turns): turned over
+// about its principal axes, its near-symmetries, and phase turns of its N-fold axes (N >= 3).
 struct PoseTurn {
   cv::Matx33d S;
-  // The point of the model the turn is about: the part centre for the turns over, the origin
-  // (on the symmetry axis) for the phase turns about z.
+  // The point of the model the turn is about (on its axis).
   cv::Vec3d pivot_mm{0, 0, 0};
   // A near-symmetry (few points flagged): per view, per point, whether the point belongs to the
   // feature that breaks it (asymmetric_points); the check then compares only those. Empty for
-  // a turn that changes most of the part's edges (a plate turned face down).
-  std::vector<std::vector<uint8_t>> differs;
+  // a turn that changes most of the part's edges (a plate turned face down). `differs` is for
+  // the pose (points X whose S^-1 X is off the surface: the twin has no surface there) and
+  // `differs_turned` for the turned pose (points Y whose S Y is off it); empty when S is its own
+  // inverse (a half turn), where the two are the same.
+  std::vector<std::vector<uint8_t>> differs, differs_turned;
+  const std::vector<uint8_t>* flags_of_pose(int view) const {
+    return differs.empty() ? nullptr : &differs[static_cast<size_t>(view)];
+  }
+  const std::vector<uint8_t>* flags_of_turned(int view) const {
+    const auto& d = differs_turned.empty() ? differs : differs_turned;
+    return d.empty() ? nullptr : &d[static_cast<size_t>(view)];
+  }
   // Judged by the fitted rank instead of TemplatePoseFit::compare (plate_turns).
   bool by_rank = false;
+  // A near-symmetry lands its twin on the pose's own edges: the twin is first compared as it is,
+  // unfitted, and fitted only when that comparison favours it (a gear's N - 1 tooth turns cost N - 1
+  // comparisons, not N - 1 fits).
+  bool screen = false;
 };
 
-// By 180 degrees about each model axis through the part centre that is not a symmetry of the
-// part; a near-symmetry (at most kNearSymmetryShare of the edge points move off the surface)
-// carries the points of the feature that breaks it.
-std::vector<PoseTurn> turned_over(const TemplateDatabase& db);
-// For an N-fold symmetry about z (N >= 3): +-0.4 of the period about z.
-std::vector<PoseTurn> phase_turns(const TemplateDatabase& db);
+// The turns of the part found from its mesh alone (vision/model/mesh_turns.hpp): turned over by
+// 180 degrees about each principal axis that is not a symmetry, every turn of a near-symmetry
+// (carrying the points of the feature that breaks it, and screened), and +-0.4 of the period
+// about each axis of an N-fold symmetry or near-symmetry (N >= 3).
+std::vector<PoseTurn> mesh_turns(const TemplateDatabase& db);
 // For a 2-fold symmetry about z: +-kPlateTurnDeg about z, judged by the fitted rank.
 std::vector<PoseTurn> plate_turns(const TemplateDatabase& db);
 

@@ -487,8 +487,9 @@ TemplatePoseFit::Difference TemplatePoseFit::compare(const TemplateDatabase& db,
 SurfaceGrid part_surface(const TemplateDatabase& db) { return SurfaceGrid(db.mesh, 0.25, 0.5); }
 
 std::vector<std::vector<uint8_t>> asymmetric_points(const TemplateDatabase& db, const SurfaceGrid& surface,
-                                                    const cv::Matx33d& turn, double* share) {
-  const cv::Vec3d c = db.center_mm;
+                                                    const cv::Matx33d& turn, double* share,
+                                                    const cv::Vec3d* pivot_mm) {
+  const cv::Vec3d c = pivot_mm ? *pivot_mm : db.center_mm;
   std::vector<std::vector<uint8_t>> out;
   out.reserve(db.views.size());
   size_t flagged = 0, total = 0;

@@ -187,8 +187,10 @@ RigidPose apply_pose_update(const RigidPose& pose, const cv::Vec3d& centre_model
 // tell the pose from its turned twin; elsewhere the twin has edges of its own at the same place.
 // `share`, when given, receives the flagged fraction of all points (near 1 for a turn that is no
 // near-symmetry at all, e.g. a plate turned face down).
+// `pivot_mm`: the model point the turn is about (default: db.center_mm).
 std::vector<std::vector<uint8_t>> asymmetric_points(const TemplateDatabase& db, const SurfaceGrid& surface,
-                                                    const cv::Matx33d& turn, double* share = nullptr);
+                                                    const cv::Matx33d& turn, double* share = nullptr,
+                                                    const cv::Vec3d* pivot_mm = nullptr);
 // The part's surface for asymmetric_points, to half a millimetre: the template points come from
 // the depth buffer and every one of the six development parts' lies within that of the mesh, and
 // a feature that breaks a symmetry by less (2 px at the working distance) would not show anyway.
