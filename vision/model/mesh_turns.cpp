@@ -153,37 +153,24 @@ double share_on_surface(const std::vector<cv::Vec3d>& points, const SurfaceGrid&
   return double(on) / double(points.size());
 }
 
-MeshTurns find_mesh_turns(const Mesh& mesh, const SurfaceGrid& fine, const MeshTurnParams& params) {
-  params.validate();
-  if (mesh.vertices.empty() || mesh.triangles.empty()) throw std::invalid_argument("mesh turns: empty mesh");
-  MeshTurns out;
-  const std::vector<cv::Vec3d> points = sample_surface(mesh, params.surface_points);
+namespace {
+
+// Per order, the best distinct axes of the coarse scan, refined down to the fine grid; those that
+// still map at least params.near_share.
+std::vector<Candidate> scan_axes(const Mesh& mesh, const SurfaceGrid& fine, const MeshTurnParams& params,
+                                 const std::vector<cv::Vec3d>& points, const MeshTurns& frame) {
   const std::vector<cv::Vec3d> coarse_points = sample_surface(mesh, params.coarse_points);
-  if (points.empty()) throw std::invalid_argument("mesh turns: the mesh has no area");
-
-  // Centroid and principal axes of the surface samples.
-  cv::Vec3d c(0, 0, 0);
-  for (const cv::Vec3d& p : points) c += p;
-  c *= 1.0 / double(points.size());
-  cv::Matx33d cov = cv::Matx33d::zeros();
-  for (const cv::Vec3d& p : points) cov += (p - c) * (p - c).t();
-  cv::Mat values, vectors;
-  cv::eigen(cv::Mat(cov), values, vectors);  // descending; rows are eigenvectors
-  out.centroid_mm = c;
-  for (int r = 0; r < 3; ++r)
-    for (int k = 0; k < 3; ++k) out.principal_axes(r, k) = vectors.at<double>(r, k);
-
+  const cv::Vec3d c = frame.centroid_mm;
   // Grids of the part's size for the scan and the first refinement: a turn by a few degrees off
   // the true axis still maps the surface within their tolerance.
-  const cv::Vec3f lo = mesh.bbox_min(), hi = mesh.bbox_max();
-  const double size = cv::norm(vec(hi) - vec(lo));
+  const double size = cv::norm(vec(mesh.bbox_max()) - vec(mesh.bbox_min()));
   const SurfaceGrid coarse(mesh, size / 100, size / 40);
   const SurfaceGrid medium(mesh, size / 250, size / 100);
 
   std::vector<cv::Vec3d> axes = hemisphere(params.axis_samples);
-  for (int r = 0; r < 3; ++r) axes.emplace_back(out.principal_axes(r, 0), out.principal_axes(r, 1), out.principal_axes(r, 2));
+  for (int r = 0; r < 3; ++r)
+    axes.emplace_back(frame.principal_axes(r, 0), frame.principal_axes(r, 1), frame.principal_axes(r, 2));
 
-  // Per order, the best distinct coarse axes, refined down to the fine grid.
   std::vector<Candidate> found;
   std::vector<std::pair<double, size_t>> scored;
   for (int n = 2; n <= params.max_order; ++n) {
@@ -205,15 +192,21 @@ MeshTurns find_mesh_turns(const Mesh& mesh, const SurfaceGrid& fine, const MeshT
     for (const Candidate& k : kept)
       if (k.share >= params.near_share) found.push_back(k);
   }
+  return found;
+}
 
-  // Per distinct axis (within 10 degrees: a small turn about an axis a few degrees off still maps
-  // a part onto itself), the axis and pivot refined for its lowest order (the largest turn, which
-  // a tilted axis spoils most) and every order scored again about them.
-  struct Axis {
-    cv::Vec3d axis, pivot;
-    int lowest = 0;
-    std::vector<std::pair<int, double>> orders;  // (order, fine share)
-  };
+// One axis of the part and the orders of the turns about it that the scan found.
+struct Axis {
+  cv::Vec3d axis, pivot;
+  int lowest = 0;
+  std::vector<std::pair<int, double>> orders;  // (order, fine share; 0: no repetition)
+};
+
+// Per distinct axis (within 10 degrees: a small turn about an axis a few degrees off still maps
+// a part onto itself), the axis and pivot refined for its lowest order (the largest turn, which
+// a tilted axis spoils most) and every order scored again about them.
+std::vector<Axis> group_by_axis(const std::vector<Candidate>& found, const std::vector<cv::Vec3d>& points,
+                                const SurfaceGrid& fine, const MeshTurnParams& params) {
   std::vector<Axis> lines;
   for (const Candidate& f : found) {
     auto it = std::find_if(lines.begin(), lines.end(), [&](const Axis& a) { return axis_angle_deg(a.axis, f.axis) < 10; });
@@ -238,48 +231,51 @@ MeshTurns find_mesh_turns(const Mesh& mesh, const SurfaceGrid& fine, const MeshT
       if (share < valley + kPeakMargin) share = 0;
     }
   }
-  std::vector<cv::Matx33d> symmetric;  // every rotation found to be a symmetry
-  for (const Axis& line : lines) {
-    int exact = 1, near = 1;
-    double near_share = 0;
-    int exact_orders = 0;
-    for (const auto& [n, s] : line.orders) {
-      if (s >= params.symmetry_share) exact = std::max(exact, n), ++exact_orders;
-    }
-    // The near order that maps the most, the highest of those within a sampling error of it (a
-    // gear's tooth count: its divisors map as much, half a tooth less).
-    auto near_order = [&](int n, double s) {
-      return s >= params.near_share && s < params.symmetry_share && exact % n != 0 && n % exact == 0;
-    };
-    for (const auto& [n, s] : line.orders)
-      if (near_order(n, s)) near_share = std::max(near_share, s);
-    for (const auto& [n, s] : line.orders)
-      if (near_order(n, s) && s >= near_share - kShareError) near = std::max(near, n);
-    const bool continuous = exact_orders == params.max_order - 1;
-    if (exact > 1) {
-      out.symmetries.push_back(make_turn(MeshTurn::Kind::symmetry, line.axis, line.pivot, continuous ? 0 : exact,
-                                         continuous ? 0 : 2 * kPi / exact, 1));
-      if (!continuous)
-        for (int k = 1; k < exact; ++k) symmetric.push_back(axis_rotation(line.axis, 2 * kPi * k / exact));
-    }
-    if (near > 1) {
-      // Every turn by a multiple of the near period that is not a symmetry is its own twin.
-      for (int k = 1; k < near; ++k) {
-        if ((k * exact) % near == 0) continue;
-        out.alternatives.push_back(make_turn(MeshTurn::Kind::near_symmetry, line.axis, line.pivot, near,
-                                             2 * kPi * k / near, near_share));
-      }
-    }
-    // Phase turns by the period of the repeated features: the symmetry's, else the near one's.
-    const int period = exact >= 3 ? exact : near;
-    if (!continuous && period >= 3)
-      for (const double sign : {1.0, -1.0})
-        out.alternatives.push_back(make_turn(MeshTurn::Kind::phase, line.axis, line.pivot, period,
-                                             sign * params.phase_share * 2 * kPi / period, 0));
-  }
+  return lines;
+}
 
-  // Turns over: 180 degrees about each principal axis, unless that is a symmetry or already a
-  // near-symmetry, and one per class modulo the symmetries found.
+// The symmetry of one axis (into out.symmetries, its discrete turns into `symmetric`), its
+// near-symmetric turns and its phase turns (into out.alternatives).
+void classify_axis(const Axis& line, const MeshTurnParams& params, MeshTurns& out, std::vector<cv::Matx33d>& symmetric) {
+  int exact = 1, near = 1, exact_orders = 0;
+  double near_share = 0;
+  for (const auto& [n, s] : line.orders)
+    if (s >= params.symmetry_share) exact = std::max(exact, n), ++exact_orders;
+  // The near order that maps the most, the highest of those within a sampling error of it (a
+  // gear's tooth count: its divisors map as much, half a tooth less).
+  auto near_order = [&](int n, double s) {
+    return s >= params.near_share && s < params.symmetry_share && exact % n != 0 && n % exact == 0;
+  };
+  for (const auto& [n, s] : line.orders)
+    if (near_order(n, s)) near_share = std::max(near_share, s);
+  for (const auto& [n, s] : line.orders)
+    if (near_order(n, s) && s >= near_share - kShareError) near = std::max(near, n);
+  const bool continuous = exact_orders == params.max_order - 1;
+  if (exact > 1) {
+    out.symmetries.push_back(make_turn(MeshTurn::Kind::symmetry, line.axis, line.pivot, continuous ? 0 : exact,
+                                       continuous ? 0 : 2 * kPi / exact, 1));
+    if (!continuous)
+      for (int k = 1; k < exact; ++k) symmetric.push_back(axis_rotation(line.axis, 2 * kPi * k / exact));
+  }
+  // Every turn by a multiple of the near period that is not a symmetry is its own twin.
+  for (int k = 1; k < near; ++k)
+    if ((k * exact) % near != 0)
+      out.alternatives.push_back(make_turn(MeshTurn::Kind::near_symmetry, line.axis, line.pivot, near,
+                                           2 * kPi * k / near, near_share));
+  // Phase turns by the period of the repeated features: the symmetry's, else the near one's.
+  const int period = exact >= 3 ? exact : near;
+  if (!continuous && period >= 3)
+    for (const double sign : {1.0, -1.0})
+      out.alternatives.push_back(make_turn(MeshTurn::Kind::phase, line.axis, line.pivot, period,
+                                           sign * params.phase_share * 2 * kPi / period, 0));
+}
+
+// Turns over: 180 degrees about each principal axis, unless that is a symmetry or already a
+// near-symmetry, and one per class modulo the symmetries found.
+void add_turns_over(const std::vector<cv::Vec3d>& points, const SurfaceGrid& fine, const MeshTurnParams& params,
+                    std::vector<cv::Matx33d> symmetric, MeshTurns& out) {
+  for (const MeshTurn& s : out.symmetries)
+    if (s.order == 0) symmetric.clear();  // continuous: handled by the axis test below
   auto same_class = [&](const cv::Matx33d& a, const cv::Matx33d& b) {
     auto close = [](const cv::Matx33d& x, const cv::Matx33d& y) { return cv::norm(x - y, cv::NORM_INF) < 0.05; };
     if (close(a, b)) return true;
@@ -287,12 +283,11 @@ MeshTurns find_mesh_turns(const Mesh& mesh, const SurfaceGrid& fine, const MeshT
       if (close(a, b * S)) return true;
     return false;
   };
-  for (const MeshTurn& s : out.symmetries)
-    if (s.order == 0) symmetric.clear();  // continuous: handled by the axis test below
   for (int r = 0; r < 3; ++r) {
     const cv::Vec3d axis(out.principal_axes(r, 0), out.principal_axes(r, 1), out.principal_axes(r, 2));
     const cv::Matx33d R = axis_rotation(axis, kPi);
-    bool skip = false;
+    // A symmetry itself: in the class of no turn at all.
+    bool skip = same_class(R, cv::Matx33d::eye());
     for (const MeshTurn& s : out.symmetries) {
       // A half turn about a continuous or even-order symmetry axis is a symmetry; about any axis
       // perpendicular to a continuous one, all such turns are one class.
@@ -305,13 +300,38 @@ MeshTurns find_mesh_turns(const Mesh& mesh, const SurfaceGrid& fine, const MeshT
     }
     for (const MeshTurn& t : out.alternatives)
       if (t.kind != MeshTurn::Kind::phase && same_class(t.R, R)) skip = true;
-    for (const cv::Matx33d& S : symmetric)
-      if (cv::norm(S - R, cv::NORM_INF) < 0.05) skip = true;
     if (skip) continue;
-    const double share = share_on_surface(points, fine, R, c);
+    const double share = share_on_surface(points, fine, R, out.centroid_mm);
     if (share >= params.symmetry_share) continue;
-    out.alternatives.push_back(make_turn(MeshTurn::Kind::turn_over, axis, c, 2, kPi, share));
+    out.alternatives.push_back(make_turn(MeshTurn::Kind::turn_over, axis, out.centroid_mm, 2, kPi, share));
   }
+}
+
+}  // namespace
+
+MeshTurns find_mesh_turns(const Mesh& mesh, const SurfaceGrid& fine, const MeshTurnParams& params) {
+  params.validate();
+  if (mesh.vertices.empty() || mesh.triangles.empty()) throw std::invalid_argument("mesh turns: empty mesh");
+  MeshTurns out;
+  const std::vector<cv::Vec3d> points = sample_surface(mesh, params.surface_points);
+  if (points.empty()) throw std::invalid_argument("mesh turns: the mesh has no area");
+
+  // Centroid and principal axes of the surface samples.
+  cv::Vec3d c(0, 0, 0);
+  for (const cv::Vec3d& p : points) c += p;
+  c *= 1.0 / double(points.size());
+  cv::Matx33d cov = cv::Matx33d::zeros();
+  for (const cv::Vec3d& p : points) cov += (p - c) * (p - c).t();
+  cv::Mat values, vectors;
+  cv::eigen(cv::Mat(cov), values, vectors);  // descending; rows are eigenvectors
+  out.centroid_mm = c;
+  for (int r = 0; r < 3; ++r)
+    for (int k = 0; k < 3; ++k) out.principal_axes(r, k) = vectors.at<double>(r, k);
+
+  std::vector<cv::Matx33d> symmetric;  // every discrete rotation found to be a symmetry
+  for (const Axis& line : group_by_axis(scan_axes(mesh, fine, params, points, out), points, fine, params))
+    classify_axis(line, params, out, symmetric);
+  add_turns_over(points, fine, params, std::move(symmetric), out);
   return out;
 }
 

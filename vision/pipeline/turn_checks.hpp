@@ -1,7 +1,7 @@
 #pragma once
 // The pipeline's turn checks: the alternative poses its leading hypotheses are compared with
-// (turned over about the model axes, turned by part of an N-fold period, spun as a plate seen on
-// edge), made once per part type from its template database, and the rule that takes a turned
+// (the part's turns found from its mesh, a declared 2-fold plate turned or spun as seen on edge),
+// made once per part type from its template database, and the rule that takes a turned
 // pose over the hypothesis (turn_is_better). The constants below are the checks' thresholds;
 // docs/tuning-log.md and docs/pose.md say how each was measured.
 
