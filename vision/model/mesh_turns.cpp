@@ -181,7 +181,8 @@ std::vector<Candidate> scan_axes(const Mesh& mesh, const SurfaceGrid& fine, cons
     std::vector<Candidate> kept;
     for (const auto& [share, i] : scored) {
       if (share < params.near_share || static_cast<int>(kept.size()) >= params.refine_per_order) break;
-      if (std::any_of(kept.begin(), kept.end(), [&](const Candidate& k) { return axis_angle_deg(k.axis, axes[i]) < 10; }))
+      const cv::Vec3d& axis = axes[i];  // clang 14 cannot capture a structured binding
+      if (std::any_of(kept.begin(), kept.end(), [&](const Candidate& k) { return axis_angle_deg(k.axis, axis) < 10; }))
         continue;
       Candidate cand{axes[i], c, n, share};
       refine(cand, coarse_points, coarse, 3, size / 100);
