@@ -50,6 +50,8 @@ BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfi
                                std::to_string(m.dt3_params.q) + (m.dt3_params.oriented ? " oriented" : ""));
     m.parts.push_back(std::move(part));
   }
+  const int threads = m.config.threads > 0 ? m.config.threads : omp_get_max_threads();
+  find_turns(m.parts, threads);
   try {
     m.config.floor.validate();
   } catch (const std::invalid_argument& e) {
@@ -68,7 +70,6 @@ BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfi
   m.search_dt3.lambda /= m.config.search_downsample;
   m.search_dt3.maxCost /= m.config.search_downsample;
   m.search_dt3.polarityPenalty /= m.config.search_downsample;
-  const int threads = m.config.threads > 0 ? m.config.threads : omp_get_max_threads();
   m.thread_hits.resize(static_cast<size_t>(threads));
   m.thread_hypotheses.resize(static_cast<size_t>(threads));
   m.thread_views.resize(static_cast<size_t>(threads));

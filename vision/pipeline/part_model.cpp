@@ -1,5 +1,6 @@
 #include "vision/pipeline/part_model.hpp"
 
+#include "vision/common/parallel_for.hpp"
 #include "vision/common/segment.hpp"
 
 #include <algorithm>
@@ -46,9 +47,15 @@ PartModel load_part_model(const std::filesystem::path& file, const CameraConfig&
   }
   part.neighbours = view_neighbours(part.db, config.view_stride);
   part.searched.assign(part.db.views.size(), 0);
-  part.flips = mesh_turns(part.db);
-  for (PartModel::Turn& t : plate_turns(part.db)) part.flips.push_back(std::move(t));
   return part;
+}
+
+void find_turns(std::vector<PartModel>& parts, int threads) {
+  parallel_for(0, static_cast<int>(parts.size()), threads, 1, [&](int i) {
+    PartModel& part = parts[static_cast<size_t>(i)];
+    part.flips = mesh_turns(part.db);
+    for (PartModel::Turn& t : plate_turns(part.db)) part.flips.push_back(std::move(t));
+  });
 }
 
 // Angle between two viewing directions of a part, the smallest over the copies under `sym` (the
