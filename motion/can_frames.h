@@ -1,7 +1,7 @@
 // Classic CAN (8-byte) frames of the robot link, laid out as docs/mfcd.dbc describes:
 // little-endian (Intel) signals, 11-bit identifiers relative to a configurable base.
 //
-//   base+0x00 MFCD_Status     status word, job id echo, error code, objects remaining
+//   base+0x00 MFCD_Status     status bits, job id echo, error code, objects remaining
 //   base+0x01 MFCD_Heartbeat  heartbeat counter, cycle time, recipe echo, candidates
 //   base+0x10 MFCD_PickA      PickSeq, X, Y, candidate index
 //   base+0x11 MFCD_PickB      PickSeq, Z, Rx, Ry
@@ -33,8 +33,9 @@ inline constexpr double kCanMmPerBit = 0.01;   // X, Y, Z: signed 24 bit, ±8388
 inline constexpr double kCanDegPerBit = 0.01;  // Rx, Ry, Rz: signed 16 bit, ±327.67 deg
 inline constexpr double kCanScorePerBit = 0.0001;
 
-// Status word bits on CAN: the Modbus READY/ERROR/PICK_VALID/VISION_OK bits (register_map.h).
-// BUSY and DONE belong to the Modbus job handshake and are not sent.
+// Status word bits on CAN (bytes 0-1 of MFCD_Status): the Modbus READY/ERROR/PICK_VALID/VISION_OK
+// bits (register_map.h), one DBC signal each. BUSY and DONE belong to the Modbus job handshake and
+// are not sent; they and bits 6-15 are 0 (reserved signals in the DBC).
 std::uint16_t can_status_word(const RobotReport &report) noexcept;
 
 can_frame encode_status(const RobotReport &report, canid_t base) noexcept;

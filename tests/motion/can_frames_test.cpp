@@ -164,11 +164,18 @@ TEST_F(CanDbc, StatusAndHeartbeatMatchTheDbc)
 	for (int i = 0; i < 2000; ++i) {
 		const RobotReport r = random_report(rng);
 		const can_frame s = encode_status(r, kCanDefaultBase);
-		ASSERT_EQ(signal(s, "StatusWord"), can_status_word(r));
 		ASSERT_EQ(signal(s, "StatusReady"), (r.ready && r.error_code == 0) ? 1 : 0);
 		ASSERT_EQ(signal(s, "StatusError"), r.error_code != 0 ? 1 : 0);
 		ASSERT_EQ(signal(s, "StatusPickValid"), r.pick_valid ? 1 : 0);
 		ASSERT_EQ(signal(s, "StatusVisionOk"), r.vision_ok ? 1 : 0);
+		// The Modbus BUSY/DONE bits and bits 6..15 are reserved on CAN: always 0, so the four
+		// flags at their Modbus bit positions are the whole status word the publisher tracks.
+		ASSERT_EQ(signal(s, "StatusReserved1_2"), 0);
+		ASSERT_EQ(signal(s, "StatusReserved6_15"), 0);
+		const auto bit = [&](const char *name, unsigned mask) { return signal(s, name) != 0 ? mask : 0u; };
+		ASSERT_EQ(bit("StatusReady", reg::kReady) | bit("StatusError", reg::kError) |
+		              bit("StatusPickValid", reg::kPickValid) | bit("StatusVisionOk", reg::kVisionOk),
+		          can_status_word(r));
 		ASSERT_EQ(signal(s, "JobIdEcho"), r.job_id);
 		ASSERT_EQ(signal(s, "ErrorCode"), r.error_code);
 		ASSERT_EQ(signal(s, "ObjectsRemaining"), r.objects_remaining);
@@ -203,6 +210,7 @@ TEST_F(CanDbc, PickFramesMatchTheDbc)
 		ASSERT_NEAR(signal(c, "PickScore"), r.score, 0.00005 + 1e-6);
 		ASSERT_EQ(signal(c, "PickJobId"), r.job_id);
 		ASSERT_EQ(signal(c, "PickValid"), r.pick_valid ? 1 : 0);
+		ASSERT_EQ(signal(c, "PickReserved57_63"), 0);
 		ASSERT_EQ(signal(a, "CandidateIndex"), std::min<int>(r.candidate_index, 255));
 		// And the library's own decoder agrees with the DBC reading.
 		const auto p = decode_pick(*frames, kCanDefaultBase);
