@@ -3,6 +3,7 @@
 #include <algorithm>
 
 #include "daemon/daemon_impl.hpp"
+#include "daemon/journal_log.hpp"
 #include "daemon/log.hpp"
 #include "daemon/report.hpp"
 
@@ -146,19 +147,9 @@ void Daemon::onResult(const CycleResult& r) {
   const bool overrun = stats_.add(r, config_.cycle_budget_ms);
   lastResult_ = resultJson(r, config_);
   const unsigned long long id = r.request.cycle_id;
-  if (r.error != CycleError::None)
-    logf(LogLevel::Error, "cycle %llu (%s job %u recipe %u): error %u: %s", id, toString(r.request.origin), r.request.job_id,
-         r.request.recipe_id, static_cast<unsigned>(r.error), r.message);
-  else if (r.chosen >= 0) {
-    const auto& p = r.candidates[static_cast<std::size_t>(r.chosen)].base;
-    logf(LogLevel::Info, "cycle %llu (%s job %u recipe %u): pick obj %d at %.1f %.1f %.1f / %.1f %.1f %.1f score %.3f, %d found, %.0f ms%s",
-         id, toString(r.request.origin), r.request.job_id, r.request.recipe_id, r.candidates[static_cast<std::size_t>(r.chosen)].obj_id,
-         p.x_mm, p.y_mm, p.z_mm, p.rx_deg, p.ry_deg, p.rz_deg, r.candidates[static_cast<std::size_t>(r.chosen)].score,
-         r.candidate_count, r.total_ms, r.degraded ? " (degraded)" : "");
-  } else {
-    logf(LogLevel::Notice, "cycle %llu (%s job %u recipe %u): no pick, %d found, %.0f ms", id, toString(r.request.origin),
-         r.request.job_id, r.request.recipe_id, r.candidate_count, r.total_ms);
-  }
+  // The cycle line (journald: with MFCD_* fields). Main thread, after the vision worker handed the
+  // result over; never on the frame path.
+  logCycleResult(r);
   if (overrun)
     logf(LogLevel::Warning, "cycle %llu overran its budget: %.0f ms > %d ms (capture %.0f, vision %.0f; %s)", id, r.total_ms,
          config_.cycle_budget_ms, r.capture_ms, r.vision_ms, r.degraded ? "degraded result" : "full result");

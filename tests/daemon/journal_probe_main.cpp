@@ -1,0 +1,28 @@
+// mfcd_journal_probe CYCLE JOB: opens the log the way mfcd does (logOpen: journal sink when
+// $JOURNAL_STREAM names stderr) and logs the three sample cycle results of journal_samples.hpp
+// (cycles CYCLE, CYCLE+1, CYCLE+2, job JOB) with logCycleResult, as Daemon::onResult does. Prints
+// "probe job JOB: journal sink open|closed" on stdout. Run under a journald by
+// journal_roundtrip.sh for the JournalRoundTrip test. Exit 0, or 2 on bad arguments.
+#include <cstdio>
+#include <cstdlib>
+
+#include "daemon/journal_log.hpp"
+#include "journal_samples.hpp"
+
+int main(int argc, char** argv) {
+  if (argc != 3) {
+    std::fprintf(stderr, "usage: mfcd_journal_probe CYCLE JOB\n");
+    return 2;
+  }
+  using namespace mfcd::daemon;
+  const auto cycle = std::strtoull(argv[1], nullptr, 10);
+  const auto job = static_cast<std::uint16_t>(std::strtoul(argv[2], nullptr, 10));
+  // As `mfcd -f`: stderr on. Under journald the cycle lines must still not appear there.
+  logOpen("mfcd", true, LogLevel::Info);
+  std::printf("probe job %u: journal sink %s\n", static_cast<unsigned>(job), logToJournal() ? "open" : "closed");
+  std::fflush(stdout);
+  logCycleResult(test::errorResult(cycle, job));
+  logCycleResult(test::pickResult(cycle + 1, job));
+  logCycleResult(test::noPickResult(cycle + 2, job));
+  return 0;
+}
