@@ -3,9 +3,12 @@
 // dataset with multi-flash images; writes the BOP results CSV
 //   scene_id,im_id,obj_id,score,R,t,time
 // with R row-major (9 values) and t in mm (3 values), space-separated, and time the wall time of
-// the image in seconds (the same for every estimate of the image, as BOP asks).
+// the image's detection in seconds (the same for every estimate of the image, as BOP asks);
+// vision/dataset/bop_results.hpp formats it. Named METHOD_DATASET-SPLIT.csv, the BOP toolkit
+// scores it (docs/datasets.md, "Scoring with the BOP toolkit").
 #include "tools/common/cli_numbers.hpp"
 #include "vision/dataset/bop_dataset.hpp"
+#include "vision/dataset/bop_results.hpp"
 #include "vision/pipeline/bin_picking_pipeline.hpp"
 
 #include <chrono>
@@ -29,7 +32,8 @@ void usage(std::FILE* to) {
                "  --camera FILE        camera YAML (docs/camera.md) whose flash positions are used where the\n"
                "                       dataset's scene_camera.json gives none (a standard BOP dataset)\n"
                "  --templates F...     template databases (mfc-teach); each carries its part's obj_id\n"
-               "  --out FILE           BOP results CSV to write\n"
+               "  --out FILE           BOP results CSV to write; for the BOP toolkit name it METHOD_DATASET-SPLIT.csv\n"
+               "                       (e.g. mfcdetect_mfcsim-test.csv: no '_' in METHOD, no '-' or '_' in DATASET)\n"
                "  --views N            views used by the refinement (default 1; more need camera poses)\n"
                "  --max-per-image N    estimates kept per image (default 10)\n"
                "  --max-cost PX        search threshold, mean directional chamfer px (default 10)\n"
@@ -112,10 +116,17 @@ int main(int argc, char** argv) {
     pc.floor.distance_mm = floor_mm;
     pc.search_rounds = search_rounds;
 
+    // The toolkit takes the dataset and split from the name; other names are fine for mfcd's own tools.
+    if (const auto name = parse_bop_results_name(out.string()); !name)
+      std::fprintf(stderr, "mfc-detect: note: %s is not named METHOD_DATASET-SPLIT.csv; rename it before scoring it "
+                   "with the BOP toolkit\n", out.filename().c_str());
+    else if (name->split != split.substr(0, split.find('_')))
+      std::fprintf(stderr, "mfc-detect: note: %s names split '%s' but the estimates are of split '%s'\n",
+                   out.filename().c_str(), name->split.c_str(), split.c_str());
     const fs::path tmp = out.string() + ".tmp";
     std::ofstream csv(tmp);
     if (!csv) throw std::runtime_error(tmp.string() + ": cannot create");
-    csv << "scene_id,im_id,obj_id,score,R,t,time\n";
+    csv << kBopResultsHeader << '\n';
     size_t images = 0, estimates = 0;
     double total_s = 0;
     PipelineResult result;
@@ -136,13 +147,8 @@ int main(int argc, char** argv) {
         total_s += seconds;
         ++images;
         for (const auto& c : result.candidates) {
-          char row[512];
-          const auto& R = c.R_m2c;
-          std::snprintf(row, sizeof row,
-                        "%d,%d,%d,%.6f,%.9f %.9f %.9f %.9f %.9f %.9f %.9f %.9f %.9f,%.4f %.4f %.4f,%.4f\n", scene, im,
-                        c.obj_id, c.score, R(0, 0), R(0, 1), R(0, 2), R(1, 0), R(1, 1), R(1, 2), R(2, 0), R(2, 1),
-                        R(2, 2), c.t_m2c_mm[0], c.t_m2c_mm[1], c.t_m2c_mm[2], seconds);
-          csv << row;
+          csv << bop_results_row({.scene_id = scene, .im_id = im, .obj_id = c.obj_id, .score = c.score,
+                                  .R = c.R_m2c, .t_mm = c.t_m2c_mm, .time_s = seconds});
           ++estimates;
         }
         if (!quiet)

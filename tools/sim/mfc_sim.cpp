@@ -1,5 +1,6 @@
 // mfc-sim: drops parts into a simulated bin under the multi-flash camera, renders the
-// flash images, applies the paper's corruptions and writes a BOP-format dataset.
+// flash images, applies the paper's corruptions and writes a BOP-format dataset (models and
+// models_eval with vertex normals, the scenes, the split's BOP19 test targets).
 // docs/datasets.md documents the output; `mfc-sim --help` the options.
 #include "vision/dataset/bin_scene.hpp"
 #include "vision/dataset/bop_dataset.hpp"
@@ -29,7 +30,8 @@ const char* kUsage = R"(usage: mfc-sim --camera FILE --parts DIR|FILE[,FILE...] 
   --parts-per-image N      parts dropped per image (default 6)
   --seed N                 base seed (default 1); everything is deterministic in it
   --obj-ids A,B,...        BOP object ids of the parts, in part order (default 1, 2, ...)
-  --split NAME             split folder (default test)
+  --split NAME             split folder (default test); its BOP19 test targets go to
+                           NAME_targets_bop19.json, less a _TYPE suffix (test_x: test_targets_bop19.json)
   --bin X,Y,H              inner bin size and wall height in mm (default 150,110,60)
   --max-occlusion F        reject drops leaving any part more occluded than F (default 1 = off)
   --resting-weight W       how a drop picks the face a part rests on: area (by support area,
@@ -200,6 +202,8 @@ int main(int argc, char** argv) {
       }
       writer.write_scene(s + 1, camera, ims);
     }
+    // Targets of every scene folder of the split, also those an earlier run left there.
+    const auto targets = writer.write_test_targets();
     const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     std::fprintf(stderr, "\n");
     std::printf("wrote %s: %zu models, %d scenes x %d images in %s/ (%.2f s per image)\n", out_dir.c_str(),
@@ -208,6 +212,11 @@ int main(int argc, char** argv) {
                 "depth edges removed (measured) mean %.1f %%, added by the removal mean %.1f %%\n",
                 placed, requested, placed ? 100 * occl_sum / placed : 0.0, 100 * occl_max,
                 100 * removed_sum / total, 100 * added_sum / total);
+    int target_instances = 0;
+    for (const auto& t : targets) target_instances += t.inst_count;
+    std::printf("%zu BOP19 test targets (%d instances at least %.0f %% visible) in %s\n", targets.size(),
+                target_instances, 100 * kBopTargetMinVisibFract,
+                (fs::path(out_dir) / bop_test_targets_filename(split_name)).c_str());
   } catch (const std::exception& e) {
     std::cerr << "\nmfc-sim: " << e.what() << '\n';
     return 1;

@@ -111,6 +111,71 @@ cv::Mat read_png(const fs::path& file, int type, const cv::Size& size, const std
   return m;
 }
 
+// The scene ids of a split: its folders named by 6 digits, ascending.
+std::vector<int> scene_ids_in(const fs::path& split_dir) {
+  std::vector<int> ids;
+  for (const auto& e : fs::directory_iterator(split_dir)) {
+    const std::string n = e.path().filename().string();
+    if (e.is_directory() && n.size() == 6 && std::all_of(n.begin(), n.end(), [](char c) { return c >= '0' && c <= '9'; }))
+      ids.push_back(std::stoi(n));
+  }
+  std::sort(ids.begin(), ids.end());
+  return ids;
+}
+
+// A per-image key of a scene file ("0", "17") as an image id.
+int image_id_of(const std::string& key, const fs::path& file) {
+  int id = 0;
+  const auto [end, ec] = std::from_chars(key.data(), key.data() + key.size(), id);
+  if (key.empty() || key[0] == '-' || ec != std::errc() || end != key.data() + key.size())
+    fail(file, "key '" + key + "' is not an image id");
+  return id;
+}
+
+// One image's list of scene_gt.json; `w` is the image key, for messages.
+std::vector<BopGtPose> gt_poses(const Reader& r, const json& list, const std::string& w) {
+  if (!list.is_array()) fail(r.file, "'" + w + "' is not an array");
+  std::vector<BopGtPose> out;
+  for (size_t g = 0; g < list.size(); ++g) {
+    const std::string wg = w + "[" + std::to_string(g) + "]";
+    BopGtPose p;
+    p.obj_id = r.integer(r.key(list[g], "obj_id", wg), wg + ".obj_id");
+    p.R = to_matx(r.numbers(r.key(list[g], "cam_R_m2c", wg), 9, wg + ".cam_R_m2c"));
+    p.t_mm = to_vec(r.numbers(r.key(list[g], "cam_t_m2c", wg), 3, wg + ".cam_t_m2c"));
+    out.push_back(p);
+  }
+  return out;
+}
+
+// One image's list of scene_gt_info.json.
+std::vector<BopGtInfo> gt_infos(const Reader& r, const json& list, const std::string& w) {
+  if (!list.is_array()) fail(r.file, "'" + w + "' is not an array");
+  std::vector<BopGtInfo> out;
+  for (size_t g = 0; g < list.size(); ++g) {
+    const std::string wg = w + "[" + std::to_string(g) + "]";
+    auto box = [&](const char* k) {
+      const std::string what = wg + "." + k;
+      const auto v = r.numbers(r.key(list[g], k, wg), 4, what);
+      return cv::Rect(r.pixels(v[0], what), r.pixels(v[1], what), r.pixels(v[2], what), r.pixels(v[3], what));
+    };
+    BopGtInfo i;
+    i.bbox_obj = box("bbox_obj");
+    i.bbox_visib = box("bbox_visib");
+    i.px_count_all = r.integer(r.key(list[g], "px_count_all", wg), wg + ".px_count_all");
+    i.px_count_valid = r.integer(r.key(list[g], "px_count_valid", wg), wg + ".px_count_valid");
+    i.px_count_visib = r.integer(r.key(list[g], "px_count_visib", wg), wg + ".px_count_visib");
+    i.visib_fract = r.number(r.key(list[g], "visib_fract", wg), wg + ".visib_fract");
+    out.push_back(i);
+  }
+  return out;
+}
+
+void copy_into(const fs::path& from, const fs::path& to) {
+  std::error_code ec;
+  fs::copy_file(from, to, fs::copy_options::overwrite_existing, ec);
+  if (ec) fail(to, "cannot copy " + from.string() + " here: " + ec.message());
+}
+
 }  // namespace
 
 // ---------------------------------------------------------------------------------------
@@ -140,13 +205,41 @@ BopModelInfo compute_model_info(const PartModel& model) {
   return info;
 }
 
+std::vector<cv::Vec3f> vertex_normals(const Mesh& mesh) {
+  std::vector<cv::Vec3d> sum(mesh.vertices.size(), cv::Vec3d(0, 0, 0));
+  for (const auto& t : mesh.triangles) {
+    for (uint32_t i : t)
+      if (i >= mesh.vertices.size())
+        throw std::invalid_argument("vertex_normals: triangle index " + std::to_string(i) + " is not one of the " +
+                                    std::to_string(mesh.vertices.size()) + " vertices");
+    const cv::Vec3d a(mesh.vertices[t[0]]), b(mesh.vertices[t[1]]), c(mesh.vertices[t[2]]);
+    const cv::Vec3d n = (b - a).cross(c - a);  // |n| = twice the area: the weight; outward for CCW triangles
+    for (uint32_t i : t) sum[i] += n;
+  }
+  std::vector<cv::Vec3f> out;
+  out.reserve(sum.size());
+  for (const auto& n : sum) {
+    const double len = cv::norm(n);
+    out.push_back(len > 0 ? cv::Vec3f(n / len) : cv::Vec3f(0, 0, 0));
+  }
+  return out;
+}
+
 void write_ply(const Mesh& mesh, const fs::path& file) {
+  const std::vector<cv::Vec3f> normals = vertex_normals(mesh);
   std::ofstream out(file);
+  if (!out) fail(file, "cannot create");
   out << "ply\nformat ascii 1.0\ncomment mfcd part model, millimetres, frame of the source mesh\n"
+      << "comment vertex normals: area-weighted mean of the normals of the triangles using the vertex\n"
       << "element vertex " << mesh.vertices.size() << "\nproperty float x\nproperty float y\nproperty float z\n"
+      << "property float nx\nproperty float ny\nproperty float nz\n"
       << "element face " << mesh.triangles.size() << "\nproperty list uchar int vertex_indices\nend_header\n";
   out.precision(9);
-  for (const auto& v : mesh.vertices) out << v[0] << ' ' << v[1] << ' ' << v[2] << '\n';
+  for (size_t i = 0; i < mesh.vertices.size(); ++i) {
+    const cv::Vec3f& v = mesh.vertices[i];
+    const cv::Vec3f& n = normals[i];
+    out << v[0] << ' ' << v[1] << ' ' << v[2] << ' ' << n[0] << ' ' << n[1] << ' ' << n[2] << '\n';
+  }
   for (const auto& t : mesh.triangles) out << "3 " << t[0] << ' ' << t[1] << ' ' << t[2] << '\n';
   if (!out) fail(file, "cannot write");
 }
@@ -154,17 +247,36 @@ void write_ply(const Mesh& mesh, const fs::path& file) {
 // ---------------------------------------------------------------------------------------
 // Writer
 
+std::string bop_test_targets_filename(const std::string& split) {
+  return split.substr(0, split.find('_')) + "_targets_bop19.json";
+}
+
 BopWriter::BopWriter(fs::path root, std::string split) : root_(std::move(root)), split_(std::move(split)) {
+  if (split_.empty() || split_ == "." || split_ == ".." || split_.find('/') != std::string::npos)
+    throw std::invalid_argument("split '" + split_ + "' is not a folder name (BOP's: test, val, train, test_TYPE)");
   fs::create_directories(root_ / split_);
 }
 
 fs::path BopWriter::scene_dir(int scene_id) const { return root_ / split_ / id6(scene_id); }
 
 void BopWriter::write_models(const std::vector<PartModel>& models) {
-  fs::create_directories(root_ / "models");
+  std::set<int> ids;
+  for (const auto& m : models) {
+    if (m.obj_id < 0)
+      throw std::invalid_argument("model '" + m.name + "': object id " + std::to_string(m.obj_id) + " is negative");
+    if (!ids.insert(m.obj_id).second)
+      throw std::invalid_argument("model '" + m.name + "': object id " + std::to_string(m.obj_id) + " is used twice");
+  }
+  // BOP's evaluation reads models_eval/ (for its own datasets a uniformly resampled mesh); here
+  // it holds the very files of models/, so scores are computed on the meshes that were rendered.
+  const fs::path dir = root_ / "models", eval_dir = root_ / "models_eval";
+  fs::create_directories(dir);
+  fs::create_directories(eval_dir);
   json info = json::object();
   for (const auto& m : models) {
-    write_ply(m.mesh, root_ / "models" / ("obj_" + id6(m.obj_id) + ".ply"));
+    const std::string name = "obj_" + id6(m.obj_id) + ".ply";
+    write_ply(m.mesh, dir / name);
+    copy_into(dir / name, eval_dir / name);
     const BopModelInfo mi = compute_model_info(m);
     json j = {{"diameter", mi.diameter}, {"min_x", mi.min[0]}, {"min_y", mi.min[1]}, {"min_z", mi.min[2]},
               {"size_x", mi.size[0]},    {"size_y", mi.size[1]}, {"size_z", mi.size[2]}};
@@ -180,7 +292,8 @@ void BopWriter::write_models(const std::vector<PartModel>& models) {
     }
     info[std::to_string(m.obj_id)] = j;
   }
-  write_json(info, root_ / "models" / "models_info.json");
+  write_json(info, dir / "models_info.json");
+  copy_into(dir / "models_info.json", eval_dir / "models_info.json");
 }
 
 void BopWriter::write_camera(const CameraConfig& c) {
@@ -192,7 +305,7 @@ void BopWriter::write_camera(const CameraConfig& c) {
 
 void BopWriter::write_scene(int scene_id, const CameraConfig& camera, const std::vector<SimulatedImage>& images) {
   const fs::path dir = scene_dir(scene_id);
-  for (const char* sub : {"flash", "ambient", "depth", "mask", "mask_visib"}) fs::create_directories(dir / sub);
+  for (const char* sub : {"flash", "ambient", "gray", "depth", "mask", "mask_visib"}) fs::create_directories(dir / sub);
   json cams = json::object(), gts = json::object(), infos = json::object(), corr = json::object();
   json flashes = json::array();
   for (const auto& p : camera.flashes.positions_mm) flashes.push_back(vec(p));
@@ -232,6 +345,8 @@ void BopWriter::write_scene(int scene_id, const CameraConfig& camera, const std:
     for (size_t k = 0; k < im.frames.flash.size(); ++k)
       write_png(im.frames.flash[k], dir / "flash" / (iid + "_" + std::to_string(k) + ".png"));
     write_png(im.frames.ambient, dir / "ambient" / (iid + ".png"));
+    // gray/ is BOP's folder of grey images (ITODD's): the toolkit's scripts find the image there.
+    copy_into(dir / "ambient" / (iid + ".png"), dir / "gray" / (iid + ".png"));
     cv::Mat1w depth(im.depth_mm.size());
     for (int y = 0; y < depth.rows; ++y)
       for (int x = 0; x < depth.cols; ++x)
@@ -242,6 +357,46 @@ void BopWriter::write_scene(int scene_id, const CameraConfig& camera, const std:
   write_json(gts, dir / "scene_gt.json");
   write_json(infos, dir / "scene_gt_info.json");
   write_json(corr, dir / "scene_mfc_corruption.json");
+}
+
+std::vector<BopTestTarget> BopWriter::write_test_targets() const {
+  const std::vector<BopTestTarget> targets = bop_test_targets(root_, split_);
+  json list = json::array();
+  for (const auto& t : targets)
+    list.push_back({{"scene_id", t.scene_id}, {"im_id", t.im_id}, {"obj_id", t.obj_id}, {"inst_count", t.inst_count}});
+  write_json(list, root_ / bop_test_targets_filename(split_));
+  return targets;
+}
+
+std::vector<BopTestTarget> bop_test_targets(const fs::path& root, const std::string& split) {
+  const fs::path split_dir = root / split;
+  if (!fs::is_directory(split_dir)) fail(split_dir, "missing split directory");
+  std::vector<BopTestTarget> targets;
+  for (int scene : scene_ids_in(split_dir)) {
+    const fs::path gt_file = split_dir / id6(scene) / "scene_gt.json";
+    const fs::path info_file = split_dir / id6(scene) / "scene_gt_info.json";
+    const json gt = read_json(gt_file), info = read_json(info_file);
+    const Reader rg{gt_file}, ri{info_file};
+    if (!gt.is_object()) fail(gt_file, "top level is not a JSON object");
+    std::map<int, std::string> keys;  // image id -> key, ascending
+    for (const auto& [key, v] : gt.items()) keys[image_id_of(key, gt_file)] = key;
+    for (const auto& [im, key] : keys) {
+      const std::vector<BopGtPose> poses = gt_poses(rg, gt[key], key);
+      const std::vector<BopGtInfo> infos = gt_infos(ri, ri.key(info, key, "scene"), key);
+      if (infos.size() != poses.size())
+        fail(info_file, "'" + key + "' lists " + std::to_string(infos.size()) + " instances, " + gt_file.string() +
+                            " lists " + std::to_string(poses.size()));
+      const size_t first = targets.size();
+      for (size_t g = 0; g < poses.size(); ++g) {
+        if (!(infos[g].visib_fract >= kBopTargetMinVisibFract)) continue;
+        auto it = std::find_if(targets.begin() + static_cast<long>(first), targets.end(),
+                               [&](const BopTestTarget& t) { return t.obj_id == poses[g].obj_id; });
+        if (it == targets.end()) targets.push_back({scene, im, poses[g].obj_id, 1});
+        else ++it->inst_count;
+      }
+    }
+  }
+  return targets;
 }
 
 // ---------------------------------------------------------------------------------------
@@ -325,29 +480,14 @@ fs::path BopDataset::model_path(int obj_id) const {
   return p;
 }
 
-std::vector<int> BopDataset::scenes() const {
-  std::vector<int> ids;
-  for (const auto& e : fs::directory_iterator(split_dir_)) {
-    const std::string n = e.path().filename().string();
-    if (e.is_directory() && n.size() == 6 && std::all_of(n.begin(), n.end(), [](char c) { return c >= '0' && c <= '9'; }))
-      ids.push_back(std::stoi(n));
-  }
-  std::sort(ids.begin(), ids.end());
-  return ids;
-}
+std::vector<int> BopDataset::scenes() const { return scene_ids_in(split_dir_); }
 
 std::vector<int> BopDataset::images(int scene_id) const {
   const fs::path file = scene_dir(scene_id) / "scene_camera.json";
   const json j = read_json(file);
   if (!j.is_object()) fail(file, "top level is not a JSON object");
   std::vector<int> ids;
-  for (const auto& [key, v] : j.items()) {
-    int id = 0;
-    const auto [end, ec] = std::from_chars(key.data(), key.data() + key.size(), id);
-    if (key.empty() || key[0] == '-' || ec != std::errc() || end != key.data() + key.size())
-      fail(file, "key '" + key + "' is not an image id");
-    ids.push_back(id);
-  }
+  for (const auto& [key, v] : j.items()) ids.push_back(image_id_of(key, file));
   std::sort(ids.begin(), ids.end());
   return ids;
 }
@@ -399,46 +539,14 @@ std::vector<BopGtPose> BopDataset::ground_truth(int scene_id, int image_id) cons
   const fs::path file = scene_dir(scene_id) / "scene_gt.json";
   const json j = read_json(file);
   const Reader r{file};
-  const std::string w = std::to_string(image_id);
-  const json& list = r.image_entry(j, image_id);
-  if (!list.is_array()) fail(file, "'" + w + "' is not an array");
-  std::vector<BopGtPose> out;
-  for (size_t g = 0; g < list.size(); ++g) {
-    const std::string wg = w + "[" + std::to_string(g) + "]";
-    BopGtPose p;
-    p.obj_id = r.integer(r.key(list[g], "obj_id", wg), wg + ".obj_id");
-    p.R = to_matx(r.numbers(r.key(list[g], "cam_R_m2c", wg), 9, wg + ".cam_R_m2c"));
-    p.t_mm = to_vec(r.numbers(r.key(list[g], "cam_t_m2c", wg), 3, wg + ".cam_t_m2c"));
-    out.push_back(p);
-  }
-  return out;
+  return gt_poses(r, r.image_entry(j, image_id), std::to_string(image_id));
 }
 
 std::vector<BopGtInfo> BopDataset::ground_truth_info(int scene_id, int image_id) const {
   const fs::path file = scene_dir(scene_id) / "scene_gt_info.json";
   const json j = read_json(file);
   const Reader r{file};
-  const std::string w = std::to_string(image_id);
-  const json& list = r.image_entry(j, image_id);
-  if (!list.is_array()) fail(file, "'" + w + "' is not an array");
-  std::vector<BopGtInfo> out;
-  for (size_t g = 0; g < list.size(); ++g) {
-    const std::string wg = w + "[" + std::to_string(g) + "]";
-    auto box = [&](const char* k) {
-      const std::string what = wg + "." + k;
-      const auto v = r.numbers(r.key(list[g], k, wg), 4, what);
-      return cv::Rect(r.pixels(v[0], what), r.pixels(v[1], what), r.pixels(v[2], what), r.pixels(v[3], what));
-    };
-    BopGtInfo i;
-    i.bbox_obj = box("bbox_obj");
-    i.bbox_visib = box("bbox_visib");
-    i.px_count_all = r.integer(r.key(list[g], "px_count_all", wg), wg + ".px_count_all");
-    i.px_count_valid = r.integer(r.key(list[g], "px_count_valid", wg), wg + ".px_count_valid");
-    i.px_count_visib = r.integer(r.key(list[g], "px_count_visib", wg), wg + ".px_count_visib");
-    i.visib_fract = r.number(r.key(list[g], "visib_fract", wg), wg + ".visib_fract");
-    out.push_back(i);
-  }
-  return out;
+  return gt_infos(r, r.image_entry(j, image_id), std::to_string(image_id));
 }
 
 MfcFrames BopDataset::frames(int scene_id, int image_id) const {

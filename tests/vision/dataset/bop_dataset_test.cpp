@@ -1,6 +1,8 @@
 // BOP writer and reader without rendering: a tiny hand-made dataset written, read back
-// unchanged, and every kind of damage refused with the file and the reason.
+// unchanged, and every kind of damage refused with the file and the reason; the files the BOP
+// toolkit looks for beside them (PLY normals, models_eval/, test_targets_bop19.json, gray/).
 #include "vision/dataset/bop_dataset.hpp"
+#include "vision/model/ply_reader.hpp"
 
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
@@ -11,13 +13,22 @@
 
 #include <cmath>
 #include <filesystem>
+#include <algorithm>
 #include <functional>
 #include <fstream>
 #include <iterator>
 #include <random>
+#include <sstream>
 
 using namespace mfcd::vision;
 namespace fs = std::filesystem;
+
+namespace mfcd::vision {
+// For gtest's messages.
+void PrintTo(const BopTestTarget& t, std::ostream* os) {
+  *os << "{scene " << t.scene_id << ", im " << t.im_id << ", obj " << t.obj_id << ", count " << t.inst_count << "}";
+}
+}  // namespace mfcd::vision
 
 namespace {
 
@@ -103,6 +114,7 @@ class BopTiny : public testing::Test {
       w.write_scene(s, cam, ims);
       written.push_back(ims);
     }
+    targets = w.write_test_targets();
   }
   void TearDown() override { fs::remove_all(root); }
 
@@ -136,7 +148,91 @@ class BopTiny : public testing::Test {
   CameraConfig cam = tiny_camera();
   fs::path root;
   std::vector<std::vector<SimulatedImage>> written;
+  std::vector<BopTestTarget> targets;  // what write_test_targets returned
 };
+
+std::string file_bytes(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+// An ASCII PLY's vertex rows read the way the BOP toolkit's inout.load_ply reads them: the vertex
+// element's property names from the header, then one line of numbers per vertex.
+struct PlyVertexRows {
+  std::vector<std::string> names, types;  // of the vertex element's properties
+  std::vector<std::vector<double>> rows;
+  int column(const std::string& name) const {
+    const auto it = std::find(names.begin(), names.end(), name);
+    return it == names.end() ? -1 : static_cast<int>(it - names.begin());
+  }
+};
+
+PlyVertexRows read_ply_vertex_rows(const fs::path& file) {
+  std::ifstream in(file);
+  PlyVertexRows out;
+  std::string line;
+  size_t count = 0;
+  bool in_vertex = false, ended = false;
+  while (std::getline(in, line)) {
+    std::istringstream w(line);
+    std::string key;
+    w >> key;
+    if (key == "end_header") {
+      ended = true;
+      break;
+    }
+    if (key == "element") {
+      std::string name;
+      w >> name;
+      in_vertex = name == "vertex";
+      if (in_vertex) w >> count;
+    } else if (key == "property" && in_vertex) {
+      std::string type, name;
+      w >> type >> name;
+      out.types.push_back(type);
+      out.names.push_back(name);
+    }
+  }
+  EXPECT_TRUE(ended) << file << ": no end_header";
+  for (size_t i = 0; i < count && std::getline(in, line); ++i) {
+    std::istringstream w(line);
+    std::vector<double> row;
+    for (double v; w >> v;) row.push_back(v);
+    EXPECT_EQ(row.size(), out.names.size()) << file << " vertex " << i << ": " << line;
+    out.rows.push_back(row);
+  }
+  EXPECT_EQ(out.rows.size(), count) << file;
+  return out;
+}
+
+// BOP19 targets counted straight from the JSON files, as scripts/enumerate_test_targets.py
+// counts them (visib_fract >= 0.1; per image, object ids in the order of first appearance).
+std::vector<BopTestTarget> targets_from_files(const fs::path& split_dir) {
+  std::vector<BopTestTarget> out;
+  std::vector<fs::path> scenes;
+  for (const auto& e : fs::directory_iterator(split_dir)) scenes.push_back(e.path());
+  std::sort(scenes.begin(), scenes.end());
+  for (const auto& dir : scenes) {
+    const auto gt = nlohmann::json::parse(std::ifstream(dir / "scene_gt.json"));
+    const auto info = nlohmann::json::parse(std::ifstream(dir / "scene_gt_info.json"));
+    std::vector<int> ims;
+    for (const auto& [key, v] : gt.items()) ims.push_back(std::stoi(key));
+    std::sort(ims.begin(), ims.end());
+    for (int im : ims) {
+      std::vector<std::pair<int, int>> counts;  // obj_id, visible instances
+      const auto& list = gt[std::to_string(im)];
+      for (size_t g = 0; g < list.size(); ++g) {
+        if (info[std::to_string(im)][g]["visib_fract"].get<double>() < 0.1) continue;
+        const int obj = list[g]["obj_id"].get<int>();
+        auto it = std::find_if(counts.begin(), counts.end(), [&](const auto& c) { return c.first == obj; });
+        if (it == counts.end()) counts.push_back({obj, 1});
+        else ++it->second;
+      }
+      for (const auto& [obj, n] : counts) out.push_back({std::stoi(dir.filename().string()), im, obj, n});
+    }
+  }
+  return out;
+}
 
 }  // namespace
 
@@ -330,4 +426,162 @@ TEST_F(BopTiny, ReadsAStandardBopLayoutWithFlashesFromACameraFile) {
   // A malformed camera.json is refused when the dataset is opened.
   std::ofstream(root / "camera.json") << R"({"width": "wide", "height": 24})";
   expect_refused([&] { BopDataset again(root); }, root / "camera.json", "'width' is not an integer");
+}
+
+// Every vertex of the written PLY models carries a float normal nx ny nz of unit length that
+// points out of the (closed, convex) mesh, and the project's own PLY reader still reads the files
+// as the meshes that were written.
+TEST_F(BopTiny, PlyModelsCarryUnitOutwardNormals) {
+  const std::vector<PartModel> models = tiny_models();
+  for (const PartModel& m : models) {
+    const fs::path file = root / "models" / ("obj_00000" + std::to_string(m.obj_id) + ".ply");
+    const PlyVertexRows ply = read_ply_vertex_rows(file);
+    ASSERT_EQ(ply.names, (std::vector<std::string>{"x", "y", "z", "nx", "ny", "nz"})) << file;
+    EXPECT_EQ(ply.types, (std::vector<std::string>(6, "float"))) << file;
+    ASSERT_EQ(ply.rows.size(), m.mesh.vertices.size());
+    cv::Vec3d centroid(0, 0, 0);
+    for (const auto& r : ply.rows) centroid += cv::Vec3d(r[0], r[1], r[2]) / static_cast<double>(ply.rows.size());
+    for (size_t i = 0; i < ply.rows.size(); ++i) {
+      const auto& r = ply.rows[i];
+      const cv::Vec3d v(r[0], r[1], r[2]), n(r[3], r[4], r[5]);
+      EXPECT_NEAR(cv::norm(n), 1.0, 1e-6) << file << " vertex " << i;
+      EXPECT_GT(n.dot(v - centroid), 0.1 * cv::norm(v - centroid)) << file << " vertex " << i << " normal " << n;
+    }
+    // The project's reader skips the normals: the same vertices (exactly: 9 digits hold a float)
+    // and triangles.
+    const Mesh back = read_ply(file);
+    EXPECT_EQ(back.vertices, m.mesh.vertices) << file;
+    EXPECT_EQ(back.triangles, m.mesh.triangles) << file;
+    EXPECT_EQ(load_mesh(file).vertices.size(), m.mesh.vertices.size()) << file;
+  }
+}
+
+// Normals by vertex index: triangles with vertices of their own get their face's normal exactly;
+// the shared corners of a box the area-weighted mean, on the corner's diagonal side; a vertex no
+// triangle uses gets none; an index outside the vertices is refused.
+TEST(VertexNormals, SplitTrianglesKeepTheirFaceNormalsAndSharedVerticesAverage) {
+  const Mesh box = make_box(40, 20, 10);
+  Mesh split;
+  for (const auto& t : box.triangles) {
+    const auto base = static_cast<uint32_t>(split.vertices.size());
+    for (uint32_t i : t) split.vertices.push_back(box.vertices[i]);
+    split.triangles.push_back({base, base + 1, base + 2});
+  }
+  const std::vector<cv::Vec3f> flat = vertex_normals(split);
+  ASSERT_EQ(flat.size(), split.vertices.size());
+  for (size_t f = 0; f < split.triangles.size(); ++f) {
+    const auto& t = split.triangles[f];
+    const cv::Vec3f a = split.vertices[t[0]], b = split.vertices[t[1]], c = split.vertices[t[2]];
+    const cv::Vec3f centre = (a + b + c) / 3.f;
+    // The box's face normal: the axis along which the triangle's centre lies on the face plane.
+    cv::Vec3f want(0, 0, 0);
+    const cv::Vec3f half(20, 10, 5);
+    for (int k = 0; k < 3; ++k)
+      if (std::abs(std::abs(centre[k]) - half[k]) < 1e-4f) want[k] = centre[k] > 0 ? 1.f : -1.f;
+    ASSERT_EQ(cv::norm(want), 1.0) << "triangle " << f;
+    for (uint32_t i : t) EXPECT_LT(cv::norm(flat[i] - want), 1e-6) << "triangle " << f << " normal " << flat[i];
+  }
+  Mesh shared = box;
+  shared.vertices.emplace_back(0.f, 0.f, 0.f);  // used by no triangle
+  const std::vector<cv::Vec3f> smooth = vertex_normals(shared);
+  for (size_t i = 0; i < box.vertices.size(); ++i)
+    for (int k = 0; k < 3; ++k)
+      EXPECT_GT(smooth[i][k] * box.vertices[i][k], 0) << "corner " << i << " normal " << smooth[i];
+  EXPECT_EQ(smooth.back(), cv::Vec3f(0, 0, 0));
+  Mesh bad = box;
+  bad.triangles.push_back({0, 1, 8});
+  EXPECT_THROW(vertex_normals(bad), std::invalid_argument);
+}
+
+// models_eval/ holds the very models and models_info.json of models/, where the BOP toolkit's
+// evaluation (dataset_params.get_model_params with model_type "eval") looks for them.
+TEST_F(BopTiny, ModelsEvalHoldsTheSameModelsAndInfo) {
+  for (const char* name : {"obj_000003.ply", "obj_000007.ply", "models_info.json"}) {
+    ASSERT_TRUE(fs::exists(root / "models_eval" / name)) << name;
+    EXPECT_EQ(file_bytes(root / "models_eval" / name), file_bytes(root / "models" / name)) << name;
+  }
+  const auto info = nlohmann::json::parse(std::ifstream(root / "models_eval" / "models_info.json"));
+  ASSERT_TRUE(info.contains("3") && info.contains("7")) << info.dump();
+  EXPECT_NEAR(info["3"]["diameter"].get<double>(), std::sqrt(40 * 40 + 20 * 20 + 10 * 10), 1e-4);
+  // Ids must be usable as BOP's: distinct and not negative.
+  std::vector<PartModel> twice = tiny_models();
+  twice[1].obj_id = twice[0].obj_id;
+  BopWriter w(root);
+  EXPECT_THROW(w.write_models(twice), std::invalid_argument);
+  twice[1].obj_id = -2;
+  EXPECT_THROW(w.write_models(twice), std::invalid_argument);
+}
+
+// test_targets_bop19.json at the root: one entry per (scene, image, object id) with inst_count
+// the instances at least 10 % visible, exactly as counted from the written scene files.
+TEST_F(BopTiny, TestTargetsMatchTheSceneGroundTruth) {
+  // A third scene whose visibilities sit on both sides of the threshold: obj 7 first (0.5 and
+  // 0.1 count), obj 3 (0.05 does not, 0.75 does); in image 1 obj 7 has only 0.09, so no entry.
+  std::mt19937 rng(5);
+  std::vector<SimulatedImage> ims = {random_image(rng, cam, 4), random_image(rng, cam, 2)};
+  const int objs0[] = {7, 3, 7, 3};
+  const double vis0[] = {0.5, 0.05, 0.1, 0.75};
+  for (size_t g = 0; g < 4; ++g) ims[0].instances[g].obj_id = objs0[g], ims[0].instances[g].visib_fract = vis0[g];
+  ims[1].instances[0].obj_id = 7, ims[1].instances[0].visib_fract = 0.09;
+  ims[1].instances[1].obj_id = 3, ims[1].instances[1].visib_fract = 0.3;
+  BopWriter w(root);
+  w.write_scene(3, cam, ims);
+  const std::vector<BopTestTarget> got = w.write_test_targets();
+
+  const fs::path file = root / "test_targets_bop19.json";
+  ASSERT_TRUE(fs::exists(file));
+  const auto j = nlohmann::json::parse(std::ifstream(file));
+  ASSERT_TRUE(j.is_array());
+  std::vector<BopTestTarget> in_file;
+  for (const auto& e : j) {
+    ASSERT_EQ(e.size(), 4u) << e.dump();  // exactly BOP's keys
+    in_file.push_back({e.at("scene_id").get<int>(), e.at("im_id").get<int>(), e.at("obj_id").get<int>(),
+                       e.at("inst_count").get<int>()});
+  }
+  EXPECT_EQ(in_file, got);
+  EXPECT_EQ(in_file, targets_from_files(root / "test"));
+  // The hand-made scene, by hand.
+  std::vector<BopTestTarget> scene3;
+  for (const auto& t : in_file)
+    if (t.scene_id == 3) scene3.push_back(t);
+  EXPECT_EQ(scene3, (std::vector<BopTestTarget>{{3, 0, 7, 2}, {3, 0, 3, 1}, {3, 1, 3, 1}}));
+  // The fixture's scenes: every instance is 60 % visible, so every one counts.
+  int counted = 0;
+  for (const auto& t : in_file)
+    if (t.scene_id < 3) counted += t.inst_count;
+  EXPECT_EQ(counted, 2 * (2 + 3));
+  // What the fixture's write_test_targets returned before scene 3 was there.
+  std::vector<BopTestTarget> first_two;
+  for (const auto& t : in_file)
+    if (t.scene_id < 3) first_two.push_back(t);
+  EXPECT_EQ(targets, first_two);
+}
+
+TEST_F(BopTiny, TestTargetsRefuseDisagreeingSceneFilesAndBadSplits) {
+  EXPECT_EQ(bop_test_targets_filename("test"), "test_targets_bop19.json");
+  EXPECT_EQ(bop_test_targets_filename("val"), "val_targets_bop19.json");
+  EXPECT_EQ(bop_test_targets_filename("test_primesense"), "test_targets_bop19.json");
+  edit_json(scene() / "scene_gt_info.json", [](auto& j) { j["1"].erase(0); });
+  expect_refused([&] { bop_test_targets(root, "test"); }, scene() / "scene_gt_info.json",
+                 "'1' lists 2 instances...scene_gt.json lists 3");
+  edit_json(scene() / "scene_gt_info.json", [](auto& j) { j.erase("1"); });
+  expect_refused([&] { bop_test_targets(root, "test"); }, scene() / "scene_gt_info.json", "missing key 'scene.1'");
+  expect_refused([&] { bop_test_targets(root, "val"); }, root / "val", "missing split directory");
+  for (const char* split : {"", ".", "..", "a/b"})
+    EXPECT_THROW({ BopWriter bad(root, split); }, std::invalid_argument) << split;
+}
+
+// gray/ (BOP's folder of grey images) holds each image's ambient image, file for file.
+TEST_F(BopTiny, GrayImagesAreTheAmbientImages) {
+  for (int s = 1; s <= 2; ++s)
+    for (int i = 0; i < 2; ++i) {
+      const fs::path dir = root / "test" / ("00000" + std::to_string(s));
+      const std::string name = "00000" + std::to_string(i) + ".png";
+      ASSERT_TRUE(fs::exists(dir / "gray" / name)) << dir / "gray" / name;
+      EXPECT_EQ(file_bytes(dir / "gray" / name), file_bytes(dir / "ambient" / name));
+      const cv::Mat gray = cv::imread((dir / "gray" / name).string(), cv::IMREAD_UNCHANGED);
+      ASSERT_EQ(gray.type(), CV_8UC1);
+      EXPECT_EQ(cv::norm(gray, written[static_cast<size_t>(s - 1)][static_cast<size_t>(i)].frames.ambient,
+                         cv::NORM_INF), 0);
+    }
 }
