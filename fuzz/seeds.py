@@ -139,7 +139,7 @@ def meshes():
           b"\0" * 300)
 
 
-# --- template_database: a .tdb of the box with two views (versions 3, 4, 5) --------------------
+# --- template_database: a .tdb of the box with two views (version 6; 5 for the refusal) --------
 def tdb(version):
     p = bytearray()
     u8 = lambda v: p.extend(struct.pack("<B", v))
@@ -183,16 +183,22 @@ def tdb(version):
         u32(0)
     if version >= 5:
         u8(1); i32(2)                               # views folded by z:2
+    if version >= 6:                                # the part's turns
+        f64(0, 0, 0); f64(1, 0, 0, 0, 1, 0, 0, 0, 1)  # centroid, principal axes
+        u32(1)                                      # symmetries: the half turn about z
+        u8(0); f64(-1, 0, 0, 0, -1, 0, 0, 0, 1); f64(0, 0, 0); f64(0, 0, 1); i32(2); f64(1)
+        u32(1)                                      # alternatives: turned over about x
+        u8(2); f64(1, 0, 0, 0, -1, 0, 0, 0, -1); f64(0, 0, 0); f64(1, 0, 0); i32(2); f64(0.5)
     header = b"MFCD-TDB" + struct.pack("<IIQII", version, 32, len(p), zlib.crc32(bytes(p)), 0)
     return header + bytes(p)
 
 
 def templates():
     n = "template_database"
-    for v in (3, 4, 5):
+    for v in (5, 6):
         write(n, "box-v%d.tdb" % v, tdb(v))
-    good = tdb(5)
-    write(n, "version-6.tdb", good[:8] + struct.pack("<I", 6) + good[12:])
+    good = tdb(6)
+    write(n, "version-7.tdb", good[:8] + struct.pack("<I", 7) + good[12:])
     write(n, "truncated-header.tdb", good[:20])
     bad = bytearray(good)
     struct.pack_into("<I", bad, 32, 0x7fffffff)      # part name length past the payload

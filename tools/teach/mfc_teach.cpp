@@ -178,11 +178,12 @@ int main(int argc, char** argv) {
     // The edge offset profiles within 10 degrees of the image axes (docs/template-database.md): the
     // views' and the query's differ by a few tenths of a pixel there, which the pose fit corrects.
     std::printf("%s: part %s obj_id %d symmetry %s, views folded by %s: %zu views (K = %d), %.1f lines and %.0f edge points per view, "
-                "distance %.1f mm, edge offset near image axes %.2f px (views) / %.2f px (query), lighting turns %d:%d, %.1f s\n",
+                "distance %.1f mm, edge offset near image axes %.2f px (views) / %.2f px (query), lighting turns %d:%d, "
+                "turns from the mesh: %s, %.1f s\n",
                 out.c_str(), name.c_str(), obj_id, db.symmetry.str().c_str(), db.views_symmetry.str().c_str(), db.views.size(), views,
                 double(lines) / db.views.size(), double(points) / db.views.size(), db.distance_mm,
                 db.template_edge_offset.mean_near(0, 10), db.query_edge_offset.mean_near(0, 10), lighting_turns,
-                lighting_min_turns, seconds());
+                lighting_min_turns, describe(db.turns).c_str(), seconds());
     return 0;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "\nmfc-teach: %s\n", e.what());

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <numbers>
 #include <stdexcept>
 #include <string>
@@ -328,12 +329,52 @@ MeshTurns find_mesh_turns(const Mesh& mesh, const SurfaceGrid& fine, const MeshT
   out.centroid_mm = c;
   for (int r = 0; r < 3; ++r)
     for (int k = 0; k < 3; ++k) out.principal_axes(r, k) = vectors.at<double>(r, k);
+  // A right-handed frame (a rotation): an axis's sign says nothing about the part.
+  if (cv::determinant(out.principal_axes) < 0)
+    for (int k = 0; k < 3; ++k) out.principal_axes(2, k) = -out.principal_axes(2, k);
 
   std::vector<cv::Matx33d> symmetric;  // every discrete rotation found to be a symmetry
   for (const Axis& line : group_by_axis(scan_axes(mesh, fine, params, points, out), points, fine, params))
     classify_axis(line, params, out, symmetric);
   add_turns_over(points, fine, params, std::move(symmetric), out);
   return out;
+}
+
+std::string describe(const MeshTurns& turns) {
+  std::string out = "symmetry ";
+  if (turns.symmetries.empty()) out += "none";
+  for (size_t i = 0; i < turns.symmetries.size(); ++i) {
+    const int n = turns.symmetries[i].order;
+    out += (i ? ", " : "") + (n == 0 ? std::string("continuous") : std::to_string(n) + "-fold");
+  }
+  int over = 0, near = 0, phase = 0, near_order = 0;
+  double near_share = 1;
+  for (const MeshTurn& t : turns.alternatives) {
+    if (t.kind == MeshTurn::Kind::turn_over) ++over;
+    if (t.kind == MeshTurn::Kind::phase) ++phase;
+    if (t.kind == MeshTurn::Kind::near_symmetry)
+      ++near, near_order = std::max(near_order, t.order), near_share = std::min(near_share, t.on_surface);
+  }
+  out += "; checked: " + std::to_string(over) + " turned over";
+  if (near > 0) {
+    char share[16];
+    std::snprintf(share, sizeof share, "%.2f", near_share);
+    out += ", " + std::to_string(near) + " near-symmetric (up to " + std::to_string(near_order) + "-fold, " + share +
+           " on the surface)";
+  }
+  if (phase > 0) out += ", " + std::to_string(phase) + " phase";
+  return out;
+}
+
+SurfaceGrid turn_surface(const Mesh& mesh, double diameter_mm) {
+  const double tolerance = std::clamp(0.002 * diameter_mm, 0.1, 0.5);
+  const cv::Vec3f size = mesh.bbox_max() - mesh.bbox_min();
+  const double volume = (size[0] + 2 * tolerance) * (size[1] + 2 * tolerance) * (size[2] + 2 * tolerance);
+  return SurfaceGrid(mesh, std::max(tolerance / 2, std::cbrt(volume / 64e6)), tolerance);
+}
+
+MeshTurns find_part_turns(const Mesh& mesh, double diameter_mm, const MeshTurnParams& params) {
+  return find_mesh_turns(mesh, turn_surface(mesh, diameter_mm), params);
 }
 
 }  // namespace mfcd::vision

@@ -27,6 +27,7 @@
 
 #include <opencv2/core.hpp>
 
+#include <string>
 #include <vector>
 
 namespace mfcd::vision {
@@ -55,7 +56,7 @@ struct MeshTurn {
 
 struct MeshTurns {
   cv::Vec3d centroid_mm{0, 0, 0};      // area-weighted surface centroid
-  cv::Matx33d principal_axes = cv::Matx33d::eye();  // rows: unit axes, largest variance first
+  cv::Matx33d principal_axes = cv::Matx33d::eye();  // rows: unit axes, largest variance first; a rotation
   // Rotational symmetries: per axis the highest order found (kind symmetry); an axis about which
   // every order up to max_order is a symmetry is continuous (order 0).
   std::vector<MeshTurn> symmetries;
@@ -67,6 +68,22 @@ struct MeshTurns {
 // `fine` decides what lies on the surface (e.g. SurfaceGrid(mesh, 0.25, 0.5)); a coarse grid of the
 // part's size is made inside. Deterministic. Throws std::invalid_argument on an empty mesh.
 MeshTurns find_mesh_turns(const Mesh& mesh, const SurfaceGrid& fine, const MeshTurnParams& params = {});
+
+// What counts as the part's own surface for its turns: within 0.2 % of its diameter (at least
+// 0.1 mm, at most 0.5 mm), the tolerance the generalization bench finds its models' symmetries
+// with (a hex head turned by 15 degrees moves its corners by ~3 % of its width, which a 0.5 mm
+// tolerance calls the same part when the head is 10 mm across). Voxels at most half of it,
+// coarser for a part whose box would need more than 64 M of them.
+SurfaceGrid turn_surface(const Mesh& mesh, double diameter_mm);
+
+// The turns of a part of diameter `diameter_mm` (BOP models_info's) on turn_surface: what mfc-teach
+// stores in the template database (TemplateDatabase::turns).
+MeshTurns find_part_turns(const Mesh& mesh, double diameter_mm, const MeshTurnParams& params = {});
+
+// One line for a person teaching the part: its symmetries ("6-fold", "continuous", "none") and the
+// turns its poses are checked against by kind, e.g. "symmetry none; checked: 2 turned over, 23
+// near-symmetric (24-fold, 0.98 on the surface), 2 phase".
+std::string describe(const MeshTurns& turns);
 
 // Area-weighted surface samples of `mesh`, deterministic (stratified over the area, golden-ratio
 // barycentric coordinates).

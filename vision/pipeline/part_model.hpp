@@ -38,7 +38,7 @@ struct PartModel {
 PartModel load_part_model(const std::filesystem::path& file, const CameraConfig& camera, const PipelineConfig& config);
 
 // Every part's turns (PartModel::flips: mesh_turns, then plate_turns), the parts shared out among
-// `threads` threads (<= 0: OpenMP's default): the mesh analysis takes 0.2-0.9 s a part.
+// `threads` threads (<= 0: OpenMP's default).
 void find_turns(std::vector<PartModel>& parts, int threads);
 
 // Angle between two viewing directions of a part, the smallest over the copies under `sym` (the

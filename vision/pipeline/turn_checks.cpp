@@ -10,23 +10,10 @@
 
 namespace mfcd::vision::detail {
 
-// What is a turn's surface for mesh_turns: within 0.2 % of the part's diameter (at least 0.1 mm,
-// at most part_surface's 0.5 mm), the tolerance the bench's model symmetries are found with: a
-// hex head turned by 15 degrees moves its corners by ~3 % of its width, which a 0.5 mm tolerance
-// calls the same part when the head is 10 mm across. Voxels at most half of it, coarser for a part
-// whose box would need more than 64 M of them.
-SurfaceGrid turn_surface(const Mesh& mesh, double diameter_mm) {
-  const double tolerance = std::clamp(0.002 * diameter_mm, 0.1, 0.5);
-  const cv::Vec3f size = mesh.bbox_max() - mesh.bbox_min();
-  const double volume = (size[0] + 2 * tolerance) * (size[1] + 2 * tolerance) * (size[2] + 2 * tolerance);
-  return SurfaceGrid(mesh, std::max(tolerance / 2, std::cbrt(volume / 64e6)), tolerance);
-}
-
 std::vector<PoseTurn> mesh_turns(const TemplateDatabase& db) {
   const SurfaceGrid surface = part_surface(db);
-  const MeshTurns found = find_mesh_turns(db.mesh, turn_surface(db.mesh, db.diameter_mm));
   std::vector<PoseTurn> out;
-  for (const MeshTurn& m : found.alternatives) {
+  for (const MeshTurn& m : db.turns.alternatives) {
     PoseTurn& t = out.emplace_back();
     t.S = m.R;
     t.pivot_mm = m.pivot_mm;

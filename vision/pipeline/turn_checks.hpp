@@ -43,10 +43,11 @@ struct PoseTurn {
   bool screen = false;
 };
 
-// The turns of the part found from its mesh alone (vision/model/mesh_turns.hpp): turned over by
-// 180 degrees about each principal axis that is not a symmetry, every turn of a near-symmetry
-// (carrying the points of the feature that breaks it, and screened), and +-0.4 of the period
-// about each axis of an N-fold symmetry or near-symmetry (N >= 3).
+// The turns of the part found from its mesh alone (vision/model/mesh_turns.hpp), as mfc-teach
+// stored them in the database (TemplateDatabase::turns): turned over by 180 degrees about each
+// principal axis that is not a symmetry, every turn of a near-symmetry (carrying the points of the
+// feature that breaks it, and screened), and +-0.4 of the period about each axis of an N-fold
+// symmetry or near-symmetry (N >= 3). The flagged points take ~0.1 s a part (asymmetric_points).
 std::vector<PoseTurn> mesh_turns(const TemplateDatabase& db);
 // For a 2-fold symmetry about z: +-kPlateTurnDeg about z, judged by the fitted rank.
 std::vector<PoseTurn> plate_turns(const TemplateDatabase& db);

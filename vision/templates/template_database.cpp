@@ -94,6 +94,58 @@ PartSymmetry get_symmetry(Reader& r, const std::string& what) {
   return s;
 }
 
+// The part's turns (MeshTurns): centroid and principal axes, then the symmetries and the
+// alternatives, each a count and per turn its kind (uint8), rotation (9 doubles, row-major),
+// pivot and axis (3 doubles each), order (int32) and share on the surface (double).
+constexpr size_t kTurnBytes = 1 + 8 * (9 + 3 + 3) + 4 + 8;
+
+void put_turns(Writer& w, const MeshTurns& t) {
+  for (int i = 0; i < 3; ++i) w.put<double>(t.centroid_mm[i]);
+  for (int i = 0; i < 9; ++i) w.put<double>(t.principal_axes.val[i]);
+  for (const auto* list : {&t.symmetries, &t.alternatives}) {
+    w.put(static_cast<uint32_t>(list->size()));
+    for (const MeshTurn& m : *list) {
+      w.put<uint8_t>(static_cast<uint8_t>(m.kind));
+      for (int i = 0; i < 9; ++i) w.put<double>(m.R.val[i]);
+      for (int i = 0; i < 3; ++i) w.put<double>(m.pivot_mm[i]);
+      for (int i = 0; i < 3; ++i) w.put<double>(m.axis[i]);
+      w.put<int32_t>(m.order);
+      w.put<double>(m.on_surface);
+    }
+  }
+}
+
+// A rotation that is not one (not orthonormal, or a reflection) would place the turned pose
+// anywhere: refused, as a corrupt file.
+bool is_rotation(const cv::Matx33d& R) {
+  return cv::norm(R.t() * R - cv::Matx33d::eye(), cv::NORM_INF) < 1e-6 && cv::determinant(R) > 0;
+}
+
+MeshTurns get_turns(Reader& r) {
+  MeshTurns t;
+  for (int i = 0; i < 3; ++i) t.centroid_mm[i] = r.finite("turns centroid");
+  for (int i = 0; i < 9; ++i) t.principal_axes.val[i] = r.finite("turns principal axes");
+  if (!is_rotation(t.principal_axes)) r.fail("turns: principal axes are not a rotation");
+  for (auto* list : {&t.symmetries, &t.alternatives}) {
+    list->resize(r.count("turn count", kTurnBytes));
+    for (MeshTurn& m : *list) {
+      const auto kind = r.get<uint8_t>("turn kind");
+      if (kind > static_cast<uint8_t>(MeshTurn::Kind::phase)) r.fail("unknown turn kind " + std::to_string(kind));
+      m.kind = static_cast<MeshTurn::Kind>(kind);
+      for (int i = 0; i < 9; ++i) m.R.val[i] = r.finite("turn rotation");
+      if (!is_rotation(m.R)) r.fail("turn rotation is not a rotation");
+      for (int i = 0; i < 3; ++i) m.pivot_mm[i] = r.finite("turn pivot");
+      for (int i = 0; i < 3; ++i) m.axis[i] = r.finite("turn axis");
+      if (std::abs(cv::norm(m.axis) - 1) > 1e-6) r.fail("turn axis is not a unit vector");
+      m.order = r.get<int32_t>("turn order");
+      if (m.order < 0 || m.order > 360) r.fail("turn order " + std::to_string(m.order) + " out of range");
+      m.on_surface = r.finite("turn share");
+      if (m.on_surface < 0 || m.on_surface > 1) r.fail("turn share out of [0, 1]");
+    }
+  }
+  return t;
+}
+
 // Why a database whose views are folded by a turn the part does not have is refused (on save
 // and on load alike).
 std::string unfolded_views(const TemplateDatabase& db) {
@@ -268,6 +320,7 @@ void save_template_database(const TemplateDatabase& db, const std::filesystem::p
     for (float o : profile->offset_px) w.put(o);
   }
   put_symmetry(w, db.views_symmetry);
+  put_turns(w, db.turns);
 
   Writer h;
   for (char c : kMagic) h.put(c);
@@ -312,7 +365,8 @@ TemplateDatabase load_template_database(const std::filesystem::path& file) {
   if (version < TemplateDatabase::kOldestVersion || version > TemplateDatabase::kVersion)
     throw TemplateFileError(src + ": template database version " + std::to_string(version) +
                             ", this build reads versions " + std::to_string(TemplateDatabase::kOldestVersion) + " to " +
-                            std::to_string(TemplateDatabase::kVersion) + " (re-run mfc-teach)");
+                            std::to_string(TemplateDatabase::kVersion) +
+                            " (re-run mfc-teach: version 6 stores the part's turns, docs/template-database.md)");
   if (header_bytes != kHeaderBytes)
     throw TemplateFileError(src + ": header size " + std::to_string(header_bytes) + ", expected " +
                             std::to_string(kHeaderBytes));
@@ -374,25 +428,22 @@ TemplateDatabase load_template_database(const std::filesystem::path& file) {
     v.box.x = r.get<float>("box"), v.box.y = r.get<float>("box");
     v.box.width = r.get<float>("box"), v.box.height = r.get<float>("box");
   }
-  if (version >= 4)
-    for (auto* profile : {&db.template_edge_offset, &db.query_edge_offset}) {
-      const uint32_t n = r.count("edge offset profile size", 4);
-      if (n != 0 && n != EdgeOffsetProfile::kBins)
-        r.fail("edge offset profile of " + std::to_string(n) + " bins, expected 0 or " +
-               std::to_string(EdgeOffsetProfile::kBins));
-      profile->offset_px.resize(n);
-      for (float& o : profile->offset_px) {
-        o = r.get<float>("edge offset");
-        // A detected edge pixel lies within a few pixels of the outline; anything else is corruption.
-        if (!std::isfinite(o) || std::abs(o) > 3) r.fail("edge offset " + std::to_string(o) + " px out of range");
-      }
+  for (auto* profile : {&db.template_edge_offset, &db.query_edge_offset}) {
+    const uint32_t n = r.count("edge offset profile size", 4);
+    if (n != 0 && n != EdgeOffsetProfile::kBins)
+      r.fail("edge offset profile of " + std::to_string(n) + " bins, expected 0 or " +
+             std::to_string(EdgeOffsetProfile::kBins));
+    profile->offset_px.resize(n);
+    for (float& o : profile->offset_px) {
+      o = r.get<float>("edge offset");
+      // A detected edge pixel lies within a few pixels of the outline; anything else is corruption.
+      if (!std::isfinite(o) || std::abs(o) > 3) r.fail("edge offset " + std::to_string(o) + " px out of range");
     }
-  db.views_symmetry = db.symmetry;
-  if (version >= 5) {
-    db.views_symmetry = get_symmetry(r, "views symmetry");
-    if (!db.symmetry.includes(db.views_symmetry)) r.fail(unfolded_views(db));
   }
-  if (r.remaining() != 0) r.fail(std::to_string(r.remaining()) + " bytes left after the last view");
+  db.views_symmetry = get_symmetry(r, "views symmetry");
+  if (!db.symmetry.includes(db.views_symmetry)) r.fail(unfolded_views(db));
+  db.turns = get_turns(r);
+  if (r.remaining() != 0) r.fail(std::to_string(r.remaining()) + " bytes left after the part's turns");
   return db;
 }
 

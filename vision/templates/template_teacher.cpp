@@ -307,6 +307,7 @@ TemplateDatabase teach_templates(const Mesh& mesh, const CameraConfig& camera, c
     db.template_edge_offset = measure_edge_offset_profile(camera, db.distance_mm, views_conditions, params.edges);
     db.query_edge_offset = measure_edge_offset_profile(camera, db.distance_mm, params.query_conditions, params.edges);
   }
+  db.turns = find_part_turns(mesh, db.diameter_mm);
   return db;
 }
 

@@ -272,7 +272,34 @@ TEST(TemplateFile, RoundTripKeepsEverything) {
   }
   EXPECT_EQ(r.template_edge_offset.offset_px, db.template_edge_offset.offset_px);
   EXPECT_EQ(r.query_edge_offset.offset_px, db.query_edge_offset.offset_px);
+  EXPECT_EQ(r.turns.centroid_mm, db.turns.centroid_mm);
+  EXPECT_EQ(r.turns.principal_axes, db.turns.principal_axes);
+  for (const auto& [read, taught] : {std::pair{&r.turns.symmetries, &db.turns.symmetries},
+                                     std::pair{&r.turns.alternatives, &db.turns.alternatives}}) {
+    ASSERT_EQ(read->size(), taught->size());
+    for (size_t i = 0; i < taught->size(); ++i) {
+      EXPECT_EQ((*read)[i].kind, (*taught)[i].kind);
+      EXPECT_EQ((*read)[i].R, (*taught)[i].R);
+      EXPECT_EQ((*read)[i].pivot_mm, (*taught)[i].pivot_mm);
+      EXPECT_EQ((*read)[i].axis, (*taught)[i].axis);
+      EXPECT_EQ((*read)[i].order, (*taught)[i].order);
+      EXPECT_EQ((*read)[i].on_surface, (*taught)[i].on_surface);
+    }
+  }
   EXPECT_NO_THROW(check_template_camera(r, sim_camera(), f.string()));
+}
+
+// The box of 40 x 30 x 20 mm: the half turns about its three axes are its symmetries (D2), so no
+// turn over is left to check; the teacher stores what find_part_turns finds from the mesh.
+TEST(TemplateTeacher, StoresThePartsTurnsFoundFromItsMesh) {
+  const TemplateDatabase& db = box_db();
+  const MeshTurns found = find_part_turns(db.mesh, db.diameter_mm);
+  ASSERT_EQ(db.turns.symmetries.size(), found.symmetries.size());
+  ASSERT_EQ(db.turns.alternatives.size(), found.alternatives.size());
+  for (size_t i = 0; i < found.symmetries.size(); ++i) EXPECT_EQ(db.turns.symmetries[i].R, found.symmetries[i].R);
+  EXPECT_EQ(db.turns.symmetries.size(), 3u);
+  for (const MeshTurn& s : db.turns.symmetries) EXPECT_EQ(s.order, 2);
+  EXPECT_EQ(describe(db.turns), "symmetry 2-fold, 2-fold, 2-fold; checked: 0 turned over") << describe(db.turns);
 }
 
 TEST(TemplateTeacher, StoresBothEdgeOffsetProfiles) {
@@ -287,39 +314,69 @@ TEST(TemplateTeacher, StoresBothEdgeOffsetProfiles) {
   EXPECT_LT(views, query - 0.1) << "views " << views << " px, query " << query << " px";
 }
 
-// Version 5 ends with the views' symmetry (kind byte + int32 order); version 4's payload is the
-// same without it, and version 3's also without the two edge offset profiles before it.
+// The part's turns close the payload: centroid and principal axes (12 doubles), two counts and
+// 133 bytes a turn (kind, rotation, pivot, axis, order, share); the views' symmetry (kind byte +
+// int32 order) comes before them.
 constexpr size_t kViewsSymmetryBytes = 5;
+size_t turns_bytes(const MeshTurns& t) { return 8 * 12 + 2 * 4 + 133 * (t.symmetries.size() + t.alternatives.size()); }
 
-TEST(TemplateFile, Version3And4FilesLoadWithTheirViewsFoldedByThePartSymmetry) {
-  const fs::path f = temp_file("v5.tdb");
+TEST(TemplateFile, FilesOfEarlierVersionsAreRefusedWithTheReason) {
+  const fs::path f = temp_file("v6.tdb");
+  save_template_database(box_db(), f);
+  const std::vector<char> v6 = read_bytes(f);
+  // Version 5's payload: the same without the turns.
+  const std::vector<char> v5(v6.begin() + 32, v6.end() - static_cast<long>(turns_bytes(box_db().turns)));
+  const fs::path old = temp_file("v5.tdb");
+  write_bytes(old, with_header(v5, 5));
+  const std::string why = load_error(old);
+  EXPECT_NE(why.find("version 5"), std::string::npos) << why;
+  EXPECT_NE(why.find("re-run mfc-teach"), std::string::npos) << why;
+  EXPECT_NE(why.find("turns"), std::string::npos) << why;
+  // The same payload claimed as version 6 lacks the turns.
+  write_bytes(old, with_header(v5, 6));
+  EXPECT_NE(load_error(old).find("payload ends inside turns centroid"), std::string::npos) << load_error(old);
+}
+
+TEST(TemplateFile, CorruptTurnsAreRefused) {
+  const fs::path f = temp_file("turns.tdb");
   TemplateDatabase db = box_db();
-  db.symmetry = PartSymmetry::parse("z:4");
-  db.views_symmetry = PartSymmetry::parse("z:2");
+  // One alternative, so that the payload ends in a turn of known layout.
+  MeshTurn over;
+  over.kind = MeshTurn::Kind::turn_over;
+  over.R = cv::Matx33d(1, 0, 0, 0, -1, 0, 0, 0, -1);
+  over.axis = cv::Vec3d(1, 0, 0);
+  over.on_surface = 0.5;
+  db.turns.alternatives = {over};
   save_template_database(db, f);
-  const std::vector<char> v5 = read_bytes(f);
-  const std::vector<char> v4(v5.begin() + 32, v5.end() - static_cast<long>(kViewsSymmetryBytes));
-  const fs::path old = temp_file("v4.tdb");
-  write_bytes(old, with_header(v4, 4));
-  TemplateDatabase r = load_template_database(old);
-  EXPECT_EQ(r.symmetry.str(), "z:4");
-  EXPECT_EQ(r.views_symmetry.str(), "z:4");
-  EXPECT_EQ(r.template_edge_offset.offset_px, db.template_edge_offset.offset_px);
-  // Version 3: the two profiles (4 + 72 x 4 bytes each) go too.
-  const size_t profiles = 2 * (4 + 4 * EdgeOffsetProfile::kBins);
-  const std::vector<char> v3(v4.begin(), v4.end() - static_cast<long>(profiles));
-  write_bytes(old, with_header(v3, 3));
-  r = load_template_database(old);
-  EXPECT_EQ(r.views.size(), box_db().views.size());
-  EXPECT_TRUE(r.template_edge_offset.empty());
-  EXPECT_TRUE(r.query_edge_offset.empty());
-  EXPECT_EQ(r.views_symmetry.str(), "z:4");
-  // The same payloads claimed as the next version lack what it adds.
-  write_bytes(old, with_header(v3, 4));
-  EXPECT_NE(load_error(old).find("payload ends inside edge offset profile size"), std::string::npos)
-      << load_error(old);
-  write_bytes(old, with_header(v4, 5));
-  EXPECT_NE(load_error(old).find("payload ends inside views symmetry"), std::string::npos) << load_error(old);
+  const std::vector<char> good = read_bytes(f);
+  const std::vector<char> payload(good.begin() + 32, good.end());
+  const size_t turn = payload.size() - 133;  // the alternative's first byte: its kind
+  auto refused_for = [&](size_t at, const void* value, size_t n) {
+    std::vector<char> b = payload;
+    std::memcpy(b.data() + at, value, n);
+    write_bytes(f, with_header(b, TemplateDatabase::kVersion));
+    return load_error(f);
+  };
+  const uint8_t kind = 9;
+  EXPECT_NE(refused_for(turn, &kind, 1).find("unknown turn kind 9"), std::string::npos);
+  const double scaled = 2;  // R(0, 0): no longer a rotation
+  EXPECT_NE(refused_for(turn + 1, &scaled, 8).find("turn rotation is not a rotation"), std::string::npos);
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_NE(refused_for(turn + 1 + 72, &nan, 8).find("turn pivot is not finite"), std::string::npos);
+  const double longer = 2;  // axis x: not a unit vector
+  EXPECT_NE(refused_for(turn + 1 + 96, &longer, 8).find("turn axis is not a unit vector"), std::string::npos);
+  const int32_t order = 999;
+  EXPECT_NE(refused_for(turn + 1 + 120, &order, 4).find("turn order 999 out of range"), std::string::npos);
+  const double share = 1.5;
+  EXPECT_NE(refused_for(turn + 1 + 124, &share, 8).find("turn share out of [0, 1]"), std::string::npos);
+  const uint32_t many = 1000000;  // the alternatives' count
+  EXPECT_NE(refused_for(turn - 4, &many, 4).find("turn count = 1000000 does not fit"), std::string::npos);
+  // Untouched, it loads with the turn as written.
+  write_bytes(f, with_header(payload, TemplateDatabase::kVersion));
+  ASSERT_EQ(load_error(f), "");
+  const TemplateDatabase r = load_template_database(f);
+  ASSERT_EQ(r.turns.alternatives.size(), 1u);
+  EXPECT_EQ(r.turns.alternatives[0].R, over.R);
 }
 
 TEST(TemplateFile, ViewsFoldedByATurnThePartDoesNotHaveAreRefused) {
@@ -329,18 +386,19 @@ TEST(TemplateFile, ViewsFoldedByATurnThePartDoesNotHaveAreRefused) {
   const fs::path f = temp_file("fold.tdb");
   EXPECT_THROW(save_template_database(db, f), std::invalid_argument);
   EXPECT_FALSE(fs::exists(f));
-  // Written by hand: the last 5 bytes are the views' fold.
+  // Written by hand: the 5 bytes before the turns are the views' fold.
   db.views_symmetry = PartSymmetry::parse("z:2");
   save_template_database(db, f);
   std::vector<char> payload = read_bytes(f);
   payload.erase(payload.begin(), payload.begin() + 32);
+  const size_t fold = payload.size() - turns_bytes(db.turns) - kViewsSymmetryBytes;
   const int32_t three = 3;
-  std::memcpy(payload.data() + payload.size() - 4, &three, 4);
-  write_bytes(f, with_header(payload, 5));
+  std::memcpy(payload.data() + fold + 1, &three, 4);
+  write_bytes(f, with_header(payload, TemplateDatabase::kVersion));
   EXPECT_NE(load_error(f).find("views folded by z:3, which is not a symmetry of the part (z:4)"), std::string::npos)
       << load_error(f);
-  payload[payload.size() - kViewsSymmetryBytes] = 7;
-  write_bytes(f, with_header(payload, 5));
+  payload[fold] = 7;
+  write_bytes(f, with_header(payload, TemplateDatabase::kVersion));
   EXPECT_NE(load_error(f).find("unknown views symmetry kind 7"), std::string::npos) << load_error(f);
 }
 
@@ -364,29 +422,29 @@ TEST(TemplateFile, CorruptEdgeOffsetProfilesAreRefused) {
   save_template_database(box_db(), f);
   const std::vector<char> good = read_bytes(f);
   const size_t profile = 4 + 4 * EdgeOffsetProfile::kBins;
-  // The query profile comes last but the views' symmetry: its bin count, then its bins.
+  // The query profile comes before the views' symmetry and the turns: its bin count, then its bins.
   std::vector<char> payload(good.begin() + 32, good.end());
-  const size_t at = payload.size() - kViewsSymmetryBytes - profile;
+  const size_t at = payload.size() - turns_bytes(box_db().turns) - kViewsSymmetryBytes - profile;
   uint32_t bins = 0;
   std::memcpy(&bins, payload.data() + at, 4);
   ASSERT_EQ(bins, static_cast<uint32_t>(EdgeOffsetProfile::kBins));
   std::vector<char> b = payload;
   const uint32_t five = 5;
   std::memcpy(b.data() + at, &five, 4);
-  write_bytes(f, with_header(b, 5));
+  write_bytes(f, with_header(b, TemplateDatabase::kVersion));
   EXPECT_NE(load_error(f).find("edge offset profile of 5 bins"), std::string::npos) << load_error(f);
   b = payload;
   const float far = 40.0f;
   std::memcpy(b.data() + at + 4 + 4 * 10, &far, 4);
-  write_bytes(f, with_header(b, 5));
+  write_bytes(f, with_header(b, TemplateDatabase::kVersion));
   EXPECT_NE(load_error(f).find("edge offset 40"), std::string::npos) << load_error(f);
   b = payload;
   const float nan = std::numeric_limits<float>::quiet_NaN();
   std::memcpy(b.data() + at + 4, &nan, 4);
-  write_bytes(f, with_header(b, 5));
+  write_bytes(f, with_header(b, TemplateDatabase::kVersion));
   EXPECT_NE(load_error(f).find("out of range"), std::string::npos) << load_error(f);
   // The header helper itself writes loadable files.
-  write_bytes(f, with_header(payload, 5));
+  write_bytes(f, with_header(payload, TemplateDatabase::kVersion));
   EXPECT_EQ(load_error(f), "");
 }
 
