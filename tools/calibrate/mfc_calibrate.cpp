@@ -4,9 +4,14 @@
 //   mfc-calibrate hand-eye --mode eye-in-hand|eye-to-hand --camera CAM.yaml (--views LIST.yaml | --sim N)
 //                 --board 9x6 --square-mm S --out CAM.yaml [--apply]
 //   mfc-calibrate rollback --out CAM.yaml
+//   mfc-calibrate import FILE --out CAM.yaml [--camera BASE.yaml] [--working-distance MM]
+//                 [--flash-ring-radius MM] [--flash-first-angle DEG] [--flash-step DEG]
+//                 [--flash-plane-z MM] [--apply]
 //
 // Prints the figures; writes CAM.yaml (atomically, keeping CAM.yaml.previous) only with --apply,
-// otherwise shows what it would write. Exit status: 0 done, 1 calibration failed, 2 usage.
+// otherwise shows what it would write; import writes a CAM.yaml that does not exist yet without
+// --apply. Exit status: 0 done, 1 calibration failed or file refused, 2 usage.
+#include "vision/calib/calibration_import.hpp"
 #include "vision/calib/hand_eye.hpp"
 #include "vision/calib/intrinsics.hpp"
 #include "vision/calib/sim_board.hpp"
@@ -15,11 +20,14 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <limits>
 #include <map>
+#include <optional>
 #include <random>
 #include <sstream>
 
@@ -39,9 +47,15 @@ const char* kUsage =
     "                --out CAM.yaml [--apply] [--check IMAGE --check-pose x,y,z,rx,ry,rz]\n"
     "                [--save-views DIR] [--seed N]\n"
     "  mfc-calibrate rollback --out CAM.yaml\n"
+    "  mfc-calibrate import FILE --out CAM.yaml [--camera BASE.yaml] [--working-distance MM]\n"
+    "                [--flash-ring-radius MM] [--flash-first-angle DEG] [--flash-step DEG]\n"
+    "                [--flash-plane-z MM] [--apply]\n"
     "LIST.yaml (OpenCV YAML): views: [ { image: v00.png, pose: [x, y, z, rx, ry, rz] }, ... ]\n"
     "  pose: robot flange in the base frame, mm and degrees, R = Rz(rz) Ry(ry) Rx(rx);\n"
-    "  image paths relative to LIST.yaml.\n";
+    "  image paths relative to LIST.yaml.\n"
+    "import: FILE is an OpenCV calibration sample's YAML or a ROS camera_info YAML; the MFC keys\n"
+    "  it lacks come from the options, else from BASE.yaml (default: CAM.yaml when it exists),\n"
+    "  else from the defaults (300 mm; ring 40 mm, 0 deg, 45 deg, plane z 0 mm).\n";
 
 ViewReport unreadable(const std::string& label) {
   ViewReport r;
@@ -56,6 +70,7 @@ struct UsageError : std::runtime_error {
 
 struct Args {
   std::string command;
+  std::vector<std::string> positional;  // arguments that are not options (import's FILE)
   std::map<std::string, std::string> values;
   bool apply = false;
 
@@ -85,15 +100,20 @@ Args parse(int argc, char** argv) {
   if (argc < 2) throw UsageError("no command");
   Args a;
   a.command = argv[1];
-  static const char* kKeys[] = {"images", "sim",   "board", "square-mm", "distortion", "camera",     "out",
-                                "mode",   "views", "check", "check-pose", "save-views", "seed"};
+  static const char* kKeys[] = {"images", "sim", "board", "square-mm", "distortion", "camera", "out", "mode", "views",
+                                "check", "check-pose", "save-views", "seed", "working-distance", "flash-ring-radius",
+                                "flash-first-angle", "flash-step", "flash-plane-z"};
   for (int i = 2; i < argc; ++i) {
     const std::string arg = argv[i];
     if (arg == "--apply") {
       a.apply = true;
       continue;
     }
-    if (arg.rfind("--", 0) != 0 || std::find(std::begin(kKeys), std::end(kKeys), arg.substr(2)) == std::end(kKeys))
+    if (arg.rfind("--", 0) != 0) {
+      a.positional.push_back(arg);
+      continue;
+    }
+    if (std::find(std::begin(kKeys), std::end(kKeys), arg.substr(2)) == std::end(kKeys))
       throw UsageError("unknown option '" + arg + "'");
     if (i + 1 >= argc) throw UsageError(arg + " needs a value");
     a.values[arg.substr(2)] = argv[++i];
@@ -302,6 +322,65 @@ int run_hand_eye(const Args& a) {
   return finish(a, with_hand_eye(base, r));
 }
 
+// import's option for each MFC key, to say how to set the ones that took their default.
+const std::map<std::string, std::string> kMfcKeyOptions = {
+    {"working_distance_mm", "--working-distance"},  {"flashes.ring_radius_mm", "--flash-ring-radius"},
+    {"flashes.first_angle_deg", "--flash-first-angle"}, {"flashes.step_deg", "--flash-step"},
+    {"flashes.plane_z_mm", "--flash-plane-z"}};
+
+// A number option of import, checked against its range (the camera file's, docs/camera.md).
+std::optional<double> import_option(const Args& a, const std::string& key, double lo, double hi, const char* range) {
+  if (!a.has(key)) return std::nullopt;
+  const double v = a.number(key, 0);
+  if (!std::isfinite(v) || !(v > lo) || v > hi) throw UsageError("--" + key + " " + a.get(key) + ": must be " + range);
+  return v;
+}
+
+int run_import(const Args& a) {
+  if (a.positional.size() != 1) throw UsageError("import: give one calibration FILE (OpenCV or ROS YAML)");
+  const fs::path file = a.positional[0];
+  const fs::path out = a.need("out");
+  std::error_code ec;
+  if (fs::exists(out) && fs::equivalent(file, out, ec))
+    throw UsageError("--out " + out.string() + " is the file being imported: give the camera file to write");
+  const double inf = std::numeric_limits<double>::infinity();
+  MfcKeyOptions o;
+  o.working_distance_mm = import_option(a, "working-distance", 0, 1e5, "in (0, 100000] mm");
+  o.ring_radius_mm = import_option(a, "flash-ring-radius", 0, 1000, "in (0, 1000] mm");
+  o.first_angle_deg = import_option(a, "flash-first-angle", -inf, inf, "a finite angle in degrees");
+  o.step_deg = import_option(a, "flash-step", -inf, inf, "a finite angle in degrees");
+  o.plane_z_mm = import_option(a, "flash-plane-z", -inf, inf, "a finite length in mm");
+  // The MFC keys not given are kept from the camera file being replaced, as intrinsics does.
+  if (a.has("camera")) o.base_camera_file = a.get("camera");
+  else if (fs::exists(out)) o.base_camera_file = out;
+
+  const CalibrationImport imp = import_calibration(file, o);
+  std::cout << imp.summary(file);
+  const std::vector<std::string> defaults = imp.defaults_used();
+  std::cout << "defaults used:";
+  if (defaults.empty()) std::cout << " none";
+  for (size_t i = 0; i < defaults.size(); ++i) {
+    const auto& k = defaults[i];
+    const auto it = std::find_if(imp.mfc_keys.begin(), imp.mfc_keys.end(), [&](const auto& m) { return m.key == k; });
+    std::cout << (i ? ", " : " ") << k << ' ' << it->value << " (" << kMfcKeyOptions.at(k) << ')';
+  }
+  std::cout << '\n';
+  if (!defaults.empty())
+    std::cout << "  measure them on the camera and import again with those options, or edit " << out.string()
+              << " (docs/camera.md)\n";
+  // A new file is written at once; replacing one needs --apply, like a calibration.
+  Args write = a;
+  write.apply = a.apply || !fs::exists(out);
+  const int rc = finish(write, imp.config);
+  if (write.apply) {
+    const CameraConfig back = load_camera_config(out);
+    if (back.camera.K != imp.config.camera.K || back.camera.distortion != imp.config.camera.distortion ||
+        back.camera.image_size != imp.config.camera.image_size)
+      throw std::runtime_error(out.string() + ": the intrinsics read back differ from the imported ones");
+  }
+  return rc;
+}
+
 int run_rollback(const Args& a) {
   CalibrationStore store(a.need("out"));
   store.rollback();
@@ -315,6 +394,8 @@ int run_rollback(const Args& a) {
 int main(int argc, char** argv) {
   try {
     const Args a = parse(argc, argv);
+    if (a.command == "import") return run_import(a);
+    if (!a.positional.empty()) throw UsageError("unexpected argument '" + a.positional[0] + "'");
     if (a.command == "intrinsics") return run_intrinsics(a);
     if (a.command == "hand-eye") return run_hand_eye(a);
     if (a.command == "rollback") return run_rollback(a);
