@@ -47,6 +47,9 @@ class Detector {
   virtual std::string name() const = 0;
   // obj_id = 0: every loaded part type (best pick); otherwise that type only (the recipe).
   virtual void detect(const vision::MfcFrames& frames, int obj_id, Detection& out) = 0;
+  // The bin floor's distance (mm, along the optical axis; 0: not known) for the next detect()s:
+  // the scene's own when the dataset says where its bin stands (--floor scene).
+  virtual void set_floor_mm(double distance_mm) = 0;
   // How the last detect()'s image scores a given pose (the truth), measured as the detector
   // ranks its own hypotheses; detectors without such a measure return nothing.
   virtual std::optional<vision::PoseScore> score_pose(int /*obj_id*/, const cv::Matx33d& /*R*/, const cv::Vec3d& /*t_mm*/) {

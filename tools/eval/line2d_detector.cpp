@@ -95,6 +95,12 @@ class Line2dDetector final : public Detector {
   }
 
   std::string name() const override { return "line2d"; }
+  void set_floor_mm(double distance_mm) override {
+    vision::BinFloor floor = options_.floor;
+    floor.distance_mm = distance_mm;
+    floor.validate();
+    options_.floor = floor;
+  }
   double setup_seconds() const override { return setup_s_; }
   int templates() const { return templates_; }
 

@@ -64,11 +64,13 @@ detect: for every image and every part type present in it, runs each method for 
                          templates' scale is searched for each (default: the templates' own)
   --refine-candidates N  candidates the pipeline refines (1 view); 0 = coarse poses only
                          (default: the pipeline's default, PipelineConfig::refine_candidates)
-  --floor MM             the bin floor's distance from the camera along the optical axis, as the
+  --floor MM|scene       the bin floor's distance from the camera along the optical axis, as the
                          cell knows it (mfc-sim: the camera's working distance). The pipeline
                          drops fitted poses below it and fits the best few just above it again
                          from it; unfitted poses (baselines, LINE-2D) below it are slid onto it
-                         (PipelineConfig::floor). Default 0: not known
+                         (PipelineConfig::floor). `scene`: each scene's own, from the
+                         floor_distance_mm of its scene_render.json (the generalization bench's
+                         scenes, whose bins stand at different heights). Default 0: not known
   --set KEY=VALUE        a pipeline parameter for the pipeline methods (repeatable; the keys of
                          docs/configuration.md's vision table, trace, floor_distance_mm), e.g.
                          --set view_stride=2; an unknown key lists the keys
@@ -157,6 +159,7 @@ struct Options {
   bool pick_ambiguous = false;                                  // --pick-ambiguous
   int timing_repeats = 1;  // --timing-repeats
   double floor_mm = 0;  // --floor
+  bool floor_per_scene = false;  // --floor scene
   std::vector<double> distances_mm;
   std::vector<std::string> pipeline_settings;  // --set KEY=VALUE, applied in order
   bool all_types = false, quiet = false;
@@ -214,8 +217,10 @@ Options parse(int argc, char** argv) {
       }
     }
     else if (a == "--floor") {
-      o.floor_mm = to_double(a, value());
-      if (!(o.floor_mm >= 0)) throw Usage("--floor must be >= 0 (0: not known)");
+      const std::string v = value();
+      o.floor_per_scene = v == "scene";
+      o.floor_mm = o.floor_per_scene ? 0 : to_double(a, v);
+      if (!(o.floor_mm >= 0)) throw Usage("--floor must be >= 0 (0: not known) or scene");
     }
     else if (a == "--set") {
       o.pipeline_settings.push_back(value());
@@ -373,6 +378,7 @@ int run_detect(const Options& o) {
   out["parts"] = jparts;
   out["distances_mm"] = o.distances_mm;
   out["floor_mm"] = o.floor_mm;
+  out["floor_per_scene"] = o.floor_per_scene;
   out["pick_min_score"] = o.pick_min_score;
   out["pick_skip_ambiguous"] = !o.pick_ambiguous;
   out["refine_candidates"] = o.refine_candidates >= 0 ? o.refine_candidates : vision::PipelineConfig{}.refine_candidates;
@@ -429,8 +435,30 @@ int run_detect(const Options& o) {
     for (const auto& [name, value] : e.measures) entry["measures"][name] = value;
     return entry;
   };
+  // The bin floor of a scene (--floor scene): the bench renderer's scene_render.json says where its
+  // bin stands, as a cell's calibration would.
+  std::map<int, double> scene_floors;
+  auto floor_of = [&](int scene) {
+    if (!o.floor_per_scene) return o.floor_mm;
+    if (const auto it = scene_floors.find(scene); it != scene_floors.end()) return it->second;
+    char folder[16];
+    std::snprintf(folder, sizeof folder, "%06d", scene);
+    const fs::path file = o.dataset / o.split / folder / "scene_render.json";
+    std::ifstream in(file);
+    if (!in) throw std::runtime_error(file.string() + ": cannot open (--floor scene needs each scene's floor)");
+    json j;
+    try {
+      j = json::parse(in);
+    } catch (const json::exception& e) {
+      throw std::runtime_error(file.string() + ": " + e.what());
+    }
+    if (!j.contains("floor_distance_mm") || !j["floor_distance_mm"].is_number() ||
+        !(j["floor_distance_mm"].get<double>() > 0))
+      throw std::runtime_error(file.string() + ": no positive floor_distance_mm");
+    return scene_floors[scene] = j["floor_distance_mm"].get<double>();
+  };
   auto cell_picks = [&](const ImageRef& ref, const ImageGt& gt, const Detection& det_out) {
-    const double floor_mm = o.floor_mm > 0 ? o.floor_mm : camera.working_distance_mm;
+    const double floor_mm = floor_of(ref.scene) > 0 ? floor_of(ref.scene) : camera.working_distance_mm;
     std::vector<motion::PickCandidate> candidates;
     for (const Estimate& e : det_out.estimates)
       candidates.push_back({static_cast<float>(e.score), static_cast<float>(floor_mm - e.t_mm[2]),
@@ -496,6 +524,7 @@ int run_detect(const Options& o) {
       const vision::MfcFrames frames = dataset.frames(ref.scene, ref.image);
       std::set<int> present;
       for (const auto& p : g.gt) present.insert(p.obj_id);
+      if (o.floor_per_scene) det->set_floor_mm(floor_of(ref.scene));
       for (int obj_id : present) {
         det->detect(frames, obj_id, d);
         // The best estimate against every instance of the type: correct if it matches any;
@@ -724,6 +753,7 @@ int run_detect(const Options& o) {
       json picks = json::array();
       for (size_t k = 0; k < images.size(); ++k) {
         const ImageRef& ref = images[k];
+        if (o.floor_per_scene) det->set_floor_mm(floor_of(ref.scene));
         det->detect(dataset.frames(ref.scene, ref.image), 0, d);
         bool correct = false;
         if (!d.estimates.empty())

@@ -36,9 +36,15 @@ class PipelineDetector final : public Detector {
     pc.grasp_features = grasp_features;
     for (const auto& s : settings) apply_eval_setting(pc, s);
     pipeline_ = std::make_unique<vision::BinPickingPipeline>(camera, pc);
+    floor_ = pc.floor;
     setup_s_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   }
   std::string name() const override { return name_; }
+  void set_floor_mm(double distance_mm) override {
+    vision::BinFloor floor = floor_;
+    floor.distance_mm = distance_mm;
+    pipeline_->set_floor(floor);
+  }
   void detect(const vision::MfcFrames& frames, int obj_id, Detection& out) override {
     // No deadline: the evaluation measures the full search of every method.
     pipeline_->process(frames, obj_id, std::chrono::steady_clock::now() + std::chrono::hours(1), result_);
@@ -111,6 +117,7 @@ class PipelineDetector final : public Detector {
   std::string name_;
   vision::PipelineConfig::Cost cost_;
   std::unique_ptr<vision::BinPickingPipeline> pipeline_;
+  vision::BinFloor floor_;  // the configured floor (its tolerance); set_floor_mm moves it
   vision::PipelineResult result_;
   double setup_s_ = 0;
 };

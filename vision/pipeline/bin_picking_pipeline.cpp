@@ -154,6 +154,11 @@ void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::tim
   out.times.total_ms = ms_between(t0, t);
 }
 
+void BinPickingPipeline::set_floor(const BinFloor& floor) {
+  floor.validate();
+  impl_->config.floor = floor;
+}
+
 PoseScore BinPickingPipeline::score_pose(int obj_id, const cv::Matx33d& R_m2c, const cv::Vec3d& t_m2c_mm) {
   Impl& m = *impl_;
   if (m.config.cost != PipelineConfig::Cost::fdcm) throw std::invalid_argument("pipeline: score_pose needs the FDCM cost");

@@ -230,6 +230,11 @@ class BinPickingPipeline {
   GraspVisibility grasp_visibility(int obj_id, const cv::Matx33d& R_m2c, const cv::Vec3d& t_m2c_mm,
                                    const GraspFeature& feature);
 
+  // The bin floor of the next cycles (a cell whose bins stand at different heights, per recipe).
+  // Its tolerance_mm replaces floor_tolerance_mm's. Throws std::invalid_argument naming the field
+  // (BinFloor::validate); the floor is then unchanged. Not during process().
+  void set_floor(const BinFloor& floor);
+
   // Part types loaded, as (obj_id, name).
   std::vector<std::pair<int, std::string>> parts() const;
   const CameraConfig& camera() const;

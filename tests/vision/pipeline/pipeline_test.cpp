@@ -320,6 +320,41 @@ TEST(Pipeline, NoCandidateReachesBelowTheBinFloor) {
     EXPECT_FALSE(high.below(mesh, {c.R_m2c, c.t_m2c_mm})) << "candidate reaches " << high.reach_below(mesh, {c.R_m2c, c.t_m2c_mm}) << " mm below";
 }
 
+// set_floor moves the floor of the next cycles, as if the pipeline had been configured with it; a
+// bad floor is refused and leaves the one in use.
+TEST(Pipeline, SetFloorActsAsTheConfiguredFloor) {
+  const fs::path tdb = kTemplates / "diamond.tdb";
+  ASSERT_TRUE(fs::exists(tdb)) << tdb;
+  const CameraConfig cam = sim_camera();
+  const RenderedPart scene = render_part(tdb, cam, 0.4, {330, 230}, 11);
+  const Mesh& mesh = scene.db.mesh;
+  PipelineConfig pc;
+  pc.template_files = {tdb};
+  BinPickingPipeline pipeline(cam, pc);
+  PipelineResult result;
+  auto run = [&] {
+    pipeline.process(scene.render.frames, 0, std::chrono::steady_clock::now() + std::chrono::seconds(30), result);
+  };
+  BinFloor high;
+  high.distance_mm = deepest_mm(mesh, scene.truth) - 8;
+  auto best_below = [&] {
+    return !result.candidates.empty() &&
+           high.below(mesh, {result.candidates.front().R_m2c, result.candidates.front().t_m2c_mm});
+  };
+  run();
+  EXPECT_TRUE(best_below());  // no floor known: the part itself reaches below `high`
+  pipeline.set_floor(high);
+  BinFloor bad = high;
+  bad.normal = {0, 0, -1};  // pointing back at the camera
+  EXPECT_THROW(pipeline.set_floor(bad), std::invalid_argument);
+  run();
+  for (const PoseCandidate& c : result.candidates)
+    EXPECT_FALSE(high.below(mesh, {c.R_m2c, c.t_m2c_mm})) << "candidate reaches " << high.reach_below(mesh, {c.R_m2c, c.t_m2c_mm}) << " mm below";
+  pipeline.set_floor(BinFloor{});
+  run();
+  EXPECT_TRUE(best_below());
+}
+
 // Floor starts are a second start, not a constraint: a part held 15 mm above the floor (on
 // something, as in a full bin) is fitted again from the floor, and the fit climbs back to it.
 TEST(Pipeline, FloorStartsLeaveAPartThatDoesNotRestOnTheFloorWhereItIs) {
