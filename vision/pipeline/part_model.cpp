@@ -55,6 +55,7 @@ void find_turns(std::vector<PartModel>& parts, int threads) {
     PartModel& part = parts[static_cast<size_t>(i)];
     part.flips = mesh_turns(part.db);
     for (PartModel::Turn& t : plate_turns(part.db)) part.flips.push_back(std::move(t));
+    part.plate_axis = plate_axis(part.db);
   });
 }
 

@@ -10,6 +10,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -29,6 +30,8 @@ struct PartModel {
   // The turns its leading hypotheses are checked against (turn_checks.hpp).
   using Turn = PoseTurn;
   std::vector<Turn> flips;
+  // The normal of a plate with a 2-fold turn about it (plate_axis, model frame): the spin check's.
+  std::optional<cv::Vec3d> plate_axis;
 };
 
 // Loads a template file for `config`: checked against the camera (std::runtime_error naming the

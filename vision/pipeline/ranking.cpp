@@ -133,13 +133,15 @@ void BinPickingPipeline::Impl::check_spins(const Cycle& cycle, size_t first, int
   const int leaders = std::min(kSpinCheckLeaders, pool);
   // Serial: a leader reads the lower hypotheses it is compared with, and few leaders qualify.
   auto& ws = m.fit_workspaces[0];
-  auto normal = [](const RigidPose& p) { return cv::Vec3d(p.R(0, 2), p.R(1, 2), p.R(2, 2)); };
   for (int i = begin; i < begin + leaders; ++i) {
     Verified& v = m.verified[i];
     if (v.fit_score <= 0 || Clock::now() > cycle.deadline) continue;
     const PartModel& part = m.parts[v.hit.part];
-    const PartSymmetry& sym = part.db.symmetry;
-    if (sym.kind != PartSymmetry::Kind::discrete_z || sym.order != 2) continue;
+    if (!part.plate_axis) continue;
+    const cv::Vec3d axis = *part.plate_axis;
+    auto normal = [&](const RigidPose& p) { return p.R * axis; };
+    // The half turn about the normal, the plate's symmetry.
+    const cv::Matx33d half = axis_rotation(axis, CV_PI);
     TemplateFitResult current = v.as_fit();
     const cv::Vec3d centre = current.pose.R * part.db.center_mm + current.pose.t_mm;
     const cv::Vec3d n = normal(current.pose);
@@ -153,11 +155,9 @@ void BinPickingPipeline::Impl::check_spins(const Cycle& cycle, size_t first, int
       if (cv::norm(m.camera.camera.project(r.fitted.R * part.db.center_mm + r.fitted.t_mm) - at) > place_px) continue;
       // The normal either way: a plate face down is the turned-over check's.
       if (degrees(std::acos(std::min(1.0, std::abs(n.dot(normal(r.fitted)))))) > kSpinCheckMaxAxisDeg) continue;
-      // Over the symmetry's turns about z, computed (discrete_rotations() would allocate).
-      double spin = 180;
-      for (int k = 0; k < sym.order; ++k)
-        spin = std::min(spin, degrees(rotation_angle(current.pose.R.t() * r.fitted.R *
-                                                     rotation_about_z(2 * CV_PI * k / sym.order))));
+      // Over the plate's two turns about its normal.
+      const cv::Matx33d relative = current.pose.R.t() * r.fitted.R;
+      const double spin = degrees(std::min(rotation_angle(relative), rotation_angle(relative * half)));
       if (spin < kSpinCheckMinSpinDeg) continue;
       const TemplateFitResult rival = r.as_fit();
       if (!turn_is_better(m.fitter.compare(part.db, current, rival, m.camera.camera, ws))) continue;

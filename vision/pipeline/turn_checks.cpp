@@ -27,8 +27,9 @@ std::vector<PoseTurn> mesh_turns(const TemplateDatabase& db) {
   return out;
 }
 
-// Plate turns: a part with a 2-fold symmetry about z (the diamond, the ellipse, the T-nut) seen on
-// edge or steeply tilted shows an outline that changes little when it turns about its own z axis,
+// Plate turns: a plate with a 2-fold symmetry about its normal (the diamond, the ellipse, the T-nut:
+// plate_axis, found from the mesh) seen on edge or steeply tilted shows an outline that changes
+// little when it turns about that normal,
 // and fits from the search's hypotheses stop 10-25 degrees off, on the flank of the truth's basin:
 // in the capped set's scene 7 image 1 an ellipse on edge fitted 24.5 degrees off scores 0.554, the
 // fit from the truth 0.560. Fits started +-15 degrees about z reach the truth's basin. The points
@@ -37,15 +38,25 @@ std::vector<PoseTurn> mesh_turns(const TemplateDatabase& db) {
 // the turned fit is taken when its rank is higher, and only for hypotheses the cell would pick
 // (rank at least config/cell.yaml's min_score 0.1): below that, a higher rank is noise (4 fixed and
 // 4 broken without it, all the broken ranked below 0.09).
-constexpr double kPlateTurnDeg = 15;
+
+std::optional<cv::Vec3d> plate_axis(const TemplateDatabase& db) {
+  const cv::Vec3d thin(db.turns.principal_axes(2, 0), db.turns.principal_axes(2, 1), db.turns.principal_axes(2, 2));
+  for (const MeshTurn& s : db.turns.symmetries)
+    if (s.order == 2 && std::abs(s.axis.dot(thin)) >= std::cos(kPlateAxisMaxDeg * CV_PI / 180)) return s.axis;
+  return std::nullopt;
+}
 
 std::vector<PoseTurn> plate_turns(const TemplateDatabase& db) {
-  const PartSymmetry& sym = db.symmetry;
   std::vector<PoseTurn> out;
-  if (sym.kind != PartSymmetry::Kind::discrete_z || sym.order != 2) return out;
+  const std::optional<cv::Vec3d> axis = plate_axis(db);
+  if (!axis) return out;
+  const MeshTurn* sym = nullptr;
+  for (const MeshTurn& s : db.turns.symmetries)
+    if (s.order == 2 && s.axis == *axis) sym = &s;
   for (const double sign : {1.0, -1.0}) {
     PoseTurn& t = out.emplace_back();
-    t.S = rotation_about_z(sign * kPlateTurnDeg * CV_PI / 180);
+    t.S = axis_rotation(*axis, sign * kPlateTurnDeg * CV_PI / 180);
+    t.pivot_mm = sym->pivot_mm;
     t.by_rank = true;
   }
   return out;

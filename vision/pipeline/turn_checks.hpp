@@ -11,6 +11,7 @@
 #include <opencv2/core.hpp>
 
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 namespace mfcd::vision::detail {
@@ -49,7 +50,14 @@ struct PoseTurn {
 // feature that breaks it, and screened), and +-0.4 of the period about each axis of an N-fold
 // symmetry or near-symmetry (N >= 3). The flagged points take ~0.1 s a part (asymmetric_points).
 std::vector<PoseTurn> mesh_turns(const TemplateDatabase& db);
-// For a 2-fold symmetry about z: +-kPlateTurnDeg about z, judged by the fitted rank.
+// A plate's normal as the mesh says it: the axis of an exactly 2-fold symmetry (db.turns) within
+// kPlateAxisMaxDeg of the part's axis of least extent (its smallest principal axis). None: the
+// part is no plate with a 2-fold turn about its normal.
+std::optional<cv::Vec3d> plate_axis(const TemplateDatabase& db);
+inline constexpr double kPlateAxisMaxDeg = 10;
+// Plate turns' angle, degrees (turn_checks.cpp says why).
+inline constexpr double kPlateTurnDeg = 15;
+// About a plate axis: +-kPlateTurnDeg, judged by the fitted rank.
 std::vector<PoseTurn> plate_turns(const TemplateDatabase& db);
 
 // Plate turns are taken only for hypotheses ranked at least this (below it a higher rank is noise).
@@ -78,7 +86,7 @@ inline constexpr double kFlipAbsentCostPx = 7;
 // Whether the turned pose (b) of a comparison (TemplatePoseFit::compare) beats the hypothesis (a).
 bool turn_is_better(const TemplatePoseFit::Difference& d);
 
-// Spin check: a plate with a 2-fold symmetry about z standing on its rim shows a strip from
+// Spin check: a plate with a 2-fold symmetry about its normal (plate_axis) standing on its rim shows a strip from
 // above whose length is all that tells its spin about z (its normal), and a wrong spin with a
 // compensating distance makes nearly the same strip: on 160 single parts on an empty floor, two
 // diamonds on their rim were reported spun 35 and 54 degrees, the truth being a lower-ranked

@@ -3,9 +3,13 @@
 #include "vision/pipeline/turn_checks.hpp"
 #include "vision/templates/template_teacher.hpp"
 
+#include "vision/pose/rigid_transform.hpp"
+
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
+#include <optional>
 
 using namespace mfcd::vision;
 
@@ -65,4 +69,29 @@ TEST(TurnChecks, ComeFromTheTurnsStoredInTheDatabase) {
   EXPECT_FALSE(turns[1].screen);
   EXPECT_TRUE(turns[1].differs.empty());
   EXPECT_EQ(turns[1].flags_of_pose(0), nullptr);
+}
+
+// A plate's normal comes from the mesh: the box's 2-fold axis along its least extent (20 mm, z),
+// not a declared symmetry; its plate turns are +-15 degrees about it, judged by rank.
+TEST(TurnChecks, PlateAxisIsTheTwoFoldAxisAlongThePartsLeastExtent) {
+  TemplateDatabase db = box_db();
+  ASSERT_EQ(db.symmetry.str(), "none");  // nothing declared
+  const std::optional<cv::Vec3d> axis = detail::plate_axis(db);
+  ASSERT_TRUE(axis.has_value());
+  EXPECT_NEAR(std::abs((*axis)[2]), 1.0, 1e-3) << *axis;
+  const std::vector<detail::PoseTurn> turns = detail::plate_turns(db);
+  ASSERT_EQ(turns.size(), 2u);
+  for (const detail::PoseTurn& t : turns) {
+    EXPECT_TRUE(t.by_rank);
+    EXPECT_NEAR(rotation_angle(t.S) * 180 / CV_PI, detail::kPlateTurnDeg, 1e-6);
+    EXPECT_LT(cv::norm(t.S * *axis - *axis), 1e-9);  // about the axis
+  }
+  // A part whose 2-fold axis is not its thinnest (the symmetry about x only) is no plate.
+  db.turns.symmetries.erase(
+      std::remove_if(db.turns.symmetries.begin(), db.turns.symmetries.end(),
+                     [](const MeshTurn& s) { return std::abs(s.axis[0]) < 0.9; }),
+      db.turns.symmetries.end());
+  ASSERT_EQ(db.turns.symmetries.size(), 1u);
+  EXPECT_FALSE(detail::plate_axis(db).has_value());
+  EXPECT_TRUE(detail::plate_turns(db).empty());
 }
