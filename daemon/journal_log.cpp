@@ -17,7 +17,6 @@
 #include <stdexcept>
 #include <string>
 
-#include "daemon/cycle.hpp"
 
 namespace mfcd::daemon {
 
@@ -87,19 +86,6 @@ bool JournalFields::addf(std::string_view name, const char* format, ...) {
   return add(name, std::string_view(value, std::min<std::size_t>(static_cast<std::size_t>(n), sizeof value - 1)));
 }
 
-void cycleJournalFields(const CycleResult& r, JournalFields& out) {
-  out.clear();
-  out.addf("MFCD_CYCLE", "%llu", static_cast<unsigned long long>(r.request.cycle_id));
-  out.addf("MFCD_JOB_ID", "%u", static_cast<unsigned>(r.request.job_id));
-  out.addf("MFCD_ERROR_CODE", "%u", static_cast<unsigned>(r.error));
-  // The same condition as the pick line of logCycleResult: an error line has no pick fields.
-  if (r.error == CycleError::None && r.chosen >= 0 && r.chosen < CycleResult::kMaxCandidates) {
-    const CandidateOut& c = r.candidates[static_cast<std::size_t>(r.chosen)];
-    out.addf("MFCD_PART", "%d", c.obj_id);
-    out.addf("MFCD_SCORE", "%.3f", static_cast<double>(c.score));
-  }
-}
-
 void journalEntry(LogLevel level, const char* ident, std::string_view message, const JournalFields& extra,
                   JournalFields& out) {
   out.clear();
@@ -152,34 +138,6 @@ bool JournalSink::send(const JournalFields& entry) const {
   }
   const ssize_t sent = ::sendto(fd_, datagram, n, MSG_DONTWAIT | MSG_NOSIGNAL, reinterpret_cast<const sockaddr*>(&addr_), addrLen_);
   return sent == static_cast<ssize_t>(n);
-}
-
-void logCycleResult(const CycleResult& r) {
-  // The texts are the ones Daemon::onResult always wrote; the plain path prints them unchanged.
-  char line[1024];
-  LogLevel level;
-  const unsigned long long id = r.request.cycle_id;
-  if (r.error != CycleError::None) {
-    level = LogLevel::Error;
-    std::snprintf(line, sizeof line, "cycle %llu (%s job %u recipe %u): error %u: %s", id, toString(r.request.origin),
-                  r.request.job_id, r.request.recipe_id, static_cast<unsigned>(r.error), r.message);
-  } else if (r.chosen >= 0) {
-    level = LogLevel::Info;
-    const CandidateOut& c = r.candidates[static_cast<std::size_t>(r.chosen)];
-    const auto& p = c.base;
-    std::snprintf(line, sizeof line,
-                  "cycle %llu (%s job %u recipe %u): pick obj %d at %.1f %.1f %.1f / %.1f %.1f %.1f score %.3f, %d found, %.0f ms%s",
-                  id, toString(r.request.origin), r.request.job_id, r.request.recipe_id, c.obj_id, p.x_mm, p.y_mm, p.z_mm,
-                  p.rx_deg, p.ry_deg, p.rz_deg, c.score, r.candidate_count, r.total_ms, r.degraded ? " (degraded)" : "");
-  } else {
-    level = LogLevel::Notice;
-    std::snprintf(line, sizeof line, "cycle %llu (%s job %u recipe %u): no pick, %d found, %.0f ms", id,
-                  toString(r.request.origin), r.request.job_id, r.request.recipe_id, r.candidate_count, r.total_ms);
-  }
-  if (!logEnabled(level)) return;
-  JournalFields fields;
-  if (logToJournal()) cycleJournalFields(r, fields);  // the plain path does not use them
-  logStructured(level, fields, line);
 }
 
 }  // namespace mfcd::daemon
