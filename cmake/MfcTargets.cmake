@@ -2,10 +2,11 @@
 include_guard(GLOBAL)
 include(GoogleTest)
 
-# mfc_test(NAME SOURCES a.cpp b.cpp LIBS lib1 lib2 [LABELS label])
-# One GoogleTest executable; each TEST() becomes its own ctest entry.
+# mfc_test(NAME SOURCES a.cpp b.cpp LIBS lib1 lib2 [LABELS label] [RESOURCE_LOCK name])
+# One GoogleTest executable; each TEST() becomes its own ctest entry. RESOURCE_LOCK: tests that
+# share something exclusive (a UDP port) never run at the same time under ctest -j.
 function(mfc_test name)
-  cmake_parse_arguments(T "" "" "SOURCES;LIBS;LABELS" ${ARGN})
+  cmake_parse_arguments(T "" "RESOURCE_LOCK" "SOURCES;LIBS;LABELS" ${ARGN})
   add_executable(${name} ${T_SOURCES})
   target_link_libraries(${name} PRIVATE ${T_LIBS} GTest::gtest GTest::gtest_main mfc_warnings)
   target_compile_definitions(${name} PRIVATE MFC_SOURCE_DIR="${PROJECT_SOURCE_DIR}"
@@ -30,6 +31,9 @@ function(mfc_test name)
       message(FATAL_ERROR "mfc_test(${name}): one label only (got ${T_LABELS})")
     endif()
     list(APPEND props LABELS "${T_LABELS}")
+  endif()
+  if(T_RESOURCE_LOCK)
+    list(APPEND props RESOURCE_LOCK "${T_RESOURCE_LOCK}")
   endif()
   gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60 PROPERTIES ${props})
 endfunction()

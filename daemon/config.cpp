@@ -255,22 +255,36 @@ DaemonConfig parseConfig(const std::string& yamlText, const std::string& source,
   }
   {
     Section s = top.section("camera");
-    c.camera.type = s.choice("type", CameraType::Simulated, {{"simulated", CameraType::Simulated}, {"v4l2", CameraType::V4L2}});
+    c.camera.type = s.choice("type", CameraType::Simulated,
+                             {{"simulated", CameraType::Simulated}, {"v4l2", CameraType::V4L2}, {"aravis", CameraType::Aravis}});
+    const bool aravis = c.camera.type == CameraType::Aravis;
     c.camera.model = s.file("model", true);
+    if (aravis && !s.has("device"))
+      s.fail(s.key("device"), s.line(), "missing (required for type aravis: the camera id, e.g. Basler-21234567, or its IP address)");
     c.camera.device = s.string("device", c.camera.device);
     c.camera.bits_per_pixel = static_cast<int>(s.integer("bits_per_pixel", 8, 8, 16));
     if (c.camera.bits_per_pixel != 8) s.fail(s.key("bits_per_pixel"), lineOf(s.child("bits_per_pixel")), "the vision path takes 8-bit images; use 8");
+    if (aravis && s.has("frame_rate"))
+      s.fail(s.key("frame_rate"), lineOf(s.child("frame_rate")), "an aravis camera exposes once per software trigger (one per flash); remove the key");
     c.camera.frame_rate = static_cast<int>(s.integer("frame_rate", 0, 0, 1000));
     if (s.has("exposure_us")) c.camera.exposure_us = static_cast<int>(s.integer("exposure_us", 0, 1, 10'000'000));
-    if (s.has("gain")) c.camera.gain = static_cast<int>(s.integer("gain", 0, 0, 1'000'000));
+    if (s.has("gain")) {
+      c.camera.gain = s.number("gain", 0, 0, 1'000'000);
+      if (!aravis && *c.camera.gain != std::floor(*c.camera.gain))
+        s.fail(s.key("gain"), lineOf(s.child("gain")), "a V4L2 gain is an integer control value");
+    }
     c.camera.buffer_count = static_cast<int>(s.integer("buffer_count", 4, 2, 16));
     c.camera.dequeue_timeout_ms = static_cast<int>(s.integer("dequeue_timeout_ms", 1000, 10, 60000));
+    c.camera.packet_size = static_cast<int>(s.integer("packet_size", 0, 0, 16384));
+    if (c.camera.packet_size != 0 && c.camera.packet_size < 576)
+      s.fail(s.key("packet_size"), lineOf(s.child("packet_size")), "a GigE Vision packet is at least 576 bytes (0 = Aravis's choice)");
     c.camera.simulated_exposure_us = static_cast<int>(s.integer("simulated_exposure_us", 0, 0, 1'000'000));
     s.finish();
   }
   {
     Section s = top.section("lights");
-    c.lights.type = s.choice("type", LightsType::Simulated, {{"simulated", LightsType::Simulated}, {"gpiod", LightsType::Gpiod}});
+    c.lights.type = s.choice("type", LightsType::Simulated,
+                             {{"simulated", LightsType::Simulated}, {"gpiod", LightsType::Gpiod}, {"camera", LightsType::Camera}});
     c.lights.chip = s.string("chip", c.lights.chip);
     YAML::Node offsets = s.child("offsets");
     if (offsets.IsDefined() && !offsets.IsNull()) {
@@ -285,6 +299,30 @@ DaemonConfig parseConfig(const std::string& yamlText, const std::string& source,
       }
     }
     c.lights.active_low = s.boolean("active_low", false);
+    // Camera strobe: GenICam line names (LineSelector entries), four distinct lines.
+    c.lights.strobe_line = s.string("strobe_line", c.lights.strobe_line);
+    YAML::Node select = s.child("select_lines");
+    if (select.IsDefined() && !select.IsNull()) {
+      if (!select.IsSequence() || select.size() != 3)
+        s.fail(s.key("select_lines"), lineOf(select), "must be a list of 3 camera lines (LED index bit 0, 1, 2)");
+      for (std::size_t i = 0; i < 3; ++i) {
+        const std::string line = s.scalar("select_lines", select[i]);
+        if (line.empty()) s.fail(s.key("select_lines"), lineOf(select[i]), "a line name must not be empty");
+        c.lights.select_lines[i] = line;
+      }
+    }
+    const std::array<std::string, 4> used{c.lights.strobe_line, c.lights.select_lines[0], c.lights.select_lines[1],
+                                          c.lights.select_lines[2]};
+    for (std::size_t i = 1; i < used.size(); ++i)
+      for (std::size_t j = 0; j < i; ++j)
+        if (used[j] == used[i])
+          s.fail(s.key("select_lines"), select.IsDefined() && !select.IsNull() ? lineOf(select[i - 1]) : s.line(),
+                 "line '" + used[i] + "' is used twice (the strobe_line and the 3 select lines must differ)");
+    c.lights.strobe_source = s.choice("strobe_source", StrobeSourceSetting::ExposureActive,
+                                      {{"exposure_active", StrobeSourceSetting::ExposureActive}, {"timer", StrobeSourceSetting::Timer}});
+    if (c.lights.strobe_source == StrobeSourceSetting::Timer && !s.has("strobe_pulse_us"))
+      s.fail(s.key("strobe_pulse_us"), lineOf(s.child("strobe_source")), "missing (required for strobe_source: timer)");
+    c.lights.strobe_pulse_us = static_cast<int>(s.integer("strobe_pulse_us", 0, 1, 1'000'000));
     s.finish();
   }
   {

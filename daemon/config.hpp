@@ -36,8 +36,9 @@ private:
 };
 
 enum class RunMode { Triggered, Continuous };
-enum class CameraType { Simulated, V4L2 };
-enum class LightsType { Simulated, Gpiod };
+enum class CameraType { Simulated, V4L2, Aravis };
+enum class LightsType { Simulated, Gpiod, Camera };
+enum class StrobeSourceSetting { ExposureActive, Timer };
 
 const char* toString(RunMode m);
 
@@ -63,13 +64,14 @@ struct RecipeConfig {
 struct CameraSettings {
   CameraType type = CameraType::Simulated;
   fs::path model;           // camera YAML (intrinsics + flash ring, docs/camera.md), resolved
-  std::string device = "/dev/video0";
+  std::string device = "/dev/video0";  // V4L2 node, or the Aravis camera id / IP address
   int bits_per_pixel = 8;
   int frame_rate = 0;
   std::optional<int> exposure_us;
-  std::optional<int> gain;
+  std::optional<double> gain;  // V4L2: an integer control value; Aravis: the camera's Gain unit (dB)
   int buffer_count = 4;
   int dequeue_timeout_ms = 1000;
+  int packet_size = 0;            // Aravis, GigE Vision: stream packet size in bytes; 0 = Aravis's choice
   int simulated_exposure_us = 0;  // simulated camera: sleep this long per exposure
 };
 
@@ -77,7 +79,12 @@ struct LightsSettings {
   LightsType type = LightsType::Simulated;
   std::string chip = "mfc-leds";
   std::array<unsigned, 8> offsets{0, 1, 2, 3, 4, 5, 6, 7};
-  bool active_low = false;
+  bool active_low = false;  // gpiod: lines; camera: the strobe line (LineInverter)
+  // type camera: the LEDs are fired by the Aravis camera's outputs (docs/hal.md, "Camera strobe").
+  std::string strobe_line = "Line1";
+  std::array<std::string, 3> select_lines{"Line2", "Line3", "Line4"};  // LED index bit 0, 1, 2
+  StrobeSourceSetting strobe_source = StrobeSourceSetting::ExposureActive;
+  int strobe_pulse_us = 0;  // strobe_source timer: pulse length from the start of exposure
 };
 
 // A pose as an operator writes it: mm and degrees, R = Rz(rz) * Ry(ry) * Rx(rx).

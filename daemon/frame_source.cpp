@@ -4,6 +4,8 @@
 #include <stdexcept>
 
 #include "daemon/log.hpp"
+#include "mfcd/hal/aravis_camera.hpp"
+#include "mfcd/hal/aravis_strobe_light_ring.hpp"
 #include "mfcd/hal/gpiod_light_ring.hpp"
 #include "mfcd/hal/rendered_cell_scene.hpp"
 #include "mfcd/hal/simulated.hpp"
@@ -18,52 +20,88 @@ namespace mfcd::daemon {
 
 namespace {
 
+hal::GpiodLightRingConfig gpiodConfig(const DaemonConfig& c) {
+  hal::GpiodLightRingConfig g;
+  g.chip = c.lights.chip;
+  g.offsets = c.lights.offsets;
+  g.activeLow = c.lights.active_low;
+  return g;
+}
+
+hal::V4L2CameraConfig v4l2Config(const DaemonConfig& c, const vision::CameraConfig& model) {
+  hal::V4L2CameraConfig v;
+  v.device = c.camera.device;
+  v.width = model.camera.image_size.width;
+  v.height = model.camera.image_size.height;
+  v.bitsPerPixel = c.camera.bits_per_pixel;
+  v.frameRate = c.camera.frame_rate;
+  v.exposureUs = c.camera.exposure_us;
+  if (c.camera.gain) v.gain = static_cast<int>(*c.camera.gain);  // integral: checked by the config
+  v.bufferCount = c.camera.buffer_count;
+  v.dequeueTimeout = std::chrono::milliseconds(c.camera.dequeue_timeout_ms);
+  return v;
+}
+
+hal::AravisCameraConfig aravisConfig(const DaemonConfig& c, const vision::CameraConfig& model) {
+  hal::AravisCameraConfig a;
+  a.camera_id = c.camera.device;
+  a.width = model.camera.image_size.width;
+  a.height = model.camera.image_size.height;
+  a.bits_per_pixel = c.camera.bits_per_pixel;
+  if (c.camera.exposure_us) a.exposure_us = *c.camera.exposure_us;
+  a.gain = c.camera.gain;
+  a.buffer_count = c.camera.buffer_count;
+  a.frame_timeout = std::chrono::milliseconds(c.camera.dequeue_timeout_ms);
+  a.packet_size = c.camera.packet_size;
+  if (c.lights.type == LightsType::Camera) {
+    hal::CameraStrobeConfig s;
+    s.strobe_line = c.lights.strobe_line;
+    s.select_lines = c.lights.select_lines;
+    s.source = c.lights.strobe_source == StrobeSourceSetting::Timer ? hal::StrobeSource::Timer : hal::StrobeSource::ExposureActive;
+    s.pulse_us = c.lights.strobe_pulse_us;
+    s.strobe_inverted = c.lights.active_low;
+    a.strobe = s;
+  }
+  return a;
+}
+
+// Real devices: a V4L2 or GenICam (Aravis) camera, the LEDs on GPIO lines or on the camera's own
+// outputs. The strobe ring borrows the camera: members are destroyed sequencer, ring, camera.
 class HardwareFrameSource final : public FrameSource {
 public:
-  explicit HardwareFrameSource(const DaemonConfig& c)
-      : camera_(cameraConfig(c)), lights_(lightsConfig(c)),
-        sequencer_(camera_, lights_, {c.max_stale_frames, static_cast<std::int64_t>(c.settle_us) * 1000}) {}
+  explicit HardwareFrameSource(const DaemonConfig& c) {
+    const vision::CameraConfig model = vision::load_camera_config(c.camera.model);
+    if (c.camera.type == CameraType::Aravis) {
+      auto aravis = std::make_unique<hal::AravisCamera>(aravisConfig(c, model));
+      if (c.lights.type == LightsType::Camera) lights_ = std::make_unique<hal::AravisStrobeLightRing>(*aravis);
+      camera_ = std::move(aravis);
+    } else {
+      camera_ = std::make_unique<hal::V4L2Camera>(v4l2Config(c, model));
+    }
+    if (!lights_) lights_ = std::make_unique<hal::GpiodLightRing>(gpiodConfig(c));
+    sequencer_ = std::make_unique<hal::MfcSequencer>(
+        *camera_, *lights_, hal::SequencerConfig{c.max_stale_frames, static_cast<std::int64_t>(c.settle_us) * 1000});
+  }
   void activate() override {
-    sequencer_.configure();
-    sequencer_.activate();
+    sequencer_->configure();
+    sequencer_->activate();
   }
   void deactivate() noexcept override {
     try {
-      sequencer_.deactivate();
+      sequencer_->deactivate();
     } catch (const std::exception& e) {
       logf(LogLevel::Error, "deactivating %s: %s", describe().c_str(), e.what());
     }
   }
-  const hal::FrameSet& capture() override { return sequencer_.read(); }
-  hal::ImageFormat format() const override { return camera_.format(); }
-  hal::LedMask leds() const override { return lights_.state(); }
-  std::string describe() const override { return camera_.describe() + " + " + lights_.describe(); }
+  const hal::FrameSet& capture() override { return sequencer_->read(); }
+  hal::ImageFormat format() const override { return camera_->format(); }
+  hal::LedMask leds() const override { return lights_->state(); }
+  std::string describe() const override { return camera_->describe() + " + " + lights_->describe(); }
 
 private:
-  static hal::V4L2CameraConfig cameraConfig(const DaemonConfig& c) {
-    const vision::CameraConfig model = vision::load_camera_config(c.camera.model);
-    hal::V4L2CameraConfig v;
-    v.device = c.camera.device;
-    v.width = model.camera.image_size.width;
-    v.height = model.camera.image_size.height;
-    v.bitsPerPixel = c.camera.bits_per_pixel;
-    v.frameRate = c.camera.frame_rate;
-    v.exposureUs = c.camera.exposure_us;
-    v.gain = c.camera.gain;
-    v.bufferCount = c.camera.buffer_count;
-    v.dequeueTimeout = std::chrono::milliseconds(c.camera.dequeue_timeout_ms);
-    return v;
-  }
-  static hal::GpiodLightRingConfig lightsConfig(const DaemonConfig& c) {
-    hal::GpiodLightRingConfig g;
-    g.chip = c.lights.chip;
-    g.offsets = c.lights.offsets;
-    g.activeLow = c.lights.active_low;
-    return g;
-  }
-  hal::V4L2Camera camera_;
-  hal::GpiodLightRing lights_;
-  hal::MfcSequencer sequencer_;
+  std::unique_ptr<hal::Camera> camera_;
+  std::unique_ptr<hal::LightRing> lights_;
+  std::unique_ptr<hal::MfcSequencer> sequencer_;
 };
 
 // The simulated cell: a bin of CAD parts lying on the floor at random positions and yaw (fixed
@@ -269,18 +307,19 @@ std::unique_ptr<FrameSource> makeFrameSource(const DaemonConfig& config) {
       throw std::runtime_error(config.source + ": lights.type: a simulated camera needs simulated lights (the camera renders what the simulated ring lights)");
     return std::make_unique<SimulatedCellSource>(config);
   }
-  if (config.lights.type != LightsType::Gpiod)
-    throw std::runtime_error(config.source + ": lights.type: a V4L2 camera needs real LEDs (gpiod)");
+  if (config.lights.type == LightsType::Simulated)
+    throw std::runtime_error(config.source + ": lights.type: a real camera needs real LEDs (gpiod, or camera with camera.type aravis)");
+  if (config.lights.type == LightsType::Camera && config.camera.type != CameraType::Aravis)
+    throw std::runtime_error(config.source + ": lights.type: camera fires the LEDs from a GenICam camera's outputs; it needs camera.type: aravis");
   return std::make_unique<HardwareFrameSource>(config);
 }
 
 std::string switchLedsOff(const DaemonConfig& config) {
   if (config.lights.type == LightsType::Simulated) return "simulated LEDs: no lines to switch off";
-  hal::GpiodLightRingConfig g;
-  g.chip = config.lights.chip;
-  g.offsets = config.lights.offsets;
-  g.activeLow = config.lights.active_low;
-  hal::GpiodLightRing lights(g);
+  // The camera's strobe line only lights an LED while the camera exposes, and nothing triggers it
+  // once mfcd is gone: no line is left driving an LED.
+  if (config.lights.type == LightsType::Camera) return "camera strobe outputs: the LEDs light only during an exposure; nothing to switch off";
+  hal::GpiodLightRing lights(gpiodConfig(config));
   lights.configure();  // requests the lines as outputs, all off; released (still off) at scope end
   return lights.describe() + ": all 8 LED lines driven off";
 }

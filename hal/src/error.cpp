@@ -12,6 +12,7 @@ const char* toString(ErrorCode code) noexcept {
     case ErrorCode::StreamTimeout: return "stream timeout";
     case ErrorCode::StaleFrames: return "stale frames";
     case ErrorCode::InvalidState: return "invalid state";
+    case ErrorCode::MissingFeature: return "missing feature";
     case ErrorCode::Io: return "I/O error";
   }
   return "unknown";

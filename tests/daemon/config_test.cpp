@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "daemon/config.hpp"
+#include "daemon/frame_source.hpp"
 #include "vision/pipeline/pipeline_parameters.hpp"
 #include "vision/camera/camera.hpp"
 
@@ -428,4 +429,72 @@ TEST(Config, HandEyeFromTheCameraFile) {
   e = errorOf(text("calibrated.yaml", "  from_camera_file: true\n  base_T_camera: {x_mm: 1}\n"));
   EXPECT_EQ(e.key(), "hand_eye.base_T_camera");
   fs::remove_all(dir);
+}
+
+// camera.type aravis (a GenICam camera through Aravis) and lights.type camera (the LEDs fired by its
+// outputs): keys, defaults, the errors naming key and line, and the frame source built from them
+// (no device is opened until activate()).
+TEST(Config, AravisCameraAndCameraStrobe) {
+  const std::string recipes = "recipes:\n  - {id: 0, part: any, obj_id: 0}\n";
+  const std::string aravis = "camera:\n  model: camera-sim.yaml\n  type: aravis\n  device: Basler-21234567\n";
+  DaemonConfig c = parseConfig(aravis + "  gain: 2.5\n  packet_size: 8192\n" + recipes +
+                                   "lights:\n  type: camera\n  strobe_line: Line1\n  select_lines: [Line2, Line3, Line4]\n"
+                                   "  strobe_source: timer\n  strobe_pulse_us: 1500\n  active_low: true\n",
+                               "test.yaml", kPath);
+  EXPECT_EQ(c.camera.type, CameraType::Aravis);
+  EXPECT_EQ(c.camera.device, "Basler-21234567");
+  ASSERT_TRUE(c.camera.gain);
+  EXPECT_DOUBLE_EQ(*c.camera.gain, 2.5);  // dB on SFNC cameras: not only integers
+  EXPECT_EQ(c.camera.packet_size, 8192);
+  EXPECT_EQ(c.lights.type, LightsType::Camera);
+  EXPECT_EQ(c.lights.select_lines[2], "Line4");
+  EXPECT_EQ(c.lights.strobe_source, StrobeSourceSetting::Timer);
+  EXPECT_EQ(c.lights.strobe_pulse_us, 1500);
+  const auto source = makeFrameSource(c);
+  EXPECT_NE(source->describe().find("Aravis Basler-21234567"), std::string::npos) << source->describe();
+  EXPECT_NE(source->describe().find("strobe outputs of"), std::string::npos) << source->describe();
+  EXPECT_NE(switchLedsOff(c).find("camera strobe"), std::string::npos);
+
+  c = parseConfig(aravis + recipes + "lights:\n  type: gpiod\n", "test.yaml", kPath);  // LEDs on GPIO still
+  EXPECT_EQ(c.lights.strobe_line, "Line1");
+  EXPECT_EQ(c.lights.strobe_source, StrobeSourceSetting::ExposureActive);
+  EXPECT_NE(makeFrameSource(c)->describe().find("GPIO chip"), std::string::npos);
+
+  ConfigError e = errorOf("camera:\n  model: camera-sim.yaml\n  type: aravis\n" + recipes);
+  EXPECT_EQ(e.key(), "camera.device");
+  EXPECT_NE(std::string(e.what()).find("camera id"), std::string::npos) << e.what();
+  e = errorOf(aravis + "  frame_rate: 60\n" + recipes);
+  EXPECT_EQ(e.key(), "camera.frame_rate");
+  EXPECT_EQ(e.line(), 5);
+  e = errorOf("camera:\n  model: camera-sim.yaml\n  type: v4l2\n  gain: 2.5\n" + recipes);
+  EXPECT_EQ(e.key(), "camera.gain");
+  EXPECT_EQ(e.line(), 4);
+  e = errorOf(aravis + "  packet_size: 100\n" + recipes);
+  EXPECT_EQ(e.key(), "camera.packet_size");
+  e = errorOf(aravis + recipes + "lights:\n  type: camera\n  select_lines: [Line2, Line3]\n");
+  EXPECT_EQ(e.key(), "lights.select_lines");
+  EXPECT_EQ(e.line(), 9);
+  e = errorOf(aravis + recipes + "lights:\n  type: camera\n  select_lines:\n    - Line2\n    - Line1\n    - Line4\n");
+  EXPECT_EQ(e.key(), "lights.select_lines");
+  EXPECT_EQ(e.line(), 11);
+  EXPECT_NE(std::string(e.what()).find("'Line1' is used twice"), std::string::npos) << e.what();
+  e = errorOf(aravis + recipes + "lights:\n  type: camera\n  strobe_source: timer\n");
+  EXPECT_EQ(e.key(), "lights.strobe_pulse_us");
+  EXPECT_EQ(e.line(), 9);
+
+  // The pairings the frame source refuses, naming the key.
+  c = parseConfig(aravis + recipes, "test.yaml", kPath);  // lights default: simulated
+  try {
+    makeFrameSource(c);
+    ADD_FAILURE() << "an aravis camera with simulated lights was accepted";
+  } catch (const std::runtime_error& err) {
+    EXPECT_NE(std::string(err.what()).find("lights.type"), std::string::npos) << err.what();
+  }
+  c = parseConfig("camera:\n  model: camera-sim.yaml\n  type: v4l2\n" + recipes + "lights:\n  type: camera\n", "test.yaml", kPath);
+  try {
+    makeFrameSource(c);
+    ADD_FAILURE() << "camera strobe without an aravis camera was accepted";
+  } catch (const std::runtime_error& err) {
+    EXPECT_NE(std::string(err.what()).find("camera.type: aravis"), std::string::npos) << err.what();
+  }
 }

@@ -7,14 +7,15 @@
 namespace mfcd::hal {
 
 enum class ErrorCode {
-  DeviceMissing,      // /dev/videoN or the GPIO chip does not exist
-  DeviceGone,         // the device disappeared while in use (ENODEV: unplugged)
-  WrongLine,          // GPIO line offset outside the chip
+  DeviceMissing,      // /dev/videoN, the GPIO chip or the GenICam camera does not exist
+  DeviceGone,         // the device disappeared while in use (ENODEV: unplugged; GenICam: stopped answering)
+  WrongLine,          // GPIO line offset outside the chip; a camera line that is missing or not an output
   LineBusy,           // GPIO line held by another consumer (EBUSY)
   UnsupportedFormat,  // no usable pixel format / frame size
-  StreamTimeout,      // no frame within the dequeue watchdog
+  StreamTimeout,      // no frame within the dequeue watchdog / frame timeout
   StaleFrames,        // sequencer: no frame inside the LED's on-window after the retries
   InvalidState,       // lifecycle misuse (read() before activate(), ...)
+  MissingFeature,     // the camera lacks a GenICam feature the configuration needs (LineSelector, ...)
   Io,                 // any other system-call failure
 };
 
