@@ -107,6 +107,67 @@ TEST(Cycle, NoAllocationOnTheFramePathInSteadyState) {
   EXPECT_EQ(after - before, 0u) << "acquisition, copy into the ring, vision worker, results";
 }
 
+// The soak's frame check (TruthVisionStage pattern mode, tools/mfc load --camera pattern): through
+// the real Cell every frame set passes and yields one stand-in pick; frames that are not what the
+// sequencer should have delivered are refused, each with a message naming the image.
+TEST(Cycle, PatternCheckPassesTheRealFramePathAndPicksTheStandIn) {
+  const DaemonConfig config = patternConfig(1000);
+  Cell cell(config, [](const DaemonConfig&) { return std::make_unique<test::TruthVisionStage>(1ms, true, 0, true); });
+  cell.start();
+  for (int i = 1; i <= 5; ++i) {
+    const CycleResult r = runOne(cell, request(static_cast<std::uint64_t>(i), 1000));
+    ASSERT_EQ(r.error, CycleError::None) << r.message;
+    ASSERT_EQ(r.candidate_count, 1);
+    EXPECT_EQ(r.chosen, 0);
+    EXPECT_TRUE(r.candidates[0].base_valid) << "the stand-in has a robot-base pose";
+  }
+}
+
+TEST(Cycle, PatternCheckRefusesWrongLedStaleAndUntaggedFrames) {
+  namespace hal = mfcd::hal;
+  const hal::ImageFormat format{64, 8, 8};
+  // One frame set as the sequencer exposes it: LED 0..7 alone, then the ambient (none lit).
+  std::vector<hal::Image> images(hal::kLedCount + 1, hal::Image(format));
+  const auto expose = [&](std::uint64_t first) {
+    hal::PatternSceneRenderer pattern;
+    for (int k = 0; k <= hal::kLedCount; ++k)
+      pattern.render(k < hal::kLedCount ? hal::LedMask(1u << k) : hal::LedMask(0), first + static_cast<std::uint64_t>(k),
+                     images[static_cast<std::size_t>(k)]);
+  };
+  mfcd::vision::MfcFrames frames;
+  for (int k = 0; k < hal::kLedCount; ++k)
+    frames.flash.push_back(cv::Mat1b(format.height, format.width, images[static_cast<std::size_t>(k)].data()));
+  frames.ambient = cv::Mat1b(format.height, format.width, images.back().data());
+  mfcd::vision::PipelineResult out;
+  out.candidates.reserve(4);
+  const auto process = [&](test::TruthVisionStage& stage) -> std::string {
+    try {
+      stage.process({frames, 0, Clock::now() + 1s, nullptr}, out);
+      return "";
+    } catch (const std::runtime_error& e) {
+      return e.what();
+    }
+  };
+  {
+    test::TruthVisionStage stage(0ms, true, 0, true);
+    expose(100);
+    EXPECT_EQ(process(stage), "");
+    EXPECT_EQ(out.candidates.size(), 1u);
+    expose(109);
+    EXPECT_EQ(process(stage), "") << "the next set";
+    EXPECT_NE(process(stage).find("flash0 has exposure index 109, not newer"), std::string::npos) << "the same set again: stale";
+  }
+  {
+    test::TruthVisionStage stage(0ms, true, 0, true);
+    expose(100);
+    std::swap(frames.flash[2], frames.flash[3]);  // two slots crossed
+    EXPECT_NE(process(stage).find("flash2 was exposed with LED mask 8, expected 4"), std::string::npos);
+    std::swap(frames.flash[2], frames.flash[3]);
+    frames.ambient(0, 0) = 0;  // no tag: a rendered (or torn) image
+    EXPECT_NE(process(stage).find("ambient0 carries no test-pattern tag"), std::string::npos);
+  }
+}
+
 TEST(CycleStats, PercentilesMatchASortedReference) {
   std::mt19937 rng(3);
   for (int trial = 0; trial < 20; ++trial) {

@@ -1,8 +1,8 @@
 // mfcd_load: load, churn and soak of the real daemon on the simulated cell, with figures.
 //
-//   mfcd_load --daemon PATH [--seconds S] [--clients N] [--poll-ms P] [--churn K] [--budget-ms B]
-//             [--warmup-s W] [--max-rss-growth-kb KB] [--sighup-ms H] [--max-heartbeat-stand-s T]
-//             [--json FILE]
+//   mfcd_load --daemon PATH [--seconds S] [--jobs J] [--clients N] [--poll-ms P] [--churn K]
+//             [--budget-ms B] [--warmup-s W] [--max-rss-growth-kb KB] [--sighup-ms H]
+//             [--max-heartbeat-stand-s T] [--camera rendered|pattern] [--vision-ms V] [--json FILE]
 //
 // While one PLC triggers jobs back to back, N more Modbus clients (libmodbus) read the status block
 // every P ms, a control client asks for status twice a second, and (with --churn) K connections
@@ -12,6 +12,15 @@
 // still for 3 s; the daemon's open descriptors must not grow and its RSS not grow by more than
 // KB after the warm-up. Prints a JSON object and a table; exits 0 when every check holds, 1 when
 // one fails, 77 when the simulated cell cannot run here (no offscreen OpenGL).
+//
+// The run ends after S seconds or, with --jobs, once J jobs have been answered (S is then the upper
+// bound). What bounds the cycle rate is the simulated camera: `--camera rendered` (default) renders
+// the bin of CAD parts with llvmpipe for every frame set (8 flashes + ambient, 640x480: ~150-200 ms
+// of a 2-core machine's time); `--camera pattern` is the same daemon on a cell without meshes, whose
+// simulated camera serves the HAL test pattern through the same sequencer and frame path (~5 ms per
+// frame set), with the test backend checking every frame's tag (LED mask, freshness) and reporting
+// one stand-in pick per cycle (tests/daemon/test_vision_stage.hpp): every job must then carry a
+// pick. --vision-ms sets the test backend's work time per cycle (default 20).
 #include <arpa/inet.h>
 #include <modbus/modbus.h>
 #include <netinet/in.h>
@@ -40,6 +49,7 @@ namespace {
 struct Options {
   std::string daemon;
   double seconds = 20;
+  long jobs = 0;  // > 0: end once this many jobs have been answered
   int clients = 32;
   int poll_ms = 10;
   int churn = 0;
@@ -48,6 +58,8 @@ struct Options {
   long max_rss_growth_kb = 1024;
   int sighup_ms = 0;
   double max_heartbeat_stand_s = 3.0;
+  std::string camera = "rendered";  // rendered | pattern
+  int vision_ms = 20;               // the test backend's work time per cycle
   std::string json_file;
 };
 
@@ -70,10 +82,16 @@ Options parse(int argc, char** argv) {
     else if (a == "--json") o.json_file = value();
     else if (a == "--sighup-ms") o.sighup_ms = std::stoi(value());
     else if (a == "--max-heartbeat-stand-s") o.max_heartbeat_stand_s = std::stod(value());
+    else if (a == "--jobs") o.jobs = std::stol(value());
+    else if (a == "--camera") o.camera = value();
+    else if (a == "--vision-ms") o.vision_ms = std::stoi(value());
     else throw std::invalid_argument("unknown option " + a);
   }
   if (o.daemon.empty()) throw std::invalid_argument("--daemon PATH is required");
   if (o.clients < 0 || o.clients > 60) throw std::invalid_argument("--clients must be 0..60");
+  if (o.camera != "rendered" && o.camera != "pattern") throw std::invalid_argument("--camera is rendered or pattern");
+  if (o.vision_ms < 0 || o.vision_ms > 10000) throw std::invalid_argument("--vision-ms must be 0..10000");
+  if (o.jobs < 0) throw std::invalid_argument("--jobs must be >= 0");
   return o;
 }
 
@@ -163,7 +181,8 @@ void poll_loop(int port, int poll_ms, const std::atomic<bool>& stop, PollerResul
 }
 
 struct PlcResult {
-  long jobs = 0, job_errors = 0, lost_jobs = 0, refused = 0;
+  long jobs = 0, job_errors = 0, lost_jobs = 0, refused = 0, picks = 0;
+  std::atomic<long> answered{0};  // jobs whose JOB_ID_ECHO came back (read by the sampling loop)
   std::vector<double> cycle_ms;
 };
 
@@ -208,7 +227,9 @@ void plc_loop(int port, const std::atomic<bool>& stop, PlcResult& out) {
       modbus_write_register(ctx, reg::kCommand, 2);  // RESET
     } else {
       out.cycle_ms.push_back(regs[reg::kCycleTimeMs - reg::kStatus]);
+      if (regs[0] & reg::kPickValid) ++out.picks;
     }
+    if (done) ++out.answered;
     job = static_cast<std::uint16_t>(job == 65535 ? 1 : job + 1);
   }
   modbus_close(ctx);
@@ -258,8 +279,15 @@ int main(int argc, char** argv) {
   std::string config = simCellConfig(proc.dir(), o.budget_ms);
   const std::string port_line = "  port: 0\n";
   config.replace(config.find(port_line), port_line.size(), port_line + "  max_clients: 64\n");
+  std::vector<std::string> env{"MFCD_TEST_VISION_MS=" + std::to_string(o.vision_ms)};
+  if (o.camera == "pattern") {
+    // No recipe names a mesh: the simulated camera serves the HAL test pattern (frame_source.cpp).
+    for (std::size_t at; (at = config.find(", mesh: parts/")) != std::string::npos;)
+      config.erase(at, config.find('}', at) - at);
+    env.push_back("MFCD_TEST_VISION_PATTERN=1");
+  }
   proc.writeConfig(config);
-  proc.start(o.daemon, {}, {"MFCD_TEST_VISION_MS=20"});
+  proc.start(o.daemon, {}, env);
   if (!proc.waitReady()) {
     const std::string log = proc.log();
     std::fprintf(stderr, "mfcd did not become ready:\n%s\n", log.c_str());
@@ -299,15 +327,17 @@ int main(int argc, char** argv) {
 
   // Samples of the daemon's RSS and descriptors, once a second.
   const auto start = Clock::now();
-  long rss_warm = -1, rss_last = -1;
+  long rss_first = -1, rss_warm = -1, rss_last = -1;
   std::vector<double> rss_after_warmup;  // kB, once a second
   json rss_series = json::array();       // [seconds, kB] every 10 s, for the record
   int fds_warm = -1, fds_max = 0, fds_last = 0;
-  while (std::chrono::duration<double>(Clock::now() - start).count() < o.seconds && !proc.exited()) {
+  while (std::chrono::duration<double>(Clock::now() - start).count() < o.seconds && !proc.exited() &&
+         (o.jobs == 0 || plc.answered.load() < o.jobs)) {
     std::this_thread::sleep_for(1s);
     const double t = std::chrono::duration<double>(Clock::now() - start).count();
     rss_last = rss_kb(pid);
     fds_last = fd_count(pid);
+    if (rss_first < 0) rss_first = rss_last;
     if (rss_series.size() < static_cast<std::size_t>(t / 10.0)) rss_series.push_back({std::round(t), rss_last});
     if (t >= o.warmup_s) {
       if (rss_warm < 0) rss_warm = rss_last, fds_warm = fds_last;
@@ -315,6 +345,7 @@ int main(int argc, char** argv) {
       fds_max = std::max(fds_max, fds_last);
     }
   }
+  const double elapsed_s = std::chrono::duration<double>(Clock::now() - start).count();
   stop = true;
   for (auto& t : threads) t.join();
   // After every client has gone: the descriptor count the daemon returns to.
@@ -323,6 +354,15 @@ int main(int argc, char** argv) {
   const int fds_idle = alive ? fd_count(pid) : -1;
   proc.signal(SIGTERM);
   const auto code = proc.wait(30000);
+  // The daemon's own log lines (stderr, "mfcd[level]: ..."): errors are unexpected in every run.
+  long log_errors = 0, log_warnings = 0;
+  {
+    std::istringstream log(proc.log());
+    for (std::string line; std::getline(log, line);) {
+      if (line.rfind("mfcd[error]", 0) == 0) ++log_errors;
+      if (line.rfind("mfcd[warning]", 0) == 0) ++log_warnings;
+    }
+  }
 
   // The heap and the renderer's buffers swing by a few MB from second to second: growth is the
   // median of the last quarter of the samples minus the median of the first quarter.
@@ -339,16 +379,21 @@ int main(int argc, char** argv) {
     all.longest_heartbeat_stand_s = std::max(all.longest_heartbeat_stand_s, p.longest_heartbeat_stand_s);
     all.latency_ms.insert(all.latency_ms.end(), p.latency_ms.begin(), p.latency_ms.end());
   }
-  json j = {{"seconds", o.seconds}, {"clients", o.clients}, {"poll_ms", o.poll_ms}, {"budget_ms", o.budget_ms},
+  json j = {{"seconds", o.seconds}, {"elapsed_s", elapsed_s}, {"camera", o.camera}, {"vision_ms", o.vision_ms},
+            {"clients", o.clients}, {"poll_ms", o.poll_ms}, {"budget_ms", o.budget_ms},
             {"reads", all.reads}, {"read_failures", all.failures},
             {"read_latency_ms", {{"p50", percentile(all.latency_ms, 50)}, {"p99", percentile(all.latency_ms, 99)},
                                  {"max", percentile(all.latency_ms, 100)}}},
             {"heartbeat_backwards", all.heartbeat_backwards}, {"heartbeat_longest_stand_s", all.longest_heartbeat_stand_s},
-            {"jobs", plc.jobs}, {"job_errors", plc.job_errors}, {"lost_jobs", plc.lost_jobs}, {"triggers_refused", plc.refused},
+            {"jobs", plc.jobs}, {"jobs_answered", plc.answered.load()}, {"job_errors", plc.job_errors},
+            {"lost_jobs", plc.lost_jobs}, {"triggers_refused", plc.refused}, {"picks", plc.picks},
+            {"cycles_per_s", elapsed_s > 0 ? static_cast<double>(plc.answered.load()) / elapsed_s : 0.0},
+            {"daemon_log", {{"errors", log_errors}, {"warnings", log_warnings}}},
             {"cycle_ms", {{"p50", percentile(plc.cycle_ms, 50)}, {"p99", percentile(plc.cycle_ms, 99)}, {"max", percentile(plc.cycle_ms, 100)}}},
             {"churn", o.churn}, {"churn_failures", churn_failures.load()}, {"reloads", reloads.load()},
             {"control_requests", control_requests.load()}, {"control_failures", control_failures.load()},
-            {"rss_kb", {{"after_warmup", rss_warm}, {"end", rss_last}, {"growth", rss_growth_kb}, {"series", rss_series}}},
+            {"rss_kb", {{"first_sample", rss_first}, {"after_warmup", rss_warm}, {"end", rss_last}, {"growth", rss_growth_kb},
+                        {"series", rss_series}}},
             {"fds", {{"before", fds_before}, {"after_warmup", fds_warm}, {"max", fds_max}, {"idle_after", fds_idle}}},
             {"daemon_alive", alive}, {"exit_code", code ? *code : -1}};
   std::vector<std::string> failed;
@@ -358,6 +403,9 @@ int main(int argc, char** argv) {
   check(all.heartbeat_backwards == 0 && all.longest_heartbeat_stand_s < o.max_heartbeat_stand_s,
         "HEARTBEAT monotone, never still for " + std::to_string(o.max_heartbeat_stand_s) + " s");
   check(plc.jobs > 0 && plc.job_errors == 0 && plc.lost_jobs == 0, "every job answered without error");
+  check(o.jobs == 0 || plc.answered.load() >= o.jobs, "the --jobs count reached within --seconds");
+  check(o.camera != "pattern" || plc.picks == plc.answered.load() - plc.job_errors, "pattern camera: every job carries the stand-in pick");
+  check(log_errors == 0, "no error line in the daemon's log");
   check(percentile(plc.cycle_ms, 99) <= o.budget_ms, "cycle p99 within the budget");
   check(churn_failures == 0, "every churn connection served");
   check(control_failures == 0, "every control request answered");
@@ -368,17 +416,22 @@ int main(int argc, char** argv) {
   std::printf("%s\n", text.c_str());
   if (!o.json_file.empty()) std::ofstream(o.json_file) << text << "\n";
   std::printf("\n| figure | value |\n|---|---|\n");
-  std::printf("| reads (%d clients every %d ms, %.0f s) | %ld, %ld failed |\n", o.clients, o.poll_ms, o.seconds, all.reads, all.failures);
+  std::printf("| reads (%d clients every %d ms, %.0f s) | %ld, %ld failed |\n", o.clients, o.poll_ms, elapsed_s, all.reads, all.failures);
   std::printf("| read latency p50 / p99 / max | %.2f / %.2f / %.2f ms |\n", percentile(all.latency_ms, 50),
               percentile(all.latency_ms, 99), percentile(all.latency_ms, 100));
-  std::printf("| jobs back to back | %ld, %ld errors, %ld lost |\n", plc.jobs, plc.job_errors, plc.lost_jobs);
+  std::printf("| camera; test backend work time | %s; %d ms |\n", o.camera.c_str(), o.vision_ms);
+  std::printf("| jobs back to back | %ld, %ld errors, %ld lost; %ld with a pick |\n", plc.jobs, plc.job_errors, plc.lost_jobs,
+              plc.picks);
+  std::printf("| cycles per second | %.1f (%ld answered in %.0f s) |\n", elapsed_s > 0 ? static_cast<double>(plc.answered.load()) / elapsed_s : 0.0,
+              plc.answered.load(), elapsed_s);
+  std::printf("| daemon log | %ld error lines, %ld warning lines |\n", log_errors, log_warnings);
   std::printf("| cycle p50 / p99 / max (budget %d ms) | %.0f / %.0f / %.0f ms |\n", o.budget_ms, percentile(plc.cycle_ms, 50),
               percentile(plc.cycle_ms, 99), percentile(plc.cycle_ms, 100));
   std::printf("| HEARTBEAT longest stand | %.2f s |\n", all.longest_heartbeat_stand_s);
   std::printf("| churn connections | %d, %ld failed |\n", o.churn, churn_failures.load());
   if (o.sighup_ms > 0) std::printf("| reloads (SIGHUP every %d ms) | %ld |\n", o.sighup_ms, reloads.load());
-  std::printf("| daemon RSS after warm-up -> end; growth (median last - first quarter) | %ld -> %ld kB; %.0f kB |\n", rss_warm,
-              rss_last, rss_growth_kb);
+  std::printf("| daemon RSS first sample; after warm-up -> end; growth (median last - first quarter) | %ld; %ld -> %ld kB; %.0f kB |\n",
+              rss_first, rss_warm, rss_last, rss_growth_kb);
   std::printf("| daemon fds before / after warm-up / max / idle after | %d / %d / %d / %d |\n", fds_before, fds_warm, fds_max, fds_idle);
   for (const auto& f : failed) std::printf("FAILED: %s\n", f.c_str());
   return failed.empty() ? 0 : 1;

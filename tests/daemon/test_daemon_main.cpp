@@ -1,7 +1,9 @@
 // mfcd with the test vision backend (TruthVisionStage) below VisionStage; everything else is the
 // real daemon. MFCD_TEST_VISION_MS sets the backend's work time (default 20 ms);
 // MFCD_TEST_VISION_HANG=1 makes it ignore the cycle's deadline (a hung vision stage);
-// MFCD_TEST_VISION_FAIL_FIRST=N makes its first N cycles throw.
+// MFCD_TEST_VISION_FAIL_FIRST=N makes its first N cycles throw; MFCD_TEST_VISION_PATTERN=1 is for a
+// cell whose camera serves the HAL test pattern (no meshes): every frame's tag is checked and one
+// stand-in candidate is reported per cycle (test_vision_stage.hpp, "Pattern mode").
 #include <cstdlib>
 
 #include "daemon/daemon.hpp"
@@ -14,7 +16,9 @@ int main(int argc, char** argv) {
   const char* fail = std::getenv("MFCD_TEST_VISION_FAIL_FIRST");
   const bool honourDeadline = !(hang && std::atoi(hang) != 0);
   const int failFirst = fail ? std::atoi(fail) : 0;
+  const char* pattern = std::getenv("MFCD_TEST_VISION_PATTERN");
+  const bool check_pattern = pattern && std::atoi(pattern) != 0;
   return mfcd::daemon::daemonMain(argc, argv, [=](const mfcd::daemon::DaemonConfig&) {
-    return std::make_unique<mfcd::daemon::test::TruthVisionStage>(work, honourDeadline, failFirst);
+    return std::make_unique<mfcd::daemon::test::TruthVisionStage>(work, honourDeadline, failFirst, check_pattern);
   });
 }
