@@ -10,6 +10,8 @@
 
 #include "daemon/log.hpp"
 #include "vision/calib/store.hpp"
+#include "vision/camera/camera.hpp"
+#include "vision/templates/template_database.hpp"
 
 namespace mfcd::daemon {
 
@@ -60,6 +62,21 @@ calib::RobotPose poseFromJson(const json& j, const std::string& what) {
     v[i] = j[i].get<double>();
   }
   return {v[0], v[1], v[2], v[3], v[4], v[5]};
+}
+
+json invalidatedRecipes(const fs::path& cameraFile, const std::vector<RecipeConfig>& recipes) {
+  json out = json::array();
+  const vision::CameraConfig camera = vision::load_camera_config(cameraFile);
+  for (const auto& r : recipes) {
+    if (!r.templates) continue;
+    try {
+      const vision::TemplateDatabase db = vision::load_template_database(*r.templates);
+      vision::check_template_camera(db, camera, r.templates->string());
+    } catch (const std::exception& e) {
+      out.push_back({{"recipe", r.id}, {"part", r.part}, {"templates", r.templates->string()}, {"why", e.what()}});
+    }
+  }
+  return out;
 }
 
 CalibrationService::CalibrationService() {
@@ -227,15 +244,32 @@ void CalibrationService::check(ClientId client, cv::Mat1b image, calib::RobotPos
   });
 }
 
-void CalibrationService::apply(ClientId client) {
-  post(client, "apply", [this] {
+void CalibrationService::apply(ClientId client, std::vector<RecipeConfig> recipes) {
+  post(client, "apply", [this, recipes = std::move(recipes)] {
     if (!session_) return Done{0, fail("calibrate apply: no calibration session")};
     session_->apply();  // throws: nothing computed, or the write failed (file unchanged)
     const calib::CalibrationStore store(file_);
+    std::string message = "wrote " + file_.string() + " (previous kept as " + store.previous_file().string() + "); session closed";
+    json invalidated = json::array();
+    try {
+      invalidated = invalidatedRecipes(file_, recipes);
+    } catch (const std::exception& e) {  // the file is written: say so, and why nothing was checked
+      message += "; the recipes' templates could not be checked against it: " + std::string(e.what());
+      logf(LogLevel::Warning, "calibration: checking the recipes' templates against %s: %s", file_.c_str(), e.what());
+    }
+    if (!invalidated.empty()) {
+      message += "; the new camera invalidates the templates of";
+      for (const auto& r : invalidated)
+        message += " recipe " + std::to_string(r["recipe"].get<int>()) + " (" + r["part"].get<std::string>() + ")";
+      message += ": re-teach them with mfc-teach --camera " + file_.string() +
+                 " (docs/calibration.md), or calibrate rollback; the cell refuses them until then";
+    }
     json j = {{"ok", true}, {"file", file_.string()}, {"previous", store.previous_file().string()},
-              {"message", "wrote " + file_.string() + " (previous kept as " + store.previous_file().string() +
-                              "); session closed"}};
+              {"invalidated", invalidated}, {"message", message}};
     logf(LogLevel::Notice, "calibration applied to %s (previous kept as %s)", file_.c_str(), store.previous_file().c_str());
+    for (const auto& r : invalidated)
+      logf(LogLevel::Warning, "calibration: recipe %d (%s): %s", r["recipe"].get<int>(), r["part"].get<std::string>().c_str(),
+           r["why"].get<std::string>().c_str());
     session_.reset();
     return Done{0, j, true};
   });

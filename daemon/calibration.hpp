@@ -66,7 +66,10 @@ public:
   void addView(ClientId client, cv::Mat1b image, std::optional<vision::calib::RobotPose> flange, nlohmann::json about);
   void compute(ClientId client);
   void check(ClientId client, cv::Mat1b image, vision::calib::RobotPose flange, nlohmann::json about);
-  void apply(ClientId client);
+  // Writes the camera file; then checks every recipe's template file against the new camera
+  // (vision::check_template_camera) and names in the reply ("invalidated": recipe, part, file,
+  // why) and the log the recipes to re-teach. The cell reloads on the new file afterwards.
+  void apply(ClientId client, std::vector<RecipeConfig> recipes);
   void abort(ClientId client);
   void rollback(ClientId client, const fs::path& cameraFile);
 
@@ -95,6 +98,11 @@ private:
   int doneFd_ = -1;
   std::thread worker_;
 };
+
+// The recipes whose template file `cameraFile` invalidates (vision::check_template_camera, or the
+// file cannot be read), each as {"recipe", "part", "templates", "why"}; recipes without templates
+// are skipped. Loads every .tdb: run it off the main thread. Throws when cameraFile is unreadable.
+nlohmann::json invalidatedRecipes(const fs::path& cameraFile, const std::vector<RecipeConfig>& recipes);
 
 // "x,y,z,rx,ry,rz" as the JSON array mfcd-ctl sends, checked: six finite numbers. Throws
 // std::invalid_argument naming `what`.

@@ -15,6 +15,7 @@
 #include "mfcd/hal/error.hpp"
 #include "motion/pick_choice.h"
 #include "motion/pick_transform.h"
+#include "vision/camera/camera.hpp"
 
 namespace mfcd::daemon {
 
@@ -41,6 +42,16 @@ void FrameSlot::allocate(const hal::ImageFormat& format) {
   }
 }
 
+namespace {
+void copyFrameInfo(const hal::SlotFrame& a, hal::SlotFrame& b) {
+  b.info = a.info;
+  b.led = a.led;
+  b.onNs = a.onNs;
+  b.offNs = a.offNs;
+  b.staleDiscarded = a.staleDiscarded;
+}
+}  // namespace
+
 void copyFrameSet(const hal::FrameSet& from, hal::FrameSet& to) {
   for (std::size_t k = 0; k < from.frames.size(); ++k) {
     const hal::SlotFrame& a = from.frames[k];
@@ -48,11 +59,29 @@ void copyFrameSet(const hal::FrameSet& from, hal::FrameSet& to) {
     if (a.image.sizeBytes() != b.image.sizeBytes())
       throw std::logic_error("copyFrameSet: FrameSet format differs from the preallocated slot");
     std::memcpy(b.image.data(), a.image.data(), a.image.sizeBytes());
-    b.info = a.info;
-    b.led = a.led;
-    b.onNs = a.onNs;
-    b.offNs = a.offNs;
-    b.staleDiscarded = a.staleDiscarded;
+    copyFrameInfo(a, b);
+  }
+  to.sequence = from.sequence;
+}
+
+void copyFrameSet(const hal::FrameSet& from, hal::FrameSet& to, const vision::FrameUndistorter& undistorter) {
+  if (!undistorter.active()) {
+    copyFrameSet(from, to);
+    return;
+  }
+  for (std::size_t k = 0; k < from.frames.size(); ++k) {
+    const hal::Image& a = from.frames[k].image;
+    hal::Image& b = to.frames[k].image;
+    if (a.sizeBytes() != b.sizeBytes() || a.format() != b.format())
+      throw std::logic_error("copyFrameSet: FrameSet format differs from the preallocated slot");
+    const hal::ImageFormat& f = a.format();
+    const int type = f.bitsPerPixel == 16 ? CV_16UC1 : CV_8UC1;
+    // Headers over the HAL's buffers (no allocation): the undistorter writes straight into the slot.
+    const cv::Mat src(f.height, f.width, type, const_cast<std::uint8_t*>(a.data()), f.strideBytes());
+    cv::Mat dst(f.height, f.width, type, b.data(), f.strideBytes());
+    undistorter.apply(src, dst);
+    if (dst.data != b.data()) throw std::logic_error("copyFrameSet: the undistorted image left the preallocated slot");
+    copyFrameInfo(from.frames[k], to.frames[k]);
   }
   to.sequence = from.sequence;
 }
@@ -150,6 +179,17 @@ void Cell::acquisitionMain(std::promise<void>& ready) {
     source_->activate();
     const hal::ImageFormat format = source_->format();
     for (auto& slot : frames_.slots()) slot.allocate(format);
+    // Real lenses distort; the simulated cell renders the ideal pinhole the templates were taught
+    // for (its camera file has zero distortion, and a fitted k1, k2 on its renders is noise).
+    undistorter_ = source_->simulation() ? vision::FrameUndistorter()
+                                         : vision::FrameUndistorter(vision::load_camera_config(config_.camera.model).camera);
+    if (undistorter_.active()) {
+      if (undistorter_.image_size() != cv::Size(format.width, format.height))
+        throw std::runtime_error(config_.camera.model.string() + ": the camera file's image size differs from the camera's " +
+                                 std::to_string(format.width) + "x" + std::to_string(format.height));
+      logf(LogLevel::Info, "acquisition: undistorting every image with %s's lens distortion (K kept)",
+           config_.camera.model.string().c_str());
+    }
     calibrationImage_.create(format.height, format.width);
     sourceDescription_ = source_->describe();
   } catch (...) {
@@ -201,7 +241,12 @@ void Cell::acquisitionMain(std::promise<void>& ready) {
         // A real cell ignores the plate request: the plate is really there.
         if (calibration && source_->simulation()) source_->simulation()->showPlate(request->plate);
         const hal::FrameSet& set = source_->capture();
-        copyFrameSet(set, slot->frames);
+        // Calibration images stay as the lens made them: intrinsics calibration fits the
+        // distortion from them, hand-eye undistorts the board corners itself.
+        if (calibration)
+          copyFrameSet(set, slot->frames);
+        else
+          copyFrameSet(set, slot->frames, undistorter_);
         slot->ok = true;
       } catch (const std::exception& e) {
         slot->ok = false;

@@ -21,6 +21,7 @@
 #include "daemon/frame_source.hpp"
 #include "daemon/vision_stage.hpp"
 #include "motion/spsc_ring.h"
+#include "vision/camera/frame_undistorter.hpp"
 
 namespace mfcd::daemon {
 
@@ -84,6 +85,10 @@ private:
 
   // Set by the threads before they report ready (the start() handshake orders them).
   std::unique_ptr<FrameSource> source_;  // owned by the acquisition thread
+  // Real cameras: the camera file's lens distortion, removed from every image on its way into a
+  // slot (maps computed once at start), except for calibration captures (raw: calibration fits or
+  // removes the distortion itself). A no-op for the simulated cell (an ideal pinhole).
+  vision::FrameUndistorter undistorter_;
   std::unique_ptr<VisionStage> stage_;   // owned by the vision thread
   std::string sourceDescription_, visionDescription_;
   std::vector<std::pair<int, std::string>> parts_;

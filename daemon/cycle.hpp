@@ -11,6 +11,7 @@
 
 #include "mfcd/hal/sequencer.hpp"
 #include "motion/robot_report.h"
+#include "vision/camera/frame_undistorter.hpp"
 #include "vision/camera/mfc_frames.hpp"
 
 namespace mfcd::daemon {
@@ -100,6 +101,9 @@ struct FrameSlot {
 
 // Copies a FrameSet into a preallocated one of the same format (memcpy per image).
 void copyFrameSet(const hal::FrameSet& from, hal::FrameSet& to);
+// The same, each image undistorted by `undistorter` into the preallocated one (cv::remap, no
+// allocation); a plain copyFrameSet when the undistorter is not active().
+void copyFrameSet(const hal::FrameSet& from, hal::FrameSet& to, const vision::FrameUndistorter& undistorter);
 
 struct CandidateOut {
   int obj_id = 0;

@@ -112,7 +112,7 @@ void Daemon::handleCalibrate(ControlServer::ClientId client, const json& req) {
       if (!calib_->computed()) return refuse("nothing computed yet (calibrate compute, then apply)");
       if (!req.value("confirm", false))
         return refuse("this writes " + config_.camera.model.string() + ": confirm with --yes (mfcd-ctl asks y/N on a terminal)");
-      calib_->apply(client);
+      calib_->apply(client, config_.recipes);
       return;
     }
     if (action == "rollback") {

@@ -5,11 +5,16 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <random>
+
+#include <unistd.h>
 
 #include "../hal/alloc_counter.hpp"
 #include "daemon/cell.hpp"
 #include "daemon/cycle_stats.hpp"
+#include "vision/camera/camera.hpp"
+#include "vision/camera/frame_undistorter.hpp"
 #include "run_cycle.hpp"
 #include "test_vision_stage.hpp"
 
@@ -105,6 +110,80 @@ TEST(Cycle, NoAllocationOnTheFramePathInSteadyState) {
   }
   const std::uint64_t after = mfcd::hal::test::allocationCount();
   EXPECT_EQ(after - before, 0u) << "acquisition, copy into the ring, vision worker, results";
+}
+
+namespace {
+// The simulated camera's frames served as if by a real camera (no SimulatedWorld), so the Cell
+// undistorts them with the camera file's lens distortion.
+class AsRealCamera final : public FrameSource {
+public:
+  explicit AsRealCamera(std::unique_ptr<FrameSource> inner) : inner_(std::move(inner)) {}
+  void activate() override { inner_->activate(); }
+  void deactivate() noexcept override { inner_->deactivate(); }
+  const mfcd::hal::FrameSet& capture() override { return inner_->capture(); }
+  mfcd::hal::ImageFormat format() const override { return inner_->format(); }
+  mfcd::hal::LedMask leds() const override { return inner_->leds(); }
+  std::string describe() const override { return "as real: " + inner_->describe(); }
+
+private:
+  std::unique_ptr<FrameSource> inner_;
+};
+}  // namespace
+
+TEST(Cycle, NoAllocationOnTheFramePathInSteadyStateWithLensDistortion) {
+  DaemonConfig config = patternConfig(1000);
+  mfcd::vision::CameraConfig camera = mfcd::vision::load_camera_config(config.camera.model);
+  camera.camera.distortion = {-0.2, 0.05, 0.001, -0.001, 0.0};
+  const std::filesystem::path file = std::filesystem::temp_directory_path() / ("mfcd-cycle-distorted-" + std::to_string(::getpid()) + ".yaml");
+  mfcd::vision::save_camera_config(camera, file);
+  config.camera.model = file;
+  Cell cell(config, [](const DaemonConfig&) { return std::make_unique<test::TruthVisionStage>(1ms); },
+            [](const DaemonConfig& c) -> std::unique_ptr<FrameSource> { return std::make_unique<AsRealCamera>(makeFrameSource(c)); });
+  cell.start();
+  for (int i = 1; i <= 3; ++i) runOne(cell, request(static_cast<std::uint64_t>(i), 1000));  // warm-up
+  const std::uint64_t before = mfcd::hal::test::allocationCount();
+  for (int i = 4; i < 24; ++i) {
+    const CycleResult r = runOne(cell, request(static_cast<std::uint64_t>(i), 1000));
+    ASSERT_EQ(r.error, CycleError::None) << r.message;
+  }
+  const std::uint64_t after = mfcd::hal::test::allocationCount();
+  EXPECT_EQ(after - before, 0u) << "acquisition, undistortion into the ring, vision worker, results";
+  cell.stop();
+  std::filesystem::remove(file);
+}
+
+TEST(Cycle, UndistortingCopyRemapsEveryImageIntoTheSlotAndKeepsTheMetadata) {
+  mfcd::vision::PinholeCamera cam;
+  cam.image_size = {64, 48};
+  cam.K = cv::Matx33d(60, 0, 31.5, 0, 60, 23.5, 0, 0, 1);
+  cam.distortion = {-0.3, 0.1, 0, 0, 0};
+  const mfcd::vision::FrameUndistorter undistorter(cam);
+  ASSERT_TRUE(undistorter.active());
+  const mfcd::hal::ImageFormat format{64, 48, 8};
+  mfcd::hal::FrameSet from, to, expected;
+  for (std::size_t k = 0; k < from.frames.size(); ++k) {
+    from.frames[k].image.allocate(format);
+    to.frames[k].image.allocate(format);
+    for (int y = 0; y < 48; ++y)
+      for (int x = 0; x < 64; ++x) from.frames[k].image.row(y)[x] = static_cast<std::uint8_t>((x * 4 + y * 3 + static_cast<int>(k) * 17) & 0xff);
+    from.frames[k].led = static_cast<int>(k);
+    from.frames[k].onNs = 1000 + static_cast<std::int64_t>(k);
+  }
+  from.sequence = 42;
+  const std::uint8_t* slotData = to.frames[3].image.data();
+  copyFrameSet(from, to, undistorter);
+  EXPECT_EQ(to.sequence, 42u);
+  EXPECT_EQ(to.frames[3].image.data(), slotData) << "written in place";
+  for (std::size_t k = 0; k < from.frames.size(); ++k) {
+    EXPECT_EQ(to.frames[k].led, from.frames[k].led);
+    EXPECT_EQ(to.frames[k].onNs, from.frames[k].onNs);
+    const cv::Mat src(48, 64, CV_8UC1, from.frames[k].image.data());
+    cv::Mat want;
+    undistorter.apply(src, want);
+    const cv::Mat got(48, 64, CV_8UC1, to.frames[k].image.data());
+    EXPECT_EQ(cv::norm(got, want, cv::NORM_INF), 0.0) << "image " << k;
+    EXPECT_GT(cv::norm(got, src, cv::NORM_INF), 10.0) << "image " << k << " was copied, not undistorted";
+  }
 }
 
 // The soak's frame check (TruthVisionStage pattern mode, tools/mfc load --camera pattern): through

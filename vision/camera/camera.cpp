@@ -106,6 +106,12 @@ class Reader {
 
 CameraConfig read_camera_config(const YAML::Node& root, const Reader& rd) {
   CameraConfig c;
+  // OpenCV's calibration tutorial writes fisheye_model: 1 for cv::fisheye's k1..k4: read as
+  // pinhole coefficients they would undistort every frame wrongly, so such a file is refused.
+  const YAML::Node fisheye = Reader::child(root, "fisheye_model");
+  if (Reader::present(fisheye) && rd.integer(fisheye, "fisheye_model") != 0)
+    rd.fail_at(fisheye, "fisheye_model",
+               "fisheye lenses are not supported: mfcd's camera model is the pinhole with polynomial distortion");
   c.camera.image_size.width = rd.integer(root, "image_width", "image_width");
   c.camera.image_size.height = rd.integer(root, "image_height", "image_height");
   c.camera.K = cv::Matx33d(rd.matrix(root, "camera_matrix", "camera_matrix", {3, 3, 3, 3, "3x3"}));

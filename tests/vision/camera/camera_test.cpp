@@ -309,3 +309,19 @@ TEST(PinholeCamera, CroppedCameraProjectsIntoTheWindow) {
   EXPECT_NEAR(c.project(P).x, cam.project(P).x - win.x, 1e-9);
   EXPECT_NEAR(c.project(P).y, cam.project(P).y - win.y, 1e-9);
 }
+
+// OpenCV's calibration tutorial marks cv::fisheye coefficients with fisheye_model: 1; read as
+// pinhole k1 k2 p1 p2 they would undistort every frame wrongly, so the file is refused by name.
+TEST(CameraConfig, FisheyeFileIsRefusedWithTheReason) {
+  const fs::path fisheye = edited_sim_yaml("working_distance_mm", "fisheye_model: 1\nworking_distance_mm", "fisheye.yaml");
+  const std::string err = load_error(fisheye);
+  EXPECT_NE(err.find("fisheye_model"), std::string::npos) << err;
+  EXPECT_NE(err.find(fisheye.string()), std::string::npos) << err;
+  EXPECT_NE(err.find("fisheye lenses are not supported: mfcd's camera model is the pinhole with polynomial distortion"),
+            std::string::npos)
+      << err;
+  const fs::path pinhole = edited_sim_yaml("working_distance_mm", "fisheye_model: 0\nworking_distance_mm", "pinhole.yaml");
+  EXPECT_EQ(load_error(pinhole), "") << "fisheye_model: 0 is the pinhole model";
+  const fs::path junk = edited_sim_yaml("working_distance_mm", "fisheye_model: yes\nworking_distance_mm", "junk.yaml");
+  EXPECT_NE(load_error(junk).find("fisheye_model"), std::string::npos);
+}
