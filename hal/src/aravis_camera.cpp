@@ -73,6 +73,28 @@ HalError to_hal_error(const GError* e, const std::string& who, const char* what,
   return HalError(ErrorCode::Io, where + "; check the value against the camera's range (arv-viewer-0.8)");
 }
 
+// A manual setting of the camera (exposure, gain) through Aravis's accessors for it.
+struct ManualControl {
+  const char* label;         // what the configuration calls it, for errors
+  const char* feature;       // GenICam name, for errors
+  const char* auto_feature;  // its automatic mode, switched off
+  const char* unit;          // appended to values in messages
+  const char* purpose;       // why a camera without it is refused
+  gboolean (*available)(ArvCamera*, GError**);
+  gboolean (*auto_available)(ArvCamera*, GError**);
+  void (*set_auto)(ArvCamera*, ArvAuto, GError**);
+  void (*bounds)(ArvCamera*, double*, double*, GError**);
+  void (*set)(ArvCamera*, double, GError**);
+  double (*get)(ArvCamera*, GError**);
+};
+constexpr ManualControl kExposure{"exposure", "ExposureTime", "ExposureAuto", " us", "the configured manual exposure cannot be applied",
+                                  arv_camera_is_exposure_time_available, arv_camera_is_exposure_auto_available,
+                                  arv_camera_set_exposure_time_auto, arv_camera_get_exposure_time_bounds,
+                                  arv_camera_set_exposure_time, arv_camera_get_exposure_time};
+constexpr ManualControl kGain{"gain", "Gain", "GainAuto", "", "the configured manual gain cannot be applied",
+                              arv_camera_is_gain_available, arv_camera_is_gain_auto_available, arv_camera_set_gain_auto,
+                              arv_camera_get_gain_bounds, arv_camera_set_gain, arv_camera_get_gain};
+
 }  // namespace
 
 // One open connection to the camera, and the feature accessors every setup step uses (they throw
@@ -138,6 +160,11 @@ struct AravisCamera::Session {
     for (guint i = 0; names && i < n; ++i) out.emplace_back(names.get()[i]);
     return out;
   }
+
+  // Sets `control` to `value` (automatic mode off) when one is configured: refused outside the
+  // camera's range or on a camera without the feature; returns the value read back (none when
+  // not configured).
+  std::optional<double> apply_manual(const ManualControl& control, const std::optional<double>& value) const;
 
   void open();
   void setup_image();
@@ -280,6 +307,30 @@ void AravisCamera::Session::setup_image() {
   owner.format_ = ImageFormat{c.width, c.height, c.bits_per_pixel};
 }
 
+std::optional<double> AravisCamera::Session::apply_manual(const ManualControl& m,
+                                                         const std::optional<double>& value) const {
+  if (!value) return std::nullopt;
+  ArvCamera* cam = camera.get();
+  ErrorRef e;
+  if (!m.available(cam, nullptr)) require_feature(m.feature, m.purpose);
+  if (m.auto_available(cam, nullptr)) {
+    m.set_auto(cam, ARV_AUTO_OFF, e.out());
+    check(e, m.auto_feature, "Off");
+  }
+  double lo = 0, hi = 0;
+  m.bounds(cam, &lo, &hi, e.out());
+  check(e, m.feature);
+  if (*value < lo || *value > hi)
+    throw HalError(ErrorCode::Io, owner.describe() + ": " + m.label + " " + std::to_string(*value) +
+                                      m.unit + " outside the camera's range " + std::to_string(lo) + ".." +
+                                      std::to_string(hi) + m.unit + "; check the configuration");
+  m.set(cam, *value, e.out());
+  check(e, m.feature, std::to_string(*value).c_str());
+  const double applied = m.get(cam, e.out());
+  check(e, m.feature);
+  return applied;
+}
+
 void AravisCamera::Session::setup_controls() {
   const AravisCameraConfig& c = owner.config_;
   ArvCamera* cam = camera.get();
@@ -294,45 +345,8 @@ void AravisCamera::Session::setup_controls() {
   arv_camera_set_trigger(cam, "Software", e.out());
   check(e, "TriggerMode/TriggerSource", "Software");
 
-  owner.applied_exposure_us_.reset();
-  if (c.exposure_us) {
-    if (!arv_camera_is_exposure_time_available(cam, nullptr))
-      require_feature("ExposureTime", "the configured manual exposure cannot be applied");
-    if (arv_camera_is_exposure_auto_available(cam, nullptr)) {
-      arv_camera_set_exposure_time_auto(cam, ARV_AUTO_OFF, e.out());
-      check(e, "ExposureAuto", "Off");
-    }
-    double lo = 0, hi = 0;
-    arv_camera_get_exposure_time_bounds(cam, &lo, &hi, e.out());
-    check(e, "ExposureTime");
-    if (*c.exposure_us < lo || *c.exposure_us > hi)
-      throw HalError(ErrorCode::Io, owner.describe() + ": exposure " + std::to_string(*c.exposure_us) +
-                                        " us outside the camera's range " + std::to_string(lo) + ".." + std::to_string(hi) +
-                                        " us; check the configuration");
-    arv_camera_set_exposure_time(cam, *c.exposure_us, e.out());
-    check(e, "ExposureTime", std::to_string(*c.exposure_us).c_str());
-    owner.applied_exposure_us_ = arv_camera_get_exposure_time(cam, e.out());
-    check(e, "ExposureTime");
-  }
-  owner.applied_gain_.reset();
-  if (c.gain) {
-    if (!arv_camera_is_gain_available(cam, nullptr))
-      require_feature("Gain", "the configured manual gain cannot be applied");
-    if (arv_camera_is_gain_auto_available(cam, nullptr)) {
-      arv_camera_set_gain_auto(cam, ARV_AUTO_OFF, e.out());
-      check(e, "GainAuto", "Off");
-    }
-    double lo = 0, hi = 0;
-    arv_camera_get_gain_bounds(cam, &lo, &hi, e.out());
-    check(e, "Gain");
-    if (*c.gain < lo || *c.gain > hi)
-      throw HalError(ErrorCode::Io, owner.describe() + ": gain " + std::to_string(*c.gain) + " outside the camera's range " +
-                                        std::to_string(lo) + ".." + std::to_string(hi) + "; check the configuration");
-    arv_camera_set_gain(cam, *c.gain, e.out());
-    check(e, "Gain", std::to_string(*c.gain).c_str());
-    owner.applied_gain_ = arv_camera_get_gain(cam, e.out());
-    check(e, "Gain");
-  }
+  owner.applied_exposure_us_ = apply_manual(kExposure, c.exposure_us);
+  owner.applied_gain_ = apply_manual(kGain, c.gain);
 }
 
 // The LED driver is fired by the camera: the strobe line carries ExposureActive (or a timer pulse

@@ -1,4 +1,5 @@
 #include "vision/calib/calibration_import.hpp"
+#include "vision/common/scalar_text.hpp"
 
 #include "vision/calib/board.hpp"
 
@@ -104,13 +105,9 @@ class Reader {
 
   int integer(const YAML::Node& n, const std::string& key) const {
     const std::string s = n.IsScalar() ? n.Scalar() : std::string();
-    errno = 0;
-    char* end = nullptr;
-    const long long v = std::strtoll(s.c_str(), &end, 10);
-    if (s.empty() || *end != '\0' || errno == ERANGE || v < std::numeric_limits<int>::min() ||
-        v > std::numeric_limits<int>::max())
-      fail_at(n, key, "expected an integer, got '" + s + "'");
-    return static_cast<int>(v);
+    const std::optional<int> v = parse_int(s);
+    if (!v) fail_at(n, key, "expected an integer, got '" + s + "'");
+    return *v;
   }
 
   // A number, possibly non-finite.

@@ -1,4 +1,5 @@
 #include "vision/camera/camera.hpp"
+#include "vision/common/scalar_text.hpp"
 
 #include <yaml-cpp/yaml.h>
 
@@ -56,13 +57,9 @@ class Reader {
 
   int integer(const YAML::Node& n, const std::string& key) const {
     const std::string s = n.IsScalar() ? n.Scalar() : std::string();
-    errno = 0;
-    char* end = nullptr;
-    const long long v = std::strtoll(s.c_str(), &end, 10);
-    if (s.empty() || *end != '\0' || errno == ERANGE || v < std::numeric_limits<int>::min() ||
-        v > std::numeric_limits<int>::max())
-      fail_at(n, key, "expected an integer");
-    return static_cast<int>(v);
+    const std::optional<int> v = parse_int(s);
+    if (!v) fail_at(n, key, "expected an integer");
+    return *v;
   }
   int integer(const YAML::Node& parent, const char* name, const std::string& key) const {
     return integer(required(parent, name, key), key);
