@@ -248,6 +248,10 @@ def daemon():
     write(n, "anchors.yaml", "pose: &p {x_mm: 1, y_mm: 2, z_mm: 3}\n" + minimal +
           "hand_eye:\n  setup: eye_to_hand\n  base_T_camera: *p\n")
     write(n, "not-a-mapping.yaml", "- camera\n- recipes\n")
+    write(n, "aravis-camera-strobe.yaml",
+          "camera:\n  model: camera-sim.yaml\n  type: aravis\n  device: Fake-GV01\n  exposure_us: 2000\n"
+          "  gain: 1.5\n  packet_size: 8192\nlights:\n  type: camera\n  active_low: true\n  strobe_line: Line1\n"
+          "  select_lines: [Line2, Line3, Line4]\nrecipes:\n  - {id: 0, part: any, obj_id: 0}\n")
 
 
 # --- modbus_session: byte 0 picks the chunk sizes, the rest is the TCP stream -----------------
