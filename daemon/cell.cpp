@@ -13,8 +13,8 @@
 #include "daemon/log.hpp"
 #include "daemon/report.hpp"
 #include "mfcd/hal/error.hpp"
-#include "motion/pick_choice.h"
-#include "motion/pick_transform.h"
+#include "motion/pick_choice.hpp"
+#include "motion/pick_transform.hpp"
 #include "vision/camera/camera.hpp"
 
 namespace mfcd::daemon {

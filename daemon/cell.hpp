@@ -20,7 +20,7 @@
 #include "daemon/cycle.hpp"
 #include "daemon/frame_source.hpp"
 #include "daemon/vision_stage.hpp"
-#include "motion/spsc_ring.h"
+#include "motion/spsc_ring.hpp"
 #include "vision/camera/frame_undistorter.hpp"
 
 namespace mfcd::daemon {

@@ -12,10 +12,10 @@
 #include <vector>
 
 #include "daemon/log.hpp"
-#include "motion/can_publisher.h"
-#include "motion/modbus_server.h"
-#include "motion/pick_choice.h"
-#include "motion/pick_transform.h"
+#include "motion/can_publisher.hpp"
+#include "motion/modbus_server.hpp"
+#include "motion/pick_choice.hpp"
+#include "motion/pick_transform.hpp"
 #include "vision/pipeline/bin_picking_pipeline.hpp"
 
 namespace mfcd::daemon {

@@ -17,7 +17,7 @@
 #include <nlohmann/json.hpp>
 
 #include "daemon/event_loop.hpp"
-#include "motion/unique_fd.h"
+#include "motion/unique_fd.hpp"
 
 namespace mfcd::daemon {
 

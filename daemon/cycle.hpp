@@ -10,7 +10,7 @@
 #include <opencv2/core.hpp>
 
 #include "mfcd/hal/sequencer.hpp"
-#include "motion/robot_report.h"
+#include "motion/robot_report.hpp"
 #include "vision/camera/frame_undistorter.hpp"
 #include "vision/camera/mfc_frames.hpp"
 

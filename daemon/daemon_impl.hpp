@@ -24,7 +24,7 @@
 #include "daemon/daemon.hpp"
 #include "daemon/event_loop.hpp"
 #include "daemon/robot_link.hpp"
-#include "motion/unique_fd.h"
+#include "motion/unique_fd.hpp"
 
 namespace mfcd::daemon {
 

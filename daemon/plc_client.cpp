@@ -10,8 +10,8 @@
 #include <string>
 #include <thread>
 
-#include "motion/float_codec.h"
-#include "motion/register_map.h"
+#include "motion/float_codec.hpp"
+#include "motion/register_map.hpp"
 
 using namespace mfcd::motion;
 using namespace std::chrono_literals;

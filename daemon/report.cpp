@@ -10,7 +10,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "daemon/vision_stage.hpp"
-#include "motion/pick_transform.h"
+#include "motion/pick_transform.hpp"
 
 namespace mfcd::daemon {
 

@@ -8,8 +8,8 @@
 
 #include <nlohmann/json.hpp>
 
-#include "motion/can_publisher.h"
-#include "motion/modbus_server.h"
+#include "motion/can_publisher.hpp"
+#include "motion/modbus_server.hpp"
 
 namespace mfcd::daemon {
 

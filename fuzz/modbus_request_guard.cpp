@@ -1,12 +1,12 @@
-// motion/request_guard.h on a Modbus/TCP byte stream, framed as motion/modbus_server.cpp frames
+// motion/request_guard.hpp on a Modbus/TCP byte stream, framed as motion/modbus_server.cpp frames
 // it: an MBAP header, mbap_frame_size(), then check_request() on the whole frame, with the
 // server's register policy. Besides the sanitizers, the harness checks what the server relies
 // on when a request is let through: the frame fits its 260-byte buffer, and a write lies inside
 // the frame and inside one writable range.
 
 #include "fuzz/fuzz_support.hpp"
-#include "motion/register_map.h"
-#include "motion/request_guard.h"
+#include "motion/register_map.hpp"
+#include "motion/request_guard.hpp"
 
 #include <cstring>
 #include <memory>

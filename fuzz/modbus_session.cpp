@@ -6,8 +6,8 @@
 // connection still gets the right answer.
 
 #include "fuzz/fuzz_support.hpp"
-#include "motion/modbus_server.h"
-#include "motion/register_map.h"
+#include "motion/modbus_server.hpp"
+#include "motion/register_map.hpp"
 
 #include <arpa/inet.h>
 #include <netinet/in.h>

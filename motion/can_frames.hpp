@@ -12,7 +12,7 @@
 // tell a complete pick from frames of two different picks.
 #pragma once
 
-#include "motion/robot_report.h"
+#include "motion/robot_report.hpp"
 
 #include <linux/can.h>
 
@@ -34,31 +34,31 @@ inline constexpr double kCanDegPerBit = 0.01;  // Rx, Ry, Rz: signed 16 bit, ±3
 inline constexpr double kCanScorePerBit = 0.0001;
 
 // Status word bits on CAN (bytes 0-1 of MFCD_Status): the Modbus READY/ERROR/PICK_VALID/VISION_OK
-// bits (register_map.h), one DBC signal each. BUSY and DONE belong to the Modbus job handshake and
+// bits (register_map.hpp), one DBC signal each. BUSY and DONE belong to the Modbus job handshake and
 // are not sent; they and bits 6-15 are 0 (reserved signals in the DBC).
-std::uint16_t can_status_word(const RobotReport &report) noexcept;
+std::uint16_t can_status_word(const RobotReport& report) noexcept;
 
-can_frame encode_status(const RobotReport &report, canid_t base) noexcept;
-can_frame encode_heartbeat(std::uint16_t heartbeat, const RobotReport &report, canid_t base) noexcept;
+can_frame encode_status(const RobotReport& report, canid_t base) noexcept;
+can_frame encode_heartbeat(std::uint16_t heartbeat, const RobotReport& report, canid_t base) noexcept;
 // Nullopt when a coordinate does not fit its signal (|x| > 83886.07 mm, |angle| > 327.67
 // deg, NaN): the pick is then not sent rather than sent wrong.
-std::optional<std::array<can_frame, 3>> encode_pick(const RobotReport &report, std::uint8_t sequence,
+std::optional<std::array<can_frame, 3>> encode_pick(const RobotReport& report, std::uint8_t sequence,
                                                     canid_t base) noexcept;
 
 // Decoded pick, for receivers and tests.
 struct CanPick {
-	std::uint8_t sequence = 0;
-	PickPose pose;
-	float score = 0;
-	std::uint16_t job_id = 0;
-	std::uint8_t candidate_index = 0;
-	bool valid = false;
+  std::uint8_t sequence = 0;
+  PickPose pose;
+  float score = 0;
+  std::uint16_t job_id = 0;
+  std::uint8_t candidate_index = 0;
+  bool valid = false;
 };
 // Nullopt unless the three frames have the right ids and the same sequence counter.
-std::optional<CanPick> decode_pick(const std::array<can_frame, 3> &frames, canid_t base) noexcept;
+std::optional<CanPick> decode_pick(const std::array<can_frame, 3>& frames, canid_t base) noexcept;
 
 // What an error frame (CAN_ERR_FLAG set) says about the controller.
 enum class CanErrorKind { Other, BusOff, ErrorPassive, Restarted };
-CanErrorKind classify_error_frame(const can_frame &frame) noexcept;
+CanErrorKind classify_error_frame(const can_frame& frame) noexcept;
 
-} // namespace mfcd::motion
+}  // namespace mfcd::motion

@@ -7,9 +7,9 @@
 // link is retried every retry_interval.
 #pragma once
 
-#include "motion/can_frames.h"
-#include "motion/robot_report.h"
-#include "motion/seqlock.h"
+#include "motion/can_frames.hpp"
+#include "motion/robot_report.hpp"
+#include "motion/seqlock.hpp"
 
 #include <atomic>
 #include <chrono>
@@ -22,72 +22,70 @@
 namespace mfcd::motion {
 
 struct CanConfig {
-	std::string interface = "can0";
-	canid_t id_base = kCanDefaultBase;  // 11-bit; frames use base .. base+0x12
-	std::chrono::milliseconds heartbeat_period{1000};
-	std::chrono::milliseconds retry_interval{1000};
+  std::string interface = "can0";
+  canid_t id_base = kCanDefaultBase;  // 11-bit; frames use base .. base+0x12
+  std::chrono::milliseconds heartbeat_period{1000};
+  std::chrono::milliseconds retry_interval{1000};
 
-	std::string validate() const;
+  std::string validate() const;
 };
 
 enum class CanLinkState { Down, Up, ErrorPassive, BusOff };
-const char *to_string(CanLinkState state) noexcept;
+const char* to_string(CanLinkState state) noexcept;
 
 struct CanPublisherStats {
-	std::uint64_t frames_sent = 0;
-	std::uint64_t frames_dropped = 0;  // not sent: link down, bus-off, tx queue full
-	std::uint64_t picks_sent = 0;
-	std::uint64_t link_attempts = 0;   // socket open/bind attempts
-	std::uint64_t bus_off_events = 0;
+  std::uint64_t frames_sent = 0;
+  std::uint64_t frames_dropped = 0;  // not sent: link down, bus-off, tx queue full
+  std::uint64_t picks_sent = 0;
+  std::uint64_t link_attempts = 0;  // socket open/bind attempts
+  std::uint64_t bus_off_events = 0;
 };
 
-class CanPublisher
-{
-public:
-	explicit CanPublisher(CanConfig config); // throws std::invalid_argument
-	~CanPublisher();
-	CanPublisher(const CanPublisher &) = delete;
-	CanPublisher &operator=(const CanPublisher &) = delete;
+class CanPublisher {
+ public:
+  explicit CanPublisher(CanConfig config);  // throws std::invalid_argument
+  ~CanPublisher();
+  CanPublisher(const CanPublisher&) = delete;
+  CanPublisher& operator=(const CanPublisher&) = delete;
 
-	void start();
-	void stop();
+  void start();
+  void stop();
 
-	// Single writer. A report whose job_id differs from the last one sent and that has
-	// pick_valid set is sent as a pick; status goes out on every change and with each heartbeat.
-	void publish(const RobotReport &report) noexcept;
+  // Single writer. A report whose job_id differs from the last one sent and that has
+  // pick_valid set is sent as a pick; status goes out on every change and with each heartbeat.
+  void publish(const RobotReport& report) noexcept;
 
-	// The heartbeat frame goes out only while now < `until` (the daemon renews this lease while
-	// its threads move, as for the Modbus HEARTBEAT): a receiver's heartbeat timeout then means
-	// mfcd is down or hung. Until the first lease the publisher beats on its own.
-	void lease_health(std::chrono::steady_clock::time_point until) noexcept
-	{
-		health_until_ns_.store(until.time_since_epoch().count(), std::memory_order_release);
-	}
+  // The heartbeat frame goes out only while now < `until` (the daemon renews this lease while
+  // its threads move, as for the Modbus HEARTBEAT): a receiver's heartbeat timeout then means
+  // mfcd is down or hung. Until the first lease the publisher beats on its own.
+  void lease_health(std::chrono::steady_clock::time_point until) noexcept {
+    health_until_ns_.store(until.time_since_epoch().count(), std::memory_order_release);
+  }
 
-	CanLinkState state() const noexcept { return state_.load(); }
-	std::string last_error() const;
-	CanPublisherStats stats() const noexcept;
+  CanLinkState state() const noexcept { return state_.load(); }
+  std::string last_error() const;
+  CanPublisherStats stats() const noexcept;
 
-private:
-	void run();
-	bool open_link();
-	void close_link();
-	bool send(const can_frame &frame);
-	void drain_errors();
-	void set_error(std::string message);
-	void set_state(CanLinkState s);
+ private:
+  void run();
+  bool open_link();
+  void close_link();
+  bool send(const can_frame& frame);
+  void drain_errors();
+  void set_error(std::string message);
+  void set_state(CanLinkState s);
 
-	CanConfig config_;
-	SeqlockSnapshot<RobotReport> report_;
-	int wake_fd_ = -1;   // publish() -> thread
-	int stop_fd_ = -1;
-	int socket_fd_ = -1;
-	std::thread thread_;
-	std::atomic<CanLinkState> state_{CanLinkState::Down};
-	std::atomic<std::int64_t> health_until_ns_{std::numeric_limits<std::int64_t>::max()};
-	mutable std::mutex error_mutex_; // diagnostics only; never taken by publish()
-	std::string last_error_;
-	std::atomic<std::uint64_t> sent_{0}, dropped_{0}, picks_{0}, attempts_{0}, bus_offs_{0};
+  CanConfig config_;
+  SeqlockSnapshot<RobotReport> report_;
+  int wake_fd_ = -1;  // publish() -> thread
+  int stop_fd_ = -1;
+  int socket_fd_ = -1;
+  std::thread thread_;
+  std::atomic<CanLinkState> state_{CanLinkState::Down};
+  std::atomic<std::int64_t> health_until_ns_{std::numeric_limits<std::int64_t>::max()};
+  mutable std::mutex error_mutex_;  // diagnostics only; never taken by publish()
+  std::string last_error_;
+  std::atomic<std::uint64_t> sent_{0}, dropped_{0}, picks_{0}, attempts_{0}, bus_offs_{0};
 };
 
-} // namespace mfcd::motion
+}  // namespace mfcd::motion

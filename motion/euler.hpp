@@ -15,10 +15,10 @@
 namespace mfcd::motion {
 
 struct EulerXYZ {
-	double rx_deg = 0, ry_deg = 0, rz_deg = 0;
+  double rx_deg = 0, ry_deg = 0, rz_deg = 0;
 };
 
-Eigen::Matrix3d euler_to_rotation(const EulerXYZ &angles) noexcept;
-EulerXYZ rotation_to_euler(const Eigen::Matrix3d &rotation) noexcept;
+Eigen::Matrix3d euler_to_rotation(const EulerXYZ& angles) noexcept;
+EulerXYZ rotation_to_euler(const Eigen::Matrix3d& rotation) noexcept;
 
-} // namespace mfcd::motion
+}  // namespace mfcd::motion

@@ -1,19 +1,13 @@
-#include "motion/float_codec.h"
+#include "motion/float_codec.hpp"
 
 namespace mfcd::motion {
 
-std::optional<WordOrder> parse_word_order(std::string_view text) noexcept
-{
-	if (text == "ABCD" || text == "abcd")
-		return WordOrder::ABCD;
-	if (text == "CDAB" || text == "cdab")
-		return WordOrder::CDAB;
-	return std::nullopt;
+std::optional<WordOrder> parse_word_order(std::string_view text) noexcept {
+  if (text == "ABCD" || text == "abcd") return WordOrder::ABCD;
+  if (text == "CDAB" || text == "cdab") return WordOrder::CDAB;
+  return std::nullopt;
 }
 
-std::string_view to_string(WordOrder order) noexcept
-{
-	return order == WordOrder::ABCD ? "ABCD" : "CDAB";
-}
+std::string_view to_string(WordOrder order) noexcept { return order == WordOrder::ABCD ? "ABCD" : "CDAB"; }
 
-} // namespace mfcd::motion
+}  // namespace mfcd::motion

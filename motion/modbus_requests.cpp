@@ -1,6 +1,6 @@
-// The Modbus server's answer to one complete, framed request (see modbus_server_impl.h).
-#include "motion/modbus_server_impl.h"
-#include "motion/register_map.h"
+// The Modbus server's answer to one complete, framed request (see modbus_server_impl.hpp).
+#include "motion/modbus_server_impl.hpp"
+#include "motion/register_map.hpp"
 
 #include <sys/socket.h>
 #include <unistd.h>
@@ -15,187 +15,170 @@ namespace {
 
 constexpr RegisterPolicy kPolicy{reg::kBlockSize, 0, reg::kWritableEnd, reg::kRobotPoseBegin, reg::kRobotPoseEnd};
 
-std::uint16_t be16(const std::uint8_t *p) noexcept
-{
-	return static_cast<std::uint16_t>((p[0] << 8) | p[1]);
-}
+std::uint16_t be16(const std::uint8_t* p) noexcept { return static_cast<std::uint16_t>((p[0] << 8) | p[1]); }
 
-} // namespace
+}  // namespace
 
 // Every read sees one consistent snapshot of the daemon's report.
-RobotReport ModbusServer::Impl::refresh_registers()
-{
-	report_count = server.published_.load(std::memory_order_acquire);
-	const RobotReport r = server.report_.read();
-	std::uint16_t *regs = map->tab_registers;
-	if (job_pending && r.job_id == last_job)
-		job_pending = false;
-	std::uint16_t status = 0;
-	if (r.ready && !job_pending && r.error_code == 0)
-		status |= reg::kReady;
-	if (job_pending)
-		status |= reg::kBusy;
-	if (!job_pending && last_job != 0 && r.job_id == last_job)
-		status |= reg::kDone;
-	if (r.error_code != 0)
-		status |= reg::kError;
-	if (r.pick_valid)
-		status |= reg::kPickValid;
-	if (r.vision_ok)
-		status |= reg::kVisionOk;
-	regs[reg::kStatus] = status;
-	regs[reg::kJobIdEcho] = r.job_id;
-	regs[reg::kHeartbeat] = heartbeat;
-	regs[reg::kErrorCode] = r.error_code;
-	regs[reg::kRecipeEcho] = r.recipe_id;
-	regs[reg::kObjectsRemaining] = r.objects_remaining;
-	regs[reg::kCycleTimeMs] = r.cycle_time_ms;
-	regs[reg::kCandidateIndex] = r.candidate_index;
-	regs[reg::kCandidateCount] = r.candidate_count;
-	regs[reg::kWordOrder] = static_cast<std::uint16_t>(config.word_order);
-	regs[reg::kMapVersionReg] = reg::kMapVersion;
-	regs[reg::kLastCommandResult] = last_command_result;
-	const auto put = [&](std::uint16_t at, float v) {
-		const auto words = encode_float(v, config.word_order);
-		regs[at] = words[0];
-		regs[at + 1] = words[1];
-	};
-	const bool valid = r.pick_valid != 0;
-	put(reg::kPickX, valid ? r.pick.x_mm : 0.0f);
-	put(reg::kPickY, valid ? r.pick.y_mm : 0.0f);
-	put(reg::kPickZ, valid ? r.pick.z_mm : 0.0f);
-	put(reg::kPickRx, valid ? r.pick.rx_deg : 0.0f);
-	put(reg::kPickRy, valid ? r.pick.ry_deg : 0.0f);
-	put(reg::kPickRz, valid ? r.pick.rz_deg : 0.0f);
-	put(reg::kScore, valid ? r.score : 0.0f);
-	put(reg::kTestVector, reg::kTestVectorValue);
-	std::memcpy(map->tab_input_registers, regs, reg::kBlockSize * sizeof(std::uint16_t));
-	return r;
+RobotReport ModbusServer::Impl::refresh_registers() {
+  report_count = server.published_.load(std::memory_order_acquire);
+  const RobotReport r = server.report_.read();
+  std::uint16_t* regs = map->tab_registers;
+  if (job_pending && r.job_id == last_job) job_pending = false;
+  std::uint16_t status = 0;
+  if (r.ready && !job_pending && r.error_code == 0) status |= reg::kReady;
+  if (job_pending) status |= reg::kBusy;
+  if (!job_pending && last_job != 0 && r.job_id == last_job) status |= reg::kDone;
+  if (r.error_code != 0) status |= reg::kError;
+  if (r.pick_valid) status |= reg::kPickValid;
+  if (r.vision_ok) status |= reg::kVisionOk;
+  regs[reg::kStatus] = status;
+  regs[reg::kJobIdEcho] = r.job_id;
+  regs[reg::kHeartbeat] = heartbeat;
+  regs[reg::kErrorCode] = r.error_code;
+  regs[reg::kRecipeEcho] = r.recipe_id;
+  regs[reg::kObjectsRemaining] = r.objects_remaining;
+  regs[reg::kCycleTimeMs] = r.cycle_time_ms;
+  regs[reg::kCandidateIndex] = r.candidate_index;
+  regs[reg::kCandidateCount] = r.candidate_count;
+  regs[reg::kWordOrder] = static_cast<std::uint16_t>(config.word_order);
+  regs[reg::kMapVersionReg] = reg::kMapVersion;
+  regs[reg::kLastCommandResult] = last_command_result;
+  const auto put = [&](std::uint16_t at, float v) {
+    const auto words = encode_float(v, config.word_order);
+    regs[at] = words[0];
+    regs[at + 1] = words[1];
+  };
+  const bool valid = r.pick_valid != 0;
+  put(reg::kPickX, valid ? r.pick.x_mm : 0.0f);
+  put(reg::kPickY, valid ? r.pick.y_mm : 0.0f);
+  put(reg::kPickZ, valid ? r.pick.z_mm : 0.0f);
+  put(reg::kPickRx, valid ? r.pick.rx_deg : 0.0f);
+  put(reg::kPickRy, valid ? r.pick.ry_deg : 0.0f);
+  put(reg::kPickRz, valid ? r.pick.rz_deg : 0.0f);
+  put(reg::kScore, valid ? r.score : 0.0f);
+  put(reg::kTestVector, reg::kTestVectorValue);
+  std::memcpy(map->tab_input_registers, regs, reg::kBlockSize * sizeof(std::uint16_t));
+  return r;
 }
 
-void ModbusServer::Impl::send_exception(Client &c, std::uint8_t function, ModbusException code)
-{
-	std::uint8_t rsp[9] = {c.buf[0], c.buf[1], 0, 0, 0, 3, c.buf[6],
-	                       static_cast<std::uint8_t>(function | 0x80), static_cast<std::uint8_t>(code)};
-	server.exceptions_.fetch_add(1);
-	if (::send(c.fd.get(), rsp, sizeof(rsp), MSG_NOSIGNAL | MSG_DONTWAIT) != sizeof(rsp))
-		close_client(c, CloseReason::Dropped);
+void ModbusServer::Impl::send_exception(Client& c, std::uint8_t function, ModbusException code) {
+  std::uint8_t rsp[9] = {c.buf[0],
+                         c.buf[1],
+                         0,
+                         0,
+                         0,
+                         3,
+                         c.buf[6],
+                         static_cast<std::uint8_t>(function | 0x80),
+                         static_cast<std::uint8_t>(code)};
+  server.exceptions_.fetch_add(1);
+  if (::send(c.fd.get(), rsp, sizeof(rsp), MSG_NOSIGNAL | MSG_DONTWAIT) != sizeof(rsp))
+    close_client(c, CloseReason::Dropped);
 }
 
-ModbusException ModbusServer::Impl::decide_command(const RegisterWrite &w, const RobotReport &report,
-                                                   std::optional<PlcCommand> &command)
-{
-	const std::uint16_t *regs = map->tab_registers;
-	std::uint16_t control[reg::kControlEnd];
-	std::copy(regs, regs + reg::kControlEnd, control);
-	for (std::uint16_t i = 0; i < w.count && w.address + i < reg::kControlEnd; ++i)
-		control[w.address + i] = be16(w.values + 2 * i);
-	const bool queue_full = server.commands_.size_approx() >= server.commands_.capacity();
-	const PlcCommand asked{PlcCommand::Kind::Trigger, control[reg::kJobId], control[reg::kRecipeId],
-	                       control[reg::kMode]};
-	switch (static_cast<reg::Command>(control[reg::kCommand])) {
-	case reg::Command::None:
-		return ModbusException::None;
-	case reg::Command::Trigger:
-		if (asked.job_id == 0 || asked.job_id == last_job || asked.mode > reg::kModeMax)
-			return ModbusException::IllegalDataValue;
-		if (job_pending || !report.ready || report.error_code != 0 || queue_full)
-			return ModbusException::ServerDeviceBusy;
-		command = asked;
-		return ModbusException::None;
-	case reg::Command::Reset:
-		if (queue_full)
-			return ModbusException::ServerDeviceBusy;
-		command = asked;
-		command->kind = PlcCommand::Kind::Reset;
-		return ModbusException::None;
-	}
-	return ModbusException::IllegalDataValue;
+ModbusException ModbusServer::Impl::decide_command(const RegisterWrite& w, const RobotReport& report,
+                                                   std::optional<PlcCommand>& command) {
+  const std::uint16_t* regs = map->tab_registers;
+  std::uint16_t control[reg::kControlEnd];
+  std::copy(regs, regs + reg::kControlEnd, control);
+  for (std::uint16_t i = 0; i < w.count && w.address + i < reg::kControlEnd; ++i)
+    control[w.address + i] = be16(w.values + 2 * i);
+  const bool queue_full = server.commands_.size_approx() >= server.commands_.capacity();
+  const PlcCommand asked{PlcCommand::Kind::Trigger, control[reg::kJobId], control[reg::kRecipeId], control[reg::kMode]};
+  switch (static_cast<reg::Command>(control[reg::kCommand])) {
+    case reg::Command::None:
+      return ModbusException::None;
+    case reg::Command::Trigger:
+      if (asked.job_id == 0 || asked.job_id == last_job || asked.mode > reg::kModeMax)
+        return ModbusException::IllegalDataValue;
+      if (job_pending || !report.ready || report.error_code != 0 || queue_full)
+        return ModbusException::ServerDeviceBusy;
+      command = asked;
+      return ModbusException::None;
+    case reg::Command::Reset:
+      if (queue_full) return ModbusException::ServerDeviceBusy;
+      command = asked;
+      command->kind = PlcCommand::Kind::Reset;
+      return ModbusException::None;
+  }
+  return ModbusException::IllegalDataValue;
 }
 
-bool ModbusServer::Impl::write_robot_pose(const RegisterWrite &w)
-{
-	const std::uint16_t *regs = map->tab_registers;
-	std::uint16_t block[reg::kRobotPoseEnd - reg::kRobotPoseBegin];
-	std::copy(regs + reg::kRobotPoseBegin, regs + reg::kRobotPoseEnd, block);
-	for (std::uint16_t i = 0; i < w.count; ++i)
-		block[w.address + i - reg::kRobotPoseBegin] = be16(w.values + 2 * i);
-	const auto f = [&](std::uint16_t at) {
-		const std::uint16_t *q = block + (at - reg::kRobotPoseBegin);
-		return decode_float(q[0], q[1], config.word_order);
-	};
-	bool ok = block[reg::kRobotPoseValid - reg::kRobotPoseBegin] <= 1;
-	for (std::uint16_t at = reg::kRobotPoseX; at < reg::kRobotPoseValid; at += 2)
-		ok = ok && std::isfinite(f(at));
-	if (!ok)
-		return false;
-	// Published before the answer: once the PLC has its acknowledgement, mfcd sees the pose.
-	RobotPoseReading p = server.robot_pose_.read();
-	++p.writes;
-	p.valid = block[reg::kRobotPoseValid - reg::kRobotPoseBegin];
-	p.sequence = block[reg::kRobotPoseSeq - reg::kRobotPoseBegin];
-	p.x_mm = f(reg::kRobotPoseX), p.y_mm = f(reg::kRobotPoseY), p.z_mm = f(reg::kRobotPoseZ);
-	p.rx_deg = f(reg::kRobotPoseRx), p.ry_deg = f(reg::kRobotPoseRy), p.rz_deg = f(reg::kRobotPoseRz);
-	server.robot_pose_.publish(p);
-	return true;
+bool ModbusServer::Impl::write_robot_pose(const RegisterWrite& w) {
+  const std::uint16_t* regs = map->tab_registers;
+  std::uint16_t block[reg::kRobotPoseEnd - reg::kRobotPoseBegin];
+  std::copy(regs + reg::kRobotPoseBegin, regs + reg::kRobotPoseEnd, block);
+  for (std::uint16_t i = 0; i < w.count; ++i) block[w.address + i - reg::kRobotPoseBegin] = be16(w.values + 2 * i);
+  const auto f = [&](std::uint16_t at) {
+    const std::uint16_t* q = block + (at - reg::kRobotPoseBegin);
+    return decode_float(q[0], q[1], config.word_order);
+  };
+  bool ok = block[reg::kRobotPoseValid - reg::kRobotPoseBegin] <= 1;
+  for (std::uint16_t at = reg::kRobotPoseX; at < reg::kRobotPoseValid; at += 2) ok = ok && std::isfinite(f(at));
+  if (!ok) return false;
+  // Published before the answer: once the PLC has its acknowledgement, mfcd sees the pose.
+  RobotPoseReading p = server.robot_pose_.read();
+  ++p.writes;
+  p.valid = block[reg::kRobotPoseValid - reg::kRobotPoseBegin];
+  p.sequence = block[reg::kRobotPoseSeq - reg::kRobotPoseBegin];
+  p.x_mm = f(reg::kRobotPoseX), p.y_mm = f(reg::kRobotPoseY), p.z_mm = f(reg::kRobotPoseZ);
+  p.rx_deg = f(reg::kRobotPoseRx), p.ry_deg = f(reg::kRobotPoseRy), p.rz_deg = f(reg::kRobotPoseRz);
+  server.robot_pose_.publish(p);
+  return true;
 }
 
-void ModbusServer::Impl::queue_command(const PlcCommand &command)
-{
-	map->tab_registers[reg::kCommand] = 0; // reads back 0 once taken
-	if (command.kind == PlcCommand::Kind::Trigger) {
-		job_pending = true;
-		last_job = command.job_id;
-	} else {
-		job_pending = false;
-	}
-	server.commands_.push(command);
-	server.queued_.fetch_add(1);
-	const std::uint64_t one = 1;
-	[[maybe_unused]] ssize_t n = ::write(server.command_event_fd_.get(), &one, sizeof(one));
-	refresh_registers();
+void ModbusServer::Impl::queue_command(const PlcCommand& command) {
+  map->tab_registers[reg::kCommand] = 0;  // reads back 0 once taken
+  if (command.kind == PlcCommand::Kind::Trigger) {
+    job_pending = true;
+    last_job = command.job_id;
+  } else {
+    job_pending = false;
+  }
+  server.commands_.push(command);
+  server.queued_.fetch_add(1);
+  const std::uint64_t one = 1;
+  [[maybe_unused]] ssize_t n = ::write(server.command_event_fd_.get(), &one, sizeof(one));
+  refresh_registers();
 }
 
-void ModbusServer::Impl::handle_frame(Client &c, std::size_t size)
-{
-	const RobotReport report = refresh_registers();
-	c.seen = report_count;
-	const GuardVerdict v = check_request(std::span<const std::uint8_t>(c.buf, size), kPolicy);
-	if (v.exception != ModbusException::None) {
-		send_exception(c, v.function, v.exception);
-		return;
-	}
+void ModbusServer::Impl::handle_frame(Client& c, std::size_t size) {
+  const RobotReport report = refresh_registers();
+  c.seen = report_count;
+  const GuardVerdict v = check_request(std::span<const std::uint8_t>(c.buf, size), kPolicy);
+  if (v.exception != ModbusException::None) {
+    send_exception(c, v.function, v.exception);
+    return;
+  }
 
-	// A write covering the command register is a command: decided on before any register
-	// changes, so a refused command leaves the map untouched.
-	std::optional<PlcCommand> command;
-	const RegisterWrite &w = v.write;
-	if (w.count > 0 && w.address <= reg::kCommand && reg::kCommand < w.address + w.count) {
-		const ModbusException refuse = decide_command(w, report, command);
-		last_command_result = static_cast<std::uint16_t>(refuse);
-		map->tab_registers[reg::kLastCommandResult] = last_command_result;
-		if (refuse != ModbusException::None) {
-			send_exception(c, v.function, refuse);
-			return;
-		}
-	}
-	// A write into the robot pose block is checked as the block it would leave: a valid flag
-	// other than 0/1 or a non-finite float is refused and nothing is written.
-	if (w.count > 0 && w.address < reg::kRobotPoseEnd && w.address + w.count > reg::kRobotPoseBegin &&
-	    !write_robot_pose(w)) {
-		send_exception(c, v.function, ModbusException::IllegalDataValue);
-		return;
-	}
-	modbus_set_socket(ctx, c.fd.get());
-	// modbus_reply() writes the map before it sends: a command whose acknowledgement could not
-	// be sent is queued all the same, as the register write it came with has happened.
-	const bool replied = modbus_reply(ctx, c.buf, static_cast<int>(size), map) >= 0;
-	if (replied)
-		server.answered_.fetch_add(1);
-	if (command)
-		queue_command(*command);
-	if (!replied)
-		close_client(c, CloseReason::Dropped);
+  // A write covering the command register is a command: decided on before any register
+  // changes, so a refused command leaves the map untouched.
+  std::optional<PlcCommand> command;
+  const RegisterWrite& w = v.write;
+  if (w.count > 0 && w.address <= reg::kCommand && reg::kCommand < w.address + w.count) {
+    const ModbusException refuse = decide_command(w, report, command);
+    last_command_result = static_cast<std::uint16_t>(refuse);
+    map->tab_registers[reg::kLastCommandResult] = last_command_result;
+    if (refuse != ModbusException::None) {
+      send_exception(c, v.function, refuse);
+      return;
+    }
+  }
+  // A write into the robot pose block is checked as the block it would leave: a valid flag
+  // other than 0/1 or a non-finite float is refused and nothing is written.
+  if (w.count > 0 && w.address < reg::kRobotPoseEnd && w.address + w.count > reg::kRobotPoseBegin &&
+      !write_robot_pose(w)) {
+    send_exception(c, v.function, ModbusException::IllegalDataValue);
+    return;
+  }
+  modbus_set_socket(ctx, c.fd.get());
+  // modbus_reply() writes the map before it sends: a command whose acknowledgement could not
+  // be sent is queued all the same, as the register write it came with has happened.
+  const bool replied = modbus_reply(ctx, c.buf, static_cast<int>(size), map) >= 0;
+  if (replied) server.answered_.fetch_add(1);
+  if (command) queue_command(*command);
+  if (!replied) close_client(c, CloseReason::Dropped);
 }
 
-} // namespace mfcd::motion
+}  // namespace mfcd::motion

@@ -12,50 +12,50 @@ inline constexpr std::uint16_t kBlockSize = 64;
 inline constexpr std::uint16_t kMapVersion = 2;  // 2: robot pose block at 36..49
 
 // --- Control block: written by the PLC ---------------------------------------------------
-inline constexpr std::uint16_t kCommand = 0;  // command code, see Command; reads back 0 once taken
-inline constexpr std::uint16_t kJobId = 1;    // job id for the next TRIGGER (1..65535)
-inline constexpr std::uint16_t kRecipeId = 2; // part / recipe id for the next TRIGGER
-inline constexpr std::uint16_t kMode = 3;     // cycle mode for the next TRIGGER, see Mode
-inline constexpr std::uint16_t kControlEnd = 4; // 4..7 reserved: writes are refused
+inline constexpr std::uint16_t kCommand = 0;     // command code, see Command; reads back 0 once taken
+inline constexpr std::uint16_t kJobId = 1;       // job id for the next TRIGGER (1..65535)
+inline constexpr std::uint16_t kRecipeId = 2;    // part / recipe id for the next TRIGGER
+inline constexpr std::uint16_t kMode = 3;        // cycle mode for the next TRIGGER, see Mode
+inline constexpr std::uint16_t kControlEnd = 4;  // 4..7 reserved: writes are refused
 inline constexpr std::uint16_t kWritableEnd = 4;
 
 // --- Status block: written by mfcd, read-only for the PLC --------------------------------
-inline constexpr std::uint16_t kStatus = 8;           // status bits, see StatusBit
-inline constexpr std::uint16_t kJobIdEcho = 9;        // job id of the result below
-inline constexpr std::uint16_t kHeartbeat = 10;       // +1 every second, wraps at 65535
-inline constexpr std::uint16_t kErrorCode = 11;       // 0 = no error
-inline constexpr std::uint16_t kRecipeEcho = 12;      // recipe id the result was made with
+inline constexpr std::uint16_t kStatus = 8;       // status bits, see StatusBit
+inline constexpr std::uint16_t kJobIdEcho = 9;    // job id of the result below
+inline constexpr std::uint16_t kHeartbeat = 10;   // +1 every second, wraps at 65535
+inline constexpr std::uint16_t kErrorCode = 11;   // 0 = no error
+inline constexpr std::uint16_t kRecipeEcho = 12;  // recipe id the result was made with
 inline constexpr std::uint16_t kObjectsRemaining = 13;
 inline constexpr std::uint16_t kCycleTimeMs = 14;     // last cycle, trigger to result, saturates
 inline constexpr std::uint16_t kCandidateIndex = 15;  // index of the chosen candidate
 inline constexpr std::uint16_t kCandidateCount = 16;  // candidates found in the last cycle
 inline constexpr std::uint16_t kWordOrder = 17;       // 0 = ABCD, 1 = CDAB (configured)
 inline constexpr std::uint16_t kMapVersionReg = 18;
-inline constexpr std::uint16_t kLastCommandResult = 19; // 0 ok, else Modbus exception code of the last refused command
+inline constexpr std::uint16_t kLastCommandResult = 19;  // 0 ok, else Modbus exception code of the last refused command
 
 // --- Pick: float32 pairs in the configured word order -------------------------------------
 inline constexpr std::uint16_t kPickX = 20;  // mm, robot base frame
 inline constexpr std::uint16_t kPickY = 22;
 inline constexpr std::uint16_t kPickZ = 24;
-inline constexpr std::uint16_t kPickRx = 26; // degrees, R = Rz(rz) * Ry(ry) * Rx(rx)
+inline constexpr std::uint16_t kPickRx = 26;  // degrees, R = Rz(rz) * Ry(ry) * Rx(rx)
 inline constexpr std::uint16_t kPickRy = 28;
 inline constexpr std::uint16_t kPickRz = 30;
-inline constexpr std::uint16_t kScore = 32;  // 0..1
-inline constexpr std::uint16_t kTestVector = 34; // always 123456.0f, to check the word order
+inline constexpr std::uint16_t kScore = 32;       // 0..1
+inline constexpr std::uint16_t kTestVector = 34;  // always 123456.0f, to check the word order
 inline constexpr float kTestVectorValue = 123456.0f;
 
 // --- Robot pose: written by the PLC (map version 2) ----------------------------------------
 // The robot flange pose in the base frame, for mfcd-ctl calibrate capture --pose-from-plc:
 // float32 pairs in the configured word order, then a valid flag and a sequence number the PLC
 // changes for every new pose. Write the whole block with one FC 0x10.
-inline constexpr std::uint16_t kRobotPoseX = 36;   // mm
+inline constexpr std::uint16_t kRobotPoseX = 36;  // mm
 inline constexpr std::uint16_t kRobotPoseY = 38;
 inline constexpr std::uint16_t kRobotPoseZ = 40;
 inline constexpr std::uint16_t kRobotPoseRx = 42;  // degrees, R = Rz(rz) * Ry(ry) * Rx(rx)
 inline constexpr std::uint16_t kRobotPoseRy = 44;
 inline constexpr std::uint16_t kRobotPoseRz = 46;
-inline constexpr std::uint16_t kRobotPoseValid = 48; // 1: registers 36..47 hold the current pose; 0: not
-inline constexpr std::uint16_t kRobotPoseSeq = 49;   // changed by the PLC for every new pose
+inline constexpr std::uint16_t kRobotPoseValid = 48;  // 1: registers 36..47 hold the current pose; 0: not
+inline constexpr std::uint16_t kRobotPoseSeq = 49;    // changed by the PLC for every new pose
 inline constexpr std::uint16_t kRobotPoseBegin = 36;
 inline constexpr std::uint16_t kRobotPoseEnd = 50;
 // 50..63 reserved, read 0.
@@ -65,12 +65,12 @@ enum class Mode : std::uint16_t { Pick = 0, CountOnly = 1 };
 inline constexpr std::uint16_t kModeMax = 1;
 
 enum StatusBit : std::uint16_t {
-	kReady = 1u << 0,     // a TRIGGER would be accepted now
-	kBusy = 1u << 1,      // a job was accepted and its result is not published yet
-	kDone = 1u << 2,      // JOB_ID_ECHO equals the last accepted job id and the result is valid to read
-	kError = 1u << 3,     // ERROR_CODE != 0; send RESET to clear
-	kPickValid = 1u << 4, // the pick registers hold a pick for JOB_ID_ECHO
-	kVisionOk = 1u << 5,  // the daemon reports its camera and vision pipeline healthy
+  kReady = 1u << 0,      // a TRIGGER would be accepted now
+  kBusy = 1u << 1,       // a job was accepted and its result is not published yet
+  kDone = 1u << 2,       // JOB_ID_ECHO equals the last accepted job id and the result is valid to read
+  kError = 1u << 3,      // ERROR_CODE != 0; send RESET to clear
+  kPickValid = 1u << 4,  // the pick registers hold a pick for JOB_ID_ECHO
+  kVisionOk = 1u << 5,   // the daemon reports its camera and vision pipeline healthy
 };
 
-} // namespace mfcd::motion::reg
+}  // namespace mfcd::motion::reg

@@ -14,19 +14,19 @@
 
 namespace mfcd::motion {
 
-inline constexpr std::size_t kMbapHeaderSize = 7;       // transaction(2) protocol(2) length(2) unit(1)
-inline constexpr std::size_t kMaxAduSize = 260;         // Modbus/TCP: 7 + 253-byte PDU
-inline constexpr std::uint16_t kMaxReadRegisters = 125;  // FC 0x03/0x04, and the read half of 0x17
-inline constexpr std::uint16_t kMaxWriteRegisters = 123; // FC 0x10
-inline constexpr std::uint16_t kMaxRwWriteRegisters = 121; // write half of FC 0x17
+inline constexpr std::size_t kMbapHeaderSize = 7;           // transaction(2) protocol(2) length(2) unit(1)
+inline constexpr std::size_t kMaxAduSize = 260;             // Modbus/TCP: 7 + 253-byte PDU
+inline constexpr std::uint16_t kMaxReadRegisters = 125;     // FC 0x03/0x04, and the read half of 0x17
+inline constexpr std::uint16_t kMaxWriteRegisters = 123;    // FC 0x10
+inline constexpr std::uint16_t kMaxRwWriteRegisters = 121;  // write half of FC 0x17
 
 enum class ModbusException : std::uint8_t {
-	None = 0,
-	IllegalFunction = 0x01,
-	IllegalDataAddress = 0x02,
-	IllegalDataValue = 0x03,
-	ServerDeviceFailure = 0x04,
-	ServerDeviceBusy = 0x06,
+  None = 0,
+  IllegalFunction = 0x01,
+  IllegalDataAddress = 0x02,
+  IllegalDataValue = 0x03,
+  ServerDeviceFailure = 0x04,
+  ServerDeviceBusy = 0x06,
 };
 
 // Total ADU size announced by an MBAP header, or 0 when the header cannot start a valid
@@ -38,27 +38,27 @@ std::size_t mbap_frame_size(std::span<const std::uint8_t, kMbapHeaderSize> heade
 // [writable_begin, writable_end) and, when not empty, [second_writable_begin,
 // second_writable_end). One write must lie wholly inside one of the ranges.
 struct RegisterPolicy {
-	std::uint16_t readable_end;
-	std::uint16_t writable_begin;
-	std::uint16_t writable_end;
-	std::uint16_t second_writable_begin = 0;
-	std::uint16_t second_writable_end = 0;
+  std::uint16_t readable_end;
+  std::uint16_t writable_begin;
+  std::uint16_t writable_end;
+  std::uint16_t second_writable_begin = 0;
+  std::uint16_t second_writable_end = 0;
 };
 
 // One write a request makes, for the server's command handling.
 struct RegisterWrite {
-	std::uint16_t address = 0;
-	std::uint16_t count = 0;
-	const std::uint8_t *values = nullptr; // big-endian register values, 2 * count bytes inside the frame
+  std::uint16_t address = 0;
+  std::uint16_t count = 0;
+  const std::uint8_t* values = nullptr;  // big-endian register values, 2 * count bytes inside the frame
 };
 
 struct GuardVerdict {
-	ModbusException exception = ModbusException::None; // None: forward to libmodbus
-	std::uint8_t function = 0;
-	RegisterWrite write;                               // count 0 when the request writes nothing
+  ModbusException exception = ModbusException::None;  // None: forward to libmodbus
+  std::uint8_t function = 0;
+  RegisterWrite write;  // count 0 when the request writes nothing
 };
 
 // adu is one complete frame whose size mbap_frame_size() accepted.
-GuardVerdict check_request(std::span<const std::uint8_t> adu, const RegisterPolicy &policy) noexcept;
+GuardVerdict check_request(std::span<const std::uint8_t> adu, const RegisterPolicy& policy) noexcept;
 
-} // namespace mfcd::motion
+}  // namespace mfcd::motion

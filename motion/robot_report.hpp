@@ -6,45 +6,45 @@
 namespace mfcd::motion {
 
 // A pick in the robot base frame: millimetres and degrees, R = Rz(rz) * Ry(ry) * Rx(rx)
-// (see euler.h and docs/register-map.md).
+// (see euler.hpp and docs/register-map.md).
 struct PickPose {
-	float x_mm = 0, y_mm = 0, z_mm = 0;
-	float rx_deg = 0, ry_deg = 0, rz_deg = 0;
+  float x_mm = 0, y_mm = 0, z_mm = 0;
+  float rx_deg = 0, ry_deg = 0, rz_deg = 0;
 };
 
 // Published by the daemon whenever its state or a job result changes. One writer only.
 // Every field is a plain 32-bit-or-smaller value so the snapshot can be copied word by word.
 struct RobotReport {
-	std::uint16_t job_id = 0;            // job this result answers; 0 = none yet
-	std::uint16_t recipe_id = 0;         // recipe the result was made with
-	std::uint16_t error_code = 0;        // 0 = no error; anything else sets the ERROR bit
-	std::uint16_t objects_remaining = 0;
-	std::uint16_t cycle_time_ms = 0;     // trigger to result
-	std::uint16_t candidate_index = 0;
-	std::uint16_t candidate_count = 0;
-	std::uint16_t ready = 0;             // 1: daemon can take a trigger (camera open, recipe loaded)
-	std::uint16_t vision_ok = 0;         // 1: camera and vision pipeline healthy
-	std::uint16_t pick_valid = 0;        // 1: pick/score hold a pick for job_id
-	PickPose pick;
-	float score = 0;
+  std::uint16_t job_id = 0;      // job this result answers; 0 = none yet
+  std::uint16_t recipe_id = 0;   // recipe the result was made with
+  std::uint16_t error_code = 0;  // 0 = no error; anything else sets the ERROR bit
+  std::uint16_t objects_remaining = 0;
+  std::uint16_t cycle_time_ms = 0;  // trigger to result
+  std::uint16_t candidate_index = 0;
+  std::uint16_t candidate_count = 0;
+  std::uint16_t ready = 0;       // 1: daemon can take a trigger (camera open, recipe loaded)
+  std::uint16_t vision_ok = 0;   // 1: camera and vision pipeline healthy
+  std::uint16_t pick_valid = 0;  // 1: pick/score hold a pick for job_id
+  PickPose pick;
+  float score = 0;
 };
 
 // The robot pose block (registers 36..49) as the PLC last wrote it.
 struct RobotPoseReading {
-	std::uint32_t writes = 0;     // accepted writes to the block; 0 = never written
-	std::uint16_t valid = 0;      // ROBOT_POSE_VALID
-	std::uint16_t sequence = 0;   // ROBOT_POSE_SEQ
-	float x_mm = 0, y_mm = 0, z_mm = 0;
-	float rx_deg = 0, ry_deg = 0, rz_deg = 0;
+  std::uint32_t writes = 0;    // accepted writes to the block; 0 = never written
+  std::uint16_t valid = 0;     // ROBOT_POSE_VALID
+  std::uint16_t sequence = 0;  // ROBOT_POSE_SEQ
+  float x_mm = 0, y_mm = 0, z_mm = 0;
+  float rx_deg = 0, ry_deg = 0, rz_deg = 0;
 };
 
 // Written by the PLC (Modbus) and handed to the daemon.
 struct PlcCommand {
-	enum class Kind : std::uint16_t { Trigger = 1, Reset = 2 };
-	Kind kind = Kind::Trigger;
-	std::uint16_t job_id = 0;
-	std::uint16_t recipe_id = 0;
-	std::uint16_t mode = 0;
+  enum class Kind : std::uint16_t { Trigger = 1, Reset = 2 };
+  Kind kind = Kind::Trigger;
+  std::uint16_t job_id = 0;
+  std::uint16_t recipe_id = 0;
+  std::uint16_t mode = 0;
 };
 
-} // namespace mfcd::motion
+}  // namespace mfcd::motion

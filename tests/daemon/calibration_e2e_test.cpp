@@ -12,8 +12,8 @@
 #include <random>
 
 #include "daemon_process.hpp"
-#include "motion/float_codec.h"
-#include "motion/register_map.h"
+#include "motion/float_codec.hpp"
+#include "motion/register_map.hpp"
 #include "vision/calib/sim_board.hpp"
 #include "vision/camera/camera.hpp"
 

@@ -13,7 +13,7 @@
 //      (no FIN, no RST can reach it). A new PLC from B (the same veth, another address) must be served
 //      (a read and a whole TRIGGER job) within 30 s: the server evicts the idle-longest client. The
 //      other three must then be closed by the server's TCP keepalive / TCP_USER_TIMEOUT (5 s idle +
-//      3 probes 2 s apart, 10 s: motion/modbus_server.h) within 30 s of the drop, counted as dropped,
+//      3 probes 2 s apart, 10 s: motion/modbus_server.hpp) within 30 s of the drop, counted as dropped,
 //      while the holder is still alive and its side still shows them ESTABLISHED (the half-open
 //      state). idle_timeout_ms stays at 60000 (the default): longer than the window, so the idle
 //      timeout cannot be what frees them; without the drop the probes are answered and the
@@ -47,8 +47,8 @@
 #include <vector>
 
 #include "daemon_process.hpp"
-#include "motion/register_map.h"
-#include "motion/unique_fd.h"
+#include "motion/register_map.hpp"
+#include "motion/unique_fd.hpp"
 
 using namespace mfcd::daemon::test;
 namespace reg = mfcd::motion::reg;

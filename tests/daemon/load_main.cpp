@@ -36,8 +36,8 @@
 #include <thread>
 
 #include "daemon_process.hpp"
-#include "motion/register_map.h"
-#include "motion/unique_fd.h"
+#include "motion/register_map.hpp"
+#include "motion/unique_fd.hpp"
 
 using namespace mfcd::daemon::test;
 namespace reg = mfcd::motion::reg;

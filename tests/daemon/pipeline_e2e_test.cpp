@@ -7,8 +7,8 @@
 #include <modbus/modbus.h>
 
 #include "daemon_process.hpp"
-#include "motion/float_codec.h"
-#include "motion/register_map.h"
+#include "motion/float_codec.hpp"
+#include "motion/register_map.hpp"
 
 using namespace mfcd::daemon::test;
 using namespace mfcd::motion;

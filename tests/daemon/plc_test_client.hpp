@@ -8,8 +8,8 @@
 #include <cstdint>
 #include <thread>
 
-#include "motion/float_codec.h"
-#include "motion/register_map.h"
+#include "motion/float_codec.hpp"
+#include "motion/register_map.hpp"
 
 namespace mfcd::daemon::test {
 

@@ -14,8 +14,8 @@
 #include "daemon_fixture.hpp"
 #include "daemon_process.hpp"
 #include "plc_test_client.hpp"
-#include "motion/float_codec.h"
-#include "motion/register_map.h"
+#include "motion/float_codec.hpp"
+#include "motion/register_map.hpp"
 
 using namespace mfcd::daemon::test;
 using namespace mfcd::motion;

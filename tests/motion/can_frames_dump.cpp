@@ -1,4 +1,4 @@
-// Prints every kind of CAN frame mfcd sends (motion/can_frames.h: status, heartbeat, pick
+// Prints every kind of CAN frame mfcd sends (motion/can_frames.hpp: status, heartbeat, pick
 // A/B/C), each built by the library's own encoders, for a set of representative reports, as
 // JSON lines for tests/motion/dbc_canmatrix_test.py:
 //
@@ -11,8 +11,8 @@
 // ms, 0..1 score, counters. The Python side decodes "data" with an independent DBC parser and
 // compares. Floats print with 9 significant digits, so they read back as the exact float.
 // Exit 1 if an encoder refuses a case (all cases are within the signal ranges).
-#include "motion/can_frames.h"
-#include "motion/register_map.h"
+#include "motion/can_frames.hpp"
+#include "motion/register_map.hpp"
 
 #include <algorithm>
 #include <cstdio>

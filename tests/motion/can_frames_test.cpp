@@ -1,8 +1,8 @@
 // The CAN encoders against docs/mfcd.dbc: the DBC is parsed here and every signal is
 // extracted bit by bit (the slow, obviously-right way), so the document and the code
 // cannot drift apart.
-#include "motion/can_frames.h"
-#include "motion/register_map.h"
+#include "motion/can_frames.hpp"
+#include "motion/register_map.hpp"
 
 #include <gtest/gtest.h>
 #include <linux/can/error.h>

@@ -1,6 +1,6 @@
 // CanPublisher against the kernel: link-down reporting everywhere, and real frames on vcan0
 // where the machine has it (the VM tier); elsewhere those tests skip.
-#include "motion/can_publisher.h"
+#include "motion/can_publisher.hpp"
 
 #include <gtest/gtest.h>
 #include <linux/can/raw.h>

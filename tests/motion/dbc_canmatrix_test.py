@@ -15,7 +15,7 @@ for representative reports, as JSON lines with the values it encoded. Checks:
     the bit model is checked against canmatrix's own decoder, and the overlap check against
     a built-in DBC with known overlaps;
   * BusType "CAN", a GenMsgSendType for every frame, GenMsgCycleTime for the periodic ones
-    (the default heartbeat period in motion/can_publisher.h), value tables for ErrorCode
+    (the default heartbeat period in motion/can_publisher.hpp), value tables for ErrorCode
     (every code of daemon/cycle.hpp CycleError) and the flags, a comment naming the unit of
     every signal;
   * every dumped frame: id and dlc equal the DBC frame's, each signal canmatrix decodes equals
@@ -251,9 +251,9 @@ def check_attributes(source_dir, db):
     check(db.attributes.get("BusType") == "CAN", f"BusType is \"CAN\" (got {db.attributes.get('BusType')!r})")
     send_types = getattr(db.frame_defines.get("GenMsgSendType"), "values", [])
     check(bool(send_types), "GenMsgSendType is defined as a frame ENUM attribute")
-    publisher = open(os.path.join(source_dir, "motion/can_publisher.h")).read()
+    publisher = open(os.path.join(source_dir, "motion/can_publisher.hpp")).read()
     period = re.search(r"heartbeat_period\{(\d+)\}", publisher)
-    check(period is not None, "motion/can_publisher.h has the default heartbeat_period")
+    check(period is not None, "motion/can_publisher.hpp has the default heartbeat_period")
     period_ms = int(period.group(1)) if period else None
     for f in db.frames:
         send = f.attributes.get("GenMsgSendType")

@@ -1,5 +1,5 @@
-#include "motion/euler.h"
-#include "motion/pick_transform.h"
+#include "motion/euler.hpp"
+#include "motion/pick_transform.hpp"
 
 #include <gtest/gtest.h>
 

@@ -1,4 +1,4 @@
-#include "motion/float_codec.h"
+#include "motion/float_codec.hpp"
 
 #include <gtest/gtest.h>
 

@@ -17,7 +17,7 @@ STATUS, JOB_ECHO, PICK_X, SCORE, TEST_VECTOR, WORD_ORDER = 8, 9, 20, 32, 34, 17
 DONE, PICK_VALID = 1 << 2, 1 << 4
 
 
-def pick_for_job(job):  # tests/motion/sim_daemon.h
+def pick_for_job(job):  # tests/motion/sim_daemon.hpp
     return [100.0 + job, -250.5, 42.25, 180.0, -0.5, float(job % 360) - 90.0]
 
 

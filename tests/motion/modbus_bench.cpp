@@ -2,9 +2,9 @@
 // clients, and the daemon-side publish (seqlock) and request-guard costs.
 //   build/mine/bench/motion_modbus_bench --benchmark_out=motion_modbus_bench.json
 //       --benchmark_out_format=json      (table on stdout, JSON in the file)
-#include "motion/modbus_server.h"
-#include "motion/register_map.h"
-#include "motion/request_guard.h"
+#include "motion/modbus_server.hpp"
+#include "motion/register_map.hpp"
+#include "motion/request_guard.hpp"
 
 #include <benchmark/benchmark.h>
 #include <modbus/modbus.h>

@@ -2,8 +2,8 @@
 // slot (idle timeout, TCP keepalive), and the server's own signs of life (HEARTBEAT,
 // serving(), drain()) say what the daemon behind it is doing. Real loopback sockets.
 #include "modbus_test_util.h"
-#include "motion/modbus_server.h"
-#include "motion/register_map.h"
+#include "motion/modbus_server.hpp"
+#include "motion/register_map.hpp"
 
 #include <gtest/gtest.h>
 #include <netinet/in.h>

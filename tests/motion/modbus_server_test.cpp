@@ -2,8 +2,8 @@
 // hand-made frames for the malformed cases.
 #include "modbus_test_util.h"
 #include "sim_daemon.h"
-#include "motion/modbus_server.h"
-#include "motion/register_map.h"
+#include "motion/modbus_server.hpp"
+#include "motion/register_map.hpp"
 
 #include <gtest/gtest.h>
 #include <modbus/modbus.h>

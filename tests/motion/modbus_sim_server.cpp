@@ -2,7 +2,7 @@
 // independent-client tests (pymodbus, mbpoll). Prints "PORT <n>" once listening and runs
 // until its standard input closes.
 //   modbus_sim_server [ABCD|CDAB]
-#include "motion/modbus_server.h"
+#include "motion/modbus_server.hpp"
 #include "sim_daemon.h"
 
 #include <cstdio>

@@ -1,4 +1,4 @@
-#include "motion/pick_choice.h"
+#include "motion/pick_choice.hpp"
 
 #include <gtest/gtest.h>
 

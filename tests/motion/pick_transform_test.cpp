@@ -1,4 +1,4 @@
-#include "motion/pick_transform.h"
+#include "motion/pick_transform.hpp"
 
 #include <gtest/gtest.h>
 

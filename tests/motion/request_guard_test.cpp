@@ -1,4 +1,4 @@
-#include "motion/request_guard.h"
+#include "motion/request_guard.hpp"
 
 #include <gtest/gtest.h>
 

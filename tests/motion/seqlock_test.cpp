@@ -1,6 +1,6 @@
-#include "motion/robot_report.h"
-#include "motion/seqlock.h"
-#include "motion/spsc_ring.h"
+#include "motion/robot_report.hpp"
+#include "motion/seqlock.hpp"
+#include "motion/spsc_ring.hpp"
 
 #include <gtest/gtest.h>
 

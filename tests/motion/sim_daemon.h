@@ -2,7 +2,7 @@
 // ModbusServer and publishes results through the same API the daemon uses.
 #pragma once
 
-#include "motion/modbus_server.h"
+#include "motion/modbus_server.hpp"
 
 #include <poll.h>
 

@@ -6,7 +6,7 @@
 #include <random>
 #include <thread>
 
-#include "motion/spsc_ring.h"
+#include "motion/spsc_ring.hpp"
 
 using mfcd::motion::SpscRing;
 

@@ -6,7 +6,7 @@
 //
 // tools/eval/report.py turns the JSON into docs/results.md and docs/img/results-*.png;
 // `tools/mfc bench paper` runs mfc-sim, mfc-eval and the report in one go.
-#include "motion/pick_choice.h"
+#include "motion/pick_choice.hpp"
 #include "tools/common/cli_numbers.hpp"
 #include "tools/eval/detectors.hpp"
 #include "tools/eval/pose_error.hpp"

@@ -5,7 +5,7 @@
 // Conventions (docs/calibration.md): a transform T_a_b maps points of frame b into frame a,
 // p_a = T_a_b * p_b, as a 4x4 homogeneous matrix in millimetres. Robot poses are given as
 // the controller reports them: x, y, z in mm and rx, ry, rz in degrees with
-// R = Rz(rz) * Ry(ry) * Rx(rx) (the convention of motion/euler.h).
+// R = Rz(rz) * Ry(ry) * Rx(rx) (the convention of motion/euler.hpp).
 
 #include <opencv2/core.hpp>
 
