@@ -39,23 +39,25 @@ std::vector<PoseTurn> mesh_turns(const TemplateDatabase& db) {
 // (rank at least config/cell.yaml's min_score 0.1): below that, a higher rank is noise (4 fixed and
 // 4 broken without it, all the broken ranked below 0.09).
 
-std::optional<cv::Vec3d> plate_axis(const TemplateDatabase& db) {
+const MeshTurn* plate_symmetry(const TemplateDatabase& db) {
   const cv::Vec3d thin(db.turns.principal_axes(2, 0), db.turns.principal_axes(2, 1), db.turns.principal_axes(2, 2));
   for (const MeshTurn& s : db.turns.symmetries)
-    if (s.order == 2 && std::abs(s.axis.dot(thin)) >= std::cos(kPlateAxisMaxDeg * CV_PI / 180)) return s.axis;
-  return std::nullopt;
+    if (s.order == 2 && std::abs(s.axis.dot(thin)) >= std::cos(kPlateAxisMaxDeg * CV_PI / 180)) return &s;
+  return nullptr;
+}
+
+std::optional<cv::Vec3d> plate_axis(const TemplateDatabase& db) {
+  const MeshTurn* sym = plate_symmetry(db);
+  return sym ? std::optional<cv::Vec3d>(sym->axis) : std::nullopt;
 }
 
 std::vector<PoseTurn> plate_turns(const TemplateDatabase& db) {
   std::vector<PoseTurn> out;
-  const std::optional<cv::Vec3d> axis = plate_axis(db);
-  if (!axis) return out;
-  const MeshTurn* sym = nullptr;
-  for (const MeshTurn& s : db.turns.symmetries)
-    if (s.order == 2 && s.axis == *axis) sym = &s;
+  const MeshTurn* sym = plate_symmetry(db);
+  if (!sym) return out;
   for (const double sign : {1.0, -1.0}) {
     PoseTurn& t = out.emplace_back();
-    t.S = axis_rotation(*axis, sign * kPlateTurnDeg * CV_PI / 180);
+    t.S = axis_rotation(sym->axis, sign * kPlateTurnDeg * CV_PI / 180);
     t.pivot_mm = sym->pivot_mm;
     t.by_rank = true;
   }

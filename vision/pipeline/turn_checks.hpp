@@ -48,12 +48,15 @@ struct PoseTurn {
 // stored them in the database (TemplateDatabase::turns): turned over by 180 degrees about each
 // principal axis that is not a symmetry, every turn of a near-symmetry (carrying the points of the
 // feature that breaks it, and screened), and +-0.4 of the period about each axis of an N-fold
-// symmetry or near-symmetry (N >= 3). The flagged points take ~0.1 s a part (asymmetric_points).
+// symmetry or near-symmetry (N >= 3). The near-symmetries' flagged points (asymmetric_points) are
+// made here, at load.
 std::vector<PoseTurn> mesh_turns(const TemplateDatabase& db);
 // A plate's normal as the mesh says it: the axis of an exactly 2-fold symmetry (db.turns) within
 // kPlateAxisMaxDeg of the part's axis of least extent (its smallest principal axis). None: the
 // part is no plate with a 2-fold turn about its normal.
 std::optional<cv::Vec3d> plate_axis(const TemplateDatabase& db);
+// That symmetry itself (its axis and pivot), or null.
+const MeshTurn* plate_symmetry(const TemplateDatabase& db);
 inline constexpr double kPlateAxisMaxDeg = 10;
 // Plate turns' angle, degrees (turn_checks.cpp says why).
 inline constexpr double kPlateTurnDeg = 15;

@@ -62,7 +62,7 @@ struct TemplateView {
 
 struct TemplateDatabase {
   // Version 6 stores the part's turns; older files are refused (re-run mfc-teach): the pose
-  // checks need the turns, and finding them at every load took 0.2-0.9 s a part.
+  // checks need the turns, and finding them costs 0.2-0.9 s a part, paid once when teaching.
   static constexpr uint32_t kVersion = 6;
   static constexpr uint32_t kOldestVersion = 6;
 
