@@ -37,6 +37,7 @@
 #include "alloc_counter.hpp"
 #include "mfcd/hal/aravis_camera.hpp"
 #include "mfcd/hal/aravis_strobe_light_ring.hpp"
+#include "catch_hal.hpp"
 #include "mfcd/hal/error.hpp"
 #include "mfcd/hal/sequencer.hpp"
 #include "mfcd/hal/simulated.hpp"
@@ -60,16 +61,7 @@ std::optional<std::string> find_in_path(const std::string& program) {
   return std::nullopt;
 }
 
-template <typename F>
-HalError catch_hal(F&& f) {
-  try {
-    f();
-  } catch (const HalError& e) {
-    return e;
-  }
-  ADD_FAILURE() << "no HalError thrown";
-  return HalError(ErrorCode::Io, "");
-}
+using mfcd::hal::test::catch_hal;
 
 bool mentions(const HalError& e, const std::string& text) { return std::string(e.what()).find(text) != std::string::npos; }
 

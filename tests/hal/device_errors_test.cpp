@@ -4,6 +4,7 @@
 
 #include <string>
 
+#include "catch_hal.hpp"
 #include "mfcd/hal/error.hpp"
 #include "mfcd/hal/gpiod_light_ring.hpp"
 #include "mfcd/hal/v4l2_camera.hpp"
@@ -11,22 +12,13 @@
 namespace mfcd::hal {
 namespace {
 
-template <typename F>
-HalError catchHal(F&& f) {
-  try {
-    f();
-  } catch (const HalError& e) {
-    return e;
-  }
-  ADD_FAILURE() << "no HalError thrown";
-  return HalError(ErrorCode::Io, "");
-}
+using mfcd::hal::test::catch_hal;
 
 TEST(V4L2CameraErrors, MissingNodeNamesTheDeviceAndWhatToCheck) {
   V4L2CameraConfig cfg;
   cfg.device = "/dev/video-mfcd-does-not-exist";
   V4L2Camera camera(cfg);
-  const HalError e = catchHal([&] { camera.configure(); });
+  const HalError e = catch_hal([&] { camera.configure(); });
   EXPECT_EQ(e.code(), ErrorCode::DeviceMissing);
   EXPECT_NE(std::string(e.what()).find(cfg.device), std::string::npos) << e.what();
   EXPECT_NE(std::string(e.what()).find("check"), std::string::npos) << e.what();
@@ -36,7 +28,7 @@ TEST(V4L2CameraErrors, NonV4L2NodeIsRefused) {
   V4L2CameraConfig cfg;
   cfg.device = "/dev/null";  // a character device that does not speak V4L2
   V4L2Camera camera(cfg);
-  const HalError e = catchHal([&] { camera.configure(); });
+  const HalError e = catch_hal([&] { camera.configure(); });
   EXPECT_NE(std::string(e.what()).find("/dev/null"), std::string::npos) << e.what();
   EXPECT_NE(std::string(e.what()).find("VIDIOC_QUERYCAP"), std::string::npos) << e.what();
 }
@@ -53,7 +45,7 @@ TEST(GpiodLightRingErrors, MissingChipNamesTheChip) {
   GpiodLightRingConfig cfg;
   cfg.chip = "mfcd-no-such-chip";
   GpiodLightRing ring(cfg);
-  const HalError e = catchHal([&] { ring.configure(); });
+  const HalError e = catch_hal([&] { ring.configure(); });
   EXPECT_EQ(e.code(), ErrorCode::DeviceMissing);
   EXPECT_NE(std::string(e.what()).find("mfcd-no-such-chip"), std::string::npos) << e.what();
   EXPECT_NE(std::string(e.what()).find("gpiodetect"), std::string::npos) << e.what();
