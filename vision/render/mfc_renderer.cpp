@@ -406,6 +406,7 @@ void MfcRenderer::draw_scene(std::span<const ScenePart> parts, bool shading) {
       glFramebufferTextureLayer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, g.shadow_tex, 0, i);
       glClear(GL_DEPTH_BUFFER_BIT);
       for (const auto& p : parts) {
+        if (!p.casts_shadows) continue;
         const Mat4 m = to_gl(clip * model_matrix(p.R, p.t_mm));
         glUniformMatrix4fv(u_clip, 1, GL_FALSE, m.data());
         const auto& gm = g.meshes[static_cast<size_t>(p.mesh_id)];

@@ -40,6 +40,9 @@ struct ScenePart {
   cv::Matx33d R = cv::Matx33d::eye();
   cv::Vec3d t_mm{0, 0, 300};
   Material material;
+  // False for a surface nothing in the scene lies behind as seen from any LED (a background
+  // plane): it is left out of the shadow maps, which changes no pixel and saves filling them.
+  bool casts_shadows = true;
 };
 
 struct Illumination {

@@ -224,7 +224,7 @@ TemplateDatabase teach_templates(const Mesh& mesh, const CameraConfig& camera, c
         view.t_m2c_mm = cv::Vec3d(0, 0, db.distance_mm) - view.R_m2c * db.center_mm;
         const ScenePart parts[2] = {
             {part_id, view.R_m2c, view.t_m2c_mm, Material::matte(0.7f)},
-            {plane_id, cv::Matx33d::eye(), cv::Vec3d(0, 0, geo.plane_z_mm), Material::matte(0.6f)}};
+            {plane_id, cv::Matx33d::eye(), cv::Vec3d(0, 0, geo.plane_z_mm), Material::matte(0.6f), false}};
         renderer.render(parts, render, 1);
         extractor.extract(render.frames, edges);
         // Edges with no part pixel next to them are features of the shadows on the template's

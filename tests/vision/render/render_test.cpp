@@ -231,6 +231,31 @@ TEST(MfcRenderer, CastShadowsMatchAnalyticLightRays) {
   }
 }
 
+TEST(MfcRenderer, ABackgroundLeftOutOfTheShadowMapsChangesNoPixel) {
+  RenderOptions opt;
+  opt.noise.enabled = false;
+  MfcRenderer r(sim_config(), opt);
+  std::vector<ScenePart> parts = {
+      {r.add_mesh(make_plane(800)), cv::Matx33d::eye(), {0, 0, 330}, Material::matte(0.6f)},
+      {r.add_mesh(make_box(40, 30, 30)), rotation(0.4, -0.3, 0.5), {-10, 5, 310}, Material::matte(0.8f)}};
+  MfcRender casting, not_casting;
+  r.render(parts, casting);
+  parts[0].casts_shadows = false;
+  r.render(parts, not_casting);
+  int shadowed = 0;
+  for (size_t i = 0; i < 8; ++i) {
+    EXPECT_EQ(cv::norm(casting.flash_linear[i], not_casting.flash_linear[i], cv::NORM_INF), 0.0) << "LED " << i;
+    shadowed += cv::countNonZero((casting.flash_linear[i] - casting.ambient_linear < 5.0f) & (casting.part_index == 1));
+  }
+  EXPECT_GT(shadowed, 1000);  // the box's shadows on the plane are there in both
+  EXPECT_EQ(cv::norm(casting.depth_mm, not_casting.depth_mm, cv::NORM_INF), 0.0);
+  // A part that does cast shadows and is left out loses them: the flag is honoured.
+  parts[0].casts_shadows = true;
+  parts[1].casts_shadows = false;
+  r.render(parts, not_casting);
+  EXPECT_GT(cv::norm(casting.flash_linear[0], not_casting.flash_linear[0], cv::NORM_INF), 50.0);
+}
+
 TEST(MfcRenderer, SeveralPartsOccludeAndAreIndexed) {
   MfcRenderer r(sim_config());
   const int cube = r.add_mesh(make_box(30, 30, 30));
