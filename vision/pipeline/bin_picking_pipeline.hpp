@@ -252,6 +252,7 @@ class BinPickingPipeline {
   struct Impl;
 
  private:
+  friend class SecondLook;  // fits poses to two pipelines' images at once (second_look.hpp)
   std::unique_ptr<Impl> impl_;
 };
 

@@ -378,26 +378,10 @@ TemplateFitResult TemplatePoseFit::fit(const TemplateDatabase& db, int view, con
   for (int it = 0; it < steps; ++it) {
     const double f = steps > 1 ? double(it) / (steps - 1) : 1.0;
     const double gate = params_.initial_gate_px * std::pow(params_.final_gate_px / params_.initial_gate_px, f);
-    const PointPlacer placer(ws, r.pose, camera, in_plane_angle(db, r.view, r.pose, camera), period(), query_offset(db));
     const cv::Vec3d centre = r.pose.R * db.center_mm + r.pose.t_mm;
     cv::Matx66d H = cv::Matx66d::zeros();
     cv::Vec6d g(0, 0, 0, 0, 0, 0);
-    int n = 0;
-    for (size_t i = 0; i < ws.model.size(); ++i) {
-      cv::Point2d at, shift;
-      double a;
-      if (!placer.place(i, at, shift, a)) continue;
-      const EdgeMatch m = index_.nearest(at, a, params_.lambda_px_per_rad, gate);
-      if (!m.found) continue;
-      const cv::Vec2d normal(-std::sin(m.angle), std::cos(m.angle));
-      cv::Matx16d J;
-      const double res =
-          point_to_line_residual(r.pose, centre, ws.model[i], camera, cv::Point2d(m.x, m.y) - shift, normal, &J);
-      const double w = std::abs(res) <= params_.huber_px ? 1.0 : params_.huber_px / std::abs(res);
-      H += w * (J.t() * J);
-      g += w * res * cv::Vec6d(J.val);
-      ++n;
-    }
+    const int n = accumulate(db, r.view, r.pose, centre, camera, gate, ws, nullptr, H, g);
     if (n < params_.min_correspondences) break;
     for (int k = 0; k < 6; ++k) H(k, k) += params_.damping * H(k, k) + 1e-9;
     cv::Vec6d delta;
@@ -415,6 +399,86 @@ TemplateFitResult TemplatePoseFit::fit(const TemplateDatabase& db, int view, con
   }
   if (params_.score_result) score(db, r.view, camera, ws, r);
   return r;
+}
+
+int TemplatePoseFit::accumulate(const TemplateDatabase& db, int view, const RigidPose& pose, const cv::Vec3d& centre_cam,
+                                const PinholeCamera& camera, double gate, const Workspace& ws,
+                                const cv::Matx33d* update_to_camera, cv::Matx66d& H, cv::Vec6d& g) const {
+  const PointPlacer placer(ws, pose, camera, in_plane_angle(db, view, pose, camera), period(), query_offset(db));
+  int n = 0;
+  for (size_t i = 0; i < ws.model.size(); ++i) {
+    cv::Point2d at, shift;
+    double a;
+    if (!placer.place(i, at, shift, a)) continue;
+    const EdgeMatch m = index_.nearest(at, a, params_.lambda_px_per_rad, gate);
+    if (!m.found) continue;
+    const cv::Vec2d normal(-std::sin(m.angle), std::cos(m.angle));
+    cv::Matx16d J;
+    const double res =
+        point_to_line_residual(pose, centre_cam, ws.model[i], camera, cv::Point2d(m.x, m.y) - shift, normal, &J);
+    if (update_to_camera) {
+      // The update is another camera's: its rotation and translation turn into this one's by R.
+      const cv::Matx13d Jw = cv::Matx13d(J(0, 0), J(0, 1), J(0, 2)) * *update_to_camera;
+      const cv::Matx13d Jt = cv::Matx13d(J(0, 3), J(0, 4), J(0, 5)) * *update_to_camera;
+      J = cv::Matx16d(Jw(0, 0), Jw(0, 1), Jw(0, 2), Jt(0, 0), Jt(0, 1), Jt(0, 2));
+    }
+    const double w = std::abs(res) <= params_.huber_px ? 1.0 : params_.huber_px / std::abs(res);
+    H += w * (J.t() * J);
+    g += w * res * cv::Vec6d(J.val);
+    ++n;
+  }
+  return n;
+}
+
+TemplatePoseFit::TwoViewResult TemplatePoseFit::fit_two_views(const TemplateDatabase& db, const RigidPose& initial,
+                                                              const PinholeCamera& camera,
+                                                              const TemplatePoseFit& second,
+                                                              const RigidTransform& motion, Workspace& ws,
+                                                              Workspace& ws_second) const {
+  // The pose lives in the first camera's frame; the second sees motion * pose. Each image uses
+  // the template view nearest to how it sees the part, as a symmetric copy S of the pose
+  // (nearest_view): the second's pose is motion * pose * S, S fixed until that view changes.
+  auto second_pose = [&](const RigidPose& p, const RigidTransform& S) {
+    return RigidPose{motion.R * p.R * S.R, motion.R * (p.R * S.t + p.t_mm) + motion.t};
+  };
+  auto choose_views = [&](const RigidPose& p, int& v1, RigidPose& p1, int& v2, RigidTransform& S) {
+    p1 = p;
+    v1 = nearest_view(db, camera, p1);
+    RigidPose seen{motion.R * p1.R, motion.R * p1.t_mm + motion.t};
+    const RigidPose plain = seen;
+    v2 = nearest_view(db, camera, seen);
+    S = {plain.R.t() * seen.R, plain.R.t() * (seen.t_mm - plain.t_mm)};
+  };
+  RigidPose pose;
+  RigidTransform S;
+  int v1 = -1, v2 = -1;
+  choose_views(initial, v1, pose, v2, S);
+  load_view(db, v1, camera, ws);
+  second.load_view(db, v2, camera, ws_second);
+  const int steps = params_.iterations;
+  int taken = 0;
+  for (int it = 0; it < steps; ++it) {
+    const double f = steps > 1 ? double(it) / (steps - 1) : 1.0;
+    const double gate = params_.initial_gate_px * std::pow(params_.final_gate_px / params_.initial_gate_px, f);
+    const cv::Vec3d centre = pose.R * db.center_mm + pose.t_mm;
+    cv::Matx66d H = cv::Matx66d::zeros();
+    cv::Vec6d g(0, 0, 0, 0, 0, 0);
+    int n = accumulate(db, v1, pose, centre, camera, gate, ws, nullptr, H, g);
+    n += second.accumulate(db, v2, second_pose(pose, S), motion.apply(centre), camera, gate, ws_second, &motion.R, H, g);
+    if (n < params_.min_correspondences) break;
+    for (int k = 0; k < 6; ++k) H(k, k) += params_.damping * H(k, k) + 1e-9;
+    cv::Vec6d delta;
+    if (!cv::solve(H, -g, delta, cv::DECOMP_CHOLESKY)) break;
+    pose = apply_pose_update(pose, db.center_mm, delta);
+    taken = it + 1;
+    const int old1 = v1, old2 = v2;
+    choose_views(pose, v1, pose, v2, S);
+    if (v1 != old1) load_view(db, v1, camera, ws);
+    if (v2 != old2) second.load_view(db, v2, camera, ws_second);
+  }
+  TwoViewResult out{evaluate(db, v1, pose, camera, ws), second.evaluate(db, v2, second_pose(pose, S), camera, ws_second)};
+  out.first.iterations = out.second.iterations = taken;
+  return out;
 }
 
 void TemplatePoseFit::place_points(const TemplateDatabase& db, int view, const RigidPose& pose,

@@ -22,6 +22,7 @@
 #include "vision/model/surface_grid.hpp"
 #include "vision/pose/coarse_pose.hpp"
 #include "vision/pose/edge_correspondence.hpp"
+#include "vision/pose/rigid_transform.hpp"
 #include "vision/templates/template_database.hpp"
 
 #include <cstdint>
@@ -105,6 +106,19 @@ class TemplatePoseFit {
   TemplateFitResult evaluate(const TemplateDatabase& db, int view, const RigidPose& pose, const PinholeCamera& camera,
                              Workspace& ws, int max_points = 0) const;
 
+  // The fit of one pose seen in two images from two cameras with the same intrinsics (paper
+  // Sec. 4.5: Eq. 22 summed over both views). `second` has the second image prepared; `motion`
+  // maps the first camera's frame into the second's (p2 = motion.R p1 + motion.t, mm). Each step
+  // pairs both images' points and solves one update for both: a pose that trades tilt for
+  // distance in one view is held by the other. The pose stays in the first camera's frame;
+  // `second` is how the second image sees and scores it. Both are scored as evaluate() does.
+  struct TwoViewResult {
+    TemplateFitResult first, second;
+  };
+  TwoViewResult fit_two_views(const TemplateDatabase& db, const RigidPose& initial, const PinholeCamera& camera,
+                              const TemplatePoseFit& second, const RigidTransform& motion, Workspace& ws,
+                              Workspace& ws_second) const;
+
   // The template view nearest to `pose` (by the direction the camera sees the part from) over
   // the turns the views were folded by (db.views_symmetry); `pose` is replaced by the symmetric
   // copy that view belongs to (the same placed part). Continuous symmetry: the views' meridian.
@@ -146,6 +160,13 @@ class TemplatePoseFit {
                     const Workspace& ws, std::vector<cv::Point2d>& seen, std::vector<double>& angle) const;
   void score(const TemplateDatabase& db, int view, const PinholeCamera& camera, Workspace& ws,
              TemplateFitResult& r) const;
+  // One Gauss-Newton step's normal equations of the loaded view's points at `pose` (the update:
+  // rotation about `centre_cam`, then translation, camera axes), added to H and g; with
+  // `update_to_camera`, the update is another camera's and that rotation turns it into this
+  // one's. Returns the points paired with an image edge within `gate`.
+  int accumulate(const TemplateDatabase& db, int view, const RigidPose& pose, const cv::Vec3d& centre_cam,
+                 const PinholeCamera& camera, double gate, const Workspace& ws, const cv::Matx33d* update_to_camera,
+                 cv::Matx66d& H, cv::Vec6d& g) const;
   double coverage(const TemplateDatabase& db, int view, const RigidPose& pose, const PinholeCamera& camera,
                   Workspace& ws) const;
 

@@ -8,6 +8,7 @@
 #include "vision/templates/template_database.hpp"
 #include "tests/hal/alloc_counter.hpp"
 #include "tests/vision/support/floor_scene.hpp"
+#include "tests/vision/support/rim_diamonds.hpp"
 
 #include <gtest/gtest.h>
 
@@ -127,41 +128,7 @@ class PipelineOnRenderedPart : public ::testing::TestWithParam<std::tuple<const 
   int downsample() const { return std::get<1>(GetParam()); }
 };
 
-// Two diamonds standing on their rim on a floor 300 mm from the camera, seen from above: mfc-sim's
-// single parts (seed 3001, scene 2, images 13 and 25), whose spin and depth one view tells poorly.
-// Render k shows pose k % 2 with noise seed 31 + k.
-struct RimDiamonds {
-  CameraConfig cam = sim_camera();
-  TemplateDatabase db = load_template_database(kTemplates / "diamond.tdb");
-  MfcRenderer renderer{cam};
-  int part_id = renderer.add_mesh(db.mesh);
-  int floor_id = renderer.add_mesh(make_plane(600));
-  std::array<RigidPose, 2> poses;
-
-  RimDiamonds() {
-    poses[0].R = cv::Matx33d(-0.6006462866966819, -0.33369238149815655, -0.7265489885806573, -0.6351180848265257,
-                             -0.3528433804591809, 0.6871146681540307, -0.48564293117863205, 0.8741572761215377, 0.0);
-    poses[0].t_mm = {-29.066912240170723, -15.570549003210616, 282.51685447756927};
-    poses[1].R = cv::Matx33d(-0.43822063975722664, -0.24345591097623698, -0.8652698366992214, -0.7563819235591193,
-                             -0.4202121797550662, 0.5013064030096787, -0.48564293117863205, 0.8741572761215377, 0.0);
-    poses[1].t_mm = {13.774532223156854, 15.14256529831681, 282.51685447756927};
-  }
-  PipelineConfig config() const {
-    PipelineConfig pc;
-    pc.template_files = {kTemplates / "diamond.tdb"};
-    pc.floor.distance_mm = 300;
-    return pc;
-  }
-  const RigidPose& truth(int k) const { return poses[static_cast<size_t>(k % 2)]; }
-  MfcRender render(int k) {
-    const RigidPose& p = truth(k);
-    const ScenePart parts[2] = {{part_id, p.R, p.t_mm, Material::matte(0.6f)},
-                                {floor_id, cv::Matx33d::eye(), {0, 0, 300}, Material::matte(0.5f)}};
-    MfcRender out;
-    renderer.render(parts, out, 31 + static_cast<uint64_t>(k));
-    return out;
-  }
-};
+using mfcd::vision::testing::RimDiamonds;
 
 }  // namespace
 
