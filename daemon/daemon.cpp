@@ -17,22 +17,13 @@
 #include "daemon/daemon_impl.hpp"
 #include "daemon/frame_source.hpp"
 #include "daemon/log.hpp"
+#include "tools/common/build_version.hpp"
 
 namespace mfcd::daemon {
 
 using nlohmann::json;
 
 namespace {
-
-constexpr const char* kUsage =
-    "usage: mfcd [-c FILE] [--data-dir DIR] [-f] [--check-config] [--leds-off] [--benchmark N [--benchmark-json FILE]]\n"
-    "  -c, --config FILE     configuration (default: the embedded config/sim.yaml, the simulated cell)\n"
-    "      --data-dir DIR    searched for relative paths after the config file's directory\n"
-    "  -f, --foreground      also log to stderr\n"
-    "      --check-config    validate the configuration (and its files) and exit: 0 valid, 2 invalid\n"
-    "      --leds-off        drive every LED line of the configuration off and exit (after a crash)\n"
-    "      --benchmark N     run N cycles back to back (no robot link), print cycle-time percentiles\n"
-    "      --benchmark-json FILE   also write them as JSON\n";
 
 double msSince(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
 
@@ -346,6 +337,7 @@ void Daemon::shutdown() {
 
 int Daemon::run() {
   logOpen("mfcd", options_.foreground || options_.benchmarkCycles > 0, LogLevel::Info);
+  logf(LogLevel::Notice, "mfcd %s (%s) starting", version(), git_commit());
   try {
     config_ = load();
   } catch (const std::exception& e) {
@@ -402,38 +394,6 @@ int Daemon::run() {
   mainLoop();
   shutdown();
   return 0;
-}
-
-std::optional<DaemonOptions> parseCommandLine(int argc, char** argv, int& exitCode) {
-  DaemonOptions o;
-  exitCode = 0;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto value = [&](const char* name) -> std::string {
-      if (i + 1 >= argc) throw std::invalid_argument(std::string(name) + " needs a value");
-      return argv[++i];
-    };
-    try {
-      if (a == "-c" || a == "--config") o.configFile = value("--config");
-      else if (a == "--data-dir") o.dataDir = value("--data-dir");
-      else if (a == "-f" || a == "--foreground") o.foreground = true;
-      else if (a == "--check-config") o.checkConfig = true;
-      else if (a == "--leds-off") o.ledsOff = true;
-      else if (a == "--benchmark") o.benchmarkCycles = std::stoi(value("--benchmark"));
-      else if (a == "--benchmark-json") o.benchmarkJson = value("--benchmark-json");
-      else if (a == "-h" || a == "--help") {
-        std::fputs(kUsage, stdout);
-        return std::nullopt;
-      } else {
-        throw std::invalid_argument("unknown option " + a);
-      }
-    } catch (const std::exception& e) {
-      std::fprintf(stderr, "mfcd: %s\n%s", e.what(), kUsage);
-      exitCode = 2;
-      return std::nullopt;
-    }
-  }
-  return o;
 }
 
 int runDaemon(const DaemonOptions& options, const VisionStageFactory& vision) {

@@ -22,8 +22,8 @@ struct DaemonOptions {
   std::filesystem::path benchmarkJson;
 };
 
-// Parses the command line (mfcd --help lists it). Returns nullopt after printing help/usage; sets
-// `exitCode` for that case.
+// Parses the command line (command_line.cpp; mfcd --help lists it). Returns nullopt when mfcd ends
+// here: after --help or --version (`exitCode` 0) or a usage error (reported on stderr, 2).
 std::optional<DaemonOptions> parseCommandLine(int argc, char** argv, int& exitCode);
 
 // Runs mfcd with `vision` as the vision backend factory (the real mfcd passes

@@ -5,6 +5,7 @@
 #include "daemon/daemon_impl.hpp"
 #include "daemon/log.hpp"
 #include "daemon/report.hpp"
+#include "tools/common/build_version.hpp"
 
 namespace mfcd::daemon {
 
@@ -71,6 +72,8 @@ void Daemon::selectPart(ClientId client, const RequestArgs& args) {
 json Daemon::statusJson() const {
   json j;
   j["ok"] = true;
+  j["version"] = version();
+  j["commit"] = git_commit();
   j["pid"] = ::getpid();
   j["config"] = config_.source;
   j["mode"] = toString(config_.mode);

@@ -16,32 +16,9 @@
 
 #include <nlohmann/json.hpp>
 
+#include "tools/common/cli.hpp"
+
 namespace {
-
-constexpr const char* kUsage =
-    "usage: mfcd-ctl [-s SOCKET] [-t SECONDS] COMMAND [ARG]\n"
-    "  status            daemon state, camera, vision backend, parts, Modbus clients\n"
-    "  stats             cycle-time percentiles, overruns, detections, picks\n"
-    "  last              the last cycle's result (candidates, pick, times, simulated ground truth)\n"
-    "  trigger [RECIPE]  run one cycle now (not published to the PLC) and print its result\n"
-    "  snapshot [RECIPE] run one cycle and save its images, depth edges, overlay and result.json\n"
-    "  part RECIPE       select the recipe for trigger/snapshot and continuous mode\n"
-    "  reload            reload the configuration and templates (like SIGHUP) and report the outcome\n"
-    "  calibrate intrinsics start             start a camera intrinsics session (picking pauses)\n"
-    "  calibrate hand-eye start [--mode eye-to-hand|eye-in-hand]   start a hand-eye session\n"
-    "  calibrate capture [--pose x,y,z,rx,ry,rz | --pose-from-plc] [--sim-plate-pose x,y,z,rx,ry,rz]\n"
-    "                    grab the next frame set's ambient image as a view (hand-eye: with the flange pose)\n"
-    "  calibrate compute                      compute and show the figures (nothing is written)\n"
-    "  calibrate check --pose ... | --pose-from-plc   hand-eye: predicted vs seen board in a new view\n"
-    "  calibrate apply [--yes]                write the camera file (keeps .previous) and reload\n"
-    "  calibrate rollback [--yes]             restore the camera file's .previous and reload\n"
-    "  calibrate abort | status               end the session without writing | show it\n"
-    "SOCKET defaults to $MFCD_SOCKET, else /run/mfcd/control.sock. Exit status: 0 ok, 1 refused, 2 usage/connection.\n";
-
-int usage() {
-  std::fputs(kUsage, stderr);
-  return 2;
-}
 
 // "x,y,z,rx,ry,rz" -> six finite numbers, or throws naming the option.
 nlohmann::json parsePose(const std::string& text, const std::string& option) {
@@ -115,109 +92,136 @@ std::optional<nlohmann::json> roundTrip(const Connection& conn, const nlohmann::
   }
 }
 
-// mfcd-ctl calibrate ...: builds the request; apply/rollback without --yes ask on a terminal.
-// Returns nullopt after printing usage (exit 2) or when the operator declined (exit 1, `declined`).
-std::optional<nlohmann::json> calibrateRequest(int argc, char** argv, int i, const Connection& conn, bool& declined) {
-  nlohmann::json req = {{"cmd", "calibrate"}};
-  if (i >= argc) return std::nullopt;
-  std::string first = argv[i++];
-  if (first == "intrinsics" || first == "hand-eye") {
-    if (i >= argc || std::string(argv[i]) != "start") return std::nullopt;
-    ++i;
-    req["action"] = "start";
-    req["kind"] = first;
-  } else {
-    req["action"] = first;
+// What the command line asks of mfcd: the request, filled in by the subcommands' options.
+struct Command {
+  nlohmann::json request = nlohmann::json::object();
+  bool yes = false;  // calibrate apply/rollback --yes: no question on a terminal
+};
+
+// A recipe id argument: an integer (mfcd checks its range and whether it is configured).
+CLI::Option* addRecipe(CLI::App& cmd, Command& c, const std::string& help) {
+  return cmd.add_option_function<std::string>("RECIPE", [&c](const std::string& v) {
+    c.request["recipe"] = mfcd::tools::parse_int("RECIPE", v);
+  }, help)->type_name("");
+}
+
+CLI::Option* addPose(CLI::App& cmd, Command& c, const std::string& name, const std::string& key,
+                     const std::string& help) {
+  return cmd.add_option_function<std::string>(name, [&c, name, key](const std::string& v) {
+    c.request[key] = parsePose(v, name);
+  }, help)->type_name("x,y,z,rx,ry,rz");
+}
+
+// mfcd-ctl calibrate ACTION: each sets "action" (and "kind" for start) when selected.
+void addCalibrate(CLI::App& app, Command& c) {
+  CLI::App* cal = app.add_subcommand("calibrate", "the calibration workflow through the daemon (docs/operations.md)");
+  cal->require_subcommand(1);
+  auto action = [&c](CLI::App* sub, const std::string& name) {
+    sub->preparse_callback([&c, name](std::size_t) {
+      c.request["cmd"] = "calibrate";
+      c.request["action"] = name;
+    });
+  };
+  for (const char* kind : {"intrinsics", "hand-eye"}) {
+    CLI::App* k = cal->add_subcommand(kind, std::string("a camera ") + kind + " session");
+    k->require_subcommand(1);
+    CLI::App* start = k->add_subcommand("start", std::string("start a camera ") + kind + " session (picking pauses)");
+    start->preparse_callback([&c, kind](std::size_t) {
+      c.request = {{"cmd", "calibrate"}, {"action", "start"}, {"kind", kind}};
+    });
+    if (std::string(kind) == "hand-eye")
+      start->add_option_function<std::string>("--mode", [&c](const std::string& m) { c.request["mode"] = m; },
+                                              "eye-to-hand (default) or eye-in-hand")->type_name("MODE");
   }
-  const std::string action = req["action"];
-  bool yes = false;
-  for (; i < argc; ++i) {
-    const std::string a = argv[i];
-    const bool hasValue = i + 1 < argc;
-    if (a == "--mode" && hasValue && req.value("kind", "") == "hand-eye") req["mode"] = argv[++i];
-    else if (a == "--pose" && hasValue && (action == "capture" || action == "check")) req["pose"] = parsePose(argv[++i], a);
-    else if (a == "--pose-from-plc" && (action == "capture" || action == "check")) req["pose_from_plc"] = true;
-    else if (a == "--sim-plate-pose" && hasValue && action == "capture") req["sim_plate_pose"] = parsePose(argv[++i], a);
-    else if ((a == "--yes" || a == "-y") && (action == "apply" || action == "rollback")) yes = true;
-    else {
-      std::fprintf(stderr, "mfcd-ctl: calibrate %s: unexpected '%s'\n", action.c_str(), a.c_str());
-      return std::nullopt;
-    }
+  CLI::App* capture = cal->add_subcommand(
+      "capture", "grab the next frame set's ambient image as a view (hand-eye: with the flange pose)");
+  action(capture, "capture");
+  addPose(*capture, c, "--pose", "pose", "the robot flange pose (mm, degrees)");
+  capture->add_flag_callback("--pose-from-plc", [&c] { c.request["pose_from_plc"] = true; },
+                             "the flange pose from the PLC's robot-pose block (registers 36..49)");
+  addPose(*capture, c, "--sim-plate-pose", "sim_plate_pose", "place the plate on the simulated cell");
+  action(cal->add_subcommand("compute", "compute and show the figures (nothing is written)"), "compute");
+  CLI::App* check = cal->add_subcommand("check", "hand-eye: predicted vs seen board in a new view");
+  action(check, "check");
+  addPose(*check, c, "--pose", "pose", "the robot flange pose (mm, degrees)");
+  check->add_flag_callback("--pose-from-plc", [&c] { c.request["pose_from_plc"] = true; },
+                           "the flange pose from the PLC's robot-pose block");
+  for (const char* confirmed : {"apply", "rollback"}) {
+    CLI::App* sub = cal->add_subcommand(confirmed, std::string(confirmed) == "apply"
+                                                       ? "write the camera file (keeps .previous) and reload"
+                                                       : "restore the camera file's .previous and reload");
+    action(sub, confirmed);
+    sub->add_flag("-y,--yes", c.yes, "do not ask (asked on a terminal; refused without one)");
   }
-  if (action == "apply" || action == "rollback") {
-    if (!yes) {
-      if (!::isatty(STDIN_FILENO)) {
-        std::fprintf(stderr, "mfcd-ctl: calibrate %s changes the camera file: give --yes (no terminal to ask on)\n",
-                     action.c_str());
-        declined = true;
-        return std::nullopt;
-      }
-      // Show what would be written before asking.
-      if (const auto s = roundTrip(conn, {{"cmd", "calibrate"}, {"action", "status"}})) {
-        const auto& session = (*s)["session"];
-        if (action == "apply" && session.value("figures", "") != "") std::printf("%s\n", session.value("figures", "").c_str());
-        std::printf("%s %s? [y/N] ", action == "apply" ? "write" : "restore the previous", s->value("camera_file", "the camera file").c_str());
-      } else {
-        declined = true;
-        return std::nullopt;
-      }
-      std::fflush(stdout);
-      std::string answer;
-      std::getline(std::cin, answer);
-      if (answer != "y" && answer != "Y" && answer != "yes") {
-        std::printf("nothing written\n");
-        declined = true;
-        return std::nullopt;
-      }
-    }
-    req["confirm"] = true;
+  action(cal->add_subcommand("abort", "end the session without writing anything"), "abort");
+  action(cal->add_subcommand("status", "show the session"), "status");
+}
+
+void addCommands(CLI::App& app, Command& c) {
+  auto plain = [&](const char* name, const char* help) {
+    CLI::App* sub = app.add_subcommand(name, help);
+    sub->preparse_callback([&c, name](std::size_t) { c.request["cmd"] = name; });
+    return sub;
+  };
+  plain("status", "daemon state, camera, vision backend, parts, Modbus clients");
+  plain("stats", "cycle-time percentiles, overruns, detections, picks");
+  plain("last", "the last cycle's result (candidates, pick, times, simulated ground truth)");
+  addRecipe(*plain("trigger", "run one cycle now (not published to the PLC) and print its result"), c,
+            "the recipe (default: the selected one)");
+  addRecipe(*plain("snapshot", "run one cycle and save its images, depth edges, overlay and result.json"), c,
+            "the recipe (default: the selected one)");
+  addRecipe(*plain("part", "select the recipe for trigger/snapshot and continuous mode"), c, "the recipe")->required();
+  plain("reload", "reload the configuration and templates (like SIGHUP) and report the outcome");
+  addCalibrate(app, c);
+  app.require_subcommand(1);
+}
+
+// calibrate apply/rollback change the camera file: without --yes, asked on a terminal after
+// showing what would be written. False when the operator declined or there is no terminal.
+bool confirmed(const Connection& conn, const std::string& action) {
+  if (!::isatty(STDIN_FILENO)) {
+    std::fprintf(stderr, "mfcd-ctl: calibrate %s changes the camera file: give --yes (no terminal to ask on)\n",
+                 action.c_str());
+    return false;
   }
-  return req;
+  const auto s = roundTrip(conn, {{"cmd", "calibrate"}, {"action", "status"}});
+  if (!s) return false;
+  const auto& session = (*s)["session"];
+  if (action == "apply" && session.value("figures", "") != "")
+    std::printf("%s\n", session.value("figures", "").c_str());
+  std::printf("%s %s? [y/N] ", action == "apply" ? "write" : "restore the previous",
+              s->value("camera_file", "the camera file").c_str());
+  std::fflush(stdout);
+  std::string answer;
+  std::getline(std::cin, answer);
+  if (answer != "y" && answer != "Y" && answer != "yes") {
+    std::printf("nothing written\n");
+    return false;
+  }
+  return true;
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string socketPath = std::getenv("MFCD_SOCKET") ? std::getenv("MFCD_SOCKET") : "/run/mfcd/control.sock";
-  int timeoutS = 60;
-  int i = 1;
-  for (; i < argc && argv[i][0] == '-'; ++i) {
-    const std::string a = argv[i];
-    if ((a == "-s" || a == "--socket") && i + 1 < argc) socketPath = argv[++i];
-    else if ((a == "-t" || a == "--timeout") && i + 1 < argc) timeoutS = std::atoi(argv[++i]);
-    else if (a == "-h" || a == "--help") { std::fputs(kUsage, stdout); return 0; }
-    else return usage();
+  CLI::App app{"mfcd-ctl: the client of mfcd's control socket (JSON lines; docs/operations.md).", "mfcd-ctl"};
+  mfcd::tools::init_app(app);
+  Connection conn{std::getenv("MFCD_SOCKET") ? std::getenv("MFCD_SOCKET") : "/run/mfcd/control.sock", 60};
+  app.add_option("-s,--socket", conn.socketPath, "control socket (default: $MFCD_SOCKET, else /run/mfcd/control.sock)")
+      ->type_name("SOCKET");
+  mfcd::tools::add_int(app, "-t,--timeout", conn.timeoutS, "seconds to wait for the answer (default 60)")
+      ->type_name("SECONDS");
+  Command c;
+  addCommands(app, c);
+  app.footer("Exit status: 0 ok, 1 refused, 2 usage or connection.");
+  if (const auto code = mfcd::tools::parse(app, argc, argv)) return *code;
+  const nlohmann::json& req = c.request;
+  const std::string cmd = req.value("cmd", "");
+  const std::string action = req.value("action", "");
+  if (action == "apply" || action == "rollback") {
+    if (!c.yes && !confirmed(conn, action)) return 1;
+    c.request["confirm"] = true;
   }
-  if (i >= argc) return usage();
-  const std::string cmd = argv[i++];
-  const Connection conn{socketPath, timeoutS};
-  nlohmann::json req = {{"cmd", cmd}};
-  if (cmd == "calibrate") {
-    bool declined = false;
-    std::optional<nlohmann::json> r;
-    try {
-      r = calibrateRequest(argc, argv, i, conn, declined);
-    } catch (const std::exception& e) {
-      std::fprintf(stderr, "mfcd-ctl: %s\n", e.what());
-      return 2;
-    }
-    if (!r) return declined ? 1 : usage();
-    req = *r;
-    i = argc;
-  }
-  if (cmd == "trigger" || cmd == "snapshot" || cmd == "part") {
-    if (i < argc) {
-      char* end = nullptr;
-      const long r = std::strtol(argv[i], &end, 10);
-      if (*end != '\0') return usage();
-      req["recipe"] = r;
-      ++i;
-    } else if (cmd == "part") {
-      return usage();
-    }
-  }
-  if (i != argc) return usage();
-
   const auto rsp = roundTrip(conn, req);
   if (!rsp) return 2;
   // Calibration figures are a table for people: printed as they are, then the whole answer.

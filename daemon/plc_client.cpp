@@ -12,18 +12,12 @@
 
 #include "motion/float_codec.hpp"
 #include "motion/register_map.hpp"
+#include "tools/common/cli.hpp"
 
 using namespace mfcd::motion;
 using namespace std::chrono_literals;
 
 namespace {
-
-constexpr const char* kUsage =
-    "usage: mfc-plc-client [--host H] [--port P] [--cycles N] [--recipe R] [--count-only] [--first-job J] [--timeout-ms T]\n"
-    "                      [--connect-timeout-ms T]   (retries the connection while mfcd starts; default 30000)\n"
-    "  Triggers N cycles (default 5) on mfcd (default 127.0.0.1:1502, recipe 0) and prints each pick:\n"
-    "  job, recipe, x y z [mm] rx ry rz [deg] in the robot base frame, score, cycle time [ms].\n"
-    "  Exit status: 0 all cycles answered, 1 a cycle failed or timed out, 2 usage/connection.\n";
 
 struct Snapshot {
   std::uint16_t regs[28];
@@ -35,26 +29,39 @@ bool readStatus(modbus_t* ctx, Snapshot& s) {
   return modbus_read_registers(ctx, reg::kStatus, 28, s.regs) == 28;
 }
 
+struct Options {
+  std::string host = "127.0.0.1";
+  int port = 1502, cycles = 5, recipe = 0, mode = 0, firstJob = 0, timeoutMs = 10000, connectMs = 30000;
+};
+
+// The command line into `o`; the exit status when the program ends here (help, version, usage).
+std::optional<int> parseOptions(int argc, char** argv, Options& o) {
+  CLI::App app{"mfc-plc-client: triggers N cycles on mfcd over Modbus/TCP (the job-id handshake of\n"
+               "docs/register-map.md) and prints each pick: job, recipe, x y z [mm] rx ry rz [deg] in the robot\n"
+               "base frame, score, cycle time [ms].", "mfc-plc-client"};
+  mfcd::tools::init_app(app);
+  app.add_option("--host", o.host, "mfcd's address (default 127.0.0.1)")->type_name("H");
+  mfcd::tools::add_int(app, "--port", o.port, "Modbus/TCP port (default 1502)")->type_name("P");
+  mfcd::tools::add_int(app, "--cycles", o.cycles, "cycles to trigger (default 5)");
+  mfcd::tools::add_int(app, "--recipe", o.recipe, "RECIPE_ID of every trigger (default 0)")->type_name("R");
+  app.add_flag_callback("--count-only", [&o] { o.mode = 1; }, "MODE = COUNT_ONLY (objects remaining, no pick)");
+  mfcd::tools::add_int(app, "--first-job", o.firstJob, "the first job id (default: one past the last echoed)")
+      ->type_name("J");
+  mfcd::tools::add_int(app, "--timeout-ms", o.timeoutMs, "how long one cycle may take (default 10000)")->type_name("T");
+  mfcd::tools::add_int(app, "--connect-timeout-ms", o.connectMs,
+                       "retries the connection while mfcd starts (default 30000)")->type_name("T");
+  app.footer("Exit status: 0 all cycles answered, 1 a cycle failed or timed out, 2 usage/connection.");
+  return mfcd::tools::parse(app, argc, argv);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string host = "127.0.0.1";
-  int port = 1502, cycles = 5, recipe = 0, mode = 0, firstJob = 0, timeoutMs = 10000, connectMs = 30000;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto next = [&]() -> const char* { return i + 1 < argc ? argv[++i] : nullptr; };
-    const char* v = nullptr;
-    if (a == "--host" && (v = next())) host = v;
-    else if (a == "--port" && (v = next())) port = std::atoi(v);
-    else if (a == "--cycles" && (v = next())) cycles = std::atoi(v);
-    else if (a == "--recipe" && (v = next())) recipe = std::atoi(v);
-    else if (a == "--first-job" && (v = next())) firstJob = std::atoi(v);
-    else if (a == "--timeout-ms" && (v = next())) timeoutMs = std::atoi(v);
-    else if (a == "--connect-timeout-ms" && (v = next())) connectMs = std::atoi(v);
-    else if (a == "--count-only") mode = 1;
-    else if (a == "-h" || a == "--help") { std::fputs(kUsage, stdout); return 0; }
-    else { std::fputs(kUsage, stderr); return 2; }
-  }
+  Options o;
+  if (const auto code = parseOptions(argc, argv, o)) return *code;
+  const std::string& host = o.host;
+  const int port = o.port, cycles = o.cycles, recipe = o.recipe, mode = o.mode, firstJob = o.firstJob,
+            timeoutMs = o.timeoutMs, connectMs = o.connectMs;
   // mfcd may still be starting (loading templates): retry the connection for a while.
   modbus_t* ctx = modbus_new_tcp(host.c_str(), port);
   bool connected = false;

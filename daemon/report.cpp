@@ -10,6 +10,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "daemon/vision_stage.hpp"
+#include "tools/common/build_version.hpp"
 #include "motion/pick_transform.hpp"
 
 namespace mfcd::daemon {
@@ -52,6 +53,8 @@ const char* errorName(CycleError e) {
 
 json resultJson(const CycleResult& r, const DaemonConfig& config) {
   json j;
+  j["version"] = version();  // which mfcd made the result (result.json outlives the daemon)
+  j["commit"] = git_commit();
   j["cycle"] = r.request.cycle_id;
   j["origin"] = toString(r.request.origin);
   j["job_id"] = r.request.job_id;

@@ -17,8 +17,8 @@ class VisionStage;
 std::optional<motion::PickPose> basePose(const DaemonConfig& config, const cv::Matx33d& R, const cv::Vec3d& t_mm);
 
 nlohmann::json poseJson(const motion::PickPose& p);
-// Everything about one cycle: request, error, times, candidates (camera and base frame), the chosen
-// pick, and on the simulated cell the bin's ground truth (camera and base frame).
+// Everything about one cycle: mfcd's version, request, error, times, candidates (camera and base
+// frame), the chosen pick, and on the simulated cell the bin's ground truth (camera and base frame).
 nlohmann::json resultJson(const CycleResult& result, const DaemonConfig& config);
 
 // Saves the 9 images, the depth edges, an overlay of the candidates and result.json into a new

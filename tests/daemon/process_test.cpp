@@ -13,6 +13,7 @@
 
 #include "daemon_fixture.hpp"
 #include "daemon_process.hpp"
+#include "tools/common/build_version.hpp"
 #include "plc_test_client.hpp"
 #include "motion/float_codec.hpp"
 #include "motion/register_map.hpp"
@@ -177,7 +178,9 @@ TEST_F(DaemonE2E, ControlSocketStatusStatsSnapshotAndTheRealCli) {
   json s = proc->ctl({{"cmd", "status"}});
   EXPECT_EQ(s["state"], "ready");
   EXPECT_EQ(s["mode"], "triggered");
-  ASSERT_TRUE(proc->ctl({{"cmd", "trigger"}})["ok"]);
+  EXPECT_EQ(s["version"], mfcd::version());
+  const json triggered = proc->ctl({{"cmd", "trigger"}});
+  ASSERT_TRUE(triggered["ok"]);
   const json snap = proc->ctl({{"cmd", "snapshot"}, {"recipe", 0}});
   ASSERT_TRUE(snap["ok"]) << snap.dump();
   const fs::path dir = snap["snapshot"].get<std::string>();
@@ -185,6 +188,10 @@ TEST_F(DaemonE2E, ControlSocketStatusStatsSnapshotAndTheRealCli) {
     EXPECT_TRUE(fs::exists(dir / f)) << f;
   const json saved = json::parse(std::ifstream(dir / "result.json"));
   EXPECT_EQ(saved["cycle"], snap["result"]["cycle"]);
+  // Which mfcd made it: the build's version header, in the snapshot and in every result.
+  EXPECT_EQ(saved["version"], mfcd::version());
+  EXPECT_EQ(saved["commit"], mfcd::git_commit());
+  EXPECT_EQ(triggered["result"]["version"], mfcd::version());
   const json stats = proc->ctl({{"cmd", "stats"}});
   EXPECT_EQ(stats["cycles"], 2);
   EXPECT_GT(stats["percentiles_ms"]["total"]["p50"].get<double>(), 0.0);
@@ -212,6 +219,10 @@ TEST_F(DaemonE2E, ControlSocketStatusStatsSnapshotAndTheRealCli) {
   EXPECT_EQ(std::system(cmd.c_str()), 0);
   const json cli = json::parse(std::ifstream(proc->dir() / "cli.json"));
   EXPECT_EQ(cli["recipe"], 3);
+  EXPECT_EQ(cli["version"], mfcd::version());
+  EXPECT_EQ(cli["commit"], mfcd::git_commit());
+  const std::string started = std::string("mfcd ") + mfcd::version() + " (" + mfcd::git_commit() + ") starting";
+  EXPECT_NE(proc->log().find(started), std::string::npos) << "the startup line names the version:\n" << proc->log();
   const std::string bad = std::string(MFCD_CTL) + " -s " + proc->socket().string() + " part 42 > /dev/null";
   EXPECT_EQ(WEXITSTATUS(std::system(bad.c_str())), 1);
 }

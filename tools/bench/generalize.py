@@ -18,6 +18,7 @@ import hashlib
 import json
 import os
 import random
+import re
 import shutil
 import subprocess
 import sys
@@ -64,6 +65,17 @@ def digest(*parts):
 
 def file_digest(path):
     return digest(Path(path).read_bytes())
+
+
+def program_digest(path):
+    """A program's digest without the commit hash its --version names (cmake/MfcVersion.cmake): the
+    same code built at another commit teaches the same templates."""
+    data = Path(path).read_bytes()
+    out = subprocess.run([str(path), "--version"], capture_output=True, text=True).stdout
+    m = re.search(r"\(([^()]+)\)\s*$", out)
+    if m:
+        data = data.replace(m.group(1).encode(), b"#" * len(m.group(1)))
+    return digest(data)
 
 
 def renderer_digest():
@@ -236,7 +248,7 @@ def render_scenes(args, root, cam_render, plan, split):
 def teach(args, cache, build, root, cam_yaml, ids):
     """Every part's template database with mfc-teach's defaults, cached by teacher, camera and model."""
     teacher = build / "tools/teach/mfc-teach"
-    key = digest(file_digest(teacher), file_digest(cam_yaml))
+    key = digest(program_digest(teacher), file_digest(cam_yaml))
     out = cache / f"templates-{key}"
     out.mkdir(parents=True, exist_ok=True)
     times = {}

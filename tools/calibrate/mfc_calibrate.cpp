@@ -11,6 +11,7 @@
 // Prints the figures; writes CAM.yaml (atomically, keeping CAM.yaml.previous) only with --apply,
 // otherwise shows what it would write; import writes a CAM.yaml that does not exist yet without
 // --apply. Exit status: 0 done, 1 calibration failed or file refused, 2 usage.
+#include "tools/common/cli.hpp"
 #include "vision/calib/calibration_import.hpp"
 #include "vision/calib/hand_eye.hpp"
 #include "vision/calib/intrinsics.hpp"
@@ -37,26 +38,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-const char* kUsage =
-    "usage:\n"
-    "  mfc-calibrate intrinsics (--images DIR | --sim N) [--board 9x6] [--square-mm 10]\n"
-    "                [--distortion none|radial|radial-tangential|full] [--camera BASE.yaml]\n"
-    "                --out CAM.yaml [--apply] [--save-views DIR] [--seed N]\n"
-    "  mfc-calibrate hand-eye --mode eye-in-hand|eye-to-hand --camera CAM.yaml\n"
-    "                (--views LIST.yaml | --sim N) [--board 9x6] [--square-mm 10]\n"
-    "                --out CAM.yaml [--apply] [--check IMAGE --check-pose x,y,z,rx,ry,rz]\n"
-    "                [--save-views DIR] [--seed N]\n"
-    "  mfc-calibrate rollback --out CAM.yaml\n"
-    "  mfc-calibrate import FILE --out CAM.yaml [--camera BASE.yaml] [--working-distance MM]\n"
-    "                [--flash-ring-radius MM] [--flash-first-angle DEG] [--flash-step DEG]\n"
-    "                [--flash-plane-z MM] [--apply]\n"
-    "LIST.yaml (OpenCV YAML): views: [ { image: v00.png, pose: [x, y, z, rx, ry, rz] }, ... ]\n"
-    "  pose: robot flange in the base frame, mm and degrees, R = Rz(rz) Ry(ry) Rx(rx);\n"
-    "  image paths relative to LIST.yaml.\n"
-    "import: FILE is an OpenCV calibration sample's YAML or a ROS camera_info YAML; the MFC keys\n"
-    "  it lacks come from the options, else from BASE.yaml (default: CAM.yaml when it exists),\n"
-    "  else from the defaults (300 mm; ring 40 mm, 0 deg, 45 deg, plane z 0 mm).\n";
-
 ViewReport unreadable(const std::string& label) {
   ViewReport r;
   r.label = label;
@@ -64,13 +45,11 @@ ViewReport unreadable(const std::string& label) {
   return r;
 }
 
-struct UsageError : std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
+using mfcd::tools::UsageError;
 
 struct Args {
   std::string command;
-  std::vector<std::string> positional;  // arguments that are not options (import's FILE)
+  std::vector<std::string> positional;  // import's FILE
   std::map<std::string, std::string> values;
   bool apply = false;
 
@@ -96,29 +75,72 @@ struct Args {
   }
 };
 
-Args parse(int argc, char** argv) {
-  if (argc < 2) throw UsageError("no command");
-  Args a;
-  a.command = argv[1];
-  static const char* kKeys[] = {"images", "sim", "board", "square-mm", "distortion", "camera", "out", "mode", "views",
-                                "check", "check-pose", "save-views", "seed", "working-distance", "flash-ring-radius",
-                                "flash-first-angle", "flash-step", "flash-plane-z"};
-  for (int i = 2; i < argc; ++i) {
-    const std::string arg = argv[i];
-    if (arg == "--apply") {
-      a.apply = true;
-      continue;
-    }
-    if (arg.rfind("--", 0) != 0) {
-      a.positional.push_back(arg);
-      continue;
-    }
-    if (std::find(std::begin(kKeys), std::end(kKeys), arg.substr(2)) == std::end(kKeys))
-      throw UsageError("unknown option '" + arg + "'");
-    if (i + 1 >= argc) throw UsageError(arg + " needs a value");
-    a.values[arg.substr(2)] = argv[++i];
-  }
-  return a;
+// `--KEY VALUE` of a subcommand, kept as text in a.values: each command reads and checks its
+// values where it uses them (Args::number words a bad number).
+void add_value(CLI::App& cmd, Args& a, const std::string& key, const std::string& type, const std::string& help) {
+  cmd.add_option_function<std::string>("--" + key, [&a, key](const std::string& v) { a.values[key] = v; }, help)
+      ->type_name(type);
+}
+
+void add_board_options(CLI::App& cmd, Args& a) {
+  add_value(cmd, a, "board", "CxR", "inner corners, columns x rows (default 9x6)");
+  add_value(cmd, a, "square-mm", "MM", "square size (default 10)");
+}
+
+void add_sim_options(CLI::App& cmd, Args& a, const std::string& saved) {
+  add_value(cmd, a, "sim", "N", "render N views of the plate in the simulated cell (--camera or\n"
+                                "config/camera-sim.yaml is the true camera); prints the errors");
+  add_value(cmd, a, "save-views", "DIR", "keep the simulated images (" + saved + ")");
+  add_value(cmd, a, "seed", "N", "seed of the simulated views (default 1)");
+}
+
+void add_apply_flag(CLI::App& cmd, Args& a, const std::string& help) { cmd.add_flag("--apply", a.apply, help); }
+
+// The subcommands and their options (docs/calibration.md).
+void add_commands(CLI::App& app, Args& a) {
+  const std::string apply = "write CAM.yaml (keeping CAM.yaml.previous); without it, show what would be written";
+  CLI::App* intrinsics = app.add_subcommand("intrinsics", "camera intrinsics from checkerboard images");
+  add_value(*intrinsics, a, "images", "DIR", "images of the board (png, jpg, bmp, tif)");
+  add_sim_options(*intrinsics, a, "view-NN.png");
+  add_board_options(*intrinsics, a);
+  add_value(*intrinsics, a, "distortion", "MODEL", "none|radial|radial-tangential|full (default radial)");
+  add_value(*intrinsics, a, "camera", "BASE.yaml", "the camera file the result is merged into (default: CAM.yaml\n"
+                                                   "when it exists, else config/camera-sim.yaml)");
+  add_value(*intrinsics, a, "out", "CAM.yaml", "the camera file to write");
+  add_apply_flag(*intrinsics, a, apply);
+
+  CLI::App* hand_eye = app.add_subcommand("hand-eye", "the hand-eye transform from board views with robot poses");
+  add_value(*hand_eye, a, "mode", "MODE", "eye-in-hand|eye-to-hand");
+  add_value(*hand_eye, a, "camera", "CAM.yaml", "the calibrated camera");
+  add_value(*hand_eye, a, "views", "LIST.yaml", "the views and their flange poses (below)");
+  add_sim_options(*hand_eye, a, "pose-NN.png and views.yaml");
+  add_board_options(*hand_eye, a);
+  add_value(*hand_eye, a, "out", "CAM.yaml", "the camera file to write");
+  add_apply_flag(*hand_eye, a, apply);
+  add_value(*hand_eye, a, "check", "IMAGE", "a view in one more robot pose: predicted vs seen board");
+  add_value(*hand_eye, a, "check-pose", "x,y,z,rx,ry,rz", "its flange pose (mm, degrees)");
+  hand_eye->footer("LIST.yaml (OpenCV YAML): views: [ { image: v00.png, pose: [x, y, z, rx, ry, rz] }, ... ]\n"
+                   "  pose: robot flange in the base frame, mm and degrees, R = Rz(rz) Ry(ry) Rx(rx);\n"
+                   "  image paths relative to LIST.yaml.");
+
+  CLI::App* rollback =
+      app.add_subcommand("rollback", "restore CAM.yaml.previous (the replaced file becomes the previous one)");
+  add_value(*rollback, a, "out", "CAM.yaml", "the camera file to restore");
+
+  CLI::App* import = app.add_subcommand("import", "a camera file from an OpenCV or ROS calibration file");
+  import->add_option("FILE", a.positional, "an OpenCV calibration sample's YAML or a ROS camera_info YAML")
+      ->type_name("");
+  add_value(*import, a, "out", "CAM.yaml", "the camera file to write (a new one is written without --apply)");
+  add_value(*import, a, "camera", "BASE.yaml",
+            "where the MFC keys FILE lacks come from (default: CAM.yaml when it exists)");
+  add_value(*import, a, "working-distance", "MM", "working_distance_mm (default 300)");
+  add_value(*import, a, "flash-ring-radius", "MM", "flashes.ring_radius_mm (default 40)");
+  add_value(*import, a, "flash-first-angle", "DEG", "flashes.first_angle_deg (default 0)");
+  add_value(*import, a, "flash-step", "DEG", "flashes.step_deg (default 45)");
+  add_value(*import, a, "flash-plane-z", "MM", "flashes.plane_z_mm (default 0)");
+  add_apply_flag(*import, a, "replace an existing CAM.yaml (keeping CAM.yaml.previous)");
+  import->footer("The MFC keys FILE lacks come from the options, else from BASE.yaml, else from the defaults.");
+  app.require_subcommand(1);
 }
 
 CheckerBoard board_of(const Args& a) {
@@ -392,21 +414,22 @@ int run_rollback(const Args& a) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  CLI::App app{"Camera intrinsics and hand-eye calibration (docs/calibration.md). Prints the figures; writes\n"
+               "CAM.yaml (atomically, keeping CAM.yaml.previous) only with --apply, otherwise shows what it\n"
+               "would write. Exit status: 0 done, 1 calibration failed or file refused, 2 usage.",
+               "mfc-calibrate"};
+  mfcd::tools::init_app(app);
+  Args a;
+  add_commands(app, a);
+  if (const auto code = mfcd::tools::parse(app, argc, argv)) return *code;
+  a.command = app.get_subcommands().front()->get_name();
   try {
-    const Args a = parse(argc, argv);
     if (a.command == "import") return run_import(a);
-    if (!a.positional.empty()) throw UsageError("unexpected argument '" + a.positional[0] + "'");
     if (a.command == "intrinsics") return run_intrinsics(a);
     if (a.command == "hand-eye") return run_hand_eye(a);
-    if (a.command == "rollback") return run_rollback(a);
-    if (a.command == "--help" || a.command == "-h") {
-      std::cout << kUsage;
-      return 0;
-    }
-    throw UsageError("unknown command '" + a.command + "'");
+    return run_rollback(a);
   } catch (const UsageError& e) {
-    std::cerr << "mfc-calibrate: " << e.what() << '\n' << kUsage;
-    return 2;
+    return mfcd::tools::usage_error(app, e.what());
   } catch (const CalibrationError& e) {
     std::cerr << "mfc-calibrate: " << e.what() << "\nnothing written\n";
     return 1;

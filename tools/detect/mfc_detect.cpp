@@ -5,8 +5,9 @@
 // with R row-major (9 values) and t in mm (3 values), space-separated, and time the wall time of
 // the image's detection in seconds (the same for every estimate of the image, as BOP asks);
 // vision/dataset/bop_results.hpp formats it. Named METHOD_DATASET-SPLIT.csv, the BOP toolkit
-// scores it (docs/datasets.md, "Scoring with the BOP toolkit").
-#include "tools/common/cli_numbers.hpp"
+// scores it (docs/datasets.md, "Scoring with the BOP toolkit"). Exit status: 0 written, 1 refused
+// (dataset, templates), 2 usage.
+#include "tools/common/cli.hpp"
 #include "vision/dataset/bop_dataset.hpp"
 #include "vision/dataset/bop_results.hpp"
 #include "vision/pipeline/bin_picking_pipeline.hpp"
@@ -24,34 +25,8 @@ namespace fs = std::filesystem;
 
 namespace {
 
-void usage(std::FILE* to) {
-  std::fprintf(to,
-               "usage: mfc-detect --dataset DIR --templates A.tdb [B.tdb ...] --out results.csv [options]\n"
-               "  --dataset DIR        BOP-layout dataset with flash/ and ambient/ images (docs/datasets.md)\n"
-               "  --split NAME         split folder (default test)\n"
-               "  --camera FILE        camera YAML (docs/camera.md) whose flash positions are used where the\n"
-               "                       dataset's scene_camera.json gives none (a standard BOP dataset)\n"
-               "  --templates F...     template databases (mfc-teach); each carries its part's obj_id\n"
-               "  --out FILE           BOP results CSV to write; for the BOP toolkit name it METHOD_DATASET-SPLIT.csv\n"
-               "                       (e.g. mfcdetect_mfcsim-test.csv: no '_' in METHOD, no '-' or '_' in DATASET)\n"
-               "  --views N            views used by the refinement (default 1; more need camera poses)\n"
-               "  --max-per-image N    estimates kept per image (default 10)\n"
-               "  --max-cost PX        search threshold, mean directional chamfer px (default 10)\n"
-               "  --floor MM           the bin floor's distance from the camera (along the optical axis): poses\n"
-               "                       below it are dropped, the best few just above it also fitted from it\n"
-               "                       (PipelineConfig::floor; default 0: not known)\n"
-               "  --search-rounds N    search rounds per image, 1-4 (default 2): a later round searches again\n"
-               "                       without the edges of the best estimates so far, so that the other\n"
-               "                       instances of a type are found too (PipelineConfig::search_rounds)\n"
-               "  --scene ID           only this scene (repeatable)\n"
-               "  --threads N          threads of every stage of a detection (default: all cores)\n"
-               "  --quiet              no per-image lines\n");
-}
-
-
-}  // namespace
-
-int main(int argc, char** argv) {
+// What the command line sets; defaults as mfc-detect has always had them.
+struct Options {
   fs::path dataset_dir, out, camera_file;
   std::string split = "test";
   std::vector<fs::path> templates;
@@ -59,62 +34,82 @@ int main(int argc, char** argv) {
   int views = 1, max_per_image = 10, threads = 0, search_rounds = 2;
   double max_cost = PipelineConfig{}.max_cost_px, floor_mm = 0;
   bool quiet = false;
-  try {
-    for (int i = 1; i < argc; ++i) {
-      const std::string a = argv[i];
-      auto value = [&]() -> std::string {
-        if (i + 1 >= argc) throw std::invalid_argument(a + " needs a value");
-        return argv[++i];
-      };
-      if (a == "-h" || a == "--help") {
-        usage(stdout);
-        return 0;
-      } else if (a == "--dataset") dataset_dir = value();
-      else if (a == "--split") split = value();
-      else if (a == "--camera") camera_file = value();
-      else if (a == "--out") out = value();
-      else if (a == "--views") views = mfcd::tools::parse_int(a, value());
-      else if (a == "--max-per-image") max_per_image = mfcd::tools::parse_int(a, value());
-      else if (a == "--threads") threads = mfcd::tools::parse_int(a, value());
-      else if (a == "--scene") only_scenes.push_back(mfcd::tools::parse_int(a, value()));
-      else if (a == "--max-cost") max_cost = mfcd::tools::parse_double(a, value());
-      else if (a == "--floor") floor_mm = mfcd::tools::parse_double(a, value());
-      else if (a == "--search-rounds") search_rounds = mfcd::tools::parse_int(a, value());
-      else if (a == "--quiet") quiet = true;
-      else if (a == "--templates") {
-        while (i + 1 < argc && argv[i + 1][0] != '-') templates.emplace_back(argv[++i]);
-        if (templates.empty()) throw std::invalid_argument("--templates needs at least one file");
-      } else throw std::invalid_argument("unknown argument " + a);
-    }
-    if (dataset_dir.empty() || out.empty() || templates.empty()) {
-      usage(stderr);
-      return 2;
-    }
-    if (views < 1) throw std::invalid_argument("--views must be >= 1");
-    if (views > 1)
-      throw std::invalid_argument("--views " + std::to_string(views) +
-                                  ": the dataset gives no camera poses between its images (cam_R_w2c/cam_t_w2c); "
-                                  "multi-view refinement is measured by mfc-eval");
-    if (max_per_image < 1) throw std::invalid_argument("--max-per-image must be >= 1");
-    if (search_rounds < 1 || search_rounds > PipelineConfig::kMaxSearchRounds)
-      throw std::invalid_argument("--search-rounds must be 1.." + std::to_string(PipelineConfig::kMaxSearchRounds));
+};
 
+void add_options(CLI::App& app, Options& o) {
+  using mfcd::tools::add_double;
+  using mfcd::tools::add_int;
+  app.add_option("--dataset", o.dataset_dir, "BOP-layout dataset with flash/ and ambient/ images (docs/datasets.md)")
+      ->required()->type_name("DIR");
+  app.add_option("--split", o.split, "split folder (default test)")->type_name("NAME");
+  app.add_option("--camera", o.camera_file, "camera YAML (docs/camera.md) whose flash positions are used where the\n"
+                                            "dataset's scene_camera.json gives none (a standard BOP dataset)")
+      ->type_name("FILE");
+  // As before: the files after --templates up to the next option; --templates may be repeated.
+  app.add_option("--templates", o.templates, "template databases (mfc-teach); each carries its part's obj_id")
+      ->required()->type_name("F...")->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
+  app.add_option("--out", o.out, "BOP results CSV to write; for the BOP toolkit name it METHOD_DATASET-SPLIT.csv\n"
+                                 "(e.g. mfcdetect_mfcsim-test.csv: no '_' in METHOD, no '-' or '_' in DATASET)")
+      ->required()->type_name("FILE");
+  add_int(app, "--views", o.views, "views used by the refinement (default 1; more need camera poses)");
+  add_int(app, "--max-per-image", o.max_per_image, "estimates kept per image (default 10)");
+  add_double(app, "--max-cost", o.max_cost, "search threshold, mean directional chamfer px (default 10)")
+      ->type_name("PX");
+  add_double(app, "--floor", o.floor_mm, "the bin floor's distance from the camera (along the optical axis): poses\n"
+                                         "below it are dropped, the best few just above it also fitted from it\n"
+                                         "(PipelineConfig::floor; default 0: not known)")->type_name("MM");
+  add_int(app, "--search-rounds", o.search_rounds,
+          "search rounds per image, 1-4 (default 2): a later round searches again\n"
+          "without the edges of the best estimates so far, so that the other\n"
+          "instances of a type are found too (PipelineConfig::search_rounds)");
+  mfcd::tools::add_converted_list(app, "--scene", o.only_scenes, mfcd::tools::parse_int, "only this scene (repeatable)")
+      ->type_name("ID");
+  add_int(app, "--threads", o.threads, "threads of every stage of a detection (default: all cores)");
+  app.add_flag("--quiet", o.quiet, "no per-image lines");
+}
+
+// What the options must satisfy; throws UsageError naming the option.
+void check_options(const Options& o) {
+  using mfcd::tools::UsageError;
+  if (o.views < 1) throw UsageError("--views must be >= 1");
+  if (o.views > 1)
+    throw UsageError("--views " + std::to_string(o.views) +
+                     ": the dataset gives no camera poses between its images (cam_R_w2c/cam_t_w2c); "
+                     "multi-view refinement is measured by mfc-eval");
+  if (o.max_per_image < 1) throw UsageError("--max-per-image must be >= 1");
+  if (o.search_rounds < 1 || o.search_rounds > PipelineConfig::kMaxSearchRounds)
+    throw UsageError("--search-rounds must be 1.." + std::to_string(PipelineConfig::kMaxSearchRounds));
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"The full pipeline on every image of a BOP-layout dataset with multi-flash images; writes the BOP\n"
+               "results CSV (docs/datasets.md).", "mfc-detect"};
+  mfcd::tools::init_app(app);
+  Options o;
+  add_options(app, o);
+  if (const auto code = mfcd::tools::parse(app, argc, argv)) return *code;
+  const fs::path &dataset_dir = o.dataset_dir, &out = o.out, &camera_file = o.camera_file;
+  const std::string& split = o.split;
+  try {
+    check_options(o);
     BopCameraDefaults defaults;
     if (!camera_file.empty()) defaults = {load_camera_config(camera_file).flashes.positions_mm, camera_file.string()};
     const BopDataset dataset(dataset_dir, split, defaults);
     std::vector<int> scenes = dataset.scenes();
-    if (!only_scenes.empty()) scenes = only_scenes;
+    if (!o.only_scenes.empty()) scenes = o.only_scenes;
     if (scenes.empty()) throw std::runtime_error(dataset_dir.string() + ": no scenes in split '" + split + "'");
 
     // One pipeline per distinct camera (datasets may change K between scenes).
     std::map<std::string, std::unique_ptr<BinPickingPipeline>> pipelines;
     PipelineConfig pc;
-    pc.template_files = templates;
-    pc.max_candidates = max_per_image;
-    pc.max_cost_px = max_cost;
-    pc.threads = threads;
-    pc.floor.distance_mm = floor_mm;
-    pc.search_rounds = search_rounds;
+    pc.template_files = o.templates;
+    pc.max_candidates = o.max_per_image;
+    pc.max_cost_px = o.max_cost;
+    pc.threads = o.threads;
+    pc.floor.distance_mm = o.floor_mm;
+    pc.search_rounds = o.search_rounds;
 
     // The toolkit takes the dataset and split from the name; other names are fine for mfcd's own tools.
     if (const auto name = parse_bop_results_name(out.string()); !name)
@@ -151,7 +146,7 @@ int main(int argc, char** argv) {
                                   .R = c.R_m2c, .t_mm = c.t_m2c_mm, .time_s = seconds});
           ++estimates;
         }
-        if (!quiet)
+        if (!o.quiet)
           std::fprintf(stderr, "scene %d image %d: %zu estimates, %.0f ms (edges %.0f, lines %.0f, dt %.0f, search %.0f, "
                        "pose %.0f, refine %.0f)\n",
                        scene, im, result.candidates.size(), seconds * 1e3, result.times.edges_ms, result.times.lines_ms,
@@ -164,6 +159,8 @@ int main(int argc, char** argv) {
     std::printf("%s: %zu estimates for %zu images, %.0f ms per image on average\n", out.c_str(), estimates, images,
                 images ? total_s * 1e3 / images : 0.0);
     return 0;
+  } catch (const mfcd::tools::UsageError& e) {
+    return mfcd::tools::usage_error(app, e.what());
   } catch (const std::exception& e) {
     std::fprintf(stderr, "mfc-detect: %s\n", e.what());
     return 1;

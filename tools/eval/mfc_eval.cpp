@@ -7,8 +7,9 @@
 // tools/eval/report.py turns the JSON into docs/results.md and docs/img/results-*.png;
 // `tools/mfc bench paper` runs mfc-sim, mfc-eval and the report in one go.
 #include "motion/pick_choice.hpp"
-#include "tools/common/cli_numbers.hpp"
+#include "tools/common/build_version.hpp"
 #include "tools/eval/detectors.hpp"
+#include "tools/eval/eval_options.hpp"
 #include "tools/eval/pose_error.hpp"
 #include "tools/eval/refine_eval.hpp"
 #include "vision/dataset/bop_dataset.hpp"
@@ -36,103 +37,6 @@ using nlohmann::json;
 
 namespace {
 
-const char* kUsage = R"(usage: mfc-eval detect --dataset DIR --templates DIR --out FILE.json [options]
-       mfc-eval refine --templates DIR --out FILE.json [options]   (Table 2)
-
-detect: for every image and every part type present in it, runs each method for that type
-(the recipe) and scores its best estimate against every ground-truth instance of the type
-(correct when it matches any: position <= 5 mm and rotation angle <= 10 deg, symmetry-aware).
-  --dataset DIR          BOP-layout dataset with flash images (mfc-sim, docs/datasets.md)
-  --split NAME           split folder (default test)
-  --camera FILE          camera YAML whose flash positions are used where the dataset's
-                         scene_camera.json gives none (a standard BOP dataset)
-  --model-symmetries     score with the symmetries of the dataset's models_info.json (BOP's
-                         symmetries_discrete and symmetries_continuous, the latter every 1 deg)
-                         instead of the parts table's
-  --templates DIR        folder with <name>.tdb per part (mfc-teach; <build>/templates)
-  --parts FILE           parts table name,obj_id,symmetry[,views_symmetry[,views]] (default
-                         config/parts/parts.csv)
-  --out FILE             JSON to write
-  --methods LIST         comma-separated: fdcm, fdcm-rounds, fdcm-search, ocm, cm, line2d (default
-                         fdcm,ocm,cm); fdcm-search = FDCM without the hypothesis fit (ranked by the
-                         search cost, as CM and OCM are: the matching costs compared on equal
-                         terms); fdcm-rounds = FDCM with two search rounds (search_rounds=2: the
-                         second searches again without the best candidate's edges)
-  --max-images N         only the first N images (default all)
-  --threads N            threads of every stage of a detection (default: all cores)
-  --distances LIST       part distances (mm) the pipeline searches, e.g. 292,282,272,262: the
-                         templates' scale is searched for each (default: the templates' own)
-  --refine-candidates N  candidates the pipeline refines (1 view); 0 = coarse poses only
-                         (default: the pipeline's default, PipelineConfig::refine_candidates)
-  --floor MM|scene       the bin floor's distance from the camera along the optical axis, as the
-                         cell knows it (mfc-sim: the camera's working distance). The pipeline
-                         drops fitted poses below it and fits the best few just above it again
-                         from it; unfitted poses (baselines, LINE-2D) below it are slid onto it
-                         (PipelineConfig::floor). `scene`: each scene's own, from the
-                         floor_distance_mm of its scene_render.json (the generalization bench's
-                         scenes, whose bins stand at different heights). Default 0: not known
-  --set KEY=VALUE        a pipeline parameter for the pipeline methods (repeatable; the keys of
-                         docs/configuration.md's vision table, trace, floor_distance_mm), e.g.
-                         --set view_stride=2; an unknown key lists the keys
-  --all-types            also run FDCM once per image over all part types (best pick; timing)
-  --timing-repeats N     run every fdcm detection (and --all-types run) N times on its image (1-10,
-                         default 1): its trial keeps the first run's result and times, and adds
-                         "times_best", the stage times of the run with the smallest total (the
-                         machine is shared: the fastest of a few runs has the least of the other
-                         tenants' interference in it; docs/results.md)
-  --line2d-step DEG      LINE-2D in-plane rotation step (default 15)
-  --line2d-view-stride S LINE-2D: train every S-th template view (default 1)
-  --max-position MM      criterion (default 5)
-  --max-rotation DEG     criterion (default 10)
-  --overlay DIR          for every failed trial of a pipeline method, a PNG in DIR: the depth
-                         edges (grey) with the template points of every true instance of the
-                         type (green), the best estimate (red) and, with --set trace=1, the
-                         fitted hypothesis nearest the truth (yellow); points with no image
-                         edge within 1 px are drawn dim
-  --grasp-features FILE  the parts' grasp features (config/parts/grasp-features.csv): every estimate
-                         gets the pipeline's grasp visibility (PoseCandidate::grasp_visibility), every
-                         true instance the estimate at its pose beside the rendered truth, and with
-                         --all-types every image the cell's pick (motion::choose_pick, config/sim.yaml's
-                         weights) without and with the grasp features
-  --pick-grasp W,V       the cell's pick with grasp features: weight_grasp W and min_grasp_visibility V
-                         (default 0.5,0.3, config/sim.yaml's)
-  --pick-min-score S     the cell's pick.min_score (default motion::PickChoiceConfig's, the daemon's);
-                         ambiguous candidates are passed over (pick.skip_ambiguous) unless
-  --pick-ambiguous       is given
-  --quiet                no per-image lines
-
-refine: each part alone in random poses (random orientation, centre within +-25, +-20 mm of the
-axis at 284-300 mm) over a floor, coarse pose from the pipeline (view 0), then refined with view
-0 alone and with views 0 and 1 (camera 1 shifted sideways and turned to look at the part).
-Needs the multi-view refiner (vision/pose/pose_refiner.hpp) in the build.
-  --templates DIR, --parts FILE, --out FILE, --distances LIST, --quiet   as for detect
-  --camera FILE          camera YAML (default config/camera-sim.yaml)
-  --trials N             random poses per part (default 10)
-  --seed N               (default 1)
-  --shift MM             sideways shift of the second camera (default 80)
-)";
-
-struct Usage : std::invalid_argument {
-  using std::invalid_argument::invalid_argument;
-};
-
-// The shared parsers, refusing with Usage (exit code 2) instead of a plain invalid_argument.
-int to_int(const std::string& opt, const std::string& v) {
-  try {
-    return mfcd::tools::parse_int(opt, v);
-  } catch (const std::invalid_argument& e) {
-    throw Usage(e.what());
-  }
-}
-
-double to_double(const std::string& opt, const std::string& v) {
-  try {
-    return mfcd::tools::parse_double(opt, v);
-  } catch (const std::invalid_argument& e) {
-    throw Usage(e.what());
-  }
-}
-
 json times_json(const vision::StageTimes& t) {
   return {{"edges", t.edges_ms}, {"lines", t.lines_ms}, {"dt", t.distance_ms}, {"search", t.search_ms},
           {"pose", t.pose_ms},   {"refine", t.refine_ms}, {"total", t.total_ms}};
@@ -146,156 +50,11 @@ std::string camera_key(const vision::CameraConfig& c) {
   return key;
 }
 
-struct Options {
-  fs::path dataset, templates, parts = fs::path(MFC_SOURCE_DIR) / "config/parts/parts.csv", out, overlay;
-  fs::path camera;  // --camera: flash positions for a dataset that lacks them
-  bool model_symmetries = false;  // --model-symmetries
-  std::string split = "test";
-  std::vector<std::string> methods = {"fdcm", "ocm", "cm"};
-  int max_images = 0, threads = 0, refine_candidates = -1;
-  std::filesystem::path grasp_features;  // --grasp-features: the parts' grasp features (pick evaluation)
-  double grasp_weight = 0.5, min_grasp_visibility = 0.3;  // --pick-grasp W,V (config/sim.yaml's)
-  double pick_min_score = motion::PickChoiceConfig{}.min_score;  // --pick-min-score
-  bool pick_ambiguous = false;                                  // --pick-ambiguous
-  int timing_repeats = 1;  // --timing-repeats
-  double floor_mm = 0;  // --floor
-  bool floor_per_scene = false;  // --floor scene
-  std::vector<double> distances_mm;
-  std::vector<std::string> pipeline_settings;  // --set KEY=VALUE, applied in order
-  bool all_types = false, quiet = false;
-  Line2dOptions line2d;
-  Criterion criterion;
-};
-
-Options parse(int argc, char** argv) {
-  Options o;
-  for (int i = 2; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto value = [&]() -> std::string {
-      if (i + 1 >= argc) throw Usage(a + " needs a value");
-      return argv[++i];
-    };
-    if (a == "--dataset") o.dataset = value();
-    else if (a == "--split") o.split = value();
-    else if (a == "--camera") o.camera = value();
-    else if (a == "--model-symmetries") o.model_symmetries = true;
-    else if (a == "--templates") o.templates = value();
-    else if (a == "--parts") o.parts = value();
-    else if (a == "--out") o.out = value();
-    else if (a == "--methods") {
-      o.methods.clear();
-      std::stringstream ss(value());
-      for (std::string m; std::getline(ss, m, ',');) {
-        if (m != "fdcm" && m != "fdcm-rounds" && m != "fdcm-search" && m != "ocm" && m != "cm" && m != "line2d")
-          throw Usage("--methods: unknown method '" + m + "' (known: fdcm, fdcm-rounds, fdcm-search, ocm, cm, line2d)");
-        o.methods.push_back(m);
-      }
-      if (o.methods.empty()) throw Usage("--methods needs at least one method");
-    } else if (a == "--max-images") o.max_images = to_int(a, value());
-    else if (a == "--grasp-features") o.grasp_features = value();
-    else if (a == "--pick-grasp") {
-      const std::string v = value();
-      const auto comma = v.find(',');
-      if (comma == std::string::npos) throw Usage("--pick-grasp takes W,V (weight, minimum visibility)");
-      o.grasp_weight = to_double(a, v.substr(0, comma));
-      o.min_grasp_visibility = to_double(a, v.substr(comma + 1));
-    }
-    else if (a == "--pick-min-score") o.pick_min_score = to_double(a, value());
-    else if (a == "--pick-ambiguous") o.pick_ambiguous = true;
-    else if (a == "--threads") o.threads = to_int(a, value());
-    else if (a == "--timing-repeats") o.timing_repeats = to_int(a, value());
-    else if (a == "--all-types") o.all_types = true;
-    else if (a == "--refine-candidates") {
-      o.refine_candidates = to_int(a, value());
-      if (o.refine_candidates < 0) throw Usage("--refine-candidates must be >= 0");
-    }
-    else if (a == "--distances") {
-      std::stringstream ss(value());
-      for (std::string d; std::getline(ss, d, ',');) {
-        o.distances_mm.push_back(to_double(a, d));
-        if (!(o.distances_mm.back() > 0)) throw Usage("--distances: '" + d + "' is not a positive distance");
-      }
-    }
-    else if (a == "--floor") {
-      const std::string v = value();
-      o.floor_per_scene = v == "scene";
-      o.floor_mm = o.floor_per_scene ? 0 : to_double(a, v);
-      if (!(o.floor_mm >= 0)) throw Usage("--floor must be >= 0 (0: not known) or scene");
-    }
-    else if (a == "--set") {
-      o.pipeline_settings.push_back(value());
-      try {  // refused here, before any dataset is read
-        vision::PipelineConfig probe;
-        apply_eval_setting(probe, o.pipeline_settings.back());
-      } catch (const std::invalid_argument& e) {
-        throw Usage(std::string("--set: ") + e.what());
-      }
-    }
-    else if (a == "--line2d-step") o.line2d.inplane_step_deg = to_double(a, value());
-    else if (a == "--line2d-view-stride") o.line2d.view_stride = to_int(a, value());
-    else if (a == "--max-position") o.criterion.max_position_mm = to_double(a, value());
-    else if (a == "--max-rotation") o.criterion.max_rotation_deg = to_double(a, value());
-    else if (a == "--overlay") o.overlay = value();
-    else if (a == "--quiet") o.quiet = true;
-    else throw Usage("unknown argument '" + a + "'");
-  }
-  o.line2d.distances_mm = o.distances_mm;
-  o.line2d.floor.distance_mm = o.floor_mm;
-  // First, so that a --set floor_distance_mm of an experiment still overrides it.
-  if (o.floor_mm > 0) o.pipeline_settings.insert(o.pipeline_settings.begin(), "floor_distance_mm=" + std::to_string(o.floor_mm));
-  if (o.dataset.empty()) throw Usage("--dataset is required");
-  if (o.templates.empty()) throw Usage("--templates is required");
-  if (o.out.empty()) throw Usage("--out is required");
-  if (o.max_images < 0) throw Usage("--max-images must be >= 0");
-  if (!(o.pick_min_score >= 0 && o.pick_min_score <= 1)) throw Usage("--pick-min-score must be in 0..1");
-  if (!(o.grasp_weight >= 0 && o.grasp_weight <= 100) || !(o.min_grasp_visibility >= 0 && o.min_grasp_visibility <= 1))
-    throw Usage("--pick-grasp: the weight must be in 0..100 and the minimum visibility in 0..1");
-  if (o.timing_repeats < 1 || o.timing_repeats > 10) throw Usage("--timing-repeats must be in 1..10");
-  if (!(o.line2d.inplane_step_deg > 0 && o.line2d.inplane_step_deg <= 360)) throw Usage("--line2d-step must be in (0, 360]");
-  if (o.line2d.view_stride < 1) throw Usage("--line2d-view-stride must be >= 1");
-  if (!(o.criterion.max_position_mm > 0) || !(o.criterion.max_rotation_deg > 0))
-    throw Usage("--max-position and --max-rotation must be positive");
-  return o;
-}
-
-RefineEvalOptions parse_refine(int argc, char** argv) {
-  RefineEvalOptions o;
-  o.parts = fs::path(MFC_SOURCE_DIR) / "config/parts/parts.csv";
-  o.camera = fs::path(MFC_SOURCE_DIR) / "config/camera-sim.yaml";
-  for (int i = 2; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto value = [&]() -> std::string {
-      if (i + 1 >= argc) throw Usage(a + " needs a value");
-      return argv[++i];
-    };
-    if (a == "--templates") o.templates = value();
-    else if (a == "--parts") o.parts = value();
-    else if (a == "--camera") o.camera = value();
-    else if (a == "--out") o.out = value();
-    else if (a == "--trials") o.trials_per_part = to_int(a, value());
-    else if (a == "--seed") o.seed = static_cast<unsigned>(to_int(a, value()));
-    else if (a == "--shift") o.side_shift_mm = to_double(a, value());
-    else if (a == "--distances") {
-      std::stringstream ss(value());
-      for (std::string d; std::getline(ss, d, ',');) {
-        o.distances_mm.push_back(to_double(a, d));
-        if (!(o.distances_mm.back() > 0)) throw Usage("--distances: '" + d + "' is not a positive distance");
-      }
-    } else if (a == "--quiet") o.quiet = true;
-    else throw Usage("unknown argument '" + a + "'");
-  }
-  if (o.templates.empty()) throw Usage("--templates is required");
-  if (o.out.empty()) throw Usage("--out is required");
-  if (o.trials_per_part < 1) throw Usage("--trials must be >= 1");
-  if (!fs::is_directory(o.templates)) throw std::runtime_error(o.templates.string() + ": no such templates folder");
-  return o;
-}
-
 struct ImageRef {
   int scene = 0, image = 0;
 };
 
-int run_detect(const Options& o) {
+int run_detect(const DetectEvalOptions& o) {
   if (!fs::is_directory(o.dataset)) throw std::runtime_error(o.dataset.string() + ": no such dataset folder");
   if (!fs::is_directory(o.templates)) throw std::runtime_error(o.templates.string() + ": no such templates folder");
   const std::vector<PartEntry> parts = read_parts_csv(o.parts);
@@ -351,6 +110,8 @@ int run_detect(const Options& o) {
 
   // Each method's detector, built lazily (LINE-2D trains for a while).
   json out;
+  out["version"] = version();
+  out["commit"] = git_commit();
   out["dataset"] = fs::absolute(o.dataset).string();
   out["split"] = o.split;
   out["images"] = images.size();
@@ -790,17 +551,10 @@ int run_detect(const Options& o) {
 
 int main(int argc, char** argv) {
   try {
-    const std::string cmd = argc > 1 ? argv[1] : "";
-    if (cmd == "-h" || cmd == "--help" || cmd == "help") {
-      std::fputs(kUsage, stdout);
-      return 0;
-    }
-    if (cmd == "detect") return run_detect(parse(argc, argv));
-    if (cmd == "refine") return run_refine_eval(parse_refine(argc, argv));
-    throw Usage(cmd.empty() ? "a command is required" : "unknown command '" + cmd + "'");
-  } catch (const Usage& e) {
-    std::fprintf(stderr, "mfc-eval: %s\n\n%s", e.what(), kUsage);
-    return 2;
+    EvalCommand command;
+    if (const auto code = parse_eval_command_line(argc, argv, MFC_SOURCE_DIR, command)) return *code;
+    if (command.name == "detect") return run_detect(command.detect);
+    return run_refine_eval(command.refine);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "mfc-eval: %s\n", e.what());
     return 1;

@@ -4,6 +4,7 @@
 
 #if __has_include("vision/pose/pose_refiner.hpp")
 #define MFC_EVAL_HAS_REFINER 1
+#include "tools/common/build_version.hpp"
 #include "tools/eval/pose_error.hpp"
 #include "vision/edges/depth_edges.hpp"
 #include "vision/pipeline/bin_picking_pipeline.hpp"
@@ -148,7 +149,8 @@ int run_refine_eval(const RefineEvalOptions& o) {
       trials.push_back(t);
     }
   }
-  nlohmann::json out = {{"seed", o.seed}, {"trials_per_part", o.trials_per_part}, {"side_shift_mm", o.side_shift_mm},
+  nlohmann::json out = {{"version", version()}, {"commit", git_commit()}, {"seed", o.seed},
+                        {"trials_per_part", o.trials_per_part}, {"side_shift_mm", o.side_shift_mm},
                         {"camera", o.camera.string()}, {"distances_mm", o.distances_mm}, {"trials", trials}};
   const std::filesystem::path tmp = o.out.string() + ".tmp";
   {

@@ -1,6 +1,7 @@
 // mfc-match: the FDCM 2-D shape detector on image files.
 //   mfc-match --template T.png|T.lines [--template ...] --query Q.png [options]
-// Prints the detections as JSON on stdout; --overlay writes a PNG with them drawn.
+// Prints the detections as JSON on stdout; --overlay writes a PNG with them drawn. `--help` for
+// the options; usage errors exit 2, failures 1.
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
@@ -11,126 +12,123 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include "tools/common/cli.hpp"
 #include "vision/detect/shape_detector.hpp"
 
 using namespace mfcd::vision;
 
 namespace {
 
-const char* kUsage = R"(usage: mfc-match --template FILE [--template FILE ...] --query IMAGE [options]
-
-Finds the templates in the query image with Fast Directional Chamfer Matching.
-Templates: edge images (PNG; non-binary images go through Canny) or line files (*.lines).
-
-  --query IMAGE          query image (binary edge map, or grey/colour -> Canny)
-  --json FILE            also write the JSON result to FILE (it always goes to stdout)
-  --overlay FILE         write a PNG of the query with the detections drawn
-  --save-lines FILE      write the first template's fitted lines as a line file
-  --mode detect|rank     detect: every detection under the threshold (default);
-                         rank: best placement of each template, cheapest first (gallery)
-  --method fdcm|ocm|cm   matching cost (default fdcm)
-  --search exhaustive|lines   exhaustive bounded search (default) or 1-D search along major lines
-  --threshold PX         detection threshold, mean cost in px (default 3)
-  --max-detections N     after non-maximum suppression (default 20)
-  --nms-iou X            max overlap between kept detections (default 0.3)
-  --rotation-step CH     in-plane rotation step in channels of 180/q degrees (default 1)
-  --angle-min DEG --angle-max DEG   rotation range (default 0..360)
-  --scales N --scale-ratio R        N scales, ratio R between neighbours (default 1, 1.2)
-  --aspects N --aspect-ratio R      N aspects, ratio R (default 1, 1.1)
-  --q N --lambda X --max-cost PX    DT3 parameters (default 60, 0.5 px/channel, 30 px)
-  --canny LOW HIGH       Canny thresholds for grey images (default 50 150)
-  --no-bounds            disable both search bounds (exhaustive reference)
-  --threads N            worker threads (default: all cores)
-)";
-
-[[noreturn]] void usageError(const std::string& msg) {
-  std::fprintf(stderr, "mfc-match: %s\n\n%s", msg.c_str(), kUsage);
-  std::exit(2);
-}
-
-double number(const std::string& opt, const char* v) {
-  char* end = nullptr;
-  const double x = std::strtod(v, &end);
-  if (!v[0] || *end) usageError(opt + " expects a number, got '" + v + "'");
-  return x;
-}
-
-}  // namespace
-
-int main(int argc, char** argv) {
+// The detector's options (DetectorParams) and the command's own, as the usage lists them.
+struct Options {
   std::vector<std::string> templates;
   std::string query, jsonOut, overlayOut, saveLines, mode = "detect";
   DetectorParams p;
   int scales = 1, aspects = 1;
   double scaleRatio = 1.2, aspectRatio = 1.1;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto value = [&]() -> const char* {
-      if (i + 1 >= argc) usageError(a + " needs a value");
-      return argv[++i];
-    };
-    if (a == "--help" || a == "-h") {
-      std::fputs(kUsage, stdout);
-      return 0;
-    } else if (a == "--template") templates.emplace_back(value());
-    else if (a == "--query") query = value();
-    else if (a == "--json") jsonOut = value();
-    else if (a == "--overlay") overlayOut = value();
-    else if (a == "--save-lines") saveLines = value();
-    else if (a == "--mode") mode = value();
-    else if (a == "--method") {
-      try {
-        p.method = matchMethodFromString(value());
-      } catch (const std::exception& e) {
-        usageError(e.what());
-      }
-    } else if (a == "--search") {
-      const std::string s = value();
-      if (s == "exhaustive") p.strategy = SearchStrategy::Exhaustive;
-      else if (s == "lines") p.strategy = SearchStrategy::MajorLines;
-      else usageError("--search expects exhaustive or lines, got '" + s + "'");
-    } else if (a == "--threshold") p.threshold = number(a, value());
-    else if (a == "--max-detections") p.maxDetections = static_cast<size_t>(number(a, value()));
-    else if (a == "--nms-iou") p.nmsMaxIoU = number(a, value());
-    else if (a == "--rotation-step") p.warps.angleStepChannels = static_cast<int>(number(a, value()));
-    else if (a == "--angle-min") p.warps.angleMin = number(a, value()) * CV_PI / 180;
-    else if (a == "--angle-max") p.warps.angleMax = number(a, value()) * CV_PI / 180;
-    else if (a == "--scales") scales = static_cast<int>(number(a, value()));
-    else if (a == "--scale-ratio") scaleRatio = number(a, value());
-    else if (a == "--aspects") aspects = static_cast<int>(number(a, value()));
-    else if (a == "--aspect-ratio") aspectRatio = number(a, value());
-    else if (a == "--q") p.lines.q = p.dt3.q = static_cast<int>(number(a, value()));
-    else if (a == "--lambda") p.dt3.lambda = number(a, value());
-    else if (a == "--max-cost") p.dt3.maxCost = number(a, value());
-    else if (a == "--canny") {
-      p.cannyLow = number(a, value());
-      p.cannyHigh = number(a, value());
-    } else if (a == "--no-bounds") p.hypothesisBound = p.spatialBound = false;
-    else if (a == "--threads") p.threads = static_cast<int>(number(a, value()));
-    else usageError("unknown option '" + a + "'");
-  }
-  if (templates.empty()) usageError("at least one --template is required");
-  if (query.empty()) usageError("--query is required");
-  if (mode != "detect" && mode != "rank") usageError("--mode expects detect or rank");
+};
+
+// A number option; a value that is not one is refused naming the option ("--threshold expects a
+// number, got 'abc'").
+double number(const std::string& opt, const std::string& v) {
+  char* end = nullptr;
+  const double x = std::strtod(v.c_str(), &end);
+  if (v.empty() || *end) throw mfcd::tools::UsageError(opt + " expects a number, got '" + v + "'");
+  return x;
+}
+
+template <class T>
+CLI::Option* addNumber(CLI::App& app, const std::string& name, T& into, const std::string& help) {
+  return mfcd::tools::add_converted(
+      app, name, into, [](const std::string& o, const std::string& v) { return static_cast<T>(number(o, v)); }, help);
+}
+
+void addOptions(CLI::App& app, Options& o) {
+  DetectorParams& p = o.p;
+  app.add_option("--template", o.templates, "edge image (PNG; non-binary images go through Canny) or line file\n"
+                                             "(*.lines); repeat for more templates")
+      ->type_name("FILE")->allow_extra_args(false)->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
+  app.add_option("--query", o.query, "query image (binary edge map, or grey/colour -> Canny)")->type_name("IMAGE");
+  app.add_option("--json", o.jsonOut, "also write the JSON result to FILE (it always goes to stdout)")
+      ->type_name("FILE");
+  app.add_option("--overlay", o.overlayOut, "write a PNG of the query with the detections drawn")->type_name("FILE");
+  app.add_option("--save-lines", o.saveLines, "write the first template's fitted lines as a line file")
+      ->type_name("FILE");
+  app.add_option("--mode", o.mode, "detect: every detection under the threshold (default);\n"
+                                   "rank: best placement of each template, cheapest first (gallery)")
+      ->type_name("detect|rank");
+  mfcd::tools::add_converted(app, "--method", p.method,
+                             [](const std::string&, const std::string& v) { return matchMethodFromString(v); },
+                             "matching cost (default fdcm)")->type_name("fdcm|ocm|cm");
+  mfcd::tools::add_converted(app, "--search", p.strategy, [](const std::string&, const std::string& s) {
+    if (s == "exhaustive") return SearchStrategy::Exhaustive;
+    if (s == "lines") return SearchStrategy::MajorLines;
+    throw mfcd::tools::UsageError("--search expects exhaustive or lines, got '" + s + "'");
+  }, "exhaustive bounded search (default) or 1-D search along major lines")->type_name("exhaustive|lines");
+  addNumber(app, "--threshold", p.threshold, "detection threshold, mean cost in px (default 3)")->type_name("PX");
+  addNumber(app, "--max-detections", p.maxDetections, "after non-maximum suppression (default 20)")->type_name("N");
+  addNumber(app, "--nms-iou", p.nmsMaxIoU, "max overlap between kept detections (default 0.3)")->type_name("X");
+  addNumber(app, "--rotation-step", p.warps.angleStepChannels,
+            "in-plane rotation step in channels of 180/q degrees (default 1)")->type_name("CH");
+  mfcd::tools::add_converted(app, "--angle-min", p.warps.angleMin, [](const std::string& opt, const std::string& v) {
+    return number(opt, v) * CV_PI / 180;
+  }, "rotation range start (default 0)")->type_name("DEG");
+  mfcd::tools::add_converted(app, "--angle-max", p.warps.angleMax, [](const std::string& opt, const std::string& v) {
+    return number(opt, v) * CV_PI / 180;
+  }, "rotation range end (default 360)")->type_name("DEG");
+  addNumber(app, "--scales", o.scales, "N scales (default 1)")->type_name("N");
+  addNumber(app, "--scale-ratio", o.scaleRatio, "ratio between neighbouring scales (default 1.2)")->type_name("R");
+  addNumber(app, "--aspects", o.aspects, "N aspects (default 1)")->type_name("N");
+  addNumber(app, "--aspect-ratio", o.aspectRatio, "ratio between neighbouring aspects (default 1.1)")->type_name("R");
+  // q is the line fitter's and DT3's: both are set.
+  mfcd::tools::add_converted(app, "--q", p.dt3.q, [&p](const std::string& opt, const std::string& v) {
+    return p.lines.q = static_cast<int>(number(opt, v));
+  }, "DT3 orientation channels (default 60)")->type_name("N");
+  addNumber(app, "--lambda", p.dt3.lambda, "DT3 orientation cost, px per channel (default 0.5)")->type_name("X");
+  addNumber(app, "--max-cost", p.dt3.maxCost, "DT3 truncation (default 30 px)")->type_name("PX");
+  app.add_option_function<std::vector<std::string>>("--canny", [&p](const std::vector<std::string>& v) {
+    p.cannyLow = number("--canny", v[0]);
+    p.cannyHigh = number("--canny", v[1]);
+  }, "Canny thresholds for grey images (default 50 150)")->expected(2)->type_name("LOW HIGH");
+  app.add_flag_callback("--no-bounds", [&p] { p.hypothesisBound = p.spatialBound = false; },
+                        "disable both search bounds (exhaustive reference)");
+  addNumber(app, "--threads", p.threads, "worker threads (default: all cores)")->type_name("N");
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"Finds the templates in the query image with Fast Directional Chamfer Matching and prints the\n"
+               "detections as JSON on stdout.", "mfc-match"};
+  mfcd::tools::init_app(app);
+  Options o;
+  addOptions(app, o);
+  if (const auto code = mfcd::tools::parse(app, argc, argv)) return *code;
+  if (o.templates.empty()) return mfcd::tools::usage_error(app, "at least one --template is required");
+  if (o.query.empty()) return mfcd::tools::usage_error(app, "--query is required");
+  if (o.mode != "detect" && o.mode != "rank") return mfcd::tools::usage_error(app, "--mode expects detect or rank");
+  DetectorParams& p = o.p;
 
   try {
-    p.warps.scales = WarpGrid::series(1.0, scaleRatio, scales);
-    p.warps.aspects = WarpGrid::series(1.0, aspectRatio, aspects);
+    p.warps.scales = WarpGrid::series(1.0, o.scaleRatio, o.scales);
+    p.warps.aspects = WarpGrid::series(1.0, o.aspectRatio, o.aspects);
     ShapeDetector det(p);
-    for (const auto& t : templates) det.addTemplate(loadTemplate(t, p.lines, p.cannyLow, p.cannyHigh));
-    if (!saveLines.empty()) writeLineFile(saveLines, det.templates().front().lines);
-    const cv::Mat img = cv::imread(query, cv::IMREAD_UNCHANGED);
-    if (img.empty()) throw std::runtime_error(query + ": not a readable image");
+    for (const auto& t : o.templates) det.addTemplate(loadTemplate(t, p.lines, p.cannyLow, p.cannyHigh));
+    if (!o.saveLines.empty()) writeLineFile(o.saveLines, det.templates().front().lines);
+    const cv::Mat img = cv::imread(o.query, cv::IMREAD_UNCHANGED);
+    if (img.empty()) throw std::runtime_error(o.query + ": not a readable image");
 
     DetectionReport report;
-    if (mode == "rank") report.detections = det.rank(img);
+    if (o.mode == "rank") report.detections = det.rank(img);
     else report = det.detect(img);
 
     nlohmann::json out;
-    out["query"] = query;
+    out["version"] = mfcd::version();
+    out["commit"] = mfcd::git_commit();
+    out["query"] = o.query;
     out["method"] = toString(p.method);
     out["search"] = p.strategy == SearchStrategy::Exhaustive ? "exhaustive" : "lines";
-    out["mode"] = mode;
+    out["mode"] = o.mode;
     out["threshold_px"] = p.threshold;
     nlohmann::json dets = nlohmann::json::array();
     for (const auto& d : report.detections) {
@@ -144,7 +142,7 @@ int main(int argc, char** argv) {
                       {"box", {d.box.x, d.box.y, d.box.width, d.box.height}}});
     }
     out["detections"] = dets;
-    if (mode == "detect") {
+    if (o.mode == "detect") {
       out["stats"] = {{"query_edge_pixels", report.queryEdgePixels},
                       {"query_lines", report.queryLines},
                       {"hypotheses", report.stats.hypotheses},
@@ -157,13 +155,13 @@ int main(int argc, char** argv) {
     }
     const std::string text = out.dump(2);
     std::cout << text << "\n";
-    if (!jsonOut.empty()) {
-      std::ofstream f(jsonOut);
+    if (!o.jsonOut.empty()) {
+      std::ofstream f(o.jsonOut);
       f << text << "\n";
-      if (!f) throw std::runtime_error(jsonOut + ": cannot write");
+      if (!f) throw std::runtime_error(o.jsonOut + ": cannot write");
     }
-    if (!overlayOut.empty() && !cv::imwrite(overlayOut, drawDetections(img, report.detections)))
-      throw std::runtime_error(overlayOut + ": cannot write overlay PNG");
+    if (!o.overlayOut.empty() && !cv::imwrite(o.overlayOut, drawDetections(img, report.detections)))
+      throw std::runtime_error(o.overlayOut + ": cannot write overlay PNG");
   } catch (const std::exception& e) {
     std::fprintf(stderr, "mfc-match: %s\n", e.what());
     return 1;

@@ -2,7 +2,8 @@
 //   mfc-teach MODEL --camera CAMERA.yaml --out PART.tdb [--obj-id N] [--name NAME]
 //             [--unit mm|cm|m|in|<mm per unit>] [--views K] [--symmetry none|z:N|z:inf]
 //             [--views-symmetry none|z:N|z:inf] [--distance MM] [--lighting-turns N[:M]] [--lighting-tolerance PX] [--threads N] [--quiet]
-#include "tools/common/cli_numbers.hpp"
+// Exit status: 0 written, 1 refused (model, camera, symmetry), 2 usage.
+#include "tools/common/cli.hpp"
 #include "vision/model/mesh.hpp"
 #include "vision/templates/template_teacher.hpp"
 
@@ -21,30 +22,51 @@ using namespace mfcd::vision;
 
 namespace {
 
-void usage(std::FILE* to) {
-  std::fprintf(to,
-               "usage: mfc-teach MODEL --camera CAMERA.yaml --out PART.tdb [options]\n"
-               "  MODEL              part mesh: STL (ASCII/binary), OBJ or PLY\n"
-               "  --camera FILE      camera + flash YAML the templates are rendered for (docs/camera.md)\n"
-               "  --out FILE         template database to write\n"
-               "  --obj-id N         BOP object id (default: N from a model named obj_00000N.*, else 1)\n"
-               "  --name NAME        part name (default: the model file's stem)\n"
-               "  --unit U           model unit: mm (default), cm, m, in, or mm per unit\n"
-               "  --views K          views over the whole sphere (default 300)\n"
-               "  --symmetry S       none (default), z:N (N-fold about the model z axis), z:inf:\n"
-               "                     the turns that leave the part the same to the gripper\n"
-               "  --views-symmetry S the symmetry the views are folded by, when the part's edges\n"
-               "                     have a finer one (a small orienting feature); a subgroup of\n"
-               "                     --symmetry (default: --symmetry)\n"
-               "  --distance MM      part centre to lens (default: the camera's working_distance_mm)\n"
-               "  --lighting-turns N[:M] render each view N times, turned about the optical axis\n"
-               "                     over the LED ring's period, and keep the edge pixels that at\n"
-               "                     least M of them show (default 4:4; M defaults to N; 1 = off)\n"
-               "  --lighting-tolerance PX  how far from the view's edge a turned render's may lie\n"
-               "                     (default 1)\n"
-               "  --threads N        rendering threads (default: all cores)\n"
-               "  --preview PNG      also write a contact sheet of up to 64 views (lines over edge points)\n"
-               "  --quiet            no progress bar\n");
+// What the command line sets; defaults as TeachParams has them, K = 300 views.
+struct Options {
+  std::vector<std::string> models;  // one MODEL: more are refused by name
+  std::string camera, out, name, unit = "mm", symmetry = "none", views_symmetry, preview;
+  int obj_id = -1, views = 300, threads = 0;
+  int lighting_turns = TeachParams{}.lighting_turns, lighting_min_turns = TeachParams{}.lighting_min_turns;
+  int lighting_tolerance = TeachParams{}.lighting_tolerance_px;
+  double distance = 0;
+  bool quiet = false;
+};
+
+void add_options(CLI::App& app, Options& o) {
+  app.add_option("MODEL", o.models, "part mesh: STL (ASCII/binary), OBJ or PLY")->required()->type_name("");
+  app.add_option("--camera", o.camera, "camera + flash YAML the templates are rendered for (docs/camera.md)")
+      ->required()->type_name("FILE");
+  app.add_option("--out", o.out, "template database to write")->required()->type_name("FILE");
+  mfcd::tools::add_int(app, "--obj-id", o.obj_id, "BOP object id (default: N from a model named obj_00000N.*, else 1)");
+  app.add_option("--name", o.name, "part name (default: the model file's stem)")->type_name("NAME");
+  app.add_option("--unit", o.unit, "model unit: mm (default), cm, m, in, or mm per unit")->type_name("U");
+  mfcd::tools::add_int(app, "--views", o.views, "views over the whole sphere (default 300)")->type_name("K");
+  app.add_option("--symmetry", o.symmetry, "none (default), z:N (N-fold about the model z axis), z:inf:\n"
+                                           "the turns that leave the part the same to the gripper")->type_name("S");
+  app.add_option("--views-symmetry", o.views_symmetry, "the symmetry the views are folded by, when the part's edges\n"
+                                                       "have a finer one (a small orienting feature); a subgroup of\n"
+                                                       "--symmetry (default: --symmetry)")->type_name("S");
+  mfcd::tools::add_converted(app, "--distance", o.distance, [](const std::string& opt, const std::string& v) {
+    const double d = mfcd::tools::parse_double(opt, v);
+    if (!(d > 0)) throw mfcd::tools::UsageError(opt + " '" + v + "' is not a positive number");
+    return d;
+  }, "part centre to lens (default: the camera's working_distance_mm)")->type_name("MM");
+  // N[:M]: N renders per view, M of them must show an edge pixel (M defaults to N).
+  app.add_option_function<std::string>("--lighting-turns", [&o](const std::string& v) {
+    const size_t colon = v.find(':');
+    o.lighting_turns = mfcd::tools::parse_int("--lighting-turns", v.substr(0, colon));
+    o.lighting_min_turns =
+        colon == std::string::npos ? o.lighting_turns : mfcd::tools::parse_int("--lighting-turns", v.substr(colon + 1));
+  }, "render each view N times, turned about the optical axis\n"
+     "over the LED ring's period, and keep the edge pixels that at\n"
+     "least M of them show (default 4:4; M defaults to N; 1 = off)")->type_name("N[:M]");
+  mfcd::tools::add_int(app, "--lighting-tolerance", o.lighting_tolerance,
+                       "how far from the view's edge a turned render's may lie\n(default 1)")->type_name("PX");
+  mfcd::tools::add_int(app, "--threads", o.threads, "rendering threads (default: all cores)");
+  app.add_option("--preview", o.preview, "also write a contact sheet of up to 64 views (lines over edge points)")
+      ->type_name("PNG");
+  app.add_flag("--quiet", o.quiet, "no progress bar");
 }
 
 // N for a model named like a BOP model, obj_00000N.ply; 1 otherwise. (Parsed by hand: std::regex
@@ -88,79 +110,42 @@ void write_preview(const TemplateDatabase& db, const std::string& file) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string model, camera, out, name, unit = "mm", symmetry = "none", views_symmetry;
-  const TeachParams defaults;
-  int obj_id = -1, views = 300, threads = 0, lighting_turns = defaults.lighting_turns,
-      lighting_min_turns = defaults.lighting_min_turns, lighting_tolerance = defaults.lighting_tolerance_px;
-  double distance = 0;
-  bool quiet = false;
-  std::string preview;
+  CLI::App app{"Builds a part's template database (*.tdb) from its CAD model (docs/template-database.md).",
+               "mfc-teach"};
+  mfcd::tools::init_app(app);
+  Options o;
+  add_options(app, o);
+  if (const auto code = mfcd::tools::parse(app, argc, argv)) return *code;
+  const std::string& model = o.models.front();
+  std::string name = o.name;
+  int obj_id = o.obj_id;
   try {
-    for (int i = 1; i < argc; ++i) {
-      const std::string a = argv[i];
-      auto value = [&](const char* opt) -> std::string {
-        if (i + 1 >= argc) throw std::invalid_argument(std::string(opt) + " needs a value");
-        return argv[++i];
-      };
-      auto integer = [&](const char* opt) { return mfcd::tools::parse_int(opt, value(opt)); };
-      if (a == "-h" || a == "--help") {
-        usage(stdout);
-        return 0;
-      } else if (a == "--camera") camera = value("--camera");
-      else if (a == "--out") out = value("--out");
-      else if (a == "--obj-id") obj_id = integer("--obj-id");
-      else if (a == "--name") name = value("--name");
-      else if (a == "--unit") unit = value("--unit");
-      else if (a == "--views") views = integer("--views");
-      else if (a == "--symmetry") symmetry = value("--symmetry");
-      else if (a == "--views-symmetry") views_symmetry = value("--views-symmetry");
-      else if (a == "--threads") threads = integer("--threads");
-      else if (a == "--lighting-tolerance") lighting_tolerance = integer("--lighting-tolerance");
-      else if (a == "--lighting-turns") {
-        const std::string v = value("--lighting-turns");
-        const size_t colon = v.find(':');
-        lighting_turns = mfcd::tools::parse_int("--lighting-turns", v.substr(0, colon));
-        lighting_min_turns =
-            colon == std::string::npos ? lighting_turns : mfcd::tools::parse_int("--lighting-turns", v.substr(colon + 1));
-      }
-      else if (a == "--distance") {
-        const std::string v = value("--distance");
-        distance = mfcd::tools::parse_double("--distance", v);
-        if (!(distance > 0)) throw std::invalid_argument("--distance '" + v + "' is not a positive number");
-      } else if (a == "--quiet") quiet = true;
-      else if (a == "--preview") preview = value("--preview");
-      else if (!a.empty() && a[0] == '-') throw std::invalid_argument("unknown option " + a);
-      else if (model.empty()) model = a;
-      else throw std::invalid_argument("more than one MODEL given ('" + model + "', '" + a + "')");
-    }
-    if (model.empty() || camera.empty() || out.empty()) {
-      usage(stderr);
-      return 2;
-    }
+    if (o.models.size() > 1)
+      throw mfcd::tools::UsageError("more than one MODEL given ('" + o.models[0] + "', '" + o.models[1] + "')");
     if (obj_id < 0) obj_id = default_obj_id(model);
-    if (obj_id < 1 || obj_id > 999999) throw std::invalid_argument("--obj-id must be in 1..999999");
+    if (obj_id < 1 || obj_id > 999999) throw mfcd::tools::UsageError("--obj-id must be in 1..999999");
     if (name.empty()) name = std::filesystem::path(model).stem().string();
 
     MeshLoadOptions mo;
-    mo.unit_mm = parse_unit_mm(unit);
+    mo.unit_mm = parse_unit_mm(o.unit);
     MeshReport report;
     const Mesh mesh = load_mesh(model, mo, &report);
     for (const auto& w : report.warnings) std::fprintf(stderr, "mfc-teach: %s: warning: %s\n", model.c_str(), w.c_str());
-    const CameraConfig cam = load_camera_config(camera);
+    const CameraConfig cam = load_camera_config(o.camera);
 
     TeachParams tp;
-    tp.sphere_samples = views;
-    tp.symmetry = PartSymmetry::parse(symmetry);
+    tp.sphere_samples = o.views;
+    tp.symmetry = PartSymmetry::parse(o.symmetry);
     // teach_templates refuses a fold that is not a subgroup of the part's symmetry.
-    if (!views_symmetry.empty()) tp.views_symmetry = PartSymmetry::parse(views_symmetry);
-    tp.distance_mm = distance;
-    tp.threads = threads;
-    tp.lighting_turns = lighting_turns;
-    tp.lighting_min_turns = lighting_min_turns;
-    tp.lighting_tolerance_px = lighting_tolerance;
+    if (!o.views_symmetry.empty()) tp.views_symmetry = PartSymmetry::parse(o.views_symmetry);
+    tp.distance_mm = o.distance;
+    tp.threads = o.threads;
+    tp.lighting_turns = o.lighting_turns;
+    tp.lighting_min_turns = o.lighting_min_turns;
+    tp.lighting_tolerance_px = o.lighting_tolerance;
     const auto t0 = std::chrono::steady_clock::now();
     auto seconds = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); };
-    const bool bar = !quiet;
+    const bool bar = !o.quiet;
     int last_percent = -1;
     TemplateDatabase db = teach_templates(mesh, cam, name, obj_id, tp, [&](int done, int total) {
       const int percent = total ? done * 100 / total : 100;
@@ -171,8 +156,8 @@ int main(int argc, char** argv) {
                    "##############################", width - filled, "", done, total, seconds());
       if (done == total) std::fputc('\n', stderr);
     });
-    save_template_database(db, out);
-    if (!preview.empty()) write_preview(db, preview);
+    save_template_database(db, o.out);
+    if (!o.preview.empty()) write_preview(db, o.preview);
     size_t lines = 0, points = 0;
     for (const auto& v : db.views) lines += v.lines.lines.size(), points += v.points.size();
     // The edge offset profiles within 10 degrees of the image axes (docs/template-database.md): the
@@ -180,11 +165,13 @@ int main(int argc, char** argv) {
     std::printf("%s: part %s obj_id %d symmetry %s, views folded by %s: %zu views (K = %d), %.1f lines and %.0f edge points per view, "
                 "distance %.1f mm, edge offset near image axes %.2f px (views) / %.2f px (query), lighting turns %d:%d, "
                 "turns from the mesh: %s, %.1f s\n",
-                out.c_str(), name.c_str(), obj_id, db.symmetry.str().c_str(), db.views_symmetry.str().c_str(), db.views.size(), views,
+                o.out.c_str(), name.c_str(), obj_id, db.symmetry.str().c_str(), db.views_symmetry.str().c_str(), db.views.size(), o.views,
                 double(lines) / db.views.size(), double(points) / db.views.size(), db.distance_mm,
-                db.template_edge_offset.mean_near(0, 10), db.query_edge_offset.mean_near(0, 10), lighting_turns,
-                lighting_min_turns, describe(db.turns).c_str(), seconds());
+                db.template_edge_offset.mean_near(0, 10), db.query_edge_offset.mean_near(0, 10), o.lighting_turns,
+                o.lighting_min_turns, describe(db.turns).c_str(), seconds());
     return 0;
+  } catch (const mfcd::tools::UsageError& e) {
+    return mfcd::tools::usage_error(app, e.what());
   } catch (const std::exception& e) {
     std::fprintf(stderr, "\nmfc-teach: %s\n", e.what());
     return 1;
