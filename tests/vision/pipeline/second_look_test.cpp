@@ -96,7 +96,9 @@ TEST(SecondLook, PlacesADiamondOnItsRimNearerTheTruthThanOneView) {
     for (size_t i = 0; i < fused.candidates.size(); ++i) {
       const SecondLookCandidate& c = fused.candidates[i];
       EXPECT_DOUBLE_EQ(c.rank, c.rank_first + c.rank_second);
-      if (i > 0) EXPECT_LE(c.rank, fused.candidates[i - 1].rank);
+      if (i > 0) {
+        EXPECT_LE(c.rank, fused.candidates[i - 1].rank);
+      }
       for (size_t j = 0; j < i; ++j) {
         const SecondLookCandidate& o = fused.candidates[j];
         EXPECT_GE(cv::norm((c.R_m2c * db.center_mm + c.t_m2c_mm) - (o.R_m2c * db.center_mm + o.t_m2c_mm)),
