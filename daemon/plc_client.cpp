@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <memory>
 #include <string>
 #include <thread>
 
@@ -63,7 +64,9 @@ int main(int argc, char** argv) {
   const int port = o.port, cycles = o.cycles, recipe = o.recipe, mode = o.mode, firstJob = o.firstJob,
             timeoutMs = o.timeoutMs, connectMs = o.connectMs;
   // mfcd may still be starting (loading templates): retry the connection for a while.
-  modbus_t* ctx = modbus_new_tcp(host.c_str(), port);
+  // Owned: freed on every return, also the error paths.
+  const std::unique_ptr<modbus_t, decltype(&modbus_free)> context(modbus_new_tcp(host.c_str(), port), &modbus_free);
+  modbus_t* ctx = context.get();
   bool connected = false;
   for (const auto until = std::chrono::steady_clock::now() + std::chrono::milliseconds(connectMs);;) {
     connected = ctx && modbus_connect(ctx) == 0;
@@ -138,6 +141,5 @@ int main(int argc, char** argv) {
     std::fflush(stdout);
   }
   modbus_close(ctx);
-  modbus_free(ctx);
   return failures ? 1 : 0;
 }
