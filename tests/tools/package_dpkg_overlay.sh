@@ -14,7 +14,7 @@ set -eu
 deb="$1" dir="$2"
 fail() { echo "FAIL (dpkg in an overlay): $*"; exit 1; }
 mkdir -p "$dir"
-mount -t tmpfs mfcd-ovl "$dir"
+mount -t tmpfs mfcd-ovl "$dir" || { echo "SKIP: cannot mount a tmpfs here"; exit 77; }
 mkdir -p "$dir/upper" "$dir/work" "$dir/root"
 mount -t overlay mfcd-ovl -o "lowerdir=/,upperdir=$dir/upper,workdir=$dir/work" "$dir/root" 2> "$dir/mount.log" ||
   { cat "$dir/mount.log"; echo "SKIP: overlayfs over / not possible here"; exit 77; }
