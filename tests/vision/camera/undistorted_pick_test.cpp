@@ -9,6 +9,7 @@
 #include "vision/render/mfc_renderer.hpp"
 #include "vision/templates/template_database.hpp"
 #include "tests/vision/support/floor_scene.hpp"
+#include "tests/vision/support/pose_errors.hpp"
 
 #include <gtest/gtest.h>
 
@@ -88,19 +89,7 @@ struct PickError {
   double rotation_deg = 1e9;
 };
 
-// Rotation angle (degrees) between two poses, the smallest over the part's discrete symmetries.
-double rotation_error_deg(const cv::Matx33d& a, const cv::Matx33d& b, const PartSymmetry& sym) {
-  if (sym.kind == PartSymmetry::Kind::continuous_z) {
-    const cv::Vec3d za(a(0, 2), a(1, 2), a(2, 2)), zb(b(0, 2), b(1, 2), b(2, 2));
-    return std::acos(std::clamp(za.dot(zb), -1.0, 1.0)) * 180 / CV_PI;
-  }
-  double best = 1e9;
-  for (const auto& S : sym.discrete_rotations()) {
-    const cv::Matx33d d = a.t() * b * S;
-    best = std::min(best, std::acos(std::clamp((cv::trace(d) - 1) / 2, -1.0, 1.0)) * 180 / CV_PI);
-  }
-  return best;
-}
+using mfcd::vision::testing::rotation_error_deg;
 
 PickError pick(BinPickingPipeline& pipeline, const MfcFrames& frames, const TemplateDatabase& db, const RigidPose& truth) {
   PipelineResult r;

@@ -8,6 +8,7 @@
 #include "vision/templates/template_database.hpp"
 #include "tests/hal/alloc_counter.hpp"
 #include "tests/vision/support/floor_scene.hpp"
+#include "tests/vision/support/pose_errors.hpp"
 #include "tests/vision/support/rim_diamonds.hpp"
 
 #include <gtest/gtest.h>
@@ -35,20 +36,7 @@ const fs::path kTemplates = fs::path(MFC_BINARY_DIR) / "templates";
 
 CameraConfig sim_camera() { return load_camera_config(fs::path(MFC_SOURCE_DIR) / "config/camera-sim.yaml"); }
 
-// Rotation angle (degrees) between two poses, the smallest over the part's symmetries.
-double rotation_error_deg(const cv::Matx33d& a, const cv::Matx33d& b, const PartSymmetry& sym) {
-  double best = 1e9;
-  if (sym.kind == PartSymmetry::Kind::continuous_z) {
-    // Only the direction of the symmetry axis matters.
-    const cv::Vec3d za(a(0, 2), a(1, 2), a(2, 2)), zb(b(0, 2), b(1, 2), b(2, 2));
-    return std::acos(std::clamp(za.dot(zb), -1.0, 1.0)) * 180 / CV_PI;
-  }
-  for (const auto& S : sym.discrete_rotations()) {
-    const cv::Matx33d d = a.t() * b * S;
-    best = std::min(best, std::acos(std::clamp((cv::trace(d) - 1) / 2, -1.0, 1.0)) * 180 / CV_PI);
-  }
-  return best;
-}
+using mfcd::vision::testing::rotation_error_deg;
 
 using mfcd::vision::testing::render_on_floor;
 

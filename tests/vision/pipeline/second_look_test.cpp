@@ -4,6 +4,7 @@
 // its true pose than the one view did, on every render.
 #include "vision/pipeline/second_look.hpp"
 
+#include "tests/vision/support/pose_errors.hpp"
 #include "tests/vision/support/rim_diamonds.hpp"
 
 #include <gtest/gtest.h>
@@ -14,14 +15,9 @@
 
 using namespace mfcd::vision;
 using mfcd::vision::testing::RimDiamonds;
+using mfcd::vision::testing::rotation_error_deg;
 
 namespace {
-
-double rotation_error_deg(const cv::Matx33d& a, const cv::Matx33d& b, const PartSymmetry& sym) {
-  double best = 1e9;
-  for (const auto& S : sym.discrete_rotations()) best = std::min(best, rotation_angle(a.t() * b * S) * 180 / CV_PI);
-  return best;
-}
 
 std::chrono::steady_clock::time_point far_deadline() {
   return std::chrono::steady_clock::now() + std::chrono::seconds(60);

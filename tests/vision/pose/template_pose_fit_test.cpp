@@ -64,6 +64,17 @@ struct FloorScene {
     const int view = TemplatePoseFit::nearest_view(db, cam.camera, start);
     return fitter.fit(db, view, start, cam.camera, ws);
   }
+  // A random orientation seen from the part's upper side, its centre within +-x_mm, +-y_mm of the
+  // optical axis at 280-300 mm.
+  RigidPose upper_side_pose(std::mt19937& rng, double x_mm, double y_mm) const {
+    std::uniform_real_distribution<double> u(-1, 1);
+    RigidPose p;
+    do cv::Rodrigues(cv::Vec3d(u(rng), u(rng), u(rng)) * CV_PI, p.R);
+    while ((p.R.t() * cv::Vec3d(0, 0, -1))[2] < 0.2);
+    const cv::Vec3d centre(x_mm * u(rng), y_mm * u(rng), 290 + 10 * u(rng));
+    p.t_mm = centre - p.R * db.center_mm;
+    return p;
+  }
   // A pose of the part seen from above, tilted by `tilt_deg` about a horizontal axis at
   // `tilt_dir` and turned by `spin` about its z axis, its centre at `centre`.
   RigidPose from_above(double tilt_deg, double tilt_dir, double spin, const cv::Vec3d& centre) const {
@@ -207,17 +218,12 @@ TEST_P(TemplatePoseFitOnRenders, MovesTheCoarsePoseTowardsTheTruth) {
   TemplatePoseFit& fitter = scene.fitter;
   TemplatePoseFit::Workspace& ws = scene.ws;
   std::mt19937 rng(std::hash<std::string>{}(GetParam()) % 1000);
-  std::uniform_real_distribution<double> u(-1, 1);
   double start_t = 0, end_t = 0, start_r = 0, end_r = 0;
   int better = 0;
   const int trials = 6;
   for (int trial = 0; trial < trials; ++trial) {
-    // A random orientation seen from the part's upper side, in the image, at 280-300 mm.
-    RigidPose truth;
-    do cv::Rodrigues(cv::Vec3d(u(rng), u(rng), u(rng)) * CV_PI, truth.R);
-    while ((truth.R.t() * cv::Vec3d(0, 0, -1))[2] < 0.2);
-    const cv::Vec3d centre(40 * u(rng), 30 * u(rng), 290 + 10 * u(rng));
-    truth.t_mm = centre - truth.R * db.center_mm;
+    const RigidPose truth = scene.upper_side_pose(rng, 40, 30);
+    const cv::Vec3d centre = truth.R * db.center_mm + truth.t_mm;
     scene.show(truth, 200 + trial);
     // Start: the coarse pose of the nearest view, as the search would place it.
     RigidPose copy = truth;
@@ -258,15 +264,11 @@ TEST_P(TemplatePoseFitOnRenders, TwoViewsHoldTheTiltAndDistanceOneViewTrades) {
   const TemplateDatabase& db = first.db;
   const PinholeCamera& cam = first.cam.camera;
   std::mt19937 rng(std::hash<std::string>{}(GetParam()) % 1000 + 7);
-  std::uniform_real_distribution<double> u(-1, 1);
   double one_r = 0, two_r = 0, one_t = 0, two_t = 0;
   const int trials = 4;
   for (int trial = 0; trial < trials; ++trial) {
-    RigidPose truth;
-    do cv::Rodrigues(cv::Vec3d(u(rng), u(rng), u(rng)) * CV_PI, truth.R);
-    while ((truth.R.t() * cv::Vec3d(0, 0, -1))[2] < 0.2);
-    const cv::Vec3d centre(30 * u(rng), 20 * u(rng), 290 + 10 * u(rng));
-    truth.t_mm = centre - truth.R * db.center_mm;
+    const RigidPose truth = first.upper_side_pose(rng, 30, 20);
+    const cv::Vec3d centre = truth.R * db.center_mm + truth.t_mm;
     // The second camera: turned 25 degrees about the part's centre (about the image's x axis).
     RigidTransform motion;
     motion.R = rotation_from_angle_axis({25 * CV_PI / 180, 0, 0});
