@@ -45,7 +45,7 @@ void add_options(CLI::App& app, Options& o) {
   app.add_option("--camera", o.camera_file, "camera YAML (docs/camera.md) whose flash positions are used where the\n"
                                             "dataset's scene_camera.json gives none (a standard BOP dataset)")
       ->type_name("FILE");
-  // As before: the files after --templates up to the next option; --templates may be repeated.
+  // The files after --templates up to the next option; --templates may be repeated.
   app.add_option("--templates", o.templates, "template databases (mfc-teach); each carries its part's obj_id")
       ->required()->type_name("F...")->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
   app.add_option("--out", o.out, "BOP results CSV to write; for the BOP toolkit name it METHOD_DATASET-SPLIT.csv\n"
