@@ -160,6 +160,12 @@ class TemplatePoseFit {
                     const Workspace& ws, std::vector<cv::Point2d>& seen, std::vector<double>& angle) const;
   void score(const TemplateDatabase& db, int view, const PinholeCamera& camera, Workspace& ws,
              TemplateFitResult& r) const;
+  // The correspondence gate at step `step` of params().iterations: initial_gate_px shrinking
+  // geometrically to final_gate_px.
+  double gate_at(int step) const;
+  // The damped step of normal equations H delta = -g (Levenberg-Marquardt, Cholesky); false when
+  // they have no solution.
+  bool solve_step(cv::Matx66d H, const cv::Vec6d& g, cv::Vec6d& delta) const;
   // One Gauss-Newton step's normal equations of the loaded view's points at `pose` (the update:
   // rotation about `centre_cam`, then translation, camera axes), added to H and g; with
   // `update_to_camera`, the update is another camera's and that rotation turns it into this
