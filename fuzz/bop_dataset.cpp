@@ -4,8 +4,8 @@
 // default) and, by byte / 5, whether camera.json is left out (bit 0) and whether the reader gets
 // default flash positions (bit 1). Every accessor is run over every image the scene lists.
 
-#include "fuzz/fuzz_support.hpp"
 #include "vision/dataset/bop_dataset.hpp"
+#include "fuzz/fuzz_support.hpp"
 
 #include <array>
 #include <stdexcept>

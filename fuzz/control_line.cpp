@@ -48,7 +48,8 @@ struct Rig {
     sockaddr_un addr{};
     addr.sun_family = AF_UNIX;
     std::strncpy(addr.sun_path, path.c_str(), sizeof addr.sun_path - 1);
-    if (::connect(peer.get(), reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0) mfcd::fuzz::finding("cannot connect");
+    if (::connect(peer.get(), reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0)
+      mfcd::fuzz::finding("cannot connect");
     loop.run_once(1000);  // accepts the peer: client 1
     if (server.clients() != 1) mfcd::fuzz::finding("the peer was not accepted");
   }
@@ -62,7 +63,8 @@ void check_replies(int fd) {
   for (std::size_t nl; (nl = in.find('\n', start)) != std::string::npos; start = nl + 1) {
     json reply;
     try {
-      reply = json::parse(in.begin() + static_cast<std::ptrdiff_t>(start), in.begin() + static_cast<std::ptrdiff_t>(nl));
+      reply =
+          json::parse(in.begin() + static_cast<std::ptrdiff_t>(start), in.begin() + static_cast<std::ptrdiff_t>(nl));
     } catch (const std::exception&) {
       mfcd::fuzz::finding("a reply line is not valid JSON");
     }

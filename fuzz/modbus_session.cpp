@@ -50,7 +50,7 @@ void check_still_answers(const ModbusServer& server) {
   std::uint8_t answer[11] = {};
   std::size_t have = 0;
   pollfd p{fd.get(), POLLIN, 0};
-  while (have < sizeof answer && ::poll(&p, 1, 2000) > 0) {
+  while (have < sizeof(answer) && ::poll(&p, 1, 2000) > 0) {
     const ssize_t n = ::recv(fd.get(), answer + have, sizeof answer - have, 0);
     if (n <= 0) break;
     have += static_cast<std::size_t>(n);

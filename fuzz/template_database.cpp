@@ -5,8 +5,8 @@
 // byte for byte the same but for the reserved word (the format has one encoding of each
 // database).
 
-#include "fuzz/fuzz_support.hpp"
 #include "vision/templates/template_database.hpp"
+#include "fuzz/fuzz_support.hpp"
 
 #include <zlib.h>
 
@@ -31,8 +31,9 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   if (bytes.size() >= kHeaderBytes) {
     const size_t payload = bytes.size() - kHeaderBytes;
     put_at<uint64_t>(bytes, 16, payload);
-    put_at<uint32_t>(bytes, 24, static_cast<uint32_t>(crc32(crc32(0L, Z_NULL, 0), bytes.data() + kHeaderBytes,
-                                                            static_cast<uInt>(payload))));
+    put_at<uint32_t>(
+        bytes, 24,
+        static_cast<uint32_t>(crc32(crc32(0L, Z_NULL, 0), bytes.data() + kHeaderBytes, static_cast<uInt>(payload))));
   }
   const auto input = mfcd::fuzz::scratch_dir() / "input.tdb";
   mfcd::fuzz::write_file(input, bytes.data(), bytes.size());

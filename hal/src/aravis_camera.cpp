@@ -55,21 +55,25 @@ HalError to_hal_error(const GError* e, const std::string& who, const char* what,
   const std::string where =
       who + ": " + what + (value ? std::string(" = ") + value : std::string()) + ": " + e->message;
   if (is_gone_error(e))
-    return HalError(ErrorCode::DeviceGone, where + "; the camera stopped answering (unplugged, powered off or its link "
-                                                   "is down) — check the cable and its power (PoE)");
+    return HalError(ErrorCode::DeviceGone, where +
+                                               "; the camera stopped answering (unplugged, powered off or its link "
+                                               "is down) — check the cable and its power (PoE)");
   if (is_missing_feature_error(e))
-    return HalError(ErrorCode::MissingFeature, who + ": GenICam feature '" + what + "' missing (" + e->message +
-                                                   "); check the camera's features (arv-viewer-0.8) against the configuration");
+    return HalError(ErrorCode::MissingFeature,
+                    who + ": GenICam feature '" + what + "' missing (" + e->message +
+                        "); check the camera's features (arv-viewer-0.8) against the configuration");
   if (e->domain == ARV_DEVICE_ERROR && e->code == ARV_DEVICE_ERROR_NOT_FOUND)
     return HalError(ErrorCode::DeviceMissing,
-                    where + "; check that the camera is powered and cabled, that its IP address is in the NIC's subnet, "
-                            "that the firewall lets GigE Vision through (UDP 3956 and the stream port), and the camera id "
-                            "(vendor-serial or IP address; arv-viewer-0.8 lists the cameras it finds)");
+                    where +
+                        "; check that the camera is powered and cabled, that its IP address is in the NIC's subnet, "
+                        "that the firewall lets GigE Vision through (UDP 3956 and the stream port), and the camera id "
+                        "(vendor-serial or IP address; arv-viewer-0.8 lists the cameras it finds)");
   if (e->domain == ARV_DEVICE_ERROR &&
       (e->code == ARV_DEVICE_ERROR_NOT_CONTROLLER || e->code == ARV_DEVICE_ERROR_PROTOCOL_ERROR_ACCESS_DENIED ||
        e->code == ARV_DEVICE_ERROR_PROTOCOL_ERROR_BUSY))
-    return HalError(ErrorCode::Io, where + "; another program controls the camera — close it (arv-viewer, a vendor "
-                                           "tool) or wait for its heartbeat to time out");
+    return HalError(ErrorCode::Io, where +
+                                       "; another program controls the camera — close it (arv-viewer, a vendor "
+                                       "tool) or wait for its heartbeat to time out");
   return HalError(ErrorCode::Io, where + "; check the value against the camera's range (arv-viewer-0.8)");
 }
 
@@ -87,13 +91,28 @@ struct ManualControl {
   void (*set)(ArvCamera*, double, GError**);
   double (*get)(ArvCamera*, GError**);
 };
-constexpr ManualControl kExposure{"exposure", "ExposureTime", "ExposureAuto", " us", "the configured manual exposure cannot be applied",
-                                  arv_camera_is_exposure_time_available, arv_camera_is_exposure_auto_available,
-                                  arv_camera_set_exposure_time_auto, arv_camera_get_exposure_time_bounds,
-                                  arv_camera_set_exposure_time, arv_camera_get_exposure_time};
-constexpr ManualControl kGain{"gain", "Gain", "GainAuto", "", "the configured manual gain cannot be applied",
-                              arv_camera_is_gain_available, arv_camera_is_gain_auto_available, arv_camera_set_gain_auto,
-                              arv_camera_get_gain_bounds, arv_camera_set_gain, arv_camera_get_gain};
+constexpr ManualControl kExposure{"exposure",
+                                  "ExposureTime",
+                                  "ExposureAuto",
+                                  " us",
+                                  "the configured manual exposure cannot be applied",
+                                  arv_camera_is_exposure_time_available,
+                                  arv_camera_is_exposure_auto_available,
+                                  arv_camera_set_exposure_time_auto,
+                                  arv_camera_get_exposure_time_bounds,
+                                  arv_camera_set_exposure_time,
+                                  arv_camera_get_exposure_time};
+constexpr ManualControl kGain{"gain",
+                              "Gain",
+                              "GainAuto",
+                              "",
+                              "the configured manual gain cannot be applied",
+                              arv_camera_is_gain_available,
+                              arv_camera_is_gain_auto_available,
+                              arv_camera_set_gain_auto,
+                              arv_camera_get_gain_bounds,
+                              arv_camera_set_gain,
+                              arv_camera_get_gain};
 
 }  // namespace
 
@@ -149,7 +168,8 @@ struct AravisCamera::Session {
   }
   void require_feature(const char* feature, const std::string& purpose) const {
     if (!has_feature(feature))
-      throw HalError(ErrorCode::MissingFeature, owner.describe() + ": GenICam feature '" + feature + "' missing: " + purpose);
+      throw HalError(ErrorCode::MissingFeature,
+                     owner.describe() + ": GenICam feature '" + feature + "' missing: " + purpose);
   }
   std::vector<std::string> enum_entries(const char* feature) const {
     ErrorRef e;
@@ -200,8 +220,9 @@ void AravisCamera::require_state(Call call) const {
     case Call::Activate:
     case Call::SelectLed:
       if (state_ == State::Unconfigured)
-        throw HalError(ErrorCode::InvalidState, describe() + (call == Call::Activate ? ": activate()" : ": select_led()") +
-                                                    " before configure()");
+        throw HalError(
+            ErrorCode::InvalidState,
+            describe() + (call == Call::Activate ? ": activate()" : ": select_led()") + " before configure()");
       return;
     case Call::Read:
       if (state_ != State::Active)
@@ -233,15 +254,18 @@ void AravisCamera::Session::open() {
     camera.reset(arv_camera_new(owner.config_.camera_id.c_str(), e.out()));
     if (!camera) {
       check(e, "opening the camera");
-      throw HalError(ErrorCode::DeviceMissing, owner.describe() + ": no camera with this id answers; check the cable, its "
-                                                                  "power and the id (arv-viewer-0.8 lists the cameras it finds)");
+      throw HalError(ErrorCode::DeviceMissing, owner.describe() +
+                                                   ": no camera with this id answers; check the cable, its "
+                                                   "power and the id (arv-viewer-0.8 lists the cameras it finds)");
     }
   }
   // Without the control privilege every write would time out like a vanished camera: say who is at fault.
-  if (arv_camera_is_gv_device(camera.get()) && !arv_gv_device_is_controller(ARV_GV_DEVICE(arv_camera_get_device(camera.get()))))
-    throw HalError(ErrorCode::Io, owner.describe() + ": another host or program controls the camera (GigE Vision control "
-                                                     "privilege); close it (arv-viewer, a vendor tool) or wait for its "
-                                                     "heartbeat to time out");
+  if (arv_camera_is_gv_device(camera.get()) &&
+      !arv_gv_device_is_controller(ARV_GV_DEVICE(arv_camera_get_device(camera.get()))))
+    throw HalError(ErrorCode::Io, owner.describe() +
+                                      ": another host or program controls the camera (GigE Vision control "
+                                      "privilege); close it (arv-viewer, a vendor tool) or wait for its "
+                                      "heartbeat to time out");
   ErrorRef e;
   const char* vendor = arv_camera_get_vendor_name(camera.get(), e.out());
   check(e, "DeviceVendorName");
@@ -297,18 +321,18 @@ void AravisCamera::Session::setup_image() {
     gint wmin = 0, wmax = 0, hmin = 0, hmax = 0;
     arv_camera_get_width_bounds(cam, &wmin, &wmax, nullptr);
     arv_camera_get_height_bounds(cam, &hmin, &hmax, nullptr);
-    throw HalError(ErrorCode::UnsupportedFormat,
-                   owner.describe() + ": asked for " + std::to_string(c.width) + "x" + std::to_string(c.height) + " " +
-                       owner.pixel_format_name_ + ", camera gives " + std::to_string(w) + "x" + std::to_string(h) +
-                       " (width " + std::to_string(wmin) + ".." + std::to_string(wmax) + ", height " +
-                       std::to_string(hmin) + ".." + std::to_string(hmax) +
-                       "); check the image size of the camera model against the sensor");
+    throw HalError(ErrorCode::UnsupportedFormat, owner.describe() + ": asked for " + std::to_string(c.width) + "x" +
+                                                     std::to_string(c.height) + " " + owner.pixel_format_name_ +
+                                                     ", camera gives " + std::to_string(w) + "x" + std::to_string(h) +
+                                                     " (width " + std::to_string(wmin) + ".." + std::to_string(wmax) +
+                                                     ", height " + std::to_string(hmin) + ".." + std::to_string(hmax) +
+                                                     "); check the image size of the camera model against the sensor");
   }
   owner.format_ = ImageFormat{c.width, c.height, c.bits_per_pixel};
 }
 
 std::optional<double> AravisCamera::Session::apply_manual(const ManualControl& m,
-                                                         const std::optional<double>& value) const {
+                                                          const std::optional<double>& value) const {
   if (!value) return std::nullopt;
   ArvCamera* cam = camera.get();
   ErrorRef e;
@@ -321,9 +345,9 @@ std::optional<double> AravisCamera::Session::apply_manual(const ManualControl& m
   m.bounds(cam, &lo, &hi, e.out());
   check(e, m.feature);
   if (*value < lo || *value > hi)
-    throw HalError(ErrorCode::Io, owner.describe() + ": " + m.label + " " + std::to_string(*value) +
-                                      m.unit + " outside the camera's range " + std::to_string(lo) + ".." +
-                                      std::to_string(hi) + m.unit + "; check the configuration");
+    throw HalError(ErrorCode::Io, owner.describe() + ": " + m.label + " " + std::to_string(*value) + m.unit +
+                                      " outside the camera's range " + std::to_string(lo) + ".." + std::to_string(hi) +
+                                      m.unit + "; check the configuration");
   m.set(cam, *value, e.out());
   check(e, m.feature, std::to_string(*value).c_str());
   const double applied = m.get(cam, e.out());
@@ -341,7 +365,8 @@ void AravisCamera::Session::setup_controls() {
   const bool software_trigger = arv_camera_is_software_trigger_supported(cam, e.out());
   check(e, "TriggerSoftware");
   if (!software_trigger)
-    require_feature("TriggerSoftware", "the camera cannot expose on a software trigger, which the flash sequence needs");
+    require_feature("TriggerSoftware",
+                    "the camera cannot expose on a software trigger, which the flash sequence needs");
   arv_camera_set_trigger(cam, "Software", e.out());
   check(e, "TriggerMode/TriggerSource", "Software");
 
@@ -356,8 +381,9 @@ void AravisCamera::Session::setup_controls() {
 void AravisCamera::Session::setup_strobe() {
   const CameraStrobeConfig& s = *owner.config_.strobe;
   const std::string who = owner.describe();
-  const std::string purpose = "the camera cannot drive the LEDs from its outputs (camera strobe); fire the LEDs over "
-                              "GPIO instead (lights.type: gpiod) or use a camera with digital outputs";
+  const std::string purpose =
+      "the camera cannot drive the LEDs from its outputs (camera strobe); fire the LEDs over "
+      "GPIO instead (lights.type: gpiod) or use a camera with digital outputs";
   for (const char* f : {"LineSelector", "LineMode", "LineSource", "UserOutputSelector", "UserOutputValue"})
     require_feature(f, purpose);
 
@@ -365,12 +391,14 @@ void AravisCamera::Session::setup_strobe() {
   const std::vector<std::string> used{s.strobe_line, s.select_lines[0], s.select_lines[1], s.select_lines[2]};
   for (std::size_t i = 0; i < used.size(); ++i) {
     if (!contains(lines, used[i]))
-      throw HalError(ErrorCode::WrongLine, who + ": line '" + used[i] + "' is not one of the camera's lines (" + join(lines) +
+      throw HalError(ErrorCode::WrongLine, who + ": line '" + used[i] + "' is not one of the camera's lines (" +
+                                               join(lines) +
                                                "); check the strobe and select lines against the camera's I/O manual");
     for (std::size_t j = 0; j < i; ++j)
       if (used[j] == used[i])
-        throw HalError(ErrorCode::WrongLine, who + ": line '" + used[i] + "' is configured twice; the strobe line and the "
-                                                                          "three select lines must differ");
+        throw HalError(ErrorCode::WrongLine, who + ": line '" + used[i] +
+                                                 "' is configured twice; the strobe line and the "
+                                                 "three select lines must differ");
   }
   // Every used line becomes an output; an output-only line may refuse the write and must read Output.
   for (const std::string& line : used) {
@@ -380,8 +408,8 @@ void AravisCamera::Session::setup_strobe() {
     arv_camera_set_string(camera.get(), "LineMode", "Output", e.out());
     if (e && is_gone_error(e.get())) check(e, "LineMode", "Output");
     if (e)
-      throw HalError(ErrorCode::WrongLine, who + ": line '" + line + "' cannot be switched to an output (" + e->message +
-                                               "); wire the LED driver to one of the camera's outputs");
+      throw HalError(ErrorCode::WrongLine, who + ": line '" + line + "' cannot be switched to an output (" +
+                                               e->message + "); wire the LED driver to one of the camera's outputs");
   }
 
   const std::vector<std::string> outputs = enum_entries("UserOutputSelector");
@@ -391,11 +419,13 @@ void AravisCamera::Session::setup_strobe() {
   if (s.source == StrobeSource::ExposureActive) {
     lit = "ExposureActive";
   } else {
-    const std::string timer_purpose = "the strobe pulse needs a timer started by ExposureStart; use the exposure_active strobe";
+    const std::string timer_purpose =
+        "the strobe pulse needs a timer started by ExposureStart; use the exposure_active strobe";
     require_feature("TimerSelector", timer_purpose);
     require_feature("TimerTriggerSource", timer_purpose);
     const std::vector<std::string> timers = enum_entries("TimerSelector");
-    if (timers.empty()) throw HalError(ErrorCode::MissingFeature, who + ": TimerSelector offers no timer; " + timer_purpose);
+    if (timers.empty())
+      throw HalError(ErrorCode::MissingFeature, who + ": TimerSelector offers no timer; " + timer_purpose);
     write_enum("TimerSelector", timers[0].c_str());
     const std::vector<std::string> triggers = enum_entries("TimerTriggerSource");
     if (!contains(triggers, "ExposureStart"))
@@ -419,10 +449,11 @@ void AravisCamera::Session::setup_strobe() {
   const bool has_off = contains(strobe_sources, "Off");
   const std::size_t needed = has_off ? 3 : 4;
   if (outputs.size() < needed)
-    throw HalError(ErrorCode::MissingFeature,
-                   who + ": the camera strobe needs " + std::to_string(needed) + " user outputs (3 LED select lines" +
-                       (has_off ? std::string() : std::string(" and the strobe's dark state: LineSource has no 'Off'")) +
-                       "), UserOutputSelector offers " + join(outputs));
+    throw HalError(
+        ErrorCode::MissingFeature,
+        who + ": the camera strobe needs " + std::to_string(needed) + " user outputs (3 LED select lines" +
+            (has_off ? std::string() : std::string(" and the strobe's dark state: LineSource has no 'Off'")) +
+            "), UserOutputSelector offers " + join(outputs));
   const bool has_inverter = has_feature("LineInverter");
   if (s.strobe_inverted && !has_inverter)
     require_feature("LineInverter", "the strobe line cannot be inverted; wire the LED driver's input active high");
@@ -462,16 +493,17 @@ void AravisCamera::Session::setup_stream() {
   }
   const guint payload = arv_camera_get_payload(cam, e.out());
   check(e, "PayloadSize");
-  const std::size_t image_bytes = owner.format_.sizeBytes() / owner.format_.bytesPerPixel() *
-                                  bytes_per_source_pixel(owner.source_);
+  const std::size_t image_bytes =
+      owner.format_.sizeBytes() / owner.format_.bytesPerPixel() * bytes_per_source_pixel(owner.source_);
   if (payload < image_bytes)
     throw HalError(ErrorCode::UnsupportedFormat, owner.describe() + ": payload of " + std::to_string(payload) +
                                                      " bytes is smaller than the image; check the camera's settings");
   stream.reset(arv_camera_create_stream(cam, nullptr, nullptr, e.out()));
   check(e, "creating the stream");
   if (!stream)
-    throw HalError(ErrorCode::Io, owner.describe() + ": no stream could be opened; check the firewall (GigE Vision "
-                                                     "stream packets are UDP)");
+    throw HalError(ErrorCode::Io, owner.describe() +
+                                      ": no stream could be opened; check the firewall (GigE Vision "
+                                      "stream packets are UDP)");
   // Allocated once; read() pops a filled buffer and pushes the same one back.
   const int count = std::clamp(c.buffer_count, 2, 16);
   for (int i = 0; i < count; ++i) arv_stream_push_buffer(stream.get(), arv_buffer_new_allocate(payload));
@@ -491,7 +523,7 @@ bool AravisCamera::Session::deliver(ArvBuffer* buffer, Image& out, FrameInfo& in
   CameraStats& stats = owner.stats_;
   const ArvBufferStatus status = arv_buffer_get_status(buffer);
   if (status == ARV_BUFFER_STATUS_CLEARED) return false;  // handed back unused: no frame in it
-  if (status != ARV_BUFFER_STATUS_SUCCESS) {  // lost packets, size mismatch, aborted
+  if (status != ARV_BUFFER_STATUS_SUCCESS) {              // lost packets, size mismatch, aborted
     ++stats.errorBuffers;
     return false;
   }
@@ -502,7 +534,8 @@ bool AravisCamera::Session::deliver(ArvBuffer* buffer, Image& out, FrameInfo& in
   gint x_padding = 0, y_padding = 0;
   arv_buffer_get_image_padding(buffer, &x_padding, &y_padding);
   const std::size_t stride = row_bytes + static_cast<std::size_t>(std::max(0, x_padding));
-  const ArvPixelFormat expected = owner.source_ == SourceFormat::Y16 ? ARV_PIXEL_FORMAT_MONO_16 : ARV_PIXEL_FORMAT_MONO_8;
+  const ArvPixelFormat expected =
+      owner.source_ == SourceFormat::Y16 ? ARV_PIXEL_FORMAT_MONO_16 : ARV_PIXEL_FORMAT_MONO_8;
   if (!data || arv_buffer_get_image_width(buffer) != f.width || arv_buffer_get_image_height(buffer) != f.height ||
       arv_buffer_get_image_pixel_format(buffer) != expected ||
       size < stride * static_cast<std::size_t>(f.height - 1) + row_bytes) {
@@ -628,8 +661,9 @@ void AravisCamera::mark_gone(const std::string& cause) {
 // Reopens the camera no more often than the current backoff, which doubles up to the maximum.
 void AravisCamera::try_reconnect() {
   if (releasing_)
-    throw HalError(ErrorCode::DeviceGone, describe() + ": camera gone, still releasing the lost connection (Aravis waits "
-                                                       "out its GVCP retries); check the cable and its power (PoE)");
+    throw HalError(ErrorCode::DeviceGone, describe() +
+                                              ": camera gone, still releasing the lost connection (Aravis waits "
+                                              "out its GVCP retries); check the cable and its power (PoE)");
   join_releaser();
   const std::int64_t now = monotonicNowNs();
   if (now < next_reconnect_ns_)
@@ -643,8 +677,8 @@ void AravisCamera::try_reconnect() {
     close_session();
     backoff_ = std::min(config_.reconnect_backoff_max, std::max(config_.reconnect_backoff_min, backoff_ * 2));
     next_reconnect_ns_ = monotonicNowNs() + std::chrono::nanoseconds(backoff_).count();
-    throw HalError(ErrorCode::DeviceGone, describe() + ": camera gone, reconnect failed (" + e.what() + "); retrying in " +
-                                              std::to_string(backoff_.count()) + " ms");
+    throw HalError(ErrorCode::DeviceGone, describe() + ": camera gone, reconnect failed (" + e.what() +
+                                              "); retrying in " + std::to_string(backoff_.count()) + " ms");
   }
   gone_ = false;
   restart_ = false;

@@ -20,8 +20,9 @@ std::string AravisStrobeLightRing::describe() const { return "strobe outputs of 
 
 void AravisStrobeLightRing::configure() {
   if (!camera_.has_strobe())
-    throw HalError(ErrorCode::InvalidState, describe() + ": the camera has no strobe configuration (lines); "
-                                                         "check the lights section of the configuration");
+    throw HalError(ErrorCode::InvalidState, describe() +
+                                                ": the camera has no strobe configuration (lines); "
+                                                "check the lights section of the configuration");
   configured_ = true;
 }
 

@@ -9,7 +9,7 @@ namespace mfcd::hal {
 
 template <typename T, auto Release>
 class GOwned {
-public:
+ public:
   GOwned() = default;
   explicit GOwned(T* p) noexcept : p_(p) {}
   ~GOwned() { reset(); }
@@ -34,7 +34,7 @@ public:
     p_ = p;
   }
 
-private:
+ private:
   T* p_ = nullptr;
 };
 

@@ -61,8 +61,8 @@ void GpiodLightRing::configure() {
   for (int i = 0; i < kLedCount; ++i) {
     const unsigned offset = config_.offsets[static_cast<std::size_t>(i)];
     const auto wrongLine = [&](const std::string& why) {
-      const std::string msg = describe() + ": LED " + std::to_string(i) + " line offset " + std::to_string(offset) + " " + why +
-                              "; check the offsets in the configuration against gpioinfo " + chipName_;
+      const std::string msg = describe() + ": LED " + std::to_string(i) + " line offset " + std::to_string(offset) +
+                              " " + why + "; check the offsets in the configuration against gpioinfo " + chipName_;
       release();
       throw HalError(ErrorCode::WrongLine, msg);
     };
@@ -73,7 +73,8 @@ void GpiodLightRing::configure() {
 
   auto bulk = std::make_unique<gpiod_line_bulk>();
   if (gpiod_chip_get_lines(chip_, config_.offsets.data(), kLedCount, bulk.get()) < 0) {
-    const std::string msg = describe() + ": cannot get the LED lines: " + std::strerror(errno) + "; check the offsets with gpioinfo";
+    const std::string msg =
+        describe() + ": cannot get the LED lines: " + std::strerror(errno) + "; check the offsets with gpioinfo";
     release();
     throw HalError(ErrorCode::WrongLine, msg);
   }
@@ -90,13 +91,14 @@ void GpiodLightRing::configure() {
         gpiod_line_update(line);
         if (gpiod_line_is_used(line)) {
           const char* who = gpiod_line_consumer(line);
-          msg += " line " + std::to_string(gpiod_line_offset(line)) + " (LED " + std::to_string(i) + ") held by consumer \"" +
-                 (who ? who : "?") + "\";";
+          msg += " line " + std::to_string(gpiod_line_offset(line)) + " (LED " + std::to_string(i) +
+                 ") held by consumer \"" + (who ? who : "?") + "\";";
         }
       }
       msg += " check gpioinfo " + chipName_ + " and stop the other program (only one process may drive the LEDs)";
     } else {
-      msg = describe() + ": requesting the LED lines as outputs: " + std::strerror(err) + "; check gpioinfo " + chipName_;
+      msg =
+          describe() + ": requesting the LED lines as outputs: " + std::strerror(err) + "; check gpioinfo " + chipName_;
     }
     release();
     throw HalError(err == EBUSY ? ErrorCode::LineBusy : ErrorCode::Io, msg);
@@ -124,7 +126,8 @@ void GpiodLightRing::set(LedMask mask) {
   if (gpiod_line_set_value_bulk(bulk_, values) < 0) {
     const int err = errno;
     allOff();
-    throw HalError(ErrorCode::Io, describe() + ": driving the LED lines: " + std::strerror(err) + "; check the chip (dmesg)");
+    throw HalError(ErrorCode::Io,
+                   describe() + ": driving the LED lines: " + std::strerror(err) + "; check the chip (dmesg)");
   }
   mask_ = mask;
 }

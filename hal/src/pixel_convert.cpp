@@ -14,7 +14,9 @@ void convertToGrey(SourceFormat source, const std::uint8_t* src, std::size_t src
     if (f.bitsPerPixel == 8) {
       std::uint8_t* d = out.row(y);
       switch (source) {
-        case SourceFormat::Grey: std::memcpy(d, s, static_cast<std::size_t>(w)); break;
+        case SourceFormat::Grey:
+          std::memcpy(d, s, static_cast<std::size_t>(w));
+          break;
         case SourceFormat::Y16:
           for (int x = 0; x < w; ++x) d[x] = s[2 * x + 1];  // little-endian: high byte second
           break;

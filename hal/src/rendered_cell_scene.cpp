@@ -50,8 +50,10 @@ void RenderedCellScene::render(LedMask lit, std::uint64_t exposureIndex, Image& 
           if (lit & (1u << i)) v += std::max(0, frames.flash[i](y, x) - amb[x]);
         v = std::min(v, 255);
       }
-      if (wide) o16[x] = static_cast<uint16_t>(v * 257);
-      else o8[x] = static_cast<uint8_t>(v);
+      if (wide)
+        o16[x] = static_cast<uint16_t>(v * 257);
+      else
+        o8[x] = static_cast<uint8_t>(v);
     }
   }
 }

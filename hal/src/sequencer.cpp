@@ -70,8 +70,8 @@ void MfcSequencer::captureSlot(SlotFrame& slot, std::int64_t windowStartNs) {
     ++slot.staleDiscarded;
     ++stats_.staleDiscarded;
     if (slot.staleDiscarded > config_.maxStaleFramesPerSlot) {
-      const std::string what = slot.led == kAmbientLed ? std::string("ambient frame")
-                                                       : "LED " + std::to_string(slot.led);
+      const std::string what =
+          slot.led == kAmbientLed ? std::string("ambient frame") : "LED " + std::to_string(slot.led);
       throw HalError(ErrorCode::StaleFrames,
                      "MFC sequencer: " + camera_.describe() + ": " + std::to_string(slot.staleDiscarded) +
                          " frames in a row for the " + what + " were exposed before its window opened (last frame " +

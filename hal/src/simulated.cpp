@@ -68,8 +68,9 @@ std::optional<PatternSceneRenderer::Tag> PatternSceneRenderer::decode(const Imag
 // ---------------------------------------------------------------------------------------------
 void SimulatedLightRing::configure() {
   if (configureBusy_)
-    throw HalError(ErrorCode::LineBusy, describe() + ": line 0 is busy (held by consumer \"injected\"); "
-                                                     "check which process holds the lines");
+    throw HalError(ErrorCode::LineBusy, describe() +
+                                            ": line 0 is busy (held by consumer \"injected\"); "
+                                            "check which process holds the lines");
   configured_ = true;
   drive(0);
 }
@@ -111,9 +112,9 @@ SimulatedCamera::SimulatedCamera(SimulatedCameraConfig config, const LedStateSou
 void SimulatedCamera::configure() {
   const ImageFormat& f = config_.format;
   if (f.width <= 0 || f.height <= 0 || (f.bitsPerPixel != 8 && f.bitsPerPixel != 16))
-    throw HalError(ErrorCode::UnsupportedFormat,
-                   describe() + ": unsupported format " + std::to_string(f.width) + "x" + std::to_string(f.height) +
-                       " " + std::to_string(f.bitsPerPixel) + "-bit; check the configured size and depth (8 or 16)");
+    throw HalError(ErrorCode::UnsupportedFormat, describe() + ": unsupported format " + std::to_string(f.width) + "x" +
+                                                     std::to_string(f.height) + " " + std::to_string(f.bitsPerPixel) +
+                                                     "-bit; check the configured size and depth (8 or 16)");
   configured_ = true;
 }
 

@@ -36,9 +36,12 @@ std::string fourccToString(std::uint32_t fourcc) {
 
 std::uint32_t fourccOf(SourceFormat f) {
   switch (f) {
-    case SourceFormat::Grey: return V4L2_PIX_FMT_GREY;
-    case SourceFormat::Y16: return V4L2_PIX_FMT_Y16;
-    case SourceFormat::Yuyv: return V4L2_PIX_FMT_YUYV;
+    case SourceFormat::Grey:
+      return V4L2_PIX_FMT_GREY;
+    case SourceFormat::Y16:
+      return V4L2_PIX_FMT_Y16;
+    case SourceFormat::Yuyv:
+      return V4L2_PIX_FMT_YUYV;
   }
   return 0;
 }
@@ -61,7 +64,8 @@ std::string V4L2Camera::describe() const {
 void V4L2Camera::fail(int err, const char* what) {
   const std::string where = describe() + ": " + what + ": " + std::strerror(err);
   if (err == ENODEV || err == ENXIO)
-    throw HalError(ErrorCode::DeviceGone, where + "; the device was unplugged or its driver unloaded — check the cable");
+    throw HalError(ErrorCode::DeviceGone,
+                   where + "; the device was unplugged or its driver unloaded — check the cable");
   throw HalError(ErrorCode::Io, where + "; check the driver log (dmesg) and v4l2-ctl -d " + config_.device + " --all");
 }
 
@@ -78,7 +82,8 @@ void V4L2Camera::open() {
   if (fd_ < 0) {
     const int err = errno;
     if (err == EACCES)
-      throw HalError(ErrorCode::Io, "V4L2 " + config_.device + ": permission denied; check that the daemon's user is in group 'video'");
+      throw HalError(ErrorCode::Io, "V4L2 " + config_.device +
+                                        ": permission denied; check that the daemon's user is in group 'video'");
     fail(err, "open");
   }
   v4l2_capability cap{};
@@ -95,7 +100,8 @@ void V4L2Camera::open() {
 void V4L2Camera::negotiate() {
   if (config_.bitsPerPixel != 8 && config_.bitsPerPixel != 16)
     throw HalError(ErrorCode::UnsupportedFormat, describe() + ": output depth must be 8 or 16 bit, not " +
-                                                     std::to_string(config_.bitsPerPixel) + "; check the configuration");
+                                                     std::to_string(config_.bitsPerPixel) +
+                                                     "; check the configuration");
   // Prefer a format that already has the wanted depth; YUYV (luma only) is the common fallback.
   const SourceFormat prefer8[] = {SourceFormat::Grey, SourceFormat::Yuyv, SourceFormat::Y16};
   const SourceFormat prefer16[] = {SourceFormat::Y16, SourceFormat::Grey, SourceFormat::Yuyv};
@@ -129,15 +135,16 @@ void V4L2Camera::negotiate() {
   fmt.fmt.pix.field = V4L2_FIELD_NONE;
   if (xioctl(fd_, VIDIOC_S_FMT, &fmt) < 0) {
     if (errno == EBUSY)
-      throw HalError(ErrorCode::Io, describe() + ": VIDIOC_S_FMT: device busy; check that no other program is streaming from it");
+      throw HalError(ErrorCode::Io,
+                     describe() + ": VIDIOC_S_FMT: device busy; check that no other program is streaming from it");
     fail(errno, "VIDIOC_S_FMT");
   }
   if (fmt.fmt.pix.pixelformat != fourccOf(source_) || fmt.fmt.pix.width != static_cast<std::uint32_t>(config_.width) ||
       fmt.fmt.pix.height != static_cast<std::uint32_t>(config_.height) ||
       (fmt.fmt.pix.field != V4L2_FIELD_NONE && fmt.fmt.pix.field != V4L2_FIELD_ANY))
     throw HalError(ErrorCode::UnsupportedFormat,
-                   describe() + ": asked for " + std::to_string(config_.width) + "x" + std::to_string(config_.height) + " " +
-                       fourccToString(fourccOf(source_)) + " progressive, device offers " +
+                   describe() + ": asked for " + std::to_string(config_.width) + "x" + std::to_string(config_.height) +
+                       " " + fourccToString(fourccOf(source_)) + " progressive, device offers " +
                        std::to_string(fmt.fmt.pix.width) + "x" + std::to_string(fmt.fmt.pix.height) + " " +
                        fourccToString(fmt.fmt.pix.pixelformat) + "; check the configured size against v4l2-ctl -d " +
                        config_.device + " --list-formats-ext");
@@ -153,8 +160,8 @@ void V4L2Camera::negotiate() {
     if (xioctl(fd_, VIDIOC_S_PARM, &parm) < 0 || parm.parm.capture.timeperframe.numerator == 0 ||
         parm.parm.capture.timeperframe.denominator / parm.parm.capture.timeperframe.numerator !=
             static_cast<std::uint32_t>(config_.frameRate))
-      syslog(LOG_WARNING, "mfcd hal: %s does not run at %d fps at this size; using what it offers",
-             describe().c_str(), config_.frameRate);
+      syslog(LOG_WARNING, "mfcd hal: %s does not run at %d fps at this size; using what it offers", describe().c_str(),
+             config_.frameRate);
     parm = {};
     parm.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
   }
@@ -174,7 +181,8 @@ void V4L2Camera::applyControls() {
     v4l2_control c{id, value};
     if (xioctl(fd_, VIDIOC_S_CTRL, &c) < 0)
       throw HalError(ErrorCode::Io, describe() + ": setting " + name + " to " + std::to_string(value) + ": " +
-                                        std::strerror(errno) + "; check the range with v4l2-ctl -d " + config_.device + " -L");
+                                        std::strerror(errno) + "; check the range with v4l2-ctl -d " + config_.device +
+                                        " -L");
   };
   v4l2_queryctrl q{};
   exposureApplied_ = gainApplied_ = false;
@@ -191,8 +199,9 @@ void V4L2Camera::applyControls() {
   if (config_.gain) {
     if (has(V4L2_CID_GAIN, q)) {
       if (*config_.gain < q.minimum || *config_.gain > q.maximum)
-        throw HalError(ErrorCode::Io, describe() + ": gain " + std::to_string(*config_.gain) + " outside the device's range " +
-                                          std::to_string(q.minimum) + ".." + std::to_string(q.maximum) + "; check the configuration");
+        throw HalError(ErrorCode::Io, describe() + ": gain " + std::to_string(*config_.gain) +
+                                          " outside the device's range " + std::to_string(q.minimum) + ".." +
+                                          std::to_string(q.maximum) + "; check the configuration");
       if (has(V4L2_CID_AUTOGAIN, q)) set(V4L2_CID_AUTOGAIN, 0, "automatic gain");
       set(V4L2_CID_GAIN, *config_.gain, "gain");
       gainApplied_ = true;
@@ -228,7 +237,8 @@ void V4L2Camera::allocateBuffers() {
     buffers_[static_cast<std::size_t>(i)] = {p, b.length};
   }
   if (srcStride_ * static_cast<std::size_t>(format_.height) > buffers_[0].length)
-    throw HalError(ErrorCode::UnsupportedFormat, describe() + ": capture buffers smaller than the negotiated image; check the driver");
+    throw HalError(ErrorCode::UnsupportedFormat,
+                   describe() + ": capture buffers smaller than the negotiated image; check the driver");
 }
 
 void V4L2Camera::releaseBuffers() {
@@ -254,7 +264,8 @@ void V4L2Camera::close() noexcept {
 }
 
 void V4L2Camera::configure() {
-  if (active_) throw HalError(ErrorCode::InvalidState, describe() + ": configure() while streaming; deactivate() first");
+  if (active_)
+    throw HalError(ErrorCode::InvalidState, describe() + ": configure() while streaming; deactivate() first");
   close();
   try {
     open();
@@ -313,7 +324,8 @@ void V4L2Camera::tryReconnect() {
   const std::int64_t now = monotonicNowNs();
   if (now < nextReconnectNs_)
     throw HalError(ErrorCode::DeviceGone, describe() + ": device gone, next reconnect attempt in " +
-                                              std::to_string((nextReconnectNs_ - now) / 1'000'000) + " ms; check the cable");
+                                              std::to_string((nextReconnectNs_ - now) / 1'000'000) +
+                                              " ms; check the cable");
   try {
     open();
     negotiate();
@@ -324,8 +336,8 @@ void V4L2Camera::tryReconnect() {
     close();
     backoff_ = std::min(config_.reconnectBackoffMax, std::max(config_.reconnectBackoffMin, backoff_ * 2));
     nextReconnectNs_ = monotonicNowNs() + std::chrono::nanoseconds(backoff_).count();
-    throw HalError(ErrorCode::DeviceGone, describe() + ": device gone, reconnect failed (" + e.what() + "); retrying in " +
-                                              std::to_string(backoff_.count()) + " ms");
+    throw HalError(ErrorCode::DeviceGone, describe() + ": device gone, reconnect failed (" + e.what() +
+                                              "); retrying in " + std::to_string(backoff_.count()) + " ms");
   }
   gone_ = false;
   backoff_ = std::chrono::milliseconds{0};
@@ -399,7 +411,8 @@ void V4L2Camera::read(Image& out, FrameInfo& info) {
     if (haveSequence_) stats_.droppedFrames += framesMissedBetween(lastSequence_, b.sequence);
     lastSequence_ = b.sequence;
     haveSequence_ = true;
-    if (b.index >= static_cast<std::uint32_t>(bufferCount_) || b.bytesused < srcStride_ * static_cast<std::size_t>(format_.height)) {
+    if (b.index >= static_cast<std::uint32_t>(bufferCount_) ||
+        b.bytesused < srcStride_ * static_cast<std::size_t>(format_.height)) {
       ++stats_.errorBuffers;  // short frame: treat like an error buffer
       requeue();
       continue;

@@ -11,7 +11,8 @@ std::atomic<std::uint64_t> g_allocations{0};
 void* countedAlloc(std::size_t size, std::size_t align) {
   g_allocations.fetch_add(1, std::memory_order_relaxed);
   if (size == 0) size = 1;
-  void* p = align > alignof(std::max_align_t) ? std::aligned_alloc(align, (size + align - 1) / align * align) : std::malloc(size);
+  void* p = align > alignof(std::max_align_t) ? std::aligned_alloc(align, (size + align - 1) / align * align)
+                                              : std::malloc(size);
   if (!p) throw std::bad_alloc();
   return p;
 }
@@ -26,10 +27,18 @@ void* operator new[](std::size_t size) { return countedAlloc(size, 0); }
 void* operator new(std::size_t size, std::align_val_t a) { return countedAlloc(size, static_cast<std::size_t>(a)); }
 void* operator new[](std::size_t size, std::align_val_t a) { return countedAlloc(size, static_cast<std::size_t>(a)); }
 void* operator new(std::size_t size, const std::nothrow_t&) noexcept {
-  try { return countedAlloc(size, 0); } catch (...) { return nullptr; }
+  try {
+    return countedAlloc(size, 0);
+  } catch (...) {
+    return nullptr;
+  }
 }
 void* operator new[](std::size_t size, const std::nothrow_t&) noexcept {
-  try { return countedAlloc(size, 0); } catch (...) { return nullptr; }
+  try {
+    return countedAlloc(size, 0);
+  } catch (...) {
+    return nullptr;
+  }
 }
 void operator delete(void* p) noexcept { std::free(p); }
 void operator delete[](void* p) noexcept { std::free(p); }

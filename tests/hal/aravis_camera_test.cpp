@@ -35,9 +35,9 @@
 #include <vector>
 
 #include "alloc_counter.hpp"
+#include "catch_hal.hpp"
 #include "mfcd/hal/aravis_camera.hpp"
 #include "mfcd/hal/aravis_strobe_light_ring.hpp"
-#include "catch_hal.hpp"
 #include "mfcd/hal/error.hpp"
 #include "mfcd/hal/sequencer.hpp"
 #include "mfcd/hal/simulated.hpp"
@@ -63,12 +63,14 @@ std::optional<std::string> find_in_path(const std::string& program) {
 
 using mfcd::hal::test::catch_hal;
 
-bool mentions(const HalError& e, const std::string& text) { return std::string(e.what()).find(text) != std::string::npos; }
+bool mentions(const HalError& e, const std::string& text) {
+  return std::string(e.what()).find(text) != std::string::npos;
+}
 
 // GVCP (GigE Vision control protocol) over UDP, just enough to see who answers on 127.0.0.1:3956
 // without Aravis: DISCOVERY (the answer carries the bootstrap registers: serial at 0xd8).
 class GvcpProbe {
-public:
+ public:
   GvcpProbe() {
     fd_ = ::socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
     sockaddr_in any{};
@@ -94,11 +96,15 @@ public:
   }
 
   // READREG: a 32-bit bootstrap or device register, as the camera holds it (any host may read).
-  std::optional<std::uint32_t> read_register(std::uint32_t address, std::chrono::milliseconds wait = std::chrono::milliseconds(500)) {
+  std::optional<std::uint32_t> read_register(std::uint32_t address,
+                                             std::chrono::milliseconds wait = std::chrono::milliseconds(500)) {
     const std::uint8_t tag = ++id_;
+    // The packet's layout, header (8 bytes) then the register address (big-endian), stays by hand.
+    // clang-format off
     const std::uint8_t cmd[12] = {0x42, 0x01, 0x00, 0x80, 0x00, 0x04, 0x00, tag,
                                   static_cast<std::uint8_t>(address >> 24), static_cast<std::uint8_t>(address >> 16),
                                   static_cast<std::uint8_t>(address >> 8), static_cast<std::uint8_t>(address)};
+    // clang-format on
     if (!send(cmd, sizeof cmd)) return std::nullopt;
     std::uint8_t ack[12];
     for (;;) {  // skip late answers to earlier requests
@@ -108,13 +114,14 @@ public:
     return std::uint32_t{ack[8]} << 24 | std::uint32_t{ack[9]} << 16 | std::uint32_t{ack[10]} << 8 | ack[11];
   }
 
-private:
+ private:
   bool send(const std::uint8_t* data, std::size_t size) {
     sockaddr_in to{};
     to.sin_family = AF_INET;
     to.sin_port = htons(3956);
     to.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    return fd_ >= 0 && ::sendto(fd_, data, size, 0, reinterpret_cast<sockaddr*>(&to), sizeof to) == static_cast<ssize_t>(size);
+    return fd_ >= 0 &&
+           ::sendto(fd_, data, size, 0, reinterpret_cast<sockaddr*>(&to), sizeof to) == static_cast<ssize_t>(size);
   }
   ssize_t receive(std::uint8_t* data, std::size_t size, std::chrono::milliseconds wait) {
     pollfd p{fd_, POLLIN, 0};
@@ -127,7 +134,7 @@ private:
 
 // arv-fake-gv-camera-0.8 as a child process; killed (SIGKILL) when the object goes.
 class FakeCameraProcess {
-public:
+ public:
   FakeCameraProcess(std::string program, std::string serial, std::vector<std::string> extra)
       : program_(std::move(program)), serial_(std::move(serial)), extra_(std::move(extra)) {
     log_ = "/tmp/mfcd-arv-fake-" + serial_ + ".log";
@@ -185,7 +192,7 @@ public:
     return text.empty() ? "no output" : "output: " + text;
   }
 
-private:
+ private:
   std::string program_, serial_, log_;
   std::vector<std::string> extra_;
   pid_t pid_ = -1;
@@ -204,12 +211,13 @@ bool aravis_reaches(const std::string& camera_id) {
 std::string check_ramp8(const Image& img, std::uint32_t frame_id, double scale) {
   for (int y = 0; y < img.format().height; ++y)
     for (int x = 0; x < img.format().width; ++x) {
-      const double v = std::clamp(static_cast<double>((static_cast<std::uint64_t>(x) + y + frame_id) % 255) * scale, 0.0, 255.0);
+      const double v =
+          std::clamp(static_cast<double>((static_cast<std::uint64_t>(x) + y + frame_id) % 255) * scale, 0.0, 255.0);
       const int want = static_cast<int>(v);
       const int got = img.row(y)[x];
       if (got != want)
-        return "frame " + std::to_string(frame_id) + " pixel (" + std::to_string(x) + ", " + std::to_string(y) + ") = " +
-               std::to_string(got) + ", the fake camera's ramp gives " + std::to_string(want);
+        return "frame " + std::to_string(frame_id) + " pixel (" + std::to_string(x) + ", " + std::to_string(y) +
+               ") = " + std::to_string(got) + ", the fake camera's ramp gives " + std::to_string(want);
     }
   return "";
 }
@@ -218,11 +226,13 @@ std::string check_ramp16(const Image& img, std::uint32_t frame_id, double scale)
   for (int y = 0; y < img.format().height; ++y) {
     const auto* row = reinterpret_cast<const std::uint16_t*>(img.row(y));
     for (int x = 0; x < img.format().width; ++x) {
-      const std::uint64_t ramp = (256 * static_cast<std::uint64_t>(x) + 256 * std::uint64_t{frame_id} + 256 * static_cast<std::uint64_t>(y)) % 65535;
+      const std::uint64_t ramp =
+          (256 * static_cast<std::uint64_t>(x) + 256 * std::uint64_t{frame_id} + 256 * static_cast<std::uint64_t>(y)) %
+          65535;
       const int want = static_cast<int>(std::clamp(static_cast<double>(ramp) * scale, 0.0, 65535.0));
       if (row[x] != want)
-        return "frame " + std::to_string(frame_id) + " pixel (" + std::to_string(x) + ", " + std::to_string(y) + ") = " +
-               std::to_string(row[x]) + ", the fake camera's ramp gives " + std::to_string(want);
+        return "frame " + std::to_string(frame_id) + " pixel (" + std::to_string(x) + ", " + std::to_string(y) +
+               ") = " + std::to_string(row[x]) + ", the fake camera's ramp gives " + std::to_string(want);
     }
   }
   return "";
@@ -232,7 +242,7 @@ std::string check_ramp16(const Image& img, std::uint32_t frame_id, double scale)
 std::uint32_t next_block_id(std::uint32_t id) { return id >= 0xFFFF ? 1 : id + 1; }
 
 class AravisFakeCamera : public ::testing::Test {
-protected:
+ protected:
   void SetUp() override {
     const auto program = find_in_path(kFakeCameraProgram);
     if (!program) GTEST_SKIP() << kFakeCameraProgram << " not found in PATH (Debian package aravis-tools)";
@@ -274,10 +284,10 @@ protected:
 TEST(GevFrameIds, GapsCountedAcrossThe16BitWrapWhichSkipsZero) {
   EXPECT_EQ(gev_frames_missed_between(5, 6), 0u);
   EXPECT_EQ(gev_frames_missed_between(5, 9), 3u);
-  EXPECT_EQ(gev_frames_missed_between(65535, 1), 0u);  // the wrap skips 0: no frame missed
-  EXPECT_EQ(gev_frames_missed_between(65534, 2), 2u);  // 65535 and 1 missed
-  EXPECT_EQ(gev_frames_missed_between(7, 7), 0u);      // repeat: restart, not a gap
-  EXPECT_EQ(gev_frames_missed_between(500, 3), 0u);    // step back: the camera restarted
+  EXPECT_EQ(gev_frames_missed_between(65535, 1), 0u);      // the wrap skips 0: no frame missed
+  EXPECT_EQ(gev_frames_missed_between(65534, 2), 2u);      // 65535 and 1 missed
+  EXPECT_EQ(gev_frames_missed_between(7, 7), 0u);          // repeat: restart, not a gap
+  EXPECT_EQ(gev_frames_missed_between(500, 3), 0u);        // step back: the camera restarted
   EXPECT_EQ(gev_frames_missed_between(65535, 65536), 0u);  // 64-bit ids (GigE Vision 2, USB3 Vision)
   EXPECT_EQ(gev_frames_missed_between(70000, 70010), 9u);
 }
@@ -417,7 +427,7 @@ TEST_F(AravisFakeCamera, ManualExposureAndGainReachTheSensor) {
     camera.read(img, info);
     EXPECT_EQ(check_ramp8(img, info.sequence, 3.0), "");
     EXPECT_NE(check_ramp8(img, info.sequence, 1.0), "");  // the scaling is visible
-  }  // gives up control of the camera
+  }                                                       // gives up control of the camera
 
   c.exposure_us = 5;  // the fake camera's range starts at 10 us
   AravisCamera refused(c);
@@ -670,7 +680,7 @@ const char* const kIoFeatures = R"xml(
 // A LightRing that reads the camera's line registers back after every set(), over its own GVCP
 // socket: what the LED driver would see on the strobe and select lines at that moment.
 class ProbedRing final : public LightRing {
-public:
+ public:
   struct Seen {
     LedMask mask;
     std::uint32_t strobe_source;  // LineSource of Line1
@@ -683,20 +693,21 @@ public:
   void set(LedMask mask) override {
     ring_.set(mask);
     int index = 0;
-    for (std::uint32_t k = 0; k < 3; ++k) index |= static_cast<int>(probe_.read_register(kUserOutputValueReg + 4 * k).value_or(9) & 1) << k;
+    for (std::uint32_t k = 0; k < 3; ++k)
+      index |= static_cast<int>(probe_.read_register(kUserOutputValueReg + 4 * k).value_or(9) & 1) << k;
     seen.push_back({mask, probe_.read_register(kLineSourceReg + 4).value_or(99), index});
   }
   LedMask state() const override { return ring_.state(); }
   std::string describe() const override { return ring_.describe(); }
   std::vector<Seen> seen;
 
-private:
+ private:
   LightRing& ring_;
   GvcpProbe& probe_;
 };
 
 class AravisFakeCameraWithOutputs : public AravisFakeCamera {
-protected:
+ protected:
   // Restarts the fake camera (same serial) on its own GenICam file plus the I/O features above.
   void SetUp() override {
     AravisFakeCamera::SetUp();
@@ -796,7 +807,8 @@ TEST_F(AravisFakeCameraWithOutputs, TimerStrobeAndWrongLinesAreConfiguredOrRefus
   AravisCamera wrong(c);
   HalError e = catch_hal([&] { wrong.configure(); });
   EXPECT_EQ(e.code(), ErrorCode::WrongLine) << e.what();
-  EXPECT_TRUE(mentions(e, "'Line7'") && mentions(e, "Line0, Line1, Line2, Line3, Line4") && mentions(e, camera_id_)) << e.what();
+  EXPECT_TRUE(mentions(e, "'Line7'") && mentions(e, "Line0, Line1, Line2, Line3, Line4") && mentions(e, camera_id_))
+      << e.what();
   c.strobe->select_lines[2] = "Line1";  // the strobe line twice
   AravisCamera twice(c);
   e = catch_hal([&] { twice.configure(); });

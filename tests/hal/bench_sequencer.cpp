@@ -12,7 +12,7 @@ namespace {
 using namespace mfcd::hal;
 
 class TagOnlyRenderer final : public SceneRenderer {
-public:
+ public:
   void render(LedMask lit, std::uint64_t index, Image& out) override {
     out.data()[0] = lit;
     out.data()[1] = static_cast<std::uint8_t>(index);
@@ -31,8 +31,10 @@ void BM_SequencerFrameSet(benchmark::State& state) {
   const std::uint64_t before = mfcd::hal::test::allocationCount();
   for (auto _ : state) benchmark::DoNotOptimize(seq.read().sequence);
   const std::uint64_t allocs = mfcd::hal::test::allocationCount() - before;
-  state.counters["allocs_per_set"] = benchmark::Counter(static_cast<double>(allocs) / static_cast<double>(state.iterations()));
-  state.counters["frames_per_s"] = benchmark::Counter(static_cast<double>(state.iterations()) * FrameSet::kSlots, benchmark::Counter::kIsRate);
+  state.counters["allocs_per_set"] =
+      benchmark::Counter(static_cast<double>(allocs) / static_cast<double>(state.iterations()));
+  state.counters["frames_per_s"] =
+      benchmark::Counter(static_cast<double>(state.iterations()) * FrameSet::kSlots, benchmark::Counter::kIsRate);
 }
 BENCHMARK(BM_SequencerFrameSet)->Arg(64)->Arg(640)->Unit(benchmark::kMicrosecond)->MeasureProcessCPUTime();
 

@@ -13,9 +13,11 @@ namespace {
 std::uint16_t referenceLuma16(SourceFormat f, const std::vector<std::uint8_t>& src, std::size_t stride, int x, int y) {
   const std::size_t row = static_cast<std::size_t>(y) * stride;
   switch (f) {
-    case SourceFormat::Grey: return static_cast<std::uint16_t>(src[row + static_cast<std::size_t>(x)] * 257);
+    case SourceFormat::Grey:
+      return static_cast<std::uint16_t>(src[row + static_cast<std::size_t>(x)] * 257);
     case SourceFormat::Y16:
-      return static_cast<std::uint16_t>(src[row + 2 * static_cast<std::size_t>(x)] + 256 * src[row + 2 * static_cast<std::size_t>(x) + 1]);
+      return static_cast<std::uint16_t>(src[row + 2 * static_cast<std::size_t>(x)] +
+                                        256 * src[row + 2 * static_cast<std::size_t>(x) + 1]);
     case SourceFormat::Yuyv: {
       // Macropixel Y0 U Y1 V: pixel x is Y0 if even, Y1 if odd.
       const std::size_t macro = row + 4 * static_cast<std::size_t>(x / 2);
@@ -38,7 +40,8 @@ TEST(PixelConvert, MatchesReferenceOnRandomFrames) {
         const int w = 2 * std::uniform_int_distribution<int>(1, 40)(rng);  // YUYV needs even widths
         const int h = std::uniform_int_distribution<int>(1, 17)(rng);
         const std::size_t bpp = f == SourceFormat::Grey ? 1 : 2;
-        const std::size_t stride = bpp * static_cast<std::size_t>(w) + static_cast<std::size_t>(trial % 3) * 8;  // padded rows too
+        const std::size_t stride =
+            bpp * static_cast<std::size_t>(w) + static_cast<std::size_t>(trial % 3) * 8;  // padded rows too
         std::vector<std::uint8_t> src(stride * static_cast<std::size_t>(h));
         for (auto& b : src) b = static_cast<std::uint8_t>(rng());
         Image out(ImageFormat{w, h, depth});
@@ -47,8 +50,8 @@ TEST(PixelConvert, MatchesReferenceOnRandomFrames) {
           for (int x = 0; x < w; ++x) {
             const std::uint16_t ref16 = referenceLuma16(f, src, stride, x, y);
             const std::uint32_t expected = depth == 16 ? ref16 : static_cast<std::uint32_t>(ref16 >> 8);
-            ASSERT_EQ(readPixel(out, x, y), expected)
-                << "format " << static_cast<int>(f) << " depth " << depth << " at " << x << "," << y << " size " << w << "x" << h;
+            ASSERT_EQ(readPixel(out, x, y), expected) << "format " << static_cast<int>(f) << " depth " << depth
+                                                      << " at " << x << "," << y << " size " << w << "x" << h;
           }
       }
     }

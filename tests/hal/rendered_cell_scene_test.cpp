@@ -35,7 +35,9 @@ TEST(RenderedCellScene, SequencerCapturesTheRenderedCellInLockstep) {
   const double c = std::cos(0.4), s = std::sin(0.4);
   std::vector<vision::ScenePart> parts{
       {renderer->add_mesh(vision::make_plane(800)), cv::Matx33d::eye(), {0, 0, 330}, vision::Material::matte(0.6f)},
-      {renderer->add_mesh(vision::make_box(50, 35, 30)), cv::Matx33d(c, -s, 0, s, c, 0, 0, 0, 1), {5, -3, 315},
+      {renderer->add_mesh(vision::make_box(50, 35, 30)),
+       cv::Matx33d(c, -s, 0, s, c, 0, 0, 0, 1),
+       {5, -3, 315},
        vision::Material::matte(0.8f)}};
   hal::RenderedCellScene cell(*renderer, parts);
   hal::SimulatedLightRing ring;

@@ -21,7 +21,7 @@
 #include <thread>
 
 #include "mfcd/hal/camera.hpp"
-#include "mfcd/hal/light_ring.hpp"  // kLedCount
+#include "mfcd/hal/light_ring.hpp"   // kLedCount
 #include "mfcd/hal/v4l2_camera.hpp"  // SourceFormat, convertToGrey
 
 namespace mfcd::hal {
@@ -49,7 +49,7 @@ struct AravisCameraConfig {
   int height = 480;
   int bits_per_pixel = 8;             // output depth: 8 or 16 (Mono8 / Mono16 from the camera)
   std::optional<double> exposure_us;  // manual exposure in µs (auto exposure off)
-  std::optional<double> gain;        // manual gain in the camera's unit (Gain: dB; GainRaw: counts), auto off
+  std::optional<double> gain;         // manual gain in the camera's unit (Gain: dB; GainRaw: counts), auto off
   int buffer_count = 4;
   std::chrono::milliseconds frame_timeout{1000};  // software trigger → complete frame
   std::chrono::milliseconds reconnect_backoff_min{100};
@@ -73,7 +73,7 @@ constexpr std::uint64_t gev_frames_missed_between(std::uint64_t previous, std::u
 }
 
 class AravisCamera final : public Camera {
-public:
+ public:
   static constexpr int kNoLed = -1;
 
   explicit AravisCamera(AravisCameraConfig config);
@@ -111,7 +111,7 @@ public:
   // away before a trigger.
   std::uint64_t discarded_frames() const { return discarded_frames_; }
 
-private:
+ private:
   struct Session;  // the open camera: Aravis objects and the feature accessors (aravis_camera.cpp)
   enum class State { Unconfigured, Configured, Active };
   enum class Call { Configure, Activate, Read, SelectLed };

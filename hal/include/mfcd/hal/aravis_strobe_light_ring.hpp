@@ -12,7 +12,7 @@
 namespace mfcd::hal {
 
 class AravisStrobeLightRing final : public LightRing {
-public:
+ public:
   explicit AravisStrobeLightRing(AravisCamera& camera) : camera_(camera) {}
   ~AravisStrobeLightRing() override;
   AravisStrobeLightRing(const AravisStrobeLightRing&) = delete;
@@ -27,7 +27,7 @@ public:
   LedMask state() const override { return mask_; }
   std::string describe() const override;
 
-private:
+ private:
   AravisCamera& camera_;
   bool configured_ = false, active_ = false;
   LedMask mask_ = 0;

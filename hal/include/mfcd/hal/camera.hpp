@@ -32,7 +32,7 @@ constexpr std::uint64_t framesMissedBetween(std::uint32_t previous, std::uint32_
 }
 
 class Camera {
-public:
+ public:
   virtual ~Camera() = default;
   virtual void configure() = 0;
   virtual void activate() = 0;

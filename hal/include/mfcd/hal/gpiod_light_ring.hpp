@@ -14,14 +14,14 @@ struct gpiod_line_bulk;
 namespace mfcd::hal {
 
 struct GpiodLightRingConfig {
-  std::string chip = "mfc-leds";                       // name, label, path or number
+  std::string chip = "mfc-leds";                                    // name, label, path or number
   std::array<unsigned, kLedCount> offsets{0, 1, 2, 3, 4, 5, 6, 7};  // LED i → line offset
-  bool activeLow = false;                              // LED lit when the line is driven low
+  bool activeLow = false;                                           // LED lit when the line is driven low
   std::string consumer = "mfcd";
 };
 
 class GpiodLightRing final : public LightRing {
-public:
+ public:
   explicit GpiodLightRing(GpiodLightRingConfig config);
   ~GpiodLightRing() override;
   GpiodLightRing(const GpiodLightRing&) = delete;
@@ -37,7 +37,7 @@ public:
   const std::string& chipName() const { return chipName_; }    // "gpiochip3"
   const std::string& chipLabel() const { return chipLabel_; }  // "mfc-leds"
 
-private:
+ private:
   void release() noexcept;
   bool allOff() noexcept;
   GpiodLightRingConfig config_;

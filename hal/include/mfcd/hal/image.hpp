@@ -18,7 +18,7 @@ struct ImageFormat {
 };
 
 class Image {
-public:
+ public:
   Image() = default;
   explicit Image(const ImageFormat& format) { allocate(format); }
   void allocate(const ImageFormat& format) {
@@ -32,7 +32,7 @@ public:
   std::uint8_t* row(int y) { return data_.data() + static_cast<std::size_t>(y) * format_.strideBytes(); }
   const std::uint8_t* row(int y) const { return data_.data() + static_cast<std::size_t>(y) * format_.strideBytes(); }
 
-private:
+ private:
   ImageFormat format_;
   std::vector<std::uint8_t> data_;
 };

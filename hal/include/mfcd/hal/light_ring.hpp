@@ -11,7 +11,7 @@ inline constexpr int kLedCount = 8;
 using LedMask = std::uint8_t;  // bit i = LED i lit
 
 class LightRing {
-public:
+ public:
   virtual ~LightRing() = default;
   virtual void configure() = 0;   // acquire the lines (held until destruction), all off
   virtual void activate() = 0;    // set() allowed from now on

@@ -15,7 +15,7 @@
 namespace mfcd::hal {
 
 class RenderedCellScene final : public SceneRenderer {
-public:
+ public:
   // `renderer` is borrowed and must be used from the thread that calls render() (its EGL context
   // is current there). The camera format must match the renderer's image size.
   RenderedCellScene(vision::MfcRenderer& renderer, std::vector<vision::ScenePart> parts);
@@ -27,7 +27,7 @@ public:
 
   void render(LedMask lit, std::uint64_t exposureIndex, Image& out) override;
 
-private:
+ private:
   vision::MfcRenderer& renderer_;
   std::vector<vision::ScenePart> parts_;
   vision::MfcRender render_;

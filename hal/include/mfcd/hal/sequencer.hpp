@@ -18,10 +18,10 @@ inline constexpr int kAmbientLed = -1;
 struct SlotFrame {
   Image image;
   FrameInfo info;
-  int led = kAmbientLed;       // 0..7, or kAmbientLed
-  std::int64_t onNs = 0;       // LED switched on (ambient: all LEDs confirmed off)
-  std::int64_t offNs = 0;      // LED switched off (ambient: frame accepted)
-  int staleDiscarded = 0;      // frames thrown away for this slot
+  int led = kAmbientLed;   // 0..7, or kAmbientLed
+  std::int64_t onNs = 0;   // LED switched on (ambient: all LEDs confirmed off)
+  std::int64_t offNs = 0;  // LED switched off (ambient: frame accepted)
+  int staleDiscarded = 0;  // frames thrown away for this slot
 };
 
 struct FrameSet {
@@ -42,14 +42,14 @@ struct SequencerStats {
 };
 
 class MfcSequencer {
-public:
+ public:
   // Camera and ring are borrowed; the sequencer drives their lifecycle.
   MfcSequencer(Camera& camera, LightRing& lights, SequencerConfig config = {});
   ~MfcSequencer();
   MfcSequencer(const MfcSequencer&) = delete;
   MfcSequencer& operator=(const MfcSequencer&) = delete;
 
-  void configure();   // configures camera and ring, allocates the FrameSet
+  void configure();  // configures camera and ring, allocates the FrameSet
   void activate();
   void deactivate();  // all LEDs off, streaming stopped
   // Captures one FrameSet. On any error the LEDs are switched off before the HalError propagates;
@@ -57,7 +57,7 @@ public:
   const FrameSet& read();
   const SequencerStats& stats() const { return stats_; }
 
-private:
+ private:
   void captureSlot(SlotFrame& slot, std::int64_t windowStartNs);
   Camera& camera_;
   LightRing& lights_;

@@ -16,7 +16,7 @@ namespace mfcd::hal {
 // What the simulated camera needs to know about the lights: the current state and, for frames
 // exposed before the last change (stale frames), the state before it.
 class LedStateSource {
-public:
+ public:
   virtual ~LedStateSource() = default;
   virtual LedMask litMask() const = 0;
   virtual LedMask previousMask() const = 0;
@@ -26,7 +26,7 @@ public:
 // Produces the image the camera would see with `lit` LEDs on. The CAD-based cell renderer
 // (vision/render) implements this too; the HAL ships only the deterministic pattern below.
 class SceneRenderer {
-public:
+ public:
   virtual ~SceneRenderer() = default;
   virtual void render(LedMask lit, std::uint64_t exposureIndex, Image& out) = 0;
 };
@@ -35,7 +35,7 @@ public:
 // rest is a ramp brightening towards the lit LEDs' directions (LED i sits at i*45 degrees), so an
 // image is recognisable by eye and by decode().
 class PatternSceneRenderer final : public SceneRenderer {
-public:
+ public:
   struct Tag {
     LedMask lit;
     std::uint64_t exposureIndex;
@@ -46,7 +46,7 @@ public:
 };
 
 class SimulatedLightRing final : public LightRing, public LedStateSource {
-public:
+ public:
   explicit SimulatedLightRing(std::string name = "sim-leds") : name_(std::move(name)) {}
   void configure() override;
   void activate() override;
@@ -60,7 +60,7 @@ public:
   std::int64_t lastChangeNs() const override { return changedNs_; }
 
   // Fault injection, below the interface.
-  void failNextSets(int count) { failSets_ = count; }       // set() fails (after forcing all-off)
+  void failNextSets(int count) { failSets_ = count; }           // set() fails (after forcing all-off)
   void failConfigureBusy(bool busy) { configureBusy_ = busy; }  // configure() reports a busy line
 
   // Every set() with its time, kept in preallocated storage (no allocation on the frame path).
@@ -68,10 +68,13 @@ public:
     std::int64_t timeNs;
     LedMask mask;
   };
-  void recordHistory(std::size_t capacity) { history_.clear(); history_.reserve(capacity); }
+  void recordHistory(std::size_t capacity) {
+    history_.clear();
+    history_.reserve(capacity);
+  }
   const std::vector<Event>& history() const { return history_; }
 
-private:
+ private:
   void drive(LedMask mask);
   std::string name_;
   bool configured_ = false, active_ = false;
@@ -91,7 +94,7 @@ struct SimulatedCameraConfig {
 };
 
 class SimulatedCamera final : public Camera {
-public:
+ public:
   // `lights` and `renderer` are borrowed; nullptr renderer = the built-in PatternSceneRenderer.
   SimulatedCamera(SimulatedCameraConfig config, const LedStateSource& lights, SceneRenderer* renderer = nullptr);
   void configure() override;
@@ -110,7 +113,7 @@ public:
   void injectDroppedFrames(int count) { dropped_ = count; }    // sequence gap of `count` before next frame
   void injectDisconnect() { disconnected_ = true; }            // next read() throws DeviceGone, then reconnects
 
-private:
+ private:
   SimulatedCameraConfig config_;
   const LedStateSource& lights_;
   PatternSceneRenderer pattern_;

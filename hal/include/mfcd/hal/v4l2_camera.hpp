@@ -17,10 +17,10 @@ struct V4L2CameraConfig {
   std::string device = "/dev/video0";
   int width = 640;
   int height = 480;
-  int bitsPerPixel = 8;               // output depth: 8 or 16
-  int frameRate = 0;                  // frames per second to ask for (VIDIOC_S_PARM); 0 = device default
-  std::optional<int> exposureUs;      // manual exposure, if the device has the control
-  std::optional<int> gain;            // manual gain, if the device has the control
+  int bitsPerPixel = 8;           // output depth: 8 or 16
+  int frameRate = 0;              // frames per second to ask for (VIDIOC_S_PARM); 0 = device default
+  std::optional<int> exposureUs;  // manual exposure, if the device has the control
+  std::optional<int> gain;        // manual gain, if the device has the control
   int bufferCount = 4;
   std::chrono::milliseconds dequeueTimeout{1000};
   std::chrono::milliseconds reconnectBackoffMin{100};
@@ -34,7 +34,7 @@ enum class SourceFormat { Grey, Y16, Yuyv };
 void convertToGrey(SourceFormat source, const std::uint8_t* src, std::size_t srcStride, Image& out);
 
 class V4L2Camera final : public Camera {
-public:
+ public:
   explicit V4L2Camera(V4L2CameraConfig config);
   ~V4L2Camera() override;
   V4L2Camera(const V4L2Camera&) = delete;
@@ -54,7 +54,7 @@ public:
   bool exposureApplied() const { return exposureApplied_; }
   bool gainApplied() const { return gainApplied_; }
 
-private:
+ private:
   static constexpr int kMaxBuffers = 16;
   struct Mapping {
     void* data = nullptr;
