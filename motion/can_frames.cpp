@@ -96,7 +96,8 @@ std::optional<std::array<can_frame, 3>> encode_pick(const RobotReport& r, std::u
   put_le(out[2], 1, 2, *rz);
   put_le(out[2], 3, 2, score_raw);
   put_le(out[2], 5, 2, r.job_id);
-  out[2].data[7] = r.pick_valid ? 1 : 0;
+  out[2].data[7] =
+      static_cast<std::uint8_t>((r.pick_valid ? 1u : 0u) | (std::min<std::uint16_t>(r.pick_rank, 127) << 1));
   return out;
 }
 
@@ -117,6 +118,7 @@ std::optional<CanPick> decode_pick(const std::array<can_frame, 3>& f, canid_t ba
   p.score = static_cast<float>(get_le(f[2], 3, 2) * kCanScorePerBit);
   p.job_id = static_cast<std::uint16_t>(get_le(f[2], 5, 2));
   p.valid = (f[2].data[7] & 1u) != 0;
+  p.rank = static_cast<std::uint8_t>(f[2].data[7] >> 1);
   return p;
 }
 

@@ -5,7 +5,7 @@
 //   base+0x01 MFCD_Heartbeat  heartbeat counter, cycle time, recipe echo, candidates
 //   base+0x10 MFCD_PickA      PickSeq, X, Y, candidate index
 //   base+0x11 MFCD_PickB      PickSeq, Z, Rx, Ry
-//   base+0x12 MFCD_PickC      PickSeq, Rz, score, job id, valid  (sent last: completes the pick)
+//   base+0x12 MFCD_PickC      PickSeq, Rz, score, job id, valid, rank  (sent last: completes the pick)
 //
 // Classic CAN rather than CAN FD because every PLC CAN module and robot controller speaks
 // it; the pose is split over three frames that carry the same PickSeq, so a receiver can
@@ -52,6 +52,7 @@ struct CanPick {
   float score = 0;
   std::uint16_t job_id = 0;
   std::uint8_t candidate_index = 0;
+  std::uint8_t rank = 0;  // rank of the pick in its job's order (Modbus PICK_RANK), saturates at 127
   bool valid = false;
 };
 // Nullopt unless the three frames have the right ids and the same sequence counter.

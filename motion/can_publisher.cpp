@@ -204,7 +204,7 @@ void CanPublisher::drain_errors() {
 void CanPublisher::run() {
   std::uint16_t heartbeat = 0;
   std::uint8_t pick_sequence = 0;
-  std::uint16_t last_pick_job = 0;
+  std::uint16_t last_pick_job = 0, last_pick_rank = 0;
   std::uint16_t last_status = 0;
   std::uint16_t last_status_job = 0, last_status_error = 0, last_status_objects = 0;
   bool status_known = false;
@@ -239,15 +239,23 @@ void CanPublisher::run() {
       last_status_error = report.error_code;
       last_status_objects = report.objects_remaining;
     }
-    if (report.pick_valid && report.job_id != 0 && report.job_id != last_pick_job) {
+    // A new job's pick, or the next pick of the same job (NEXT on the Modbus link).
+    const bool new_pick = report.pick_valid && report.job_id != 0 &&
+                          (report.job_id != last_pick_job || report.pick_rank != last_pick_rank);
+    if (new_pick) {
       const auto frames = encode_pick(report, pick_sequence, config_.id_base);
+      bool done = true;  // sent, or never sendable
       if (!frames) {
         set_error("can: pick for job " + std::to_string(report.job_id) + " is outside the CAN signal ranges; not sent");
-        last_pick_job = report.job_id;
       } else if (send((*frames)[0]) && send((*frames)[1]) && send((*frames)[2])) {
         picks_.fetch_add(1);
         ++pick_sequence;
+      } else {
+        done = false;
+      }
+      if (done) {
         last_pick_job = report.job_id;
+        last_pick_rank = report.pick_rank;
       }
     }
 
@@ -255,8 +263,9 @@ void CanPublisher::run() {
     Clock::time_point deadline = next_beat;
     if (socket_fd_ < 0 || state_.load() == CanLinkState::BusOff) deadline = std::min(deadline, next_retry);
     // A status or pick that could not be sent is retried at the latest after retry_interval.
-    if (socket_fd_ >= 0 && (!status_known || (report.pick_valid && report.job_id != last_pick_job)))
-      deadline = std::min(deadline, now + config_.retry_interval);
+    const bool pick_unsent = report.pick_valid && report.job_id != 0 &&
+                             (report.job_id != last_pick_job || report.pick_rank != last_pick_rank);
+    if (socket_fd_ >= 0 && (!status_known || pick_unsent)) deadline = std::min(deadline, now + config_.retry_interval);
     const auto wait = std::chrono::ceil<std::chrono::milliseconds>(deadline - Clock::now()).count();
     const int ready = ::poll(fds, socket_fd_ >= 0 ? 3 : 2, static_cast<int>(std::max<long>(wait, 0)));
     if (ready <= 0) continue;

@@ -25,6 +25,11 @@ RobotReport ModbusServer::Impl::refresh_registers() {
   const RobotReport r = server.report_.read();
   std::uint16_t* regs = map->tab_registers;
   if (job_pending && r.job_id == last_job) job_pending = false;
+  if (r.job_id != shown_job) {
+    shown_job = r.job_id;
+    shown_rank = 0;
+  }
+  shown_rank = std::max(shown_rank, r.pick_rank);
   std::uint16_t status = 0;
   if (r.ready && !job_pending && r.error_code == 0) status |= reg::kReady;
   if (job_pending) status |= reg::kBusy;
@@ -32,6 +37,9 @@ RobotReport ModbusServer::Impl::refresh_registers() {
   if (r.error_code != 0) status |= reg::kError;
   if (r.pick_valid) status |= reg::kPickValid;
   if (r.vision_ok) status |= reg::kVisionOk;
+  const bool valid = r.pick_valid != 0;
+  RankedPick shown{r.pick, r.score, r.candidate_index, 0};
+  if (r.pick_count > 0 && shown_rank < r.pick_count) shown = r.ranked[shown_rank];
   regs[reg::kStatus] = status;
   regs[reg::kJobIdEcho] = r.job_id;
   regs[reg::kHeartbeat] = heartbeat;
@@ -39,7 +47,7 @@ RobotReport ModbusServer::Impl::refresh_registers() {
   regs[reg::kRecipeEcho] = r.recipe_id;
   regs[reg::kObjectsRemaining] = r.objects_remaining;
   regs[reg::kCycleTimeMs] = r.cycle_time_ms;
-  regs[reg::kCandidateIndex] = r.candidate_index;
+  regs[reg::kCandidateIndex] = shown.candidate_index;
   regs[reg::kCandidateCount] = r.candidate_count;
   regs[reg::kWordOrder] = static_cast<std::uint16_t>(config.word_order);
   regs[reg::kMapVersionReg] = reg::kMapVersion;
@@ -49,15 +57,18 @@ RobotReport ModbusServer::Impl::refresh_registers() {
     regs[at] = words[0];
     regs[at + 1] = words[1];
   };
-  const bool valid = r.pick_valid != 0;
-  put(reg::kPickX, valid ? r.pick.x_mm : 0.0f);
-  put(reg::kPickY, valid ? r.pick.y_mm : 0.0f);
-  put(reg::kPickZ, valid ? r.pick.z_mm : 0.0f);
-  put(reg::kPickRx, valid ? r.pick.rx_deg : 0.0f);
-  put(reg::kPickRy, valid ? r.pick.ry_deg : 0.0f);
-  put(reg::kPickRz, valid ? r.pick.rz_deg : 0.0f);
-  put(reg::kScore, valid ? r.score : 0.0f);
+  put(reg::kPickX, valid ? shown.pick.x_mm : 0.0f);
+  put(reg::kPickY, valid ? shown.pick.y_mm : 0.0f);
+  put(reg::kPickZ, valid ? shown.pick.z_mm : 0.0f);
+  put(reg::kPickRx, valid ? shown.pick.rx_deg : 0.0f);
+  put(reg::kPickRy, valid ? shown.pick.ry_deg : 0.0f);
+  put(reg::kPickRz, valid ? shown.pick.rz_deg : 0.0f);
+  put(reg::kScore, valid ? shown.score : 0.0f);
   put(reg::kTestVector, reg::kTestVectorValue);
+  regs[reg::kPickRank] = valid ? shown_rank : 0;
+  regs[reg::kPicksLeft] =
+      valid && r.pick_count > shown_rank ? static_cast<std::uint16_t>(r.pick_count - shown_rank - 1) : 0;
+  regs[reg::kSnapshotCount] = r.snapshots_saved;
   std::memcpy(map->tab_input_registers, regs, reg::kBlockSize * sizeof(std::uint16_t));
   return r;
 }
@@ -79,30 +90,65 @@ void ModbusServer::Impl::send_exception(Client& c, std::uint8_t function, Modbus
 
 ModbusException ModbusServer::Impl::decide_command(const RegisterWrite& w, const RobotReport& report,
                                                    std::optional<PlcCommand>& command) {
-  const std::uint16_t* regs = map->tab_registers;
   std::uint16_t control[reg::kControlEnd];
-  std::copy(regs, regs + reg::kControlEnd, control);
-  for (std::uint16_t i = 0; i < w.count && w.address + i < reg::kControlEnd; ++i)
-    control[w.address + i] = be16(w.values + 2 * i);
-  const bool queue_full = server.commands_.size_approx() >= server.commands_.capacity();
+  control_after(w, control);
   const PlcCommand asked{PlcCommand::Kind::Trigger, control[reg::kJobId], control[reg::kRecipeId], control[reg::kMode]};
   switch (static_cast<reg::Command>(control[reg::kCommand])) {
     case reg::Command::None:
       return ModbusException::None;
     case reg::Command::Trigger:
+    case reg::Command::SaveScene:
       if (asked.job_id == 0 || asked.job_id == last_job || asked.mode > reg::kModeMax)
         return ModbusException::IllegalDataValue;
-      if (job_pending || !report.ready || report.error_code != 0 || queue_full)
+      if (job_pending || !report.ready || report.error_code != 0 || queue_full())
         return ModbusException::ServerDeviceBusy;
       command = asked;
+      if (control[reg::kCommand] == static_cast<std::uint16_t>(reg::Command::SaveScene))
+        command->kind = PlcCommand::Kind::SaveScene;
       return ModbusException::None;
     case reg::Command::Reset:
-      if (queue_full) return ModbusException::ServerDeviceBusy;
+      if (queue_full()) return ModbusException::ServerDeviceBusy;
       command = asked;
       command->kind = PlcCommand::Kind::Reset;
       return ModbusException::None;
+    case reg::Command::Next:
+      // The job in the registers: its next pick, if it has one.
+      if (job_pending || report.error_code != 0 || queue_full()) return ModbusException::ServerDeviceBusy;
+      if (!report.pick_valid || report.job_id == 0 || shown_rank + 1 >= report.pick_count)
+        return ModbusException::IllegalDataValue;
+      command = PlcCommand{
+          PlcCommand::Kind::Next, report.job_id, report.recipe_id, 0, static_cast<std::uint16_t>(shown_rank + 1), 0};
+      return ModbusException::None;
   }
   return ModbusException::IllegalDataValue;
+}
+
+ModbusException ModbusServer::Impl::decide_pick_result(const RegisterWrite& w, const RobotReport& report,
+                                                       std::optional<PlcCommand>& result) {
+  std::uint16_t control[reg::kControlEnd];
+  control_after(w, control);
+  const std::uint16_t outcome = control[reg::kPickResult];
+  if (outcome == static_cast<std::uint16_t>(reg::PickOutcome::None)) return ModbusException::None;
+  if (outcome > reg::kPickOutcomeMax) return ModbusException::IllegalDataValue;
+  // Only the pick in the registers can be reported on: the job must be JOB_ID_ECHO and have a pick.
+  if (report.job_id == 0 || control[reg::kPickResultJob] != report.job_id || !report.pick_valid)
+    return ModbusException::IllegalDataValue;
+  if (reported_job == report.job_id && reported_rank == shown_rank) return ModbusException::None;  // a repeat
+  if (queue_full()) return ModbusException::ServerDeviceBusy;
+  result = PlcCommand{PlcCommand::Kind::PickResult, report.job_id, report.recipe_id, 0, shown_rank, outcome};
+  return ModbusException::None;
+}
+
+void ModbusServer::Impl::control_after(const RegisterWrite& w, std::uint16_t (&control)[reg::kControlEnd]) const {
+  const std::uint16_t* regs = map->tab_registers;
+  std::copy(regs, regs + reg::kControlEnd, control);
+  for (std::uint16_t i = 0; i < w.count && w.address + i < reg::kControlEnd; ++i)
+    control[w.address + i] = be16(w.values + 2 * i);
+}
+
+bool ModbusServer::Impl::queue_full() const noexcept {
+  // Room for a command and a pick result from one write.
+  return server.commands_.size_approx() + 2 > server.commands_.capacity();
 }
 
 bool ModbusServer::Impl::write_robot_pose(const RegisterWrite& w) {
@@ -129,13 +175,23 @@ bool ModbusServer::Impl::write_robot_pose(const RegisterWrite& w) {
 }
 
 void ModbusServer::Impl::queue_command(const PlcCommand& command) {
-  map->tab_registers[reg::kCommand] = 0;  // reads back 0 once taken
-  if (command.kind == PlcCommand::Kind::Trigger) {
-    job_pending = true;
-    last_job = command.job_id;
-  } else {
-    job_pending = false;
+  switch (command.kind) {
+    case PlcCommand::Kind::Trigger:
+    case PlcCommand::Kind::SaveScene:
+      job_pending = true;
+      last_job = command.job_id;
+      break;
+    case PlcCommand::Kind::Reset:
+      job_pending = false;
+      break;
+    case PlcCommand::Kind::Next:
+      break;
+    case PlcCommand::Kind::PickResult:
+      reported_job = command.job_id;
+      reported_rank = command.rank;
+      break;
   }
+  if (command.kind != PlcCommand::Kind::PickResult) map->tab_registers[reg::kCommand] = 0;  // reads back 0 once taken
   server.commands_.push(command);
   server.queued_.fetch_add(1);
   const std::uint64_t one = 1;
@@ -152,18 +208,22 @@ void ModbusServer::Impl::handle_frame(Client& c, std::size_t size) {
     return;
   }
 
-  // A write covering the command register is a command: decided on before any register
-  // changes, so a refused command leaves the map untouched.
-  std::optional<PlcCommand> command;
+  // A write covering the command register is a command, one covering PICK_RESULT a pick
+  // report: both are decided on before any register changes, so a refused write leaves the
+  // map untouched. In one write, the report is on the pick shown before the command.
+  std::optional<PlcCommand> command, pick_result;
   const RegisterWrite& w = v.write;
-  if (w.count > 0 && w.address <= reg::kCommand && reg::kCommand < w.address + w.count) {
-    const ModbusException refuse = decide_command(w, report, command);
+  const auto covers = [&](std::uint16_t at) { return w.count > 0 && w.address <= at && at < w.address + w.count; };
+  ModbusException refuse = ModbusException::None;
+  if (covers(reg::kPickResult)) refuse = decide_pick_result(w, report, pick_result);
+  if (covers(reg::kCommand)) {
+    if (refuse == ModbusException::None) refuse = decide_command(w, report, command);
     last_command_result = static_cast<std::uint16_t>(refuse);
     map->tab_registers[reg::kLastCommandResult] = last_command_result;
-    if (refuse != ModbusException::None) {
-      send_exception(c, v.function, refuse);
-      return;
-    }
+  }
+  if (refuse != ModbusException::None) {
+    send_exception(c, v.function, refuse);
+    return;
   }
   // A write into the robot pose block is checked as the block it would leave: a valid flag
   // other than 0/1 or a non-finite float is refused and nothing is written.
@@ -171,6 +231,13 @@ void ModbusServer::Impl::handle_frame(Client& c, std::size_t size) {
       !write_robot_pose(w)) {
     send_exception(c, v.function, ModbusException::IllegalDataValue);
     return;
+  }
+  if (pick_result) queue_command(*pick_result);
+  // NEXT is served here and now: the registers (and the read half of an FC 0x17) show the
+  // next pick before the answer leaves.
+  if (command && command->kind == PlcCommand::Kind::Next) {
+    shown_rank = command->rank;
+    refresh_registers();
   }
   modbus_set_socket(ctx, c.fd.get());
   // modbus_reply() writes the map before it sends: a command whose acknowledgement could not

@@ -5,6 +5,7 @@
 
 #include "motion/ip_allow_list.hpp"
 #include "motion/modbus_server.hpp"
+#include "motion/register_map.hpp"
 #include "motion/request_guard.hpp"
 
 #include <modbus/modbus.h>
@@ -54,6 +55,13 @@ struct ModbusServer::Impl {
   void handle_frame(Client& c, std::size_t size);
   // For a write covering COMMAND: the command to queue, or the exception refusing it.
   ModbusException decide_command(const RegisterWrite& w, const RobotReport& report, std::optional<PlcCommand>& command);
+  // For a write covering PICK_RESULT: the report to queue (none for 0 or a repeat), or the
+  // exception refusing it.
+  ModbusException decide_pick_result(const RegisterWrite& w, const RobotReport& report,
+                                     std::optional<PlcCommand>& result);
+  // The control block as the write `w` would leave it.
+  void control_after(const RegisterWrite& w, std::uint16_t (&control)[reg::kControlEnd]) const;
+  bool queue_full() const noexcept;
   // For a write into the robot pose block: false (refuse) when the block it would leave is
   // invalid; else publishes the pose.
   bool write_robot_pose(const RegisterWrite& w);
@@ -74,6 +82,13 @@ struct ModbusServer::Impl {
   bool job_pending = false;
   std::uint16_t last_job = 0;
   std::uint16_t last_command_result = 0;
+  // The pick the registers show: rank shown_rank of job shown_job's ranked list (NEXT
+  // advances it at once; a new job starts at the rank the daemon published).
+  std::uint16_t shown_job = 0;
+  std::uint16_t shown_rank = 0;
+  // The last pick a PICK_RESULT was taken for: a repeat of it is acknowledged, not queued.
+  std::uint16_t reported_job = 0;
+  std::uint16_t reported_rank = 0;
 };
 
 }  // namespace mfcd::motion

@@ -9,15 +9,19 @@ namespace mfcd::motion::reg {
 // Everything lives in one block of holding registers starting at protocol address 0, so a
 // single "read holding registers" (FC 0x03) of kBlockSize covers the whole map.
 inline constexpr std::uint16_t kBlockSize = 64;
-inline constexpr std::uint16_t kMapVersion = 2;  // 2: robot pose block at 36..49
+inline constexpr std::uint16_t kMapVersion = 3;  // 2: robot pose block at 36..49; 3: NEXT, SAVE_SCENE, PICK_RESULT
 
 // --- Control block: written by the PLC ---------------------------------------------------
-inline constexpr std::uint16_t kCommand = 0;     // command code, see Command; reads back 0 once taken
-inline constexpr std::uint16_t kJobId = 1;       // job id for the next TRIGGER (1..65535)
-inline constexpr std::uint16_t kRecipeId = 2;    // part / recipe id for the next TRIGGER
-inline constexpr std::uint16_t kMode = 3;        // cycle mode for the next TRIGGER, see Mode
-inline constexpr std::uint16_t kControlEnd = 4;  // 4..7 reserved: writes are refused
-inline constexpr std::uint16_t kWritableEnd = 4;
+inline constexpr std::uint16_t kCommand = 0;   // command code, see Command; reads back 0 once taken
+inline constexpr std::uint16_t kJobId = 1;     // job id for the next TRIGGER (1..65535)
+inline constexpr std::uint16_t kRecipeId = 2;  // part / recipe id for the next TRIGGER
+inline constexpr std::uint16_t kMode = 3;      // cycle mode for the next TRIGGER, see Mode
+// The outcome of the pick in the registers (JOB_ID_ECHO, PICK_RANK), see PickOutcome; a
+// nonzero value written here is a report, taken when PICK_RESULT_JOB names JOB_ID_ECHO.
+inline constexpr std::uint16_t kPickResult = 4;
+inline constexpr std::uint16_t kPickResultJob = 5;  // the job a PICK_RESULT reports on
+inline constexpr std::uint16_t kControlEnd = 6;     // 6..7 reserved: writes are refused
+inline constexpr std::uint16_t kWritableEnd = 6;
 
 // --- Status block: written by mfcd, read-only for the PLC --------------------------------
 inline constexpr std::uint16_t kStatus = 8;       // status bits, see StatusBit
@@ -58,9 +62,20 @@ inline constexpr std::uint16_t kRobotPoseValid = 48;  // 1: registers 36..47 hol
 inline constexpr std::uint16_t kRobotPoseSeq = 49;    // changed by the PLC for every new pose
 inline constexpr std::uint16_t kRobotPoseBegin = 36;
 inline constexpr std::uint16_t kRobotPoseEnd = 50;
-// 50..63 reserved, read 0.
 
-enum class Command : std::uint16_t { None = 0, Trigger = 1, Reset = 2 };
+// --- Job extras: written by mfcd, read-only (map version 3) -------------------------------
+inline constexpr std::uint16_t kPickRank = 50;       // rank of the pick in 20..33 in its job's order, 0 = first choice
+inline constexpr std::uint16_t kPicksLeft = 51;      // further picks NEXT can still publish for this job
+inline constexpr std::uint16_t kSnapshotCount = 52;  // snapshots saved since mfcd started, wraps at 65535
+// 53..63 reserved, read 0.
+
+// TRIGGER and SAVE_SCENE start a job (SAVE_SCENE also saves its frame set as a snapshot);
+// NEXT publishes the job's next pick at once, without a new capture.
+enum class Command : std::uint16_t { None = 0, Trigger = 1, Reset = 2, Next = 3, SaveScene = 4 };
+// What the robot made of a published pick (PICK_RESULT). Anything but Ok counts as a failed
+// pick, and mfcd keeps a snapshot of the job's frame set.
+enum class PickOutcome : std::uint16_t { None = 0, Ok = 1, Missed = 2, Unreachable = 3, Collision = 4, Dropped = 5 };
+inline constexpr std::uint16_t kPickOutcomeMax = 5;
 enum class Mode : std::uint16_t { Pick = 0, CountOnly = 1 };
 inline constexpr std::uint16_t kModeMax = 1;
 

@@ -1,6 +1,8 @@
 // What flows between the daemon and the robot links (Modbus/TCP server, SocketCAN publisher).
 #pragma once
 
+#include <array>
+#include <cstddef>
 #include <cstdint>
 
 namespace mfcd::motion {
@@ -11,6 +13,15 @@ struct PickPose {
   float x_mm = 0, y_mm = 0, z_mm = 0;
   float rx_deg = 0, ry_deg = 0, rz_deg = 0;
 };
+
+// One pick of a job's ranked list (the order motion::rank_picks gives; NEXT walks it).
+struct RankedPick {
+  PickPose pick;
+  float score = 0;
+  std::uint16_t candidate_index = 0;  // among the cycle's candidates
+  std::uint16_t reserved = 0;
+};
+inline constexpr std::size_t kMaxRankedPicks = 8;
 
 // Published by the daemon whenever its state or a job result changes. One writer only.
 // Every field is a plain 32-bit-or-smaller value so the snapshot can be copied word by word.
@@ -25,8 +36,16 @@ struct RobotReport {
   std::uint16_t ready = 0;       // 1: daemon can take a trigger (camera open, recipe loaded)
   std::uint16_t vision_ok = 0;   // 1: camera and vision pipeline healthy
   std::uint16_t pick_valid = 0;  // 1: pick/score hold a pick for job_id
-  PickPose pick;
+  PickPose pick;                 // the pick of rank pick_rank (its score and candidate_index above and below)
   float score = 0;
+  // The job's picks in order, ranked[0] the first choice; pick_count 0 when the report carries
+  // only `pick` (no fall-backs). NEXT on the Modbus link publishes ranked[pick_rank + 1] at
+  // once; the daemon then follows with pick_rank (the CAN link sends the pick of that rank).
+  std::uint16_t pick_rank = 0;
+  std::uint16_t pick_count = 0;
+  std::uint16_t snapshots_saved = 0;  // snapshots written since mfcd started, wraps
+  std::uint16_t reserved = 0;
+  std::array<RankedPick, kMaxRankedPicks> ranked{};
 };
 
 // The robot pose block (registers 36..49) as the PLC last wrote it.
@@ -39,12 +58,19 @@ struct RobotPoseReading {
 };
 
 // Written by the PLC (Modbus) and handed to the daemon.
+//   Trigger, SaveScene: start job job_id (SaveScene also keeps its frame set as a snapshot);
+//   Reset: clear an error, abandon a pending job;
+//   Next: the server has already published the pick of rank `rank` of job job_id;
+//   PickResult: not a COMMAND but a PICK_RESULT write: `outcome` (reg::PickOutcome) of the
+//   pick of rank `rank` of job job_id.
 struct PlcCommand {
-  enum class Kind : std::uint16_t { Trigger = 1, Reset = 2 };
+  enum class Kind : std::uint16_t { Trigger = 1, Reset = 2, Next = 3, SaveScene = 4, PickResult = 5 };
   Kind kind = Kind::Trigger;
   std::uint16_t job_id = 0;
   std::uint16_t recipe_id = 0;
   std::uint16_t mode = 0;
+  std::uint16_t rank = 0;
+  std::uint16_t outcome = 0;
 };
 
 }  // namespace mfcd::motion

@@ -90,7 +90,7 @@ bool dump(const Case &c)
                {"PickScore", r.score},  // cases keep the score in 0..1, where the encoder does not clamp
                {"PickJobId", r.job_id},
                {"PickValid", flag(r.pick_valid != 0)},
-               {"PickReserved57_63", 0}});
+               {"PickRank", r.pick_rank}});
   return true;
 }
 
@@ -110,6 +110,7 @@ std::vector<Case> cases()
   t.ready = t.vision_ok = t.pick_valid = 1;
   t.pick = {512.25f, -130.5f, 740.125f, 179.5f, -2.25f, 45.0f};
   t.score = 0.8734f;
+  t.pick_rank = 2;
   out.push_back(typical);
 
   // Every daemon error code (daemon/cycle.hpp CycleError) and one outside the table; READY
@@ -132,6 +133,7 @@ std::vector<Case> cases()
   h.ready = h.vision_ok = h.pick_valid = 1;
   h.pick = {83886.07f, 83886.07f, 83886.07f, 327.67f, 327.67f, 327.67f};
   h.score = 1.0f;
+  h.pick_rank = 127;
   out.push_back(high);
 
   // The most negative values the signed signals hold, and the smallest steps around zero.
@@ -165,6 +167,7 @@ std::vector<Case> cases()
     r.pick_valid = static_cast<std::uint16_t>(bit(rng));
     r.pick = {mm(rng), mm(rng), mm(rng), deg(rng), deg(rng) / 2, deg(rng)};
     r.score = unit(rng);
+    r.pick_rank = static_cast<std::uint16_t>(u16(rng) % 8);
     out.push_back(c);
   }
   return out;

@@ -136,6 +136,7 @@ RobotReport random_report(std::mt19937 &rng)
 	r.pick_valid = static_cast<std::uint16_t>(bit(rng));
 	r.pick = {mm(rng), mm(rng), mm(rng), deg(rng), deg(rng) / 2, deg(rng)};
 	r.score = unit(rng);
+	r.pick_rank = static_cast<std::uint16_t>(u16(rng) % 200);
 	return r;
 }
 
@@ -210,7 +211,7 @@ TEST_F(CanDbc, PickFramesMatchTheDbc)
 		ASSERT_NEAR(signal(c, "PickScore"), r.score, 0.00005 + 1e-6);
 		ASSERT_EQ(signal(c, "PickJobId"), r.job_id);
 		ASSERT_EQ(signal(c, "PickValid"), r.pick_valid ? 1 : 0);
-		ASSERT_EQ(signal(c, "PickReserved57_63"), 0);
+		ASSERT_EQ(signal(c, "PickRank"), std::min<int>(r.pick_rank, 127));
 		ASSERT_EQ(signal(a, "CandidateIndex"), std::min<int>(r.candidate_index, 255));
 		// And the library's own decoder agrees with the DBC reading.
 		const auto p = decode_pick(*frames, kCanDefaultBase);
@@ -218,6 +219,7 @@ TEST_F(CanDbc, PickFramesMatchTheDbc)
 		ASSERT_NEAR(p->pose.x_mm, signal(a, "PickX"), 1e-3);
 		ASSERT_NEAR(p->pose.rz_deg, signal(c, "PickRz"), 1e-4);
 		ASSERT_EQ(p->job_id, r.job_id);
+		ASSERT_EQ(p->rank, std::min<int>(r.pick_rank, 127));
 	}
 }
 

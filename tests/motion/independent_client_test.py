@@ -15,6 +15,7 @@ import time
 
 STATUS, JOB_ECHO, PICK_X, SCORE, TEST_VECTOR, WORD_ORDER = 8, 9, 20, 32, 34, 17
 DONE, PICK_VALID = 1 << 2, 1 << 4
+PICK_RANK, PICKS_LEFT, NEXT = 50, 51, 3
 
 
 def pick_for_job(job):  # tests/motion/sim_daemon.hpp
@@ -116,7 +117,47 @@ def run_mbpoll(binary):
                               "-c", "10", "127.0.0.1"], capture_output=True, text=True, timeout=20)
         text = out.stdout + out.stderr
         check("Illegal data address" in text, f"{order}: mbpoll read past the map -> illegal data address")
+        if order == "ABCD":
+            mbpoll_map_v3(mbpoll, server.port)
         server.close()
+
+
+def mbpoll_map_v3(mbpoll, port):
+    """TRIGGER, NEXT and PICK_RESULT written by mbpoll (map version 3)."""
+    base = [mbpoll, "-m", "tcp", "-p", str(port), "-a", "1", "-0", "-1"]
+
+    def write(address, *values):
+        out = subprocess.run(base + ["-r", str(address), "127.0.0.1"] + [str(v) for v in values],
+                             capture_output=True, text=True, timeout=20)
+        return out.returncode, out.stdout + out.stderr
+
+    def read(address, count):
+        out = subprocess.run(base + ["-r", str(address), "-c", str(count), "127.0.0.1"],
+                             capture_output=True, text=True, timeout=20)
+        values = {}
+        for line in out.stdout.splitlines():
+            if line.startswith("["):
+                key, value = line.split(":", 1)
+                values[int(key.strip("[]"))] = int(value.split()[0])
+        return values
+
+    code, text = write(0, 1, 31, 3, 0)
+    check(code == 0, f"mbpoll: TRIGGER job 31 written ({text.strip()[-60:]})")
+    for _ in range(100):
+        if read(JOB_ECHO, 1).get(JOB_ECHO) == 31:
+            break
+        time.sleep(0.02)
+    regs = read(PICK_RANK, 3)
+    check(regs.get(PICK_RANK) == 0 and regs.get(PICKS_LEFT) == 2, f"mbpoll: job 31 first choice, 2 more: {regs}")
+    code, _ = write(0, NEXT)
+    regs = read(PICK_RANK, 2)
+    check(code == 0 and regs.get(PICK_RANK) == 1 and regs.get(PICKS_LEFT) == 1, f"mbpoll: NEXT -> rank 1: {regs}")
+    code, _ = write(4, 2, 31)
+    check(code == 0, "mbpoll: PICK_RESULT missed for job 31")
+    check(read(4, 2) == {4: 2, 5: 31}, "mbpoll: PICK_RESULT reads back")
+    write(0, NEXT)
+    code, text = write(0, NEXT)
+    check(code != 0 and "Illegal data value" in text, "mbpoll: NEXT with no pick left -> illegal data value")
 
 
 if __name__ == "__main__":

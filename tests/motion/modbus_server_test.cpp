@@ -16,7 +16,10 @@
 
 using namespace mfcd::motion;
 using namespace std::chrono_literals;
+using test::LibmodbusClient;
 using test::make_adu;
+using test::reg_float;
+using test::wait_for_echo;
 using test::RawClient;
 using test::SimulatedDaemon;
 using test::pick_for_job;
@@ -31,50 +34,6 @@ ModbusServerConfig loopback_config(WordOrder order = WordOrder::ABCD)
 	c.word_order = order;
 	c.frame_timeout = 300ms;
 	return c;
-}
-
-struct LibmodbusClient {
-	explicit LibmodbusClient(std::uint16_t port)
-	{
-		ctx = modbus_new_tcp("127.0.0.1", port);
-		if (!ctx || modbus_connect(ctx) != 0)
-			throw std::runtime_error("libmodbus connect failed");
-		modbus_set_response_timeout(ctx, 2, 0);
-	}
-	~LibmodbusClient() { modbus_free(ctx); }
-	std::vector<std::uint16_t> read(int address, int count)
-	{
-		std::vector<std::uint16_t> regs(count);
-		if (modbus_read_registers(ctx, address, count, regs.data()) != count)
-			throw std::runtime_error(std::string("read failed: ") + modbus_strerror(errno));
-		return regs;
-	}
-	// Returns 0 or the errno libmodbus reports (EMBXILVAL, EMBXSBUSY, ...).
-	int write(int address, std::vector<std::uint16_t> values)
-	{
-		if (modbus_write_registers(ctx, address, static_cast<int>(values.size()), values.data()) ==
-		    static_cast<int>(values.size()))
-			return 0;
-		return errno;
-	}
-	modbus_t *ctx;
-};
-
-float reg_float(const std::vector<std::uint16_t> &block, int at, WordOrder order)
-{
-	return decode_float(block[at], block[at + 1], order);
-}
-
-// Polls the job id echo the way a PLC does, until it equals job.
-std::vector<std::uint16_t> wait_for_echo(LibmodbusClient &plc, std::uint16_t job)
-{
-	for (int i = 0; i < 300; ++i) {
-		auto block = plc.read(0, reg::kBlockSize);
-		if (block[reg::kJobIdEcho] == job)
-			return block;
-		std::this_thread::sleep_for(10ms);
-	}
-	throw std::runtime_error("job id echo never arrived");
 }
 
 } // namespace
@@ -178,7 +137,7 @@ TEST(ModbusServer, TriggerRefusedWhileBusyAndBadCommandsRefused)
 	EXPECT_EQ(plc.write(reg::kCommand, {1, 42, 1, 9}), EMBXILVAL) << "mode 9";
 	EXPECT_EQ(plc.write(reg::kCommand, {77}), EMBXILVAL) << "unknown command";
 	EXPECT_EQ(plc.write(reg::kStatus, {1}), EMBXILADD) << "status is read-only";
-	EXPECT_EQ(plc.write(5, {1}), EMBXILADD) << "reserved";
+	EXPECT_EQ(plc.write(6, {1}), EMBXILADD) << "reserved";
 	EXPECT_EQ(daemon.triggers.load(), 1);
 }
 
@@ -577,7 +536,7 @@ TEST(ModbusServer, RobotPoseBlockWrittenByThePlc)
 		ModbusServer server(loopback_config(order));
 		server.start();
 		LibmodbusClient plc(server.port());
-		EXPECT_EQ(plc.read(reg::kMapVersionReg, 1)[0], 2);
+		EXPECT_EQ(plc.read(reg::kMapVersionReg, 1)[0], reg::kMapVersion);
 		EXPECT_EQ(server.robot_pose().writes, 0u) << "never written";
 
 		const float pose[6] = {512.25f, -130.5f, 740.125f, 179.5f, -2.25f, 45.0f};

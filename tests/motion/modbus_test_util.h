@@ -1,16 +1,23 @@
 // Helpers for talking to a ModbusServer over real loopback sockets in tests.
 #pragma once
 
+#include "motion/float_codec.hpp"
+#include "motion/register_map.hpp"
+
 #include <arpa/inet.h>
+#include <modbus/modbus.h>
 #include <netinet/in.h>
 #include <poll.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <cerrno>
+#include <chrono>
 #include <cstdint>
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <thread>
 #include <vector>
 
 namespace mfcd::motion::test {
@@ -96,6 +103,51 @@ inline std::vector<std::uint8_t> make_adu(std::uint16_t transaction, std::vector
 	for (std::uint8_t b : pdu) // (not insert(): GCC 12 -O3 warns falsely on it)
 		out.push_back(b);
 	return out;
+}
+
+// A real libmodbus client, as a PLC-side library would use it.
+struct LibmodbusClient {
+	explicit LibmodbusClient(std::uint16_t port)
+	{
+		ctx = modbus_new_tcp("127.0.0.1", port);
+		if (!ctx || modbus_connect(ctx) != 0)
+			throw std::runtime_error("libmodbus connect failed");
+		modbus_set_response_timeout(ctx, 2, 0);
+	}
+	~LibmodbusClient() { modbus_free(ctx); }
+	std::vector<std::uint16_t> read(int address, int count)
+	{
+		std::vector<std::uint16_t> regs(count);
+		if (modbus_read_registers(ctx, address, count, regs.data()) != count)
+			throw std::runtime_error(std::string("read failed: ") + modbus_strerror(errno));
+		return regs;
+	}
+	// Returns 0 or the errno libmodbus reports (EMBXILVAL, EMBXSBUSY, ...).
+	int write(int address, std::vector<std::uint16_t> values)
+	{
+		if (modbus_write_registers(ctx, address, static_cast<int>(values.size()), values.data()) ==
+		    static_cast<int>(values.size()))
+			return 0;
+		return errno;
+	}
+	modbus_t *ctx;
+};
+
+inline float reg_float(const std::vector<std::uint16_t> &block, int at, WordOrder order)
+{
+	return decode_float(block[at], block[at + 1], order);
+}
+
+// Polls the job id echo the way a PLC does, until it equals job.
+inline std::vector<std::uint16_t> wait_for_echo(LibmodbusClient &plc, std::uint16_t job)
+{
+	for (int i = 0; i < 300; ++i) {
+		auto block = plc.read(0, reg::kBlockSize);
+		if (block[reg::kJobIdEcho] == job)
+			return block;
+		std::this_thread::sleep_for(std::chrono::milliseconds(10));
+	}
+	throw std::runtime_error("job id echo never arrived");
 }
 
 } // namespace mfcd::motion::test
