@@ -179,6 +179,7 @@ void Cell::acquisitionMain(std::promise<void>& ready) {
     source_->activate();
     const hal::ImageFormat format = source_->format();
     for (auto& slot : frames_.slots()) slot.allocate(format);
+    retained_.allocate(format);
     // Real lenses distort; the simulated cell renders the ideal pinhole the templates were taught
     // for (its camera file has zero distortion, and a fitted k1, k2 on its renders is noise).
     undistorter_ = source_->simulation() ? vision::FrameUndistorter()
@@ -305,16 +306,20 @@ void Cell::visionMain(std::promise<void>& ready) {
         continue;
       }
       runCycle(*slot, *out);
-      const bool wantSnapshot = slot->request.snapshot ||
-                                (config_.snapshots.on_failure && slot->request.origin != CycleOrigin::Benchmark &&
-                                 (out->error != CycleError::None || out->candidate_count == 0));
-      CycleResult copy;
-      if (wantSnapshot) copy = *out;
+      const bool failed = out->error != CycleError::None || out->candidate_count == 0;
+      const char* why = slot->request.snapshot ? "requested"
+                        : config_.snapshots.on_failure && failed && slot->request.origin != CycleOrigin::Benchmark
+                            ? (out->error != CycleError::None ? "failed cycle" : "nothing found")
+                            : nullptr;
+      resultCopy_ = *out;
       results_.end_write();
       signalFd(resultFd_);
-      if (wantSnapshot) writeSnapshot(*slot, copy);
+      // Kept after the result has left: a pick reported failed later is saved from here.
+      retained_.keep(*slot, resultCopy_, resultCopy_.error == CycleError::None ? stage_->lastEdges() : nullptr);
       frames_.end_read();
+      if (why) writeSnapshot(why);
     }
+    serveSnapshotRequests();
   }
   stage_.reset();
 }
@@ -382,22 +387,13 @@ void Cell::runCycle(FrameSlot& slot, CycleResult& out) {
         // Grasp visibility: the pipeline's estimate for the recipes' grasp features (1 without any).
         c.grasp_visibility = static_cast<float>(pc.grasp_visibility);
         c.ambiguous = pc.ambiguous;
+        c.box = pc.box;
         choice[static_cast<std::size_t>(i)] = {c.score, static_cast<float>(config_.pick.bin_floor_distance_mm - pc.t_m2c_mm[2]),
                                                c.grasp_visibility, c.ambiguous};
         const auto u = motion::pick_utility(choice[static_cast<std::size_t>(i)], config_.pick.choice);
         c.utility = u ? *u : -1.0f;
       }
-      if (slot.request.mode == 0) {
-        const auto best = motion::choose_pick(std::span<const motion::PickCandidate>(choice.data(), static_cast<std::size_t>(n)), config_.pick.choice);
-        if (best) {
-          out.chosen = static_cast<int>(*best);
-          if (!out.candidates[*best].base_valid) {
-            out.error = CycleError::Transform;
-            copyMessage(out.message, sizeof out.message, "the chosen pick has no valid robot-base pose");
-            out.chosen = -1;
-          }
-        }
-      }
+      if (slot.request.mode == 0) rankPicks(std::span<const motion::PickCandidate>(choice.data(), static_cast<std::size_t>(n)), out);
       out.choice_ms = msBetween(visionDone, Clock::now());
     } catch (const std::exception& e) {
       out.error = CycleError::Vision;
@@ -407,21 +403,68 @@ void Cell::runCycle(FrameSlot& slot, CycleResult& out) {
   out.total_ms = msBetween(slot.request.trigger, Clock::now());
 }
 
-void Cell::writeSnapshot(const FrameSlot& slot, const CycleResult& result) {
-  CycleResult saved = result;
+void Cell::rankPicks(std::span<const motion::PickCandidate> choice, CycleResult& out) const {
+  std::array<std::uint16_t, CycleResult::kMaxCandidates> order{};
+  const std::size_t m = motion::rank_picks(choice, config_.pick.choice, order);
+  if (m == 0) return;
+  if (!out.candidates[order[0]].base_valid) {
+    out.error = CycleError::Transform;
+    copyMessage(out.message, sizeof out.message, "the chosen pick has no valid robot-base pose");
+    return;
+  }
+  out.chosen = order[0];
+  // Fall-backs the robot cannot be sent to are left out.
+  for (std::size_t k = 0; k < m; ++k)
+    if (out.candidates[order[k]].base_valid) out.ranked[static_cast<std::size_t>(out.ranked_count++)] = order[k];
+}
+
+bool Cell::requestSnapshot(std::uint64_t cycle, const char* reason) noexcept {
+  SnapshotRequest* r = snapshotRequests_.begin_write();
+  if (!r) return false;
+  r->cycle = cycle;
+  copyMessage(r->reason, sizeof r->reason, reason);
+  snapshotRequests_.end_write();
+  signalFd(visionWake_);
+  return true;
+}
+
+void Cell::serveSnapshotRequests() {
+  while (SnapshotRequest* r = snapshotRequests_.begin_read()) {
+    const SnapshotRequest request = *r;
+    snapshotRequests_.end_read();
+    if (retained_.holds(request.cycle)) {
+      writeSnapshot(request.reason);
+      continue;
+    }
+    CycleResult gone;
+    gone.kind = CycleResult::Kind::SnapshotSaved;
+    gone.request.cycle_id = request.cycle;
+    const std::string why = "the frame set of cycle " + std::to_string(request.cycle) + " is no longer kept (cycle " +
+                            std::to_string(retained_.cycle()) + " ran after it)";
+    copyMessage(gone.message, sizeof gone.message, why.c_str());
+    postResult(gone);
+  }
+}
+
+void Cell::writeSnapshot(const char* reason) {
+  CycleResult saved = retained_.result();
   saved.kind = CycleResult::Kind::SnapshotSaved;
   try {
-    const std::string dir = saveSnapshot(config_, slot, result, pipelineResult_, stage_.get());
+    const std::string dir = saveSnapshot(config_, retained_, stage_.get(), reason);
     copyMessage(saved.snapshot_dir, sizeof saved.snapshot_dir, dir.c_str());
     saved.message[0] = '\0';
   } catch (const std::exception& e) {
     saved.snapshot_dir[0] = '\0';
     copyMessage(saved.message, sizeof saved.message, e.what());
   }
+  postResult(saved);
+}
+
+void Cell::postResult(const CycleResult& result) {
   CycleResult* out = nullptr;
   while (!(out = results_.begin_write()) && !stop_.load()) waitFd(visionWake_, 10);
   if (!out) return;
-  *out = saved;
+  *out = result;
   results_.end_write();
   signalFd(resultFd_);
 }

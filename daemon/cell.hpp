@@ -12,6 +12,7 @@
 #include <functional>
 #include <future>
 #include <memory>
+#include <span>
 #include <string>
 #include <thread>
 #include <vector>
@@ -19,7 +20,9 @@
 #include "daemon/config.hpp"
 #include "daemon/cycle.hpp"
 #include "daemon/frame_source.hpp"
+#include "daemon/retained_job.hpp"
 #include "daemon/vision_stage.hpp"
+#include "motion/pick_choice.hpp"
 #include "motion/spsc_ring.hpp"
 #include "vision/camera/frame_undistorter.hpp"
 
@@ -49,6 +52,11 @@ public:
   CycleResult* beginResult() noexcept;                  // drains the eventfd; nullptr when none
   void endResult() noexcept { results_.end_read(); }
 
+  // Asks the vision worker to save the kept frame set of `cycle` (the last cycle it ran) as a
+  // snapshot; the answer is a SnapshotSaved result, with an error when that cycle's frames are
+  // no longer kept. False when the request queue is full.
+  bool requestSnapshot(std::uint64_t cycle, const char* reason) noexcept;
+
   // The ambient image of the last CalibrationCapture (see CycleResult::Kind::CalibrationImage);
   // preallocated, written by the vision thread before it posts that result.
   const cv::Mat1b& calibrationImage() const { return calibrationImage_; }
@@ -70,7 +78,13 @@ private:
   void runCycle(FrameSlot& slot, CycleResult& out);
   void handOverCalibrationImage(const FrameSlot& slot, CycleResult& out);
   static bool startResult(const FrameSlot& slot, CycleResult::Kind kind, CycleResult& out);
-  void writeSnapshot(const FrameSlot& slot, const CycleResult& result);
+  // The eligible candidates in pick order into out.ranked; out.chosen the first.
+  void rankPicks(std::span<const motion::PickCandidate> choice, CycleResult& out) const;
+  void serveSnapshotRequests();
+  // Saves the kept cycle (retained_) and posts a SnapshotSaved result.
+  void writeSnapshot(const char* reason);
+  // Queues a result for the main thread, waiting while its ring is full (off the frame path).
+  void postResult(const CycleResult& result);
 
   DaemonConfig config_;
   VisionStageFactory visionFactory_;
@@ -79,6 +93,11 @@ private:
   motion::SpscRing<CycleRequest, 16> requests_;
   motion::SpscRing<FrameSlot, kFrameSlots> frames_;
   motion::SpscRing<CycleResult, kResultSlots> results_;
+  struct SnapshotRequest {
+    std::uint64_t cycle = 0;
+    char reason[64] = {};
+  };
+  motion::SpscRing<SnapshotRequest, 8> snapshotRequests_;  // main -> vision
   int acqWake_ = -1, visionWake_ = -1, resultFd_ = -1;
   std::atomic<bool> stop_{false};
   std::thread acquisition_, vision_;
@@ -96,6 +115,8 @@ private:
 
   std::atomic<std::uint64_t> acqBeat_{0}, visionBeat_{0}, framesDropped_{0};
   vision::PipelineResult pipelineResult_;  // vision thread; capacity reserved once
+  CycleResult resultCopy_;                 // vision thread: the last result, kept with its frames
+  RetainedJob retained_;                   // vision thread; allocated before the threads report ready
   cv::Mat1b calibrationImage_;             // allocated before the threads report ready
 };
 

@@ -544,6 +544,7 @@ DaemonConfig parseConfig(const std::string& yamlText, const std::string& source,
     }
     c.snapshots.quota_bytes = static_cast<std::uint64_t>(s.integer("quota_mb", 200, 1, 1 << 20)) << 20;
     c.snapshots.on_failure = s.boolean("on_failure", true);
+    c.snapshots.on_failed_pick = s.boolean("on_failed_pick", true);
     s.finish();
   }
   top.finish();

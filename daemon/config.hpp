@@ -140,6 +140,9 @@ struct SnapshotSettings {
   fs::path directory = "/var/lib/mfcd/snapshots";
   std::uint64_t quota_bytes = 200ull << 20;
   bool on_failure = true;  // save failed and empty cycles automatically
+  // Save a job's frame set when the PLC reports its pick failed (PICK_RESULT other than ok),
+  // if no later cycle has replaced it.
+  bool on_failed_pick = true;
 };
 
 struct DaemonConfig {

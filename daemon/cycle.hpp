@@ -117,6 +117,7 @@ struct CandidateOut {
   float utility = -1;     // pick-choice utility, -1 = not eligible
   float grasp_visibility = 1;  // vision::PoseCandidate::grasp_visibility
   bool ambiguous = false;      // vision::PoseCandidate::ambiguous
+  cv::Rect2d box;              // image bounding box of the matched template (snapshot overlays)
 };
 
 // One cycle's outcome, vision -> main thread.
@@ -133,6 +134,10 @@ struct CycleResult {
   int candidate_count = 0;
   std::array<CandidateOut, kMaxCandidates> candidates{};
   int chosen = -1;
+  // Eligible candidates with a robot-base pose, best first (motion::rank_picks): ranked[0] ==
+  // chosen; NEXT on the robot link walks the rest.
+  std::array<std::uint16_t, kMaxCandidates> ranked{};
+  int ranked_count = 0;
   double capture_ms = 0, queue_ms = 0, vision_ms = 0, choice_ms = 0, total_ms = 0;
   double edges_ms = 0, lines_ms = 0, distance_ms = 0, search_ms = 0, pose_ms = 0, refine_ms = 0;
   int edge_pixels = 0;

@@ -16,6 +16,11 @@ public:
 
   // Returns true when the cycle overran the budget (trigger to result > budget_ms).
   bool add(const CycleResult& r, int budget_ms) noexcept;
+  // What the robot reported of a pick (motion::reg::PickOutcome, 1..5), and fall-back picks
+  // published by NEXT.
+  void addPickResult(std::uint16_t outcome) noexcept;
+  void addNextPick() noexcept { ++nextPicks_; }
+  std::uint64_t pickResults(std::uint16_t outcome) const { return outcome < pickResults_.size() ? pickResults_[outcome] : 0; }
 
   std::uint64_t cycles() const { return cycles_; }
   std::uint64_t overruns() const { return overruns_; }
@@ -40,6 +45,8 @@ private:
   std::size_t next_ = 0;
   std::uint64_t cycles_ = 0, overruns_ = 0, degraded_ = 0, errors_ = 0, empty_ = 0, detections_ = 0, picks_ = 0;
   double maxMs_ = 0, sumMs_ = 0;
+  std::array<std::uint64_t, 6> pickResults_{};  // by PickOutcome; [0] unused
+  std::uint64_t nextPicks_ = 0;
 };
 
 }  // namespace mfcd::daemon

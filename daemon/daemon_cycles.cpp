@@ -6,6 +6,7 @@
 #include "daemon/journal_log.hpp"
 #include "daemon/log.hpp"
 #include "daemon/report.hpp"
+#include "motion/register_map.hpp"
 
 namespace mfcd::daemon {
 
@@ -59,14 +60,26 @@ std::optional<std::uint64_t> Daemon::startCycle(CycleOrigin origin, std::uint16_
 }
 
 void Daemon::onPlcCommand(const motion::PlcCommand& cmd) {
-  if (cmd.kind == motion::PlcCommand::Kind::Reset) {
-    logf(LogLevel::Info, "PLC: RESET (error code %u cleared)", report_.error_code);
-    report_.error_code = 0;
-    pendingPlc_.reset();
-    publish();
-    return;
+  using Kind = motion::PlcCommand::Kind;
+  switch (cmd.kind) {
+    case Kind::Reset:
+      logf(LogLevel::Info, "PLC: RESET (error code %u cleared)", report_.error_code);
+      report_.error_code = 0;
+      pendingPlc_.reset();
+      publish();
+      return;
+    case Kind::Next:
+      onNextPick(cmd);
+      return;
+    case Kind::PickResult:
+      onPickResult(cmd);
+      return;
+    case Kind::Trigger:
+    case Kind::SaveScene:
+      break;
   }
-  logf(LogLevel::Debug, "PLC: TRIGGER job %u recipe %u mode %u", cmd.job_id, cmd.recipe_id, cmd.mode);
+  logf(LogLevel::Debug, "PLC: %s job %u recipe %u mode %u", cmd.kind == Kind::SaveScene ? "SAVE_SCENE" : "TRIGGER", cmd.job_id,
+       cmd.recipe_id, cmd.mode);
   if (calibrating()) {
     // READY is clear during a session, so only a trigger racing the session's start gets here:
     // it is answered at once with ERROR_CODE 6 rather than left pending.
@@ -85,8 +98,41 @@ void Daemon::onPlcCommand(const motion::PlcCommand& cmd) {
   startPlcJob(cmd);
 }
 
+void Daemon::onNextPick(const motion::PlcCommand& cmd) {
+  // The Modbus server has published this pick already; the report follows it, so the CAN link
+  // sends it and later reports keep it.
+  if (cmd.job_id != report_.job_id || cmd.rank >= report_.pick_count) return;
+  const motion::RankedPick& p = report_.ranked[cmd.rank];
+  report_.pick_rank = cmd.rank;
+  report_.pick = p.pick;
+  report_.score = p.score;
+  report_.candidate_index = p.candidate_index;
+  stats_.addNextPick();
+  logf(LogLevel::Info, "PLC: NEXT: job %u, pick %u of %u (candidate %u, score %.2f)", cmd.job_id, cmd.rank + 1,
+       report_.pick_count, p.candidate_index, p.score);
+  if (!lastResult_.is_null() && lastResult_["cycle"] == lastJobCycle_) lastResult_["pick_rank"] = cmd.rank;
+  publish();
+}
+
+void Daemon::onPickResult(const motion::PlcCommand& cmd) {
+  static constexpr const char* kNames[] = {"none", "ok", "missed", "unreachable", "collision", "dropped"};
+  const char* outcome = cmd.outcome < std::size(kNames) ? kNames[cmd.outcome] : "?";
+  stats_.addPickResult(cmd.outcome);
+  const bool failed = cmd.outcome != static_cast<std::uint16_t>(motion::reg::PickOutcome::Ok);
+  logf(failed ? LogLevel::Warning : LogLevel::Info, "PLC: pick result of job %u, pick %u: %s", cmd.job_id, cmd.rank + 1, outcome);
+  const bool ours = cmd.job_id == report_.job_id && lastJobCycle_ != 0;
+  if (ours && !lastResult_.is_null() && lastResult_["cycle"] == lastJobCycle_)
+    lastResult_["pick_results"].push_back({{"rank", cmd.rank}, {"outcome", outcome}});
+  if (!failed || !config_.snapshots.on_failed_pick || !ours || !cell_) return;
+  const std::string reason = std::string("pick result: ") + outcome + " (job " + std::to_string(cmd.job_id) + ", pick " +
+                             std::to_string(cmd.rank + 1) + ")";
+  if (!cell_->requestSnapshot(lastJobCycle_, reason.c_str()))
+    logf(LogLevel::Warning, "PLC: no snapshot of job %u: the snapshot queue is full", cmd.job_id);
+}
+
 void Daemon::startPlcJob(const motion::PlcCommand& cmd) {
-  if (!startCycle(CycleOrigin::Plc, cmd.job_id, cmd.recipe_id, cmd.mode, false))
+  const bool snapshot = cmd.kind == motion::PlcCommand::Kind::SaveScene;
+  if (!startCycle(CycleOrigin::Plc, cmd.job_id, cmd.recipe_id, cmd.mode, snapshot))
     answerJob(cmd.job_id, cmd.recipe_id, CycleError::Unavailable, cell_ ? "the cell's request queue is full" : "no cell is running");
 }
 
@@ -118,10 +164,13 @@ void Daemon::onResult(const CycleResult& r) {
     return;
   }
   if (r.kind == CycleResult::Kind::SnapshotSaved) {
-    if (r.snapshot_dir[0])
+    if (r.snapshot_dir[0]) {
       logf(LogLevel::Info, "snapshot of cycle %llu saved in %s", static_cast<unsigned long long>(r.request.cycle_id), r.snapshot_dir);
-    else
+      ++report_.snapshots_saved;  // wraps, as SNAPSHOT_COUNT does
+      publish();
+    } else {
       logf(LogLevel::Warning, "snapshot of cycle %llu failed: %s", static_cast<unsigned long long>(r.request.cycle_id), r.message);
+    }
     for (auto it = waiters_.begin(); it != waiters_.end();) {
       if (it->what == Waiter::What::Snapshot && it->cycle == r.request.cycle_id) {
         if (r.snapshot_dir[0])
@@ -157,18 +206,7 @@ void Daemon::onResult(const CycleResult& r) {
 
   // Robot link: PLC jobs and continuous cycles are published; control-socket cycles are not (they
   // would change JOB_ID_ECHO under the PLC's handshake).
-  if (r.request.origin == CycleOrigin::Plc || r.request.origin == CycleOrigin::Continuous) {
-    report_.job_id = r.request.job_id;
-    report_.recipe_id = r.request.recipe_id;
-    report_.error_code = static_cast<std::uint16_t>(r.error);
-    report_.objects_remaining = static_cast<std::uint16_t>(r.candidate_count);
-    report_.cycle_time_ms = static_cast<std::uint16_t>(std::min(65535.0, r.total_ms));
-    report_.candidate_count = static_cast<std::uint16_t>(r.candidate_count);
-    report_.candidate_index = static_cast<std::uint16_t>(std::max(0, r.chosen));
-    report_.pick_valid = r.chosen >= 0;
-    report_.pick = r.chosen >= 0 ? r.candidates[static_cast<std::size_t>(r.chosen)].base : motion::PickPose{};
-    report_.score = r.chosen >= 0 ? r.candidates[static_cast<std::size_t>(r.chosen)].score : 0.0f;
-  }
+  if (r.request.origin == CycleOrigin::Plc || r.request.origin == CycleOrigin::Continuous) reportJob(r);
   report_.ready = 0;  // recomputed below, in the same publish
   updateReady();
   publish();
@@ -197,6 +235,28 @@ void Daemon::onResult(const CycleResult& r) {
     }
   }
   notifyStatus();
+}
+
+void Daemon::reportJob(const CycleResult& r) {
+  report_.job_id = r.request.job_id;
+  report_.recipe_id = r.request.recipe_id;
+  report_.error_code = static_cast<std::uint16_t>(r.error);
+  report_.objects_remaining = static_cast<std::uint16_t>(r.candidate_count);
+  report_.cycle_time_ms = static_cast<std::uint16_t>(std::min(65535.0, r.total_ms));
+  report_.candidate_count = static_cast<std::uint16_t>(r.candidate_count);
+  report_.candidate_index = static_cast<std::uint16_t>(std::max(0, r.chosen));
+  report_.pick_valid = r.chosen >= 0;
+  report_.pick = r.chosen >= 0 ? r.candidates[static_cast<std::size_t>(r.chosen)].base : motion::PickPose{};
+  report_.score = r.chosen >= 0 ? r.candidates[static_cast<std::size_t>(r.chosen)].score : 0.0f;
+  // The job's picks in order, for NEXT (ranked[0] is the chosen one).
+  report_.pick_rank = 0;
+  report_.pick_count = 0;
+  for (int k = 0; r.chosen >= 0 && k < r.ranked_count && report_.pick_count < motion::kMaxRankedPicks; ++k) {
+    const std::uint16_t index = r.ranked[static_cast<std::size_t>(k)];
+    const CandidateOut& c = r.candidates[index];
+    report_.ranked[report_.pick_count++] = {c.base, c.score, index, 0};
+  }
+  lastJobCycle_ = r.request.cycle_id;
 }
 
 void Daemon::afterCycle() {

@@ -69,7 +69,13 @@ private:
   std::optional<std::uint64_t> startCycle(CycleOrigin origin, std::uint16_t job, std::uint16_t recipe, std::uint16_t mode,
                                           bool snapshot);
   void onPlcCommand(const motion::PlcCommand& cmd);
-  // Starts a TRIGGER's cycle now, or answers the job with ERROR_CODE 7 when the cell cannot take it.
+  // NEXT (already published by the Modbus server): the report follows with that pick.
+  void onNextPick(const motion::PlcCommand& cmd);
+  // PICK_RESULT: counted, logged, and a failed pick's frame set saved (snapshots.on_failed_pick).
+  void onPickResult(const motion::PlcCommand& cmd);
+  // A PLC or continuous job's result into the robot link's report, with its ranked picks.
+  void reportJob(const CycleResult& r);
+  // Starts a TRIGGER's (or SAVE_SCENE's) cycle now, or answers the job with ERROR_CODE 7 when the cell cannot take it.
   void startPlcJob(const motion::PlcCommand& cmd);
   // Ends a PLC job that will not run: JOB_ID_ECHO = job, PICK_VALID 0, ERROR_CODE = error.
   void answerJob(std::uint16_t job, std::uint16_t recipe, CycleError error, const char* why);
@@ -107,6 +113,7 @@ private:
   std::vector<std::pair<ClientId, nlohmann::json>> reloadWaiters_;  // client, and what to add to the reload's answer
   std::uint64_t nextCycle_ = 1;
   std::uint16_t nextContinuousJob_ = 1;
+  std::uint64_t lastJobCycle_ = 0;  // cycle of the job in the robot link's report (0: none)
   int selectedRecipe_ = 0;
   bool reloadPending_ = false, stopping_ = false, cellOk_ = false;
   Clock::time_point stopRequested_{};

@@ -9,6 +9,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "daemon/retained_job.hpp"
 #include "daemon/vision_stage.hpp"
 #include "tools/common/build_version.hpp"
 #include "motion/pick_transform.hpp"
@@ -87,6 +88,8 @@ json resultJson(const CycleResult& r, const DaemonConfig& config) {
   }
   j["candidates"] = std::move(cands);
   j["chosen"] = r.chosen;
+  // The pick order (candidate indices, best first) the robot link's NEXT walks.
+  j["ranked"] = std::vector<int>(r.ranked.begin(), r.ranked.begin() + std::max(0, r.ranked_count));
   if (r.chosen >= 0) {
     const CandidateOut& c = r.candidates[static_cast<std::size_t>(r.chosen)];
     j["pick"] = poseJson(c.base);
@@ -136,13 +139,14 @@ void writePng(const fs::path& file, const cv::Mat& image) {
   if (!ok) throw std::runtime_error("snapshot: " + writeFailure(file));
 }
 
-void writeSnapshotFiles(const fs::path& dir, const DaemonConfig& config, const FrameSlot& slot, const CycleResult& result,
-                        const vision::PipelineResult& pipeline, const VisionStage* stage);
+void writeSnapshotFiles(const fs::path& dir, const DaemonConfig& config, const RetainedJob& job, const VisionStage* stage,
+                        const char* reason);
 
 }  // namespace
 
-std::string saveSnapshot(const DaemonConfig& config, const FrameSlot& slot, const CycleResult& result,
-                         const vision::PipelineResult& pipeline, const VisionStage* stage) {
+std::string saveSnapshot(const DaemonConfig& config, const RetainedJob& job, const VisionStage* stage, const char* reason) {
+  const FrameSlot& slot = job.slot();
+  const CycleResult& result = job.result();
   const fs::path root = config.snapshots.directory;
   std::error_code ec;
   fs::create_directories(root, ec);
@@ -175,7 +179,7 @@ std::string saveSnapshot(const DaemonConfig& config, const FrameSlot& slot, cons
   fs::create_directories(dir, ec);
   if (ec) throw std::runtime_error("snapshot: cannot create " + dir.string() + ": " + ec.message());
   try {
-    writeSnapshotFiles(dir, config, slot, result, pipeline, stage);
+    writeSnapshotFiles(dir, config, job, stage, reason);
   } catch (...) {
     fs::remove_all(dir, ec);  // no half snapshot is left to be taken for a whole one
     throw;
@@ -185,24 +189,46 @@ std::string saveSnapshot(const DaemonConfig& config, const FrameSlot& slot, cons
 
 namespace {
 
-void writeSnapshotFiles(const fs::path& dir, const DaemonConfig& config, const FrameSlot& slot, const CycleResult& result,
-                        const vision::PipelineResult& pipeline, const VisionStage* stage) {
+// The overlay's input: the candidates the cycle reported, with their part names.
+vision::PipelineResult candidatesOf(const CycleResult& result, const VisionStage& stage) {
+  vision::PipelineResult out;
+  const auto parts = stage.parts();
+  for (int i = 0; i < result.candidate_count; ++i) {
+    const CandidateOut& c = result.candidates[static_cast<std::size_t>(i)];
+    vision::PoseCandidate p;
+    p.obj_id = c.obj_id;
+    for (const auto& [id, name] : parts)
+      if (id == c.obj_id) p.part = name;
+    p.R_m2c = c.R_cam;
+    p.t_m2c_mm = c.t_cam_mm;
+    p.score = c.score;
+    p.box = c.box;
+    out.candidates.push_back(p);
+  }
+  return out;
+}
+
+void writeSnapshotFiles(const fs::path& dir, const DaemonConfig& config, const RetainedJob& job, const VisionStage* stage,
+                        const char* reason) {
+  const FrameSlot& slot = job.slot();
+  const CycleResult& result = job.result();
   if (slot.ok) {
     for (int k = 0; k < hal::kLedCount; ++k) writePng(dir / ("flash" + std::to_string(k) + ".png"), slot.mfc.flash[static_cast<std::size_t>(k)]);
     writePng(dir / "ambient.png", slot.mfc.ambient);
     if (result.error == CycleError::None && stage) {
-      if (const vision::DepthEdges* edges = stage->lastEdges(); edges && !edges->edges.empty())
-        writePng(dir / "edges.png", edges->edges);
+      if (const cv::Mat1b* edges = job.edges()) writePng(dir / "edges.png", *edges);
       // Overlay on the brightest-flash composite, where every outline is lit.
       cv::Mat composite = slot.mfc.flash[0].clone();
       for (int k = 1; k < hal::kLedCount; ++k) cv::max(composite, cv::Mat(slot.mfc.flash[static_cast<std::size_t>(k)]), composite);
-      writePng(dir / "overlay.png", stage->overlay(cv::Mat1b(composite), pipeline));
+      writePng(dir / "overlay.png", stage->overlay(cv::Mat1b(composite), candidatesOf(result, *stage)));
     }
   }
   CycleResult withDir = result;
   copyMessage(withDir.snapshot_dir, sizeof withDir.snapshot_dir, dir.c_str());
+  nlohmann::json j = resultJson(withDir, config);
+  j["snapshot_reason"] = reason;
   std::ofstream out(dir / "result.json");
-  out << resultJson(withDir, config).dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
+  out << j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
   // close() flushes: a full disk shows here, not in the << above.
   out.close();
   if (out.fail()) throw std::runtime_error("snapshot: " + writeFailure(dir / "result.json"));

@@ -10,6 +10,7 @@
 
 namespace mfcd::daemon {
 
+class RetainedJob;
 class VisionStage;
 
 // The pick pose of a camera-frame part pose in the robot base frame (hand-eye calibration plus
@@ -21,11 +22,10 @@ nlohmann::json poseJson(const motion::PickPose& p);
 // frame), the chosen pick, and on the simulated cell the bin's ground truth (camera and base frame).
 nlohmann::json resultJson(const CycleResult& result, const DaemonConfig& config);
 
-// Saves the 9 images, the depth edges, an overlay of the candidates and result.json into a new
-// directory under config.snapshots.directory, first deleting the oldest snapshots while the
-// directory's size would exceed the quota. Returns the new directory. Throws std::runtime_error
-// naming the path on failure.
-std::string saveSnapshot(const DaemonConfig& config, const FrameSlot& slot, const CycleResult& result,
-                         const vision::PipelineResult& pipeline, const VisionStage* stage);
+// Saves the kept cycle's 9 images, its depth edges, an overlay of its candidates and result.json
+// (with `reason`: why it was saved) into a new directory under config.snapshots.directory, first
+// deleting the oldest snapshots while the directory's size would exceed the quota. Returns the
+// new directory. Throws std::runtime_error naming the path on failure.
+std::string saveSnapshot(const DaemonConfig& config, const RetainedJob& job, const VisionStage* stage, const char* reason);
 
 }  // namespace mfcd::daemon

@@ -6,8 +6,11 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <random>
 
+#include <poll.h>
 #include <unistd.h>
 
 #include "../hal/alloc_counter.hpp"
@@ -41,6 +44,26 @@ CycleRequest request(std::uint64_t id, int budgetMs) {
 }
 
 CycleResult runOne(Cell& cell, const CycleRequest& r) { return test::runCycle(cell, r); }
+
+// The next SnapshotSaved result (other kinds are skipped).
+CycleResult nextSnapshot(Cell& cell) {
+  for (int i = 0; i < 100; ++i) {
+    pollfd p{cell.resultFd(), POLLIN, 0};
+    ::poll(&p, 1, 100);
+    if (CycleResult* res = cell.beginResult()) {
+      const CycleResult copy = *res;
+      cell.endResult();
+      if (copy.kind == CycleResult::Kind::SnapshotSaved) return copy;
+    }
+  }
+  ADD_FAILURE() << "no snapshot result within 10 s";
+  return {};
+}
+
+std::string readFile(const std::filesystem::path& file) {
+  std::ifstream in(file);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
 
 }  // namespace
 
@@ -247,6 +270,37 @@ TEST(Cycle, PatternCheckRefusesWrongLedStaleAndUntaggedFrames) {
     frames.ambient(0, 0) = 0;  // no tag: a rendered (or torn) image
     EXPECT_NE(process(stage).find("ambient0 carries no test-pattern tag"), std::string::npos);
   }
+}
+
+// A pick reported failed after its cycle (Modbus PICK_RESULT): the kept frame set is saved until
+// the next cycle replaces it, then the request is answered with the reason.
+TEST(Cycle, KeptFrameSetIsSavedUntilTheNextCycleReplacesIt) {
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / ("mfcd-kept-" + std::to_string(::getpid()));
+  DaemonConfig config = patternConfig(1000);
+  config.snapshots.directory = dir;
+  Cell cell(config, [](const DaemonConfig&) { return std::make_unique<test::TruthVisionStage>(5ms, true, 0, true); });
+  cell.start();
+  ASSERT_EQ(runOne(cell, request(1, 1000)).error, CycleError::None);
+  ASSERT_TRUE(cell.requestSnapshot(1, "pick result: missed (job 1, pick 1)"));
+  const CycleResult saved = nextSnapshot(cell);
+  ASSERT_NE(saved.snapshot_dir[0], '\0') << saved.message;
+  EXPECT_EQ(saved.request.cycle_id, 1u);
+  const std::filesystem::path snap = saved.snapshot_dir;
+  for (const char* f : {"flash0.png", "flash7.png", "ambient.png", "overlay.png", "result.json"})
+    EXPECT_TRUE(std::filesystem::exists(snap / f)) << f;
+  const std::string json = readFile(snap / "result.json");
+  EXPECT_NE(json.find("\"snapshot_reason\": \"pick result: missed (job 1, pick 1)\""), std::string::npos) << json;
+  EXPECT_NE(json.find("\"cycle\": 1,"), std::string::npos);
+
+  ASSERT_EQ(runOne(cell, request(2, 1000)).error, CycleError::None);
+  ASSERT_TRUE(cell.requestSnapshot(1, "late"));
+  const CycleResult gone = nextSnapshot(cell);
+  EXPECT_EQ(gone.snapshot_dir[0], '\0');
+  EXPECT_NE(std::string(gone.message).find("no longer kept (cycle 2 ran after it)"), std::string::npos) << gone.message;
+  ASSERT_TRUE(cell.requestSnapshot(2, "pick result: dropped"));
+  EXPECT_NE(nextSnapshot(cell).snapshot_dir[0], '\0');
+  cell.stop();
+  std::filesystem::remove_all(dir);
 }
 
 TEST(CycleStats, PercentilesMatchASortedReference) {

@@ -1,0 +1,28 @@
+#include "daemon/retained_job.hpp"
+
+namespace mfcd::daemon {
+
+void RetainedJob::allocate(const hal::ImageFormat& format) {
+  slot_.allocate(format);
+  edges_.create(format.height, format.width);
+  edges_ = 0;  // resident from the start, as the zero-filled images are
+  valid_ = false;
+}
+
+void RetainedJob::keep(const FrameSlot& slot, const CycleResult& result, const vision::DepthEdges* edges) {
+  copyFrameSet(slot.frames, slot_.frames);
+  slot_.request = slot.request;
+  slot_.ok = slot.ok;
+  copyMessage(slot_.error, sizeof slot_.error, slot.error);
+  slot_.capture_ms = slot.capture_ms;
+  slot_.captured = slot.captured;
+  slot_.truth = slot.truth;
+  slot_.leds_after = slot.leds_after;
+  result_ = result;
+  // Same size and type as the preallocated buffer: copyTo writes into it.
+  haveEdges_ = edges && !edges->edges.empty() && edges->edges.size() == edges_.size();
+  if (haveEdges_) edges->edges.copyTo(edges_);
+  valid_ = true;
+}
+
+}  // namespace mfcd::daemon
