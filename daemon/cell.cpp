@@ -11,7 +11,7 @@
 #include <stdexcept>
 
 #include "daemon/log.hpp"
-#include "daemon/report.hpp"
+#include "daemon/snapshot.hpp"
 #include "mfcd/hal/error.hpp"
 #include "motion/pick_choice.hpp"
 #include "motion/pick_transform.hpp"
@@ -280,6 +280,9 @@ void Cell::visionMain(std::promise<void>& ready) {
     visionDescription_ = stage_->describe();
     parts_ = stage_->parts();
     pipelineResult_.candidates.reserve(64);
+    snapshots_ = std::make_unique<SnapshotWriter>(config_);
+    if (!snapshots_->notReplayable().empty())
+      logf(LogLevel::Info, "snapshots will not be replayable by mfc-detect: %s", snapshots_->notReplayable().c_str());
   } catch (...) {
     stage_.reset();
     ready.set_exception(std::current_exception());
@@ -450,7 +453,7 @@ void Cell::writeSnapshot(const char* reason) {
   CycleResult saved = retained_.result();
   saved.kind = CycleResult::Kind::SnapshotSaved;
   try {
-    const std::string dir = saveSnapshot(config_, retained_, stage_.get(), reason);
+    const std::string dir = snapshots_->save(retained_, stage_.get(), reason);
     copyMessage(saved.snapshot_dir, sizeof saved.snapshot_dir, dir.c_str());
     saved.message[0] = '\0';
   } catch (const std::exception& e) {

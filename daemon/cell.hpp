@@ -21,6 +21,7 @@
 #include "daemon/cycle.hpp"
 #include "daemon/frame_source.hpp"
 #include "daemon/retained_job.hpp"
+#include "daemon/snapshot.hpp"
 #include "daemon/vision_stage.hpp"
 #include "motion/pick_choice.hpp"
 #include "motion/spsc_ring.hpp"
@@ -117,6 +118,7 @@ private:
   vision::PipelineResult pipelineResult_;  // vision thread; capacity reserved once
   CycleResult resultCopy_;                 // vision thread: the last result, kept with its frames
   RetainedJob retained_;                   // vision thread; allocated before the threads report ready
+  std::unique_ptr<SnapshotWriter> snapshots_;  // vision thread; made with the stage
   cv::Mat1b calibrationImage_;             // allocated before the threads report ready
 };
 

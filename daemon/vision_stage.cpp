@@ -7,6 +7,33 @@
 
 namespace mfcd::daemon {
 
+vision::PipelineConfig pipelineConfig(const DaemonConfig& config) {
+  vision::PipelineConfig pc = config.vision.pipeline;
+  for (const auto& r : config.recipes) {
+    if (!r.templates) {
+      if (r.obj_id != 0)
+        throw std::runtime_error(config.source + ": recipe " + std::to_string(r.id) + " (" + r.part +
+                                 "): 'templates' is required by the vision pipeline");
+      continue;
+    }
+    if (std::find(pc.template_files.begin(), pc.template_files.end(), *r.templates) == pc.template_files.end())
+      pc.template_files.push_back(*r.templates);
+  }
+  if (pc.template_files.empty())
+    throw std::runtime_error(config.source + ": recipes: no recipe names a template file; the vision pipeline has nothing to look for");
+  for (const auto& r : config.recipes)
+    for (const GraspFeatureSetting& g : r.grasp_features) {
+      vision::GraspFeature f;
+      f.point_mm = {g.x_mm, g.y_mm, g.z_mm};
+      f.radius_mm = g.radius_mm;
+      f.approach = {g.approach[0], g.approach[1], g.approach[2]};
+      f.max_tilt_deg = g.max_tilt_deg;
+      pc.grasp_features.emplace_back(r.obj_id, f);
+    }
+  if (config.vision.floor_check) pc.floor.distance_mm = config.pick.bin_floor_distance_mm;  // the camera looks straight down at it
+  return pc;
+}
+
 #ifdef MFCD_HAVE_PIPELINE
 
 namespace {
@@ -38,36 +65,9 @@ bool pipelineAvailable() { return true; }
 
 std::unique_ptr<VisionStage> makePipelineStage(const DaemonConfig& config) {
   const vision::CameraConfig camera = vision::load_camera_config(config.camera.model);
-  vision::PipelineConfig pc = config.vision.pipeline;
+  vision::PipelineConfig pc = pipelineConfig(config);
   std::string files;
-  for (const auto& r : config.recipes) {
-    if (!r.templates) {
-      if (r.obj_id != 0)
-        throw std::runtime_error(config.source + ": recipe " + std::to_string(r.id) + " (" + r.part +
-                                 "): 'templates' is required by the vision pipeline");
-      continue;
-    }
-    bool dup = false;
-    for (const auto& f : pc.template_files) dup = dup || f == *r.templates;
-    if (!dup) {
-      pc.template_files.push_back(*r.templates);
-      files += (files.empty() ? "" : ", ") + r.templates->filename().string();
-    }
-  }
-  if (pc.template_files.empty())
-    throw std::runtime_error(config.source + ": recipes: no recipe names a template file; the vision pipeline has nothing to look for");
-  for (const auto& r : config.recipes)
-    for (const GraspFeatureSetting& g : r.grasp_features) {
-      vision::GraspFeature f;
-      f.point_mm = {g.x_mm, g.y_mm, g.z_mm};
-      f.radius_mm = g.radius_mm;
-      f.approach = {g.approach[0], g.approach[1], g.approach[2]};
-      f.max_tilt_deg = g.max_tilt_deg;
-      pc.grasp_features.emplace_back(r.obj_id, f);
-    }
-  if (config.vision.floor_check) {
-    pc.floor.distance_mm = config.pick.bin_floor_distance_mm;  // the camera looks straight down at it
-  }
+  for (const auto& f : pc.template_files) files += (files.empty() ? "" : ", ") + f.filename().string();
   auto stage = std::make_unique<PipelineVisionStage>(camera, std::move(pc), files);
   // Every recipe's obj_id must be one the templates define.
   const auto loaded = stage->parts();

@@ -42,6 +42,10 @@ using VisionStageFactory = std::function<std::unique_ptr<VisionStage>(const Daem
 
 // True when this mfcd was built with vision/pipeline (the real backend).
 bool pipelineAvailable();
+// The pipeline's configuration for `config`: its vision settings, every recipe's template file
+// (each once), grasp features and the bin floor. Throws std::runtime_error naming the recipe when
+// one has no template file (obj_id 0, "any part", needs none).
+vision::PipelineConfig pipelineConfig(const DaemonConfig& config);
 // The real backend: a BinPickingPipeline over every recipe's template file. Throws
 // std::runtime_error naming the recipe/file on a problem.
 std::unique_ptr<VisionStage> makePipelineStage(const DaemonConfig& config);

@@ -286,7 +286,8 @@ TEST(Cycle, KeptFrameSetIsSavedUntilTheNextCycleReplacesIt) {
   ASSERT_NE(saved.snapshot_dir[0], '\0') << saved.message;
   EXPECT_EQ(saved.request.cycle_id, 1u);
   const std::filesystem::path snap = saved.snapshot_dir;
-  for (const char* f : {"flash0.png", "flash7.png", "ambient.png", "overlay.png", "result.json"})
+  for (const char* f : {"test/000001/flash/000000_0.png", "test/000001/flash/000000_7.png", "test/000001/ambient/000000.png",
+                        "overlay.png", "result.json"})
     EXPECT_TRUE(std::filesystem::exists(snap / f)) << f;
   const std::string json = readFile(snap / "result.json");
   EXPECT_NE(json.find("\"snapshot_reason\": \"pick result: missed (job 1, pick 1)\""), std::string::npos) << json;

@@ -184,7 +184,8 @@ TEST_F(DaemonE2E, ControlSocketStatusStatsSnapshotAndTheRealCli) {
   const json snap = proc->ctl({{"cmd", "snapshot"}, {"recipe", 0}});
   ASSERT_TRUE(snap["ok"]) << snap.dump();
   const fs::path dir = snap["snapshot"].get<std::string>();
-  for (const char* f : {"flash0.png", "flash7.png", "ambient.png", "edges.png", "overlay.png", "result.json"})
+  for (const char* f : {"test/000001/flash/000000_0.png", "test/000001/flash/000000_7.png", "test/000001/ambient/000000.png",
+                        "test/000001/scene_camera.json", "edges.png", "overlay.png", "result.json"})
     EXPECT_TRUE(fs::exists(dir / f)) << f;
   const json saved = json::parse(std::ifstream(dir / "result.json"));
   EXPECT_EQ(saved["cycle"], snap["result"]["cycle"]);

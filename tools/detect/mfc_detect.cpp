@@ -7,10 +7,16 @@
 // vision/dataset/bop_results.hpp formats it. Named METHOD_DATASET-SPLIT.csv, the BOP toolkit
 // scores it (docs/datasets.md, "Scoring with the BOP toolkit"). Exit status: 0 written, 1 refused
 // (dataset, templates), 2 usage.
+//
+// A snapshot of mfcd is such a dataset with a replay manifest (mfcd_replay.json): then the
+// cycle's template files (checked by size and CRC-32), vision settings and part type are used,
+// so the run gives the cycle's candidates again; options given on the command line override them.
 #include "tools/common/cli.hpp"
 #include "vision/dataset/bop_dataset.hpp"
 #include "vision/dataset/bop_results.hpp"
 #include "vision/pipeline/bin_picking_pipeline.hpp"
+#include "vision/pipeline/pipeline_parameters.hpp"
+#include "vision/pipeline/replay_manifest.hpp"
 
 #include <chrono>
 #include <cstdio>
@@ -31,6 +37,7 @@ struct Options {
   std::string split = "test";
   std::vector<fs::path> templates;
   std::vector<int> only_scenes;
+  std::vector<std::string> settings;  // --set KEY=VALUE, applied last
   int views = 1, max_per_image = 10, threads = 0, search_rounds = 2;
   double max_cost = PipelineConfig{}.max_cost_px, floor_mm = 0;
   bool quiet = false;
@@ -46,8 +53,9 @@ void add_options(CLI::App& app, Options& o) {
                                             "dataset's scene_camera.json gives none (a standard BOP dataset)")
       ->type_name("FILE");
   // The files after --templates up to the next option; --templates may be repeated.
-  app.add_option("--templates", o.templates, "template databases (mfc-teach); each carries its part's obj_id")
-      ->required()->type_name("F...")->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
+  app.add_option("--templates", o.templates, "template databases (mfc-teach); each carries its part's obj_id\n"
+                                           "(required unless the dataset is an mfcd snapshot: its mfcd_replay.json names them)")
+      ->type_name("F...")->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
   app.add_option("--out", o.out, "BOP results CSV to write; for the BOP toolkit name it METHOD_DATASET-SPLIT.csv\n"
                                  "(e.g. mfcdetect_mfcsim-test.csv: no '_' in METHOD, no '-' or '_' in DATASET)")
       ->required()->type_name("FILE");
@@ -65,6 +73,19 @@ void add_options(CLI::App& app, Options& o) {
   mfcd::tools::add_converted_list(app, "--scene", o.only_scenes, mfcd::tools::parse_int, "only this scene (repeatable)")
       ->type_name("ID");
   add_int(app, "--threads", o.threads, "threads of every stage of a detection (default: all cores)");
+  mfcd::tools::add_converted_list(
+      app, "--set", o.settings,
+      [](const std::string&, const std::string& v) {
+        try {
+          PipelineConfig probe;
+          apply_pipeline_setting(probe, v);
+        } catch (const std::invalid_argument& e) {
+          throw mfcd::tools::UsageError(std::string("--set: ") + e.what());
+        }
+        return v;
+      },
+      "a pipeline parameter, KEY=VALUE (repeatable; docs/configuration.md \"vision\"), applied last")
+      ->type_name("KEY=VALUE");
   app.add_flag("--quiet", o.quiet, "no per-image lines");
 }
 
@@ -79,6 +100,37 @@ void check_options(const Options& o) {
   if (o.max_per_image < 1) throw UsageError("--max-per-image must be >= 1");
   if (o.search_rounds < 1 || o.search_rounds > PipelineConfig::kMaxSearchRounds)
     throw UsageError("--search-rounds must be 1.." + std::to_string(PipelineConfig::kMaxSearchRounds));
+}
+
+// The pipeline's configuration: the options, or for an mfcd snapshot the cycle's own settings and
+// template files with the options given on the command line over them. `obj_id` is the part type
+// to look for (0: all loaded).
+PipelineConfig pipeline_config(const CLI::App& app, const Options& o, const fs::path& dataset, int& obj_id) {
+  PipelineConfig pc;
+  const auto given = [&](const char* name) { return app.count(name) > 0; };
+  const auto manifest = read_replay_manifest(dataset);
+  obj_id = 0;
+  if (manifest) {
+    std::vector<std::string> ignored;
+    pc = replay_config(*manifest, pc, ignored);  // throws when a template file differs
+    obj_id = manifest->obj_id;
+    std::fprintf(stderr, "mfc-detect: %s: the settings and templates of cycle %llu (mfcd %s %s)%s\n",
+                 (dataset / kReplayManifestName).c_str(), static_cast<unsigned long long>(manifest->cycle),
+                 manifest->version.c_str(), manifest->commit.c_str(), obj_id ? "" : ", every part type");
+    for (const std::string& k : ignored)
+      std::fprintf(stderr, "mfc-detect: note: parameter '%s' of the snapshot is not known to this mfc-detect\n", k.c_str());
+  } else if (o.templates.empty()) {
+    throw mfcd::tools::UsageError("--templates is required (the dataset has no " + std::string(kReplayManifestName) + ")");
+  }
+  if (!manifest || !o.templates.empty()) pc.template_files = o.templates;
+  if (!manifest || given("--max-per-image")) pc.max_candidates = o.max_per_image;
+  if (!manifest || given("--max-cost")) pc.max_cost_px = o.max_cost;
+  if (!manifest || given("--threads")) pc.threads = o.threads;
+  if (!manifest || given("--floor")) pc.floor.distance_mm = o.floor_mm;
+  if (!manifest || given("--search-rounds")) pc.search_rounds = o.search_rounds;
+  for (const std::string& s : o.settings) apply_pipeline_setting(pc, s);
+  validate_parameters(pc);
+  return pc;
 }
 
 }  // namespace
@@ -103,13 +155,8 @@ int main(int argc, char** argv) {
 
     // One pipeline per distinct camera (datasets may change K between scenes).
     std::map<std::string, std::unique_ptr<BinPickingPipeline>> pipelines;
-    PipelineConfig pc;
-    pc.template_files = o.templates;
-    pc.max_candidates = o.max_per_image;
-    pc.max_cost_px = o.max_cost;
-    pc.threads = o.threads;
-    pc.floor.distance_mm = o.floor_mm;
-    pc.search_rounds = o.search_rounds;
+    int obj_id = 0;
+    const PipelineConfig pc = pipeline_config(app, o, dataset_dir, obj_id);
 
     // The toolkit takes the dataset and split from the name; other names are fine for mfcd's own tools.
     if (const auto name = parse_bop_results_name(out.string()); !name)
@@ -137,7 +184,7 @@ int main(int argc, char** argv) {
         if (!pipeline) pipeline = std::make_unique<BinPickingPipeline>(cam, pc);
         const MfcFrames frames = dataset.frames(scene, im);
         const auto t0 = std::chrono::steady_clock::now();
-        pipeline->process(frames, 0, t0 + std::chrono::hours(1), result);
+        pipeline->process(frames, obj_id, t0 + std::chrono::hours(1), result);
         const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
         total_s += seconds;
         ++images;

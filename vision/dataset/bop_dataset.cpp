@@ -303,6 +303,32 @@ void BopWriter::write_camera(const CameraConfig& c) {
              root_ / "camera.json");
 }
 
+void BopWriter::write_capture(int scene_id, const CameraConfig& camera, const MfcFrames& frames,
+                              const std::vector<BopGtPose>& truth) {
+  const fs::path dir = scene_dir(scene_id);
+  if (frames.flash.size() != camera.flashes.positions_mm.size())
+    fail(dir, "the capture has " + std::to_string(frames.flash.size()) + " flash images for " +
+                  std::to_string(camera.flashes.positions_mm.size()) + " LEDs");
+  for (const char* sub : {"flash", "ambient", "gray"}) fs::create_directories(dir / sub);
+  json flashes = json::array();
+  for (const auto& p : camera.flashes.positions_mm) flashes.push_back(vec(p));
+  json cam = {{"cam_K", matx(camera.camera.K)},
+              {"depth_scale", kBopDepthScale},
+              {"width", camera.camera.image_size.width},
+              {"height", camera.camera.image_size.height},
+              {"flash_positions_mm", flashes}};
+  if (camera.working_distance_mm > 0) cam["working_distance_mm"] = camera.working_distance_mm;
+  json gt = json::array();
+  for (const BopGtPose& p : truth) gt.push_back({{"obj_id", p.obj_id}, {"cam_R_m2c", matx(p.R)}, {"cam_t_m2c", vec(p.t_mm)}});
+  const std::string iid = id6(0);
+  for (size_t k = 0; k < frames.flash.size(); ++k)
+    write_png(frames.flash[k], dir / "flash" / (iid + "_" + std::to_string(k) + ".png"));
+  write_png(frames.ambient, dir / "ambient" / (iid + ".png"));
+  copy_into(dir / "ambient" / (iid + ".png"), dir / "gray" / (iid + ".png"));
+  write_json(json::object({{"0", cam}}), dir / "scene_camera.json");
+  write_json(json::object({{"0", gt}}), dir / "scene_gt.json");
+}
+
 void BopWriter::write_scene(int scene_id, const CameraConfig& camera, const std::vector<SimulatedImage>& images) {
   const fs::path dir = scene_dir(scene_id);
   for (const char* sub : {"flash", "ambient", "gray", "depth", "mask", "mask_visib"}) fs::create_directories(dir / sub);

@@ -92,6 +92,10 @@ class BopWriter {
   void write_camera(const CameraConfig& camera);
   // <split>/SSSSSS/ with every image of the scene (image ids 0, 1, ...).
   void write_scene(int scene_id, const CameraConfig& camera, const std::vector<SimulatedImage>& images);
+  // <split>/SSSSSS/ with one captured frame set as image 0: scene_camera.json, scene_gt.json
+  // (`truth`, empty when unknown), flash/, ambient/ and gray/; no depth, masks or gt_info (a
+  // capture has no rendering to take them from). Enough for BopDataset::frames and mfc-detect.
+  void write_capture(int scene_id, const CameraConfig& camera, const MfcFrames& frames, const std::vector<BopGtPose>& truth);
   // <root>/<bop_test_targets_filename(split)> from the scene_gt.json and scene_gt_info.json of
   // every scene folder of the split on disk (also scenes an earlier run left there), as
   // bop_test_targets computes them; call after the last write_scene. Returns the targets.

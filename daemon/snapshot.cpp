@@ -1,0 +1,203 @@
+#include "daemon/snapshot.hpp"
+
+#include <algorithm>
+#include <ctime>
+#include <fstream>
+#include <stdexcept>
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "daemon/report.hpp"
+#include "daemon/retained_job.hpp"
+#include "daemon/vision_stage.hpp"
+#include "tools/common/build_version.hpp"
+#include "vision/dataset/bop_dataset.hpp"
+
+namespace mfcd::daemon {
+
+namespace {
+
+std::uintmax_t directorySize(const fs::path& dir) {
+  std::uintmax_t total = 0;
+  std::error_code ec;
+  for (auto it = fs::recursive_directory_iterator(dir, ec); !ec && it != fs::recursive_directory_iterator(); it.increment(ec))
+    if (it->is_regular_file(ec)) total += it->file_size(ec);
+  return total;
+}
+
+// ": no space left (N kB free)" when the file system of `dir` is full, the usual reason a write
+// fails; else nothing.
+std::string spaceNote(const fs::path& dir) {
+  std::error_code ec;
+  const fs::space_info space = fs::space(dir, ec);
+  if (!ec && space.available < (1u << 20)) return ": no space left (" + std::to_string(space.available / 1024) + " kB free)";
+  return "";
+}
+
+std::string writeFailure(const fs::path& file) { return "cannot write " + file.string() + spaceNote(file.parent_path()); }
+
+void writePng(const fs::path& file, const cv::Mat& image) {
+  bool ok = false;
+  try {
+    ok = cv::imwrite(file.string(), image);
+  } catch (const cv::Exception&) {
+    ok = false;
+  }
+  if (!ok) throw std::runtime_error("snapshot: " + writeFailure(file));
+}
+
+void copyFile(const fs::path& from, const fs::path& to) {
+  std::error_code ec;
+  fs::copy_file(from, to, fs::copy_options::overwrite_existing, ec);
+  if (ec) throw std::runtime_error("snapshot: cannot copy " + from.string() + " to " + to.string() + ": " + ec.message());
+}
+
+// The overlay's input: the candidates the cycle reported, with their part names.
+vision::PipelineResult candidatesOf(const CycleResult& result, const VisionStage& stage) {
+  vision::PipelineResult out;
+  const auto parts = stage.parts();
+  for (int i = 0; i < result.candidate_count; ++i) {
+    const CandidateOut& c = result.candidates[static_cast<std::size_t>(i)];
+    vision::PoseCandidate p;
+    p.obj_id = c.obj_id;
+    for (const auto& [id, name] : parts)
+      if (id == c.obj_id) p.part = name;
+    p.R_m2c = c.R_cam;
+    p.t_m2c_mm = c.t_cam_mm;
+    p.score = c.score;
+    p.box = c.box;
+    out.candidates.push_back(p);
+  }
+  return out;
+}
+
+// A new directory for cycle `cycle` saved now: <UTC time>-cycle<N>, with -2, -3, ... when the
+// cycle was saved before within the same second (a failed cycle, then its failed pick).
+fs::path newSnapshotDir(const fs::path& root, std::uint64_t cycle) {
+  char stamp[32];
+  const std::time_t now = std::time(nullptr);
+  std::tm tm{};
+  gmtime_r(&now, &tm);
+  std::strftime(stamp, sizeof stamp, "%Y%m%dT%H%M%SZ", &tm);
+  const std::string base = std::string(stamp) + "-cycle" + std::to_string(cycle);
+  fs::path dir = root / base;
+  for (int k = 2; fs::exists(dir); ++k) dir = root / (base + "-" + std::to_string(k));
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec) throw std::runtime_error("snapshot: cannot create " + dir.string() + ": " + ec.message());
+  return dir;
+}
+
+}  // namespace
+
+SnapshotWriter::SnapshotWriter(const DaemonConfig& config) : config_(config) {
+  try {
+    camera_ = vision::load_camera_config(config.camera.model);
+  } catch (const std::exception& e) {
+    replayError_ = std::string("the camera file cannot be read: ") + e.what();
+    return;
+  }
+  try {
+    vision::ReplayManifest m = vision::make_replay_manifest(pipelineConfig(config));
+    m.version = version();
+    m.commit = git_commit();
+    replay_ = std::move(m);
+  } catch (const std::exception& e) {
+    replayError_ = e.what();
+  }
+}
+
+std::string SnapshotWriter::save(const RetainedJob& job, const VisionStage* stage, const char* reason) const {
+  const fs::path root = config_.snapshots.directory;
+  std::error_code ec;
+  fs::create_directories(root, ec);
+  if (ec) throw std::runtime_error("snapshot: cannot create " + root.string() + ": " + ec.message());
+
+  // Quota: a snapshot is about 9 images + 3 (the gray/ copy, edges, overlay); keep the total
+  // under the quota by deleting the oldest snapshot directories (names sort by time).
+  const std::uintmax_t estimate = 12 * job.slot().frames.frames[0].image.sizeBytes();
+  std::vector<fs::path> existing;
+  for (const auto& e : fs::directory_iterator(root, ec))
+    if (e.is_directory()) existing.push_back(e.path());
+  std::sort(existing.begin(), existing.end());
+  std::uintmax_t used = directorySize(root);
+  for (const auto& old : existing) {
+    if (used + estimate <= config_.snapshots.quota_bytes) break;
+    const std::uintmax_t size = directorySize(old);
+    fs::remove_all(old, ec);
+    used = used > size ? used - size : 0;
+  }
+  if (used + estimate > config_.snapshots.quota_bytes)
+    throw std::runtime_error("snapshot: quota of " + std::to_string(config_.snapshots.quota_bytes >> 20) + " MB in " +
+                             root.string() + " is too small for one snapshot");
+
+  const fs::path dir = newSnapshotDir(root, job.result().request.cycle_id);
+  try {
+    writeFiles(dir, job, stage, reason);
+  } catch (...) {
+    fs::remove_all(dir, ec);  // no half snapshot is left to be taken for a whole one
+    throw;
+  }
+  return dir.string();
+}
+
+void SnapshotWriter::writeFiles(const fs::path& dir, const RetainedJob& job, const VisionStage* stage, const char* reason) const {
+  const FrameSlot& slot = job.slot();
+  const CycleResult& result = job.result();
+  std::string replayable = replayError_;
+  if (slot.ok) {
+    if (camera_) {
+      writeScene(dir, job);
+    }
+    if (result.error == CycleError::None && stage) {
+      if (const cv::Mat1b* edges = job.edges()) writePng(dir / "edges.png", *edges);
+      // Overlay on the brightest-flash composite, where every outline is lit.
+      cv::Mat composite = slot.mfc.flash[0].clone();
+      for (int k = 1; k < hal::kLedCount; ++k) cv::max(composite, cv::Mat(slot.mfc.flash[static_cast<std::size_t>(k)]), composite);
+      writePng(dir / "overlay.png", stage->overlay(cv::Mat1b(composite), candidatesOf(result, *stage)));
+    }
+  } else {
+    replayable = "the capture failed: no images";
+  }
+  CycleResult withDir = result;
+  copyMessage(withDir.snapshot_dir, sizeof withDir.snapshot_dir, dir.c_str());
+  nlohmann::json j = resultJson(withDir, config_);
+  j["snapshot_reason"] = reason;
+  j["replayable"] = replayable.empty() ? nlohmann::json(true) : nlohmann::json(replayable);
+  std::ofstream out(dir / "result.json");
+  out << j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
+  // close() flushes: a full disk shows here, not in the << above.
+  out.close();
+  if (out.fail()) throw std::runtime_error("snapshot: " + writeFailure(dir / "result.json"));
+}
+
+// The one-image BOP scene (the frames as the pipeline saw them: undistorted, so the camera's K
+// without distortion describes them), the replay manifest and the copied files.
+void SnapshotWriter::writeScene(const fs::path& dir, const RetainedJob& job) const {
+  const FrameSlot& slot = job.slot();
+  std::vector<vision::BopGtPose> truth;
+  for (int i = 0; i < slot.truth.count; ++i) {
+    const SimTruth::Part& p = slot.truth.parts[static_cast<std::size_t>(i)];
+    truth.push_back({p.obj_id, p.R, p.t_mm});
+  }
+  try {
+    vision::BopWriter bop(dir, "test");
+    bop.write_models({});  // the parts are in the template files the manifest names
+    bop.write_camera(*camera_);
+    bop.write_capture(1, *camera_, slot.mfc, truth);
+  } catch (const std::exception& e) {
+    throw std::runtime_error(std::string("snapshot: ") + e.what() + spaceNote(dir));
+  }
+  copyFile(config_.camera.model, dir / "camera.yaml");
+  std::error_code ec;
+  if (fs::is_regular_file(config_.source, ec)) copyFile(config_.source, dir / "mfcd.yaml");
+  if (replay_) {
+    vision::ReplayManifest m = *replay_;
+    m.cycle = job.result().request.cycle_id;
+    m.obj_id = slot.request.obj_id;
+    vision::write_replay_manifest(m, dir / vision::kReplayManifestName);
+  }
+}
+
+}  // namespace mfcd::daemon
