@@ -384,7 +384,8 @@ void Cell::runCycle(FrameSlot& slot, CycleResult& out) {
           for (int k = 0; k < 3; ++k) cam_T_part.linear()(r, k) = pc.R_m2c(r, k);
           cam_T_part.translation()(r) = pc.t_m2c_mm[r];
         }
-        const auto pose = transform.pick_pose(cam_T_part);
+        const auto pose = transform.pick_pose(
+            cam_T_part, slot.request.flange_valid ? std::optional(slot.request.base_T_flange) : std::nullopt);
         c.base_valid = pose.has_value();
         if (pose) c.base = *pose;
         // Grasp visibility: the pipeline's estimate for the recipes' grasp features (1 without any).

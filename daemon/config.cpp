@@ -450,18 +450,25 @@ DaemonConfig parseConfig(const std::string& yamlText, const std::string& source,
     Section s = top.section("hand_eye");
     const auto setup = s.choice("setup", motion::HandEyeSetup::EyeToHand,
                                 {{"eye_to_hand", motion::HandEyeSetup::EyeToHand}, {"eye_in_hand", motion::HandEyeSetup::EyeInHand}});
-    if (setup == motion::HandEyeSetup::EyeInHand)
+    const bool inHand = setup == motion::HandEyeSetup::EyeInHand;
+    // Eye-in-hand: every capture is taken from wherever the robot holds the camera, which the PLC
+    // writes into the robot pose block before each TRIGGER; continuous mode has no such moment.
+    if (inHand && c.mode == RunMode::Continuous)
       s.fail(s.key("setup"), lineOf(s.child("setup")),
-             "eye_in_hand picking needs the robot pose at every capture, which mfcd does not read for picks (the "
-             "register map's robot pose block serves calibration views only); use eye_to_hand");
+             "eye_in_hand needs the robot pose of every capture (written by the PLC before each TRIGGER); "
+             "daemon.mode continuous has none: use triggered");
     c.hand_eye.setup = setup;
+    const char* cameraKey = inHand ? "flange_T_camera" : "base_T_camera";
+    const char* otherKey = inHand ? "base_T_camera" : "flange_T_camera";
+    if (s.has(otherKey))
+      s.fail(s.key(otherKey), lineOf(s.child(otherKey)),
+             std::string("belongs to setup ") + (inHand ? "eye_to_hand" : "eye_in_hand") + "; with this setup give " + cameraKey);
     // The camera pose from the camera file's hand_eye section (written by mfcd-ctl calibrate
     // hand-eye apply), so an applied calibration is used for picking after the reload it triggers.
     if (s.boolean("from_camera_file", false)) {
       const int line = lineOf(s.child("from_camera_file"));
-      if (s.has("base_T_camera"))
-        s.fail(s.key("base_T_camera"), lineOf(s.child("base_T_camera")),
-               "give base_T_camera or from_camera_file: true, not both");
+      if (s.has(cameraKey))
+        s.fail(s.key(cameraKey), lineOf(s.child(cameraKey)), std::string("give ") + cameraKey + " or from_camera_file: true, not both");
       vision::CameraConfig model;
       try {
         model = vision::load_camera_config(c.camera.model);
@@ -471,8 +478,11 @@ DaemonConfig parseConfig(const std::string& yamlText, const std::string& source,
       if (!model.hand_eye)
         s.fail(s.key("from_camera_file"), line,
                c.camera.model.string() + " has no hand_eye section (run mfcd-ctl calibrate hand-eye and apply it)");
-      if (model.hand_eye->mode != vision::HandEye::Mode::eye_to_hand)
-        s.fail(s.key("from_camera_file"), line, c.camera.model.string() + ": its hand_eye is eye_in_hand; picking needs eye_to_hand");
+      const bool fileInHand = model.hand_eye->mode == vision::HandEye::Mode::eye_in_hand;
+      if (fileInHand != inHand)
+        s.fail(s.key("from_camera_file"), line,
+               c.camera.model.string() + ": its hand_eye is " + (fileInHand ? "eye_in_hand" : "eye_to_hand") +
+                   " but setup is " + (inHand ? "eye_in_hand" : "eye_to_hand"));
       Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
       for (int r = 0; r < 3; ++r) {
         for (int k = 0; k < 3; ++k) T.linear()(r, k) = model.hand_eye->camera_pose(r, k);
@@ -480,7 +490,7 @@ DaemonConfig parseConfig(const std::string& yamlText, const std::string& source,
       }
       c.hand_eye.camera = T;
     } else {
-      Section cam = s.section("base_T_camera");
+      Section cam = s.section(cameraKey);
       c.hand_eye.camera = readPose(cam);
     }
     Section grasp = s.section("part_T_grasp");

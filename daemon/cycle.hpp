@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <cstring>
 
+#include <Eigen/Geometry>
 #include <opencv2/core.hpp>
 
 #include "mfcd/hal/sequencer.hpp"
@@ -31,6 +32,7 @@ enum class CycleError : std::uint16_t {
   Abandoned = 5,      // the daemon stopped before the cycle finished
   Calibrating = 6,    // a calibration session is running (mfcd-ctl calibrate): picking is paused
   Unavailable = 7,    // the cell could not take the job (no cell running, or its request queue full)
+  NoRobotPose = 8,    // eye-in-hand: the robot pose block holds no valid pose for the capture
 };
 
 // Where the simulated cell puts its calibration plate for a calibration capture (real cells
@@ -62,6 +64,10 @@ struct CycleRequest {
   Clock::time_point deadline{};
   cv::Vec3d picked_t_cam_mm{0, 0, 0};  // RemovePicked: where the robot took a part (camera frame)
   PlateRequest plate;                  // CalibrationCapture, simulated cell
+  // Eye-in-hand: the flange pose in the robot base frame at the capture (the PLC's robot pose
+  // block when the job started); picks are base_T_flange * flange_T_camera * cam_T_part.
+  bool flange_valid = false;
+  Eigen::Isometry3d base_T_flange = Eigen::Isometry3d::Identity();
   // Refill: the simulated bin looked empty to vision (nothing found): the operator refills it.
 };
 

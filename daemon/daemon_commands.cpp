@@ -49,10 +49,10 @@ void Daemon::startControlCycle(ClientId client, const RequestArgs& args, bool sn
                                                       : "busy: a cycle is running or mfcd is not ready");
   const auto id = startCycle(CycleOrigin::Control, 0, static_cast<std::uint16_t>(recipe), 0, snapshot);
   if (!id) return refuse("busy");
-  // Replied to when the cycle (or its snapshot) is done; an unknown recipe has answered already.
-  if (!lastResult_.is_null() && lastResult_["cycle"] == *id &&
-      lastResult_["error_code"] == static_cast<int>(CycleError::UnknownRecipe)) {
-    control_.reply(client, {{"ok", false}, {"error", lastResult_.value("message", "unknown recipe")}, {"result", lastResult_}});
+  // Replied to when the cycle (or its snapshot) is done; a job that could not start (an unknown
+  // recipe, no robot pose) has its result already.
+  if (!lastResult_.is_null() && lastResult_["cycle"] == *id) {
+    control_.reply(client, {{"ok", false}, {"error", lastResult_.value("message", "not run")}, {"result", lastResult_}});
     return;
   }
   waiters_.push_back({client, *id, snapshot ? Waiter::What::Snapshot : Waiter::What::Trigger});

@@ -6,6 +6,7 @@
 #include "daemon/journal_log.hpp"
 #include "daemon/log.hpp"
 #include "daemon/report.hpp"
+#include "motion/pick_transform.hpp"
 #include "motion/register_map.hpp"
 
 namespace mfcd::daemon {
@@ -42,17 +43,27 @@ std::optional<std::uint64_t> Daemon::startCycle(CycleOrigin origin, std::uint16_
   // The pipeline gets the budget minus a reserve for pick choice and publishing.
   const auto budget = std::chrono::milliseconds(config_.cycle_budget_ms);
   r.deadline = r.trigger + budget - std::min<std::chrono::milliseconds>(std::chrono::milliseconds(50), budget / 10);
-  const RecipeConfig* rc = config_.recipe(recipe);
-  if (!rc) {
+  // A job that cannot run is answered at once, as a cycle with its error.
+  const auto failNow = [&](CycleError error, const std::string& msg) {
     CycleResult fail;
     fail.request = r;
-    fail.error = CycleError::UnknownRecipe;
-    const std::string msg = "recipe " + std::to_string(recipe) + " is not in the configuration (" + config_.source + ")";
+    fail.error = error;
     copyMessage(fail.message, sizeof fail.message, msg.c_str());
     onResult(fail);
     return r.cycle_id;
-  }
+  };
+  const RecipeConfig* rc = config_.recipe(recipe);
+  if (!rc) return failNow(CycleError::UnknownRecipe, "recipe " + std::to_string(recipe) + " is not in the configuration (" + config_.source + ")");
   r.obj_id = rc->obj_id;
+  if (config_.hand_eye.setup == motion::HandEyeSetup::EyeInHand) {
+    // The camera is where the robot holds it: the PLC's robot pose block, as it is now.
+    const motion::RobotPoseReading p = link_.robot_pose();
+    if (p.writes == 0 || p.valid != 1)
+      return failNow(CycleError::NoRobotPose, p.writes == 0 ? "eye_in_hand: the PLC has not written the robot pose block (registers 36..49)"
+                                                            : "eye_in_hand: ROBOT_POSE_VALID (register 48) is 0: the pose is not current");
+    r.flange_valid = true;
+    r.base_T_flange = motion::pose_to_isometry({{p.x_mm, p.y_mm, p.z_mm}, {p.rx_deg, p.ry_deg, p.rz_deg}});
+  }
   if (!submit(r)) return std::nullopt;
   inFlight_ = r;
   updateReady();

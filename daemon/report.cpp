@@ -13,13 +13,15 @@ namespace mfcd::daemon {
 
 using nlohmann::json;
 
-std::optional<motion::PickPose> basePose(const DaemonConfig& config, const cv::Matx33d& R, const cv::Vec3d& t) {
+std::optional<motion::PickPose> basePose(const DaemonConfig& config, const cv::Matx33d& R, const cv::Vec3d& t,
+                                         const CycleRequest& request) {
   Eigen::Isometry3d cam_T_part = Eigen::Isometry3d::Identity();
   for (int r = 0; r < 3; ++r) {
     for (int k = 0; k < 3; ++k) cam_T_part.linear()(r, k) = R(r, k);
     cam_T_part.translation()(r) = t[r];
   }
-  return motion::PickTransform(config.hand_eye).pick_pose(cam_T_part);
+  return motion::PickTransform(config.hand_eye)
+      .pick_pose(cam_T_part, request.flange_valid ? std::optional(request.base_T_flange) : std::nullopt);
 }
 
 json poseJson(const motion::PickPose& p) {
@@ -42,6 +44,7 @@ const char* errorName(CycleError e) {
     case CycleError::Abandoned: return "abandoned";
     case CycleError::Calibrating: return "calibrating";
     case CycleError::Unavailable: return "cell unavailable";
+    case CycleError::NoRobotPose: return "no robot pose";
   }
   return "?";
 }
@@ -60,6 +63,12 @@ json resultJson(const CycleResult& r, const DaemonConfig& config) {
   j["error_code"] = static_cast<int>(r.error);
   j["error"] = errorName(r.error);
   if (r.message[0]) j["message"] = r.message;
+  // Eye-in-hand: the flange pose the picks were transformed with.
+  if (r.request.flange_valid) {
+    const motion::PoseXYZ f = motion::isometry_to_pose(r.request.base_T_flange);
+    j["robot_pose"] = {{"x", f.position_mm.x()}, {"y", f.position_mm.y()}, {"z", f.position_mm.z()},
+                       {"rx", f.rotation.rx_deg}, {"ry", f.rotation.ry_deg}, {"rz", f.rotation.rz_deg}};
+  }
   j["degraded"] = r.degraded;
   j["overrun"] = r.total_ms > config.cycle_budget_ms;
   j["leds_off_after_capture"] = r.leds_off;
@@ -96,7 +105,7 @@ json resultJson(const CycleResult& r, const DaemonConfig& config) {
     for (int i = 0; i < r.truth.count; ++i) {
       const SimTruth::Part& p = r.truth.parts[static_cast<std::size_t>(i)];
       json tj = {{"obj_id", p.obj_id}, {"R_cam", matJson(p.R)}, {"t_cam_mm", {p.t_mm[0], p.t_mm[1], p.t_mm[2]}}};
-      if (const auto b = basePose(config, p.R, p.t_mm)) tj["base"] = poseJson(*b);
+      if (const auto b = basePose(config, p.R, p.t_mm, r.request)) tj["base"] = poseJson(*b);
       truth.push_back(std::move(tj));
     }
     j["sim_truth"] = std::move(truth);

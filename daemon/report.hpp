@@ -11,8 +11,9 @@
 namespace mfcd::daemon {
 
 // The pick pose of a camera-frame part pose in the robot base frame (hand-eye calibration plus
-// part_T_grasp), or nullopt when it cannot be expressed.
-std::optional<motion::PickPose> basePose(const DaemonConfig& config, const cv::Matx33d& R, const cv::Vec3d& t_mm);
+// part_T_grasp; eye-in-hand: with the request's flange pose), or nullopt when it cannot be expressed.
+std::optional<motion::PickPose> basePose(const DaemonConfig& config, const cv::Matx33d& R, const cv::Vec3d& t_mm,
+                                         const CycleRequest& request);
 
 nlohmann::json poseJson(const motion::PickPose& p);
 // Everything about one cycle: mfcd's version, request, error, times, candidates (camera and base

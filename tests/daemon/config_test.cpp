@@ -276,10 +276,16 @@ TEST(Config, YamlSyntaxErrorHasItsLine) {
   EXPECT_NE(std::string(e.what()).find("YAML syntax error"), std::string::npos) << e.what();
 }
 
-TEST(Config, HandEyeIsValidatedAndEyeInHandRefused) {
-  ConfigError e = errorOf(minimal("hand_eye:\n  setup: eye_in_hand\n"));
-  EXPECT_EQ(e.key(), "hand_eye.setup");
-  EXPECT_EQ(e.line(), 6);
+TEST(Config, HandEyeIsValidatedAndEachSetupTakesItsOwnCameraKey) {
+  const DaemonConfig c = parseConfig(minimal("hand_eye:\n  setup: eye_in_hand\n  flange_T_camera: {z_mm: 150}\n"), "t",
+                                     {MFC_SOURCE_DIR "/config"});
+  EXPECT_EQ(c.hand_eye.setup, mfcd::motion::HandEyeSetup::EyeInHand);
+  EXPECT_DOUBLE_EQ(c.hand_eye.camera.translation().z(), 150);
+  ConfigError e = errorOf(minimal("hand_eye:\n  setup: eye_in_hand\n  base_T_camera: {z_mm: 150}\n"));
+  EXPECT_EQ(e.key(), "hand_eye.base_T_camera");
+  EXPECT_EQ(e.line(), 7);
+  e = errorOf(minimal("hand_eye:\n  flange_T_camera: {z_mm: 150}\n"));
+  EXPECT_EQ(e.key(), "hand_eye.flange_T_camera");
   e = errorOf(minimal("hand_eye:\n  base_T_camera: {x_mm: 1, yy_mm: 2}\n"));
   EXPECT_EQ(e.key(), "hand_eye.base_T_camera.yy_mm");
 }

@@ -115,7 +115,7 @@ std::vector<Case> cases()
 
   // Every daemon error code (daemon/cycle.hpp CycleError) and one outside the table; READY
   // is set in the report, so StatusReady must drop to 0 on CAN.
-  for (std::uint16_t code : {1, 2, 3, 4, 5, 6, 7, 999}) {
+  for (std::uint16_t code : {1, 2, 3, 4, 5, 6, 7, 8, 999}) {
     Case e{"error" + std::to_string(code), typical.report, static_cast<std::uint16_t>(100 + code),
            static_cast<std::uint8_t>(code)};
     e.report.error_code = code;

@@ -1,0 +1,137 @@
+// Eye-in-hand picking end to end: the real daemon (test vision backend: the simulated bin's ground
+// truth) with the camera on the flange. The PLC writes the robot pose block before each TRIGGER;
+// the published pick must be base_T_flange * flange_T_camera * cam_T_part, computed here by
+// explicit matrix products, and a TRIGGER without a valid pose must end with ERROR_CODE 8.
+#include <gtest/gtest.h>
+
+#include <modbus/modbus.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+
+#include "daemon_process.hpp"
+#include "motion/float_codec.hpp"
+#include "motion/register_map.hpp"
+#include "plc_test_client.hpp"
+
+using namespace mfcd::daemon::test;
+using namespace mfcd::motion;
+
+namespace {
+
+// x, y, z mm and rx, ry, rz degrees with R = Rz * Ry * Rx (docs/register-map.md "Orientation").
+Eigen::Isometry3d poseOf(double x, double y, double z, double rx, double ry, double rz) {
+  const double d = M_PI / 180;
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = (Eigen::AngleAxisd(rz * d, Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(ry * d, Eigen::Vector3d::UnitY()) *
+                Eigen::AngleAxisd(rx * d, Eigen::Vector3d::UnitX()))
+                   .toRotationMatrix();
+  T.translation() = Eigen::Vector3d(x, y, z);
+  return T;
+}
+
+int writeRobotPose(modbus_t* mb, const double (&v)[6], std::uint16_t valid, std::uint16_t seq) {
+  std::uint16_t block[14];
+  for (int i = 0; i < 6; ++i) {
+    const auto w = encode_float(static_cast<float>(v[i]), WordOrder::ABCD);
+    block[2 * i] = w[0], block[2 * i + 1] = w[1];
+  }
+  block[12] = valid, block[13] = seq;
+  return modbus_write_registers(mb, reg::kRobotPoseX, 14, block);
+}
+
+constexpr double kFlangeToCamera[6] = {10, -20, 150, 0, 0, 90};  // flange_T_camera of the configuration
+
+std::string eyeInHandConfig(const fs::path& dir) {
+  std::string c = simCellConfig(dir, 2000);
+  const std::string eyeToHand = "hand_eye:\n  base_T_camera: {x_mm: 500, y_mm: 0, z_mm: 800, rx_deg: 180, ry_deg: 0, rz_deg: 0}\n";
+  const auto at = c.find(eyeToHand);
+  if (at == std::string::npos) return "";
+  return c.replace(at, eyeToHand.size(),
+                   "hand_eye:\n  setup: eye_in_hand\n"
+                   "  flange_T_camera: {x_mm: 10, y_mm: -20, z_mm: 150, rx_deg: 0, ry_deg: 0, rz_deg: 90}\n");
+}
+
+}  // namespace
+
+TEST(EyeInHand, PickIsTransformedWithTheRobotPoseOfItsCapture) {
+  DaemonProcess proc("eye-in-hand");
+  const std::string config = eyeInHandConfig(proc.dir());
+  ASSERT_FALSE(config.empty()) << "simCellConfig's hand_eye changed";
+  proc.writeConfig(config);
+  proc.start(MFCD_TEST_DAEMON);
+  if (!proc.waitReady()) {
+    const std::string log = proc.log();
+    if (log.find("EGL") != std::string::npos || log.find("OpenGL") != std::string::npos) GTEST_SKIP() << "no offscreen OpenGL";
+    FAIL() << "mfcd did not become ready:\n" << log;
+  }
+  Client plc(proc.modbusPort());
+  ASSERT_TRUE(plc.connected);
+  ASSERT_TRUE(plc.waitReady());
+  Regs r;
+
+  // No pose written yet: the job ends with ERROR_CODE 8, no pick.
+  ASSERT_EQ(plc.trigger(1, 0), 0);
+  ASSERT_TRUE(plc.waitFor(1, r)) << proc.log();
+  EXPECT_EQ(r.at(reg::kErrorCode), 8);
+  EXPECT_FALSE(r.at(reg::kStatus) & reg::kPickValid);
+  const std::uint16_t reset = 2;
+  ASSERT_EQ(modbus_write_registers(plc.ctx, reg::kCommand, 1, &reset), 1);
+
+  const Eigen::Isometry3d flange_T_camera = poseOf(kFlangeToCamera[0], kFlangeToCamera[1], kFlangeToCamera[2],
+                                                  kFlangeToCamera[3], kFlangeToCamera[4], kFlangeToCamera[5]);
+  const double views[2][6] = {{400, 50, 600, 180, 0, 30}, {520, -80, 640, 175, 4, -60}};
+  for (int v = 0; v < 2; ++v) {
+    const std::uint16_t job = static_cast<std::uint16_t>(10 + v);
+    ASSERT_EQ(writeRobotPose(plc.ctx, views[v], 1, static_cast<std::uint16_t>(v + 1)), 14);
+    ASSERT_TRUE(plc.waitReady());
+    ASSERT_EQ(plc.trigger(job, 0), 0);
+    ASSERT_TRUE(plc.waitFor(job, r)) << proc.log();
+    ASSERT_EQ(r.at(reg::kErrorCode), 0) << proc.log();
+    ASSERT_TRUE(r.at(reg::kStatus) & reg::kPickValid);
+    const json last = proc.ctl({{"cmd", "last"}})["result"];
+    EXPECT_NEAR(last["robot_pose"]["x"].get<double>(), views[v][0], 1e-3);
+    EXPECT_NEAR(last["robot_pose"]["rz"].get<double>(), views[v][5], 1e-3);
+    // The chosen candidate's camera-frame pose, through the flange pose this job was given.
+    const json& c = last["candidates"][last["chosen"].get<int>()];
+    Eigen::Isometry3d cam_T_part = Eigen::Isometry3d::Identity();
+    for (int i = 0; i < 9; ++i) cam_T_part.linear()(i / 3, i % 3) = c["R_cam"][i].get<double>();
+    for (int i = 0; i < 3; ++i) cam_T_part.translation()(i) = c["t_cam_mm"][i].get<double>();
+    const Eigen::Isometry3d base_T_flange = poseOf(views[v][0], views[v][1], views[v][2], views[v][3], views[v][4], views[v][5]);
+    const Eigen::Vector3d expect = (base_T_flange * flange_T_camera * cam_T_part).translation();
+    EXPECT_NEAR(r.f(reg::kPickX), expect.x(), 0.01) << "view " << v;
+    EXPECT_NEAR(r.f(reg::kPickY), expect.y(), 0.01) << "view " << v;
+    EXPECT_NEAR(r.f(reg::kPickZ), expect.z(), 0.01) << "view " << v;
+  }
+
+  // ROBOT_POSE_VALID 0 (the robot is moving): refused again.
+  ASSERT_EQ(writeRobotPose(plc.ctx, views[0], 0, 3), 14);
+  ASSERT_EQ(plc.trigger(20, 0), 0);
+  ASSERT_TRUE(plc.waitFor(20, r)) << proc.log();
+  EXPECT_EQ(r.at(reg::kErrorCode), 8);
+  proc.signal(SIGTERM);
+  EXPECT_EQ(proc.wait(15000), 0);
+}
+
+TEST(EyeInHand, ConfigurationRulesNameTheKey) {
+  DaemonProcess proc("eye-in-hand-config");
+  std::string config = eyeInHandConfig(proc.dir());
+  ASSERT_FALSE(config.empty());
+  const auto check = [&](const std::string& text, const std::string& expect) {
+    proc.writeConfig(text);
+    proc.start(MFCD_TEST_DAEMON, {"--check-config"});
+    EXPECT_EQ(proc.wait(20000), 2) << text;
+    EXPECT_NE(proc.log().find(expect), std::string::npos) << proc.log();
+  };
+  proc.writeConfig(config);
+  proc.start(MFCD_TEST_DAEMON, {"--check-config"});
+  EXPECT_EQ(proc.wait(20000), 0) << proc.log();
+  // Continuous mode has no capture the PLC could give a pose for.
+  std::string continuous = config;
+  continuous.replace(continuous.find("daemon:\n"), 8, "daemon:\n  mode: continuous\n");
+  check(continuous, "hand_eye.setup");
+  // The eye-to-hand key with the eye-in-hand setup.
+  std::string both = config;
+  both.replace(both.find("  flange_T_camera:"), 0, "  base_T_camera: {x_mm: 1}\n");
+  check(both, "hand_eye.base_T_camera");
+}
