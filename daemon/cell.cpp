@@ -180,6 +180,7 @@ void Cell::acquisitionMain(std::promise<void>& ready) {
     const hal::ImageFormat format = source_->format();
     for (auto& slot : frames_.slots()) slot.allocate(format);
     retained_.allocate(format);
+    webFrames_.allocate(cv::Size(format.width, format.height));
     // Real lenses distort; the simulated cell renders the ideal pinhole the templates were taught
     // for (its camera file has zero distortion, and a fitted k1, k2 on its renders is noise).
     undistorter_ = source_->simulation() ? vision::FrameUndistorter()
@@ -319,6 +320,7 @@ void Cell::visionMain(std::promise<void>& ready) {
       signalFd(resultFd_);
       // Kept after the result has left: a pick reported failed later is saved from here.
       retained_.keep(*slot, resultCopy_, resultCopy_.error == CycleError::None ? stage_->lastEdges() : nullptr);
+      if (config_.web.enabled && slot->ok) webFrames_.publish(retained_.slot(), resultCopy_, retained_.edges());
       frames_.end_read();
       if (why) writeSnapshot(why);
     }

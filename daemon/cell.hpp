@@ -20,6 +20,7 @@
 #include "daemon/config.hpp"
 #include "daemon/cycle.hpp"
 #include "daemon/frame_source.hpp"
+#include "daemon/latest_frame.hpp"
 #include "daemon/retained_job.hpp"
 #include "daemon/snapshot.hpp"
 #include "daemon/vision_stage.hpp"
@@ -61,6 +62,9 @@ public:
   // The ambient image of the last CalibrationCapture (see CycleResult::Kind::CalibrationImage);
   // preallocated, written by the vision thread before it posts that result.
   const cv::Mat1b& calibrationImage() const { return calibrationImage_; }
+  // The last cycle's images and result for the web view (written by the vision worker when
+  // web.enabled; one reader at a time). Lives as long as the cell.
+  LatestFrame* webFrames() { return &webFrames_; }
 
   const DaemonConfig& config() const { return config_; }
   const std::string& sourceDescription() const { return sourceDescription_; }
@@ -119,6 +123,7 @@ private:
   CycleResult resultCopy_;                 // vision thread: the last result, kept with its frames
   RetainedJob retained_;                   // vision thread; allocated before the threads report ready
   std::unique_ptr<SnapshotWriter> snapshots_;  // vision thread; made with the stage
+  LatestFrame webFrames_;                      // allocated before the threads report ready
   cv::Mat1b calibrationImage_;             // allocated before the threads report ready
 };
 

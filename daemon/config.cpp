@@ -41,6 +41,7 @@ std::vector<fs::path> searchPath(const fs::path& configDir, const fs::path& data
     if (!dir.empty()) path.emplace_back(dir);
 #endif
   path.emplace_back("/var/lib/mfcd");
+  path.emplace_back("/usr/share/mfcd");  // what the package ships (cell.yaml, camera-sim.yaml, web/)
   return path;
 }
 
@@ -513,6 +514,29 @@ DaemonConfig parseConfig(const std::string& yamlText, const std::string& source,
       for (std::size_t i = 0; i < allow.size(); ++i) m.allow_list.push_back(s.scalar("allow_list", allow[i]));
     }
     if (std::string e = m.validate(); !e.empty()) s.fail(s.key(""), s.line(), e);
+    s.finish();
+  }
+  {
+    Section s = top.section("web");
+    auto& w = c.web;
+    w.enabled = s.boolean("enabled", false);
+    w.bind_address = s.string("bind_address", w.bind_address);
+    w.port = static_cast<std::uint16_t>(s.integer("port", w.port, 0, 65535));
+    YAML::Node allow = s.child("allow_list");
+    if (allow.IsDefined() && !allow.IsNull()) {
+      if (!allow.IsSequence()) s.fail(s.key("allow_list"), lineOf(allow), "must be a list of addresses or CIDR prefixes");
+      for (std::size_t i = 0; i < allow.size(); ++i) w.allow_list.push_back(s.scalar("allow_list", allow[i]));
+    }
+    w.allow_control = s.boolean("allow_control", false);
+    if (s.has("root")) {
+      c.web_root = s.file("root", true);
+    } else {
+      // The page's folder: web/ of the source tree in development, /usr/share/mfcd/web installed.
+      for (const fs::path& dir : path)
+        if (std::error_code ec; c.web_root.empty() && fs::is_directory(dir / "web", ec)) c.web_root = dir / "web";
+      if (w.enabled && c.web_root.empty()) s.fail(s.key("root"), s.line(), "no web/ folder in the search path; give root");
+    }
+    if (std::string e = w.validate(); !e.empty()) s.fail(s.key(""), s.line(), e);
     s.finish();
   }
   {

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "daemon/log.hpp"
+#include "daemon/web_settings.hpp"
 #include "motion/can_publisher.hpp"
 #include "motion/modbus_server.hpp"
 #include "motion/pick_choice.hpp"
@@ -170,6 +171,8 @@ struct DaemonConfig {
   bool can_enabled = false;
   motion::CanConfig can;
   SnapshotSettings snapshots;
+  WebSettings web;
+  fs::path web_root;  // the page's folder (index.html, app.js, style.css)
   CalibrationSettings calibration;
 
   const RecipeConfig* recipe(int id) const;

@@ -38,8 +38,26 @@ void Daemon::startCell(const DaemonConfig& config) {
   cell->start();
   cell_ = std::move(cell);
   watchCell();
+  showCellOnWeb(config);
   logf(LogLevel::Info, "cell ready: camera %s; vision %s", cell_->sourceDescription().c_str(),
        cell_->visionDescription().c_str());
+}
+
+void Daemon::showCellOnWeb(const DaemonConfig& config) {
+  if (!webView_ || !cell_) return;
+  vision::CameraConfig camera;
+  try {
+    camera = vision::load_camera_config(config.camera.model);
+  } catch (const std::exception&) {
+    // The cell started with this file; a file changed since only misplaces the overlay's dots.
+  }
+  webView_->setCell(cell_->webFrames(), cell_->parts(), camera);
+}
+
+void Daemon::dropCell() {
+  if (webView_) webView_->setCell(nullptr, {}, {});
+  cell_.reset();
+  watchCell();
 }
 
 void Daemon::watchCell() {
@@ -84,10 +102,14 @@ bool Daemon::reload(std::string& message) {
          "(reloading keeps PLC connections open)");
   if (next.control_socket != config_.control_socket)
     logf(LogLevel::Warning, "reload: daemon.control_socket changed; it takes effect at the next start");
+  if (next.web.enabled != config_.web.enabled || next.web.bind_address != config_.web.bind_address ||
+      next.web.port != config_.web.port || next.web.allow_list != config_.web.allow_list || next.web_root != config_.web_root)
+    logf(LogLevel::Warning, "reload: web.* changed; the web view keeps its settings until mfcd restarts");
   next.modbus = config_.modbus;
   next.control_socket = config_.control_socket;
-  cell_.reset();  // stops the threads, LEDs off, releases the devices for the new cell
-  watchCell();
+  next.web = config_.web;
+  next.web_root = config_.web_root;
+  dropCell();  // stops the threads, LEDs off, releases the devices for the new cell
   try {
     startCell(next);
     cellOk_ = true;
@@ -123,6 +145,11 @@ void Daemon::notifyStatus() {
   if (lastStatus_ != status) {
     lastStatus_ = status;
     sd_notify(0, status);
+  }
+  if (webView_) {
+    json stats = stats_.toJson();
+    stats["budget_ms"] = config_.cycle_budget_ms;
+    webView_->update(statusJson(), lastResult_, std::move(stats));
   }
 }
 
@@ -243,7 +270,7 @@ void Daemon::onPlcCommands() {
   while (auto cmd = link_.next_command()) {
     if (!stopping_)
       onPlcCommand(*cmd);
-    else if (cmd->kind == motion::PlcCommand::Kind::Trigger)
+    else if (cmd->kind == motion::PlcCommand::Kind::Trigger || cmd->kind == motion::PlcCommand::Kind::SaveScene)
       answerJob(cmd->job_id, cmd->recipe_id, CycleError::Abandoned, "mfcd is stopping");
   }
 }
@@ -258,6 +285,19 @@ bool Daemon::startServices() {
   } catch (const std::exception& e) {
     logf(LogLevel::Error, "%s", e.what());
     return false;
+  }
+  if (config_.web.enabled) {
+    try {
+      webView_ = std::make_unique<WebView>(config_.snapshots.directory);
+      web_ = std::make_unique<WebServer>(config_.web, *webView_, config_.web_root);
+      web_->start();
+      logf(LogLevel::Info, "web view on http://%s:%u/ (%s)", config_.web.bind_address.c_str(), web_->port(),
+           config_.web_root.c_str());
+      showCellOnWeb(config_);
+    } catch (const std::exception& e) {
+      logf(LogLevel::Error, "web view: %s", e.what());
+      return false;
+    }
   }
   registerCommands();
   sigset_t mask;
@@ -320,7 +360,8 @@ void Daemon::mainLoop() {
 // Clean stop: no more triggers, every waiting job answered, cell stopped (LEDs off), robot link
 // drained and closed.
 void Daemon::shutdown() {
-  if (pendingPlc_ && pendingPlc_->kind == motion::PlcCommand::Kind::Trigger)
+  if (pendingPlc_ && (pendingPlc_->kind == motion::PlcCommand::Kind::Trigger ||
+                      pendingPlc_->kind == motion::PlcCommand::Kind::SaveScene))
     answerJob(pendingPlc_->job_id, pendingPlc_->recipe_id, CycleError::Abandoned, "mfcd is stopping");
   pendingPlc_.reset();
   report_.ready = 0;
@@ -328,8 +369,8 @@ void Daemon::shutdown() {
   for (const auto& w : waiters_) control_.reply(w.client, {{"ok", false}, {"error", "mfcd is stopping"}});
   waiters_.clear();
   calib_.reset();  // joins the worker after the job it is running (an abandoned session writes nothing)
-  cell_.reset();
-  watchCell();
+  if (web_) web_->stop();
+  dropCell();
   link_.stop(std::chrono::seconds(1));
   control_.close();
   logf(LogLevel::Notice, "mfcd stopped");
@@ -379,7 +420,7 @@ int Daemon::run() {
   lockMemory();
   if (options_.benchmarkCycles > 0) return runBenchmark();
   if (!startServices()) {
-    cell_.reset();
+    dropCell();
     return 1;
   }
   report_.vision_ok = 1;

@@ -100,6 +100,7 @@ json Daemon::statusJson() const {
   for (const auto& r : config_.recipes) recipes.push_back({{"id", r.id}, {"part", r.part}, {"obj_id", r.obj_id}});
   j["recipes"] = recipes;
   link_.describe(j);
+  if (web_) j["web"] = {{"bind_address", config_.web.bind_address}, {"port", web_->port()}};
   j["cycles"] = stats_.cycles();
   j["overruns"] = stats_.overruns();
   if (calib_) {

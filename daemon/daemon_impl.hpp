@@ -24,6 +24,8 @@
 #include "daemon/daemon.hpp"
 #include "daemon/event_loop.hpp"
 #include "daemon/robot_link.hpp"
+#include "daemon/web_server.hpp"
+#include "daemon/web_view.hpp"
 #include "motion/unique_fd.hpp"
 
 namespace mfcd::daemon {
@@ -45,6 +47,10 @@ public:
 private:
   DaemonConfig load() const;
   void startCell(const DaemonConfig& config);
+  // Stops the cell (LEDs off, devices released), after the web view has let go of its frames.
+  void dropCell();
+  // Hands the running cell's frames, parts and camera to the web view (when it runs).
+  void showCellOnWeb(const DaemonConfig& config);
   void watchCell();  // (re-)registers the current cell's result fd with the loop
   void lockMemory();
   bool startServices();
@@ -102,6 +108,8 @@ private:
   ControlServer control_{loop_};
   RobotLink link_;
   std::unique_ptr<Cell> cell_;
+  std::unique_ptr<WebView> webView_;  // web.enabled: what the web server shows
+  std::unique_ptr<WebServer> web_;
   int watchedCellFd_ = -1;
   motion::RobotReport report_;
   CycleStats stats_;

@@ -114,4 +114,21 @@ json resultJson(const CycleResult& r, const DaemonConfig& config) {
   return j;
 }
 
+vision::PipelineResult overlayCandidates(const CycleResult& result, const std::vector<std::pair<int, std::string>>& parts) {
+  vision::PipelineResult out;
+  for (int i = 0; i < result.candidate_count; ++i) {
+    const CandidateOut& c = result.candidates[static_cast<std::size_t>(i)];
+    vision::PoseCandidate p;
+    p.obj_id = c.obj_id;
+    for (const auto& [id, name] : parts)
+      if (id == c.obj_id) p.part = name;
+    p.R_m2c = c.R_cam;
+    p.t_m2c_mm = c.t_cam_mm;
+    p.score = c.score;
+    p.box = c.box;
+    out.candidates.push_back(p);
+  }
+  return out;
+}
+
 }  // namespace mfcd::daemon

@@ -3,6 +3,8 @@
 #include <nlohmann/json.hpp>
 
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "daemon/config.hpp"
 #include "daemon/cycle.hpp"
@@ -19,5 +21,9 @@ nlohmann::json poseJson(const motion::PickPose& p);
 // Everything about one cycle: mfcd's version, request, error, times, candidates (camera and base
 // frame), the chosen pick, and on the simulated cell the bin's ground truth (camera and base frame).
 nlohmann::json resultJson(const CycleResult& result, const DaemonConfig& config);
+
+// The candidates a cycle reported, as vision::draw_candidates draws them (with their part names
+// from `parts`: obj_id, name).
+vision::PipelineResult overlayCandidates(const CycleResult& result, const std::vector<std::pair<int, std::string>>& parts);
 
 }  // namespace mfcd::daemon

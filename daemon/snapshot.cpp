@@ -53,25 +53,6 @@ void copyFile(const fs::path& from, const fs::path& to) {
   if (ec) throw std::runtime_error("snapshot: cannot copy " + from.string() + " to " + to.string() + ": " + ec.message());
 }
 
-// The overlay's input: the candidates the cycle reported, with their part names.
-vision::PipelineResult candidatesOf(const CycleResult& result, const VisionStage& stage) {
-  vision::PipelineResult out;
-  const auto parts = stage.parts();
-  for (int i = 0; i < result.candidate_count; ++i) {
-    const CandidateOut& c = result.candidates[static_cast<std::size_t>(i)];
-    vision::PoseCandidate p;
-    p.obj_id = c.obj_id;
-    for (const auto& [id, name] : parts)
-      if (id == c.obj_id) p.part = name;
-    p.R_m2c = c.R_cam;
-    p.t_m2c_mm = c.t_cam_mm;
-    p.score = c.score;
-    p.box = c.box;
-    out.candidates.push_back(p);
-  }
-  return out;
-}
-
 // A new directory for cycle `cycle` saved now: <UTC time>-cycle<N>, with -2, -3, ... when the
 // cycle was saved before within the same second (a failed cycle, then its failed pick).
 fs::path newSnapshotDir(const fs::path& root, std::uint64_t cycle) {
@@ -155,7 +136,7 @@ void SnapshotWriter::writeFiles(const fs::path& dir, const RetainedJob& job, con
       // Overlay on the brightest-flash composite, where every outline is lit.
       cv::Mat composite = slot.mfc.flash[0].clone();
       for (int k = 1; k < hal::kLedCount; ++k) cv::max(composite, cv::Mat(slot.mfc.flash[static_cast<std::size_t>(k)]), composite);
-      writePng(dir / "overlay.png", stage->overlay(cv::Mat1b(composite), candidatesOf(result, *stage)));
+      writePng(dir / "overlay.png", stage->overlay(cv::Mat1b(composite), overlayCandidates(result, stage->parts())));
     }
   } else {
     replayable = "the capture failed: no images";

@@ -32,21 +32,9 @@
 
 #include <nlohmann/json.hpp>
 
+#include "daemon/web_settings.hpp"
+
 namespace mfcd::daemon {
-
-// The `web:` block of the configuration.
-struct WebSettings {
-  bool enabled = false;
-  std::string bind_address = "127.0.0.1";  // numeric IPv4 or IPv6; "::" is dual stack
-  std::uint16_t port = 8080;               // 0: the kernel chooses (tests only; validate() refuses it)
-  std::vector<std::string> allow_list;     // addresses or CIDR prefixes (motion::IpAllowList); empty = everyone
-  // Reserved for operator commands over HTTP. There are none yet, so it changes nothing: every
-  // method but GET and HEAD is answered 405 either way.
-  bool allow_control = false;
-
-  // "" when valid, else a message naming the key ("web port 0: ...").
-  std::string validate() const;
-};
 
 // What the page shows, supplied by the daemon. Called only from the web server's threads (at most
 // kWorkers at once), never from the cycle's, so an implementation must be thread-safe. It should hand

@@ -6,4 +6,9 @@
 
 namespace mfcd::hal::test {
 std::uint64_t allocationCount() noexcept;
-}
+// From now on (nullptr: off), also count the allocations of threads whose name does not start with
+// `prefix` (a string literal), for a steady-state check while other threads (a web server) allocate.
+// Reads the thread's name at every allocation while on: slow, for tests only.
+void excludeThreadsNamed(const char* prefix) noexcept;
+std::uint64_t allocationCountOutsideExcluded() noexcept;
+}  // namespace mfcd::hal::test
