@@ -1,6 +1,6 @@
 // mfc-teach: builds a part's template database (*.tdb) from its CAD model (paper Sec. 4.3).
 //   mfc-teach MODEL --camera CAMERA.yaml --out PART.tdb [--obj-id N] [--name NAME]
-//             [--unit mm|cm|m|in|<mm per unit>] [--views K] [--symmetry none|z:N|z:inf]
+//             [--unit mm|cm|m|in|<mm per unit>] [--chordal-tolerance MM] [--views K] [--symmetry none|z:N|z:inf]
 //             [--views-symmetry none|z:N|z:inf] [--distance MM] [--lighting-turns N[:M]] [--lighting-tolerance PX] [--threads N] [--quiet]
 // Exit status: 0 written, 1 refused (model, camera, symmetry), 2 usage.
 #include "tools/common/cli.hpp"
@@ -30,17 +30,23 @@ struct Options {
   int lighting_turns = TeachParams{}.lighting_turns, lighting_min_turns = TeachParams{}.lighting_min_turns;
   int lighting_tolerance = TeachParams{}.lighting_tolerance_px;
   double distance = 0;
+  CadTessellation tessellation;
   bool quiet = false;
 };
 
 void add_options(CLI::App& app, Options& o) {
-  app.add_option("MODEL", o.models, "part mesh: STL (ASCII/binary), OBJ or PLY")->required()->type_name("");
+  app.add_option("MODEL", o.models, "part model: STL (ASCII/binary), OBJ, PLY, or STEP/IGES (tessellated by OCCT)")
+      ->required()->type_name("");
   app.add_option("--camera", o.camera, "camera + flash YAML the templates are rendered for (docs/camera.md)")
       ->required()->type_name("FILE");
   app.add_option("--out", o.out, "template database to write")->required()->type_name("FILE");
   mfcd::tools::add_int(app, "--obj-id", o.obj_id, "BOP object id (default: N from a model named obj_00000N.*, else 1)");
   app.add_option("--name", o.name, "part name (default: the model file's stem)")->type_name("NAME");
-  app.add_option("--unit", o.unit, "model unit: mm (default), cm, m, in, or mm per unit")->type_name("U");
+  app.add_option("--unit", o.unit, "model unit: mm (default), cm, m, in, or mm per unit (STEP/IGES: from the file)")
+      ->type_name("U");
+  mfcd::tools::add_double(app, "--chordal-tolerance", o.tessellation.chordal_tolerance_mm,
+                          "STEP/IGES: largest distance between a triangle and its surface\n(default 0.05)")
+      ->type_name("MM");
   mfcd::tools::add_int(app, "--views", o.views, "views over the whole sphere (default 300)")->type_name("K");
   app.add_option("--symmetry", o.symmetry, "none (default), z:N (N-fold about the model z axis), z:inf:\n"
                                            "the turns that leave the part the same to the gripper")->type_name("S");
@@ -128,6 +134,7 @@ int main(int argc, char** argv) {
 
     MeshLoadOptions mo;
     mo.unit_mm = parse_unit_mm(o.unit);
+    mo.tessellation = o.tessellation;
     MeshReport report;
     const Mesh mesh = load_mesh(model, mo, &report);
     for (const auto& w : report.warnings) std::fprintf(stderr, "mfc-teach: %s: warning: %s\n", model.c_str(), w.c_str());

@@ -1,4 +1,5 @@
 #include "vision/model/mesh.hpp"
+#include "vision/model/cad_reader.hpp"
 #include "vision/model/ply_reader.hpp"
 
 #include <assimp/Importer.hpp>
@@ -138,11 +139,17 @@ Mesh load_mesh(const std::filesystem::path& file, const MeshLoadOptions& options
   std::string ext = file.extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   if (ext == ".ply") return finish_loading(read_ply(file, static_cast<float>(options.unit_mm)), options, report, src);
+  if (is_cad_file(file)) {
+    // A CAD exchange file states its length unit; OCCT converts to millimetres.
+    if (options.unit_mm != 1.0)
+      throw std::runtime_error(src + ": a STEP or IGES file carries its own length unit; give no other unit for it");
+    return finish_loading(read_cad(file, options.tessellation), options, report, src);
+  }
   // assimp reads some 40 formats, most of them never meant for a part model; only its STL and
   // OBJ importers are used, chosen by the extension (assimp sniffs the content only for an
   // extension no importer claims, and refuses a file its extension's importer cannot read).
   if (ext != ".stl" && ext != ".obj")
-    throw std::runtime_error(src + ": unsupported mesh format '" + ext + "'; accepted: .stl, .obj, .ply");
+    throw std::runtime_error(src + ": unsupported mesh format '" + ext + "'; accepted: .stl, .obj, .ply, .step, .stp, .iges, .igs");
   Assimp::Importer importer;
   // ValidateDataStructure refuses a scene whose indices (faces into vertices, nodes into
   // meshes) point outside their arrays; the walk below checks them again where it uses them.

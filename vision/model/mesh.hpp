@@ -1,5 +1,5 @@
 #pragma once
-// Triangle meshes of parts, in millimetres: loaded from CAD exports (STL, OBJ, PLY) or
+// Triangle meshes of parts, in millimetres: loaded from CAD exports (STL, OBJ, PLY, STEP, IGES) or
 // generated in code for tests (cube, sphere, cylinder, plane).
 
 #include <opencv2/core.hpp>
@@ -21,6 +21,16 @@ struct Mesh {
   cv::Vec3f bbox_max() const;
 };
 
+// How a STEP or IGES file's surfaces become triangles (cad_reader.hpp).
+struct CadTessellation {
+  // The largest distance between a triangle and the surface it stands for: 0.05 mm is 0.2 px at
+  // the cell's 0.27 mm/px, so the templates' edges do not show the facets.
+  double chordal_tolerance_mm = 0.05;
+  // The largest turn between neighbouring triangles' normals on a curved face: bounds the facets
+  // of small radii, which the chordal tolerance alone leaves coarse in angle.
+  double angular_tolerance_deg = 10;
+};
+
 struct MeshLoadOptions {
   // Millimetres per file unit: 1 for files in mm, 25.4 for inches, 1000 for metres.
   double unit_mm = 1.0;
@@ -28,6 +38,9 @@ struct MeshLoadOptions {
   // they almost always mean a wrong unit.
   double min_size_mm = 1.0;
   double max_size_mm = 2000.0;
+  // STEP and IGES: how their surfaces become triangles (cad_reader.hpp). Their length unit comes
+  // from the file; unit_mm must stay 1 for them.
+  CadTessellation tessellation;
 };
 
 // Parses a unit name for --unit options: "mm", "cm", "m", "in"/"inch", or a number (mm per unit).
@@ -41,10 +54,11 @@ struct MeshReport {
   std::vector<std::string> warnings;
 };
 
-// Loads an STL (ASCII or binary) or OBJ with assimp, or a PLY (ASCII or binary) with read_ply
-// (vision/model/ply_reader.hpp), merges all its meshes into one,
-// scales to mm and validates. The extension (.stl, .obj, .ply, any case) picks the reader; any
-// other is refused. Throws std::runtime_error naming the file on an unsupported extension, an
+// Loads an STL (ASCII or binary) or OBJ with assimp, a PLY (ASCII or binary) with read_ply
+// (vision/model/ply_reader.hpp), or a STEP or IGES file with read_cad (vision/model/cad_reader.hpp,
+// tessellated as options.tessellation says), merges all its meshes into one, scales to mm, welds
+// identical vertices and validates. The extension (.stl, .obj, .ply, .step, .stp, .iges, .igs, any
+// case) picks the reader; any other is refused. Throws std::runtime_error naming the file on an unsupported extension, an
 // unreadable, empty or absurdly sized mesh, a face index outside the vertices or a non-finite
 // vertex; non-manifold geometry only adds warnings to *report (and to syslog when report is null).
 Mesh load_mesh(const std::filesystem::path& file, const MeshLoadOptions& options = {}, MeshReport* report = nullptr);

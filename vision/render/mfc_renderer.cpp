@@ -283,7 +283,10 @@ std::string MfcRenderer::gl_renderer() const {
 }
 
 int MfcRenderer::add_mesh(const Mesh& mesh, double crease_deg) {
-  validate_mesh(mesh, {.min_size_mm = 0, .max_size_mm = 1e9}, mesh.name.empty() ? "mesh" : mesh.name);
+  MeshLoadOptions any_size;
+  any_size.min_size_mm = 0;
+  any_size.max_size_mm = 1e9;
+  validate_mesh(mesh, any_size, mesh.name.empty() ? "mesh" : mesh.name);
   // Per-corner normals: the area-weighted mean of the normals of the faces around the
   // vertex that are within the crease angle of this face. Sharp CAD edges stay sharp,
   // tessellated curved surfaces shade smoothly.

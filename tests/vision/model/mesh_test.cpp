@@ -132,7 +132,9 @@ TEST(MeshLoad, AllFormatsGiveTheSameBox) {
 TEST(MeshLoad, UnitScalesToMillimetres) {
   const fs::path p = temp_file("inch_box.stl");
   write_binary_stl(make_box(2, 1, 1), p);
-  const Mesh m = load_mesh(p, {.unit_mm = parse_unit_mm("in")});
+  MeshLoadOptions inches;
+  inches.unit_mm = parse_unit_mm("in");
+  const Mesh m = load_mesh(p, inches);
   EXPECT_NEAR(m.bbox_max()[0] - m.bbox_min()[0], 50.8, 1e-4);
   EXPECT_DOUBLE_EQ(parse_unit_mm("m"), 1000.0);
   EXPECT_DOUBLE_EQ(parse_unit_mm("2.5"), 2.5);
@@ -146,7 +148,9 @@ TEST(MeshLoad, AbsurdSizeNamesFileAndSuggestsUnit) {
   const std::string err = load_error(p);
   EXPECT_NE(err.find(p.string()), std::string::npos) << err;
   EXPECT_NE(err.find("unit"), std::string::npos) << err;
-  EXPECT_EQ(load_error(p, {.unit_mm = 1000}), "");
+  MeshLoadOptions metres;
+  metres.unit_mm = 1000;
+  EXPECT_EQ(load_error(p, metres), "");
   const fs::path big = temp_file("huge.stl");
   write_binary_stl(make_box(40000, 10, 10), big);
   EXPECT_NE(load_error(big).find("outside"), std::string::npos);
