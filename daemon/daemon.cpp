@@ -279,7 +279,14 @@ void Daemon::onPlcCommands() {
 // one cannot start (logged).
 bool Daemon::startServices() {
   try {
-    link_.start(config_.modbus, config_.can_enabled, config_.can);
+    motion::ModbusServerConfig modbus = config_.modbus;
+    // mfcd's release in registers 53..54 (project version "major.minor.patch").
+    unsigned major = 0, minor = 0, patch = 0;
+    if (std::sscanf(version(), "%u.%u.%u", &major, &minor, &patch) == 3) {
+      modbus.software_version = static_cast<std::uint16_t>((std::min(major, 255u) << 8) | std::min(minor, 255u));
+      modbus.software_patch = static_cast<std::uint16_t>(std::min(patch, 65535u));
+    }
+    link_.start(modbus, config_.can_enabled, config_.can);
     control_.open(config_.control_socket);
     calib_ = std::make_unique<CalibrationService>();
   } catch (const std::exception& e) {

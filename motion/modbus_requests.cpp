@@ -69,6 +69,8 @@ RobotReport ModbusServer::Impl::refresh_registers() {
   regs[reg::kPicksLeft] =
       valid && r.pick_count > shown_rank ? static_cast<std::uint16_t>(r.pick_count - shown_rank - 1) : 0;
   regs[reg::kSnapshotCount] = r.snapshots_saved;
+  regs[reg::kSoftwareVersion] = config.software_version;
+  regs[reg::kSoftwarePatch] = config.software_patch;
   std::memcpy(map->tab_input_registers, regs, reg::kBlockSize * sizeof(std::uint16_t));
   return r;
 }

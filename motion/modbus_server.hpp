@@ -50,6 +50,9 @@ struct ModbusServerConfig {
   // its jobs pauses between them; a closed PLC connection simply reconnects.
   std::chrono::milliseconds idle_timeout{60000};
   std::vector<std::string> allow_list;  // empty: any client; else addresses / CIDR prefixes
+  // The software release the server reports (registers 53..54): major << 8 | minor, and patch.
+  std::uint16_t software_version = 0;
+  std::uint16_t software_patch = 0;
 
   // Empty when valid, else a message naming the key and the reason.
   std::string validate() const;

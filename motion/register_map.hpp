@@ -67,7 +67,9 @@ inline constexpr std::uint16_t kRobotPoseEnd = 50;
 inline constexpr std::uint16_t kPickRank = 50;       // rank of the pick in 20..33 in its job's order, 0 = first choice
 inline constexpr std::uint16_t kPicksLeft = 51;      // further picks NEXT can still publish for this job
 inline constexpr std::uint16_t kSnapshotCount = 52;  // snapshots saved since mfcd started, wraps at 65535
-// 53..63 reserved, read 0.
+inline constexpr std::uint16_t kSoftwareVersion = 53;  // mfcd's release: major << 8 | minor
+inline constexpr std::uint16_t kSoftwarePatch = 54;    // mfcd's release: patch
+// 55..63 reserved, read 0.
 
 // TRIGGER and SAVE_SCENE start a job (SAVE_SCENE also saves its frame set as a snapshot);
 // NEXT publishes the job's next pick at once, without a new capture.

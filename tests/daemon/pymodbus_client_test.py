@@ -185,6 +185,9 @@ snapshots:
             check(client.connect(), f"connect to 127.0.0.1:{port}")
             regs = client.read_holding_registers(0, 64, slave=1).registers
             check(regs[WORD_ORDER] == 1, "word order register says CDAB")
+            major, minor, patch = (int(v) for v in status["version"].split(".")[:3])
+            check(regs[53] == (major << 8 | minor) and regs[54] == patch,
+                  f"registers 53..54 hold mfcd's release {status['version']}: {regs[53]:#06x} {regs[54]}")
             for job in (31, 32, 33):
                 regs = run_job(client, job, 1)
                 check(regs[STATUS] & DONE and regs[STATUS] & PICK_VALID and regs[ERROR_CODE] == 0,

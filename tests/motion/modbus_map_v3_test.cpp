@@ -63,10 +63,15 @@ void expect_pick(const std::vector<std::uint16_t> &block, std::uint16_t job, std
 
 TEST(ModbusMapV3, VersionAndControlBlock)
 {
-	ModbusServer server(loopback_config());
+	ModbusServerConfig config = loopback_config();
+	config.software_version = 2 << 8 | 17;
+	config.software_patch = 4;
+	ModbusServer server(config);
 	server.start();
 	LibmodbusClient plc(server.port());
 	EXPECT_EQ(plc.read(reg::kMapVersionReg, 1)[0], 3);
+	EXPECT_EQ(plc.read(reg::kSoftwareVersion, 2), (std::vector<std::uint16_t>{2 << 8 | 17, 4})) << "release 2.17.4";
+	EXPECT_EQ(plc.read(55, 9), std::vector<std::uint16_t>(9, 0)) << "55..63 reserved";
 	EXPECT_EQ(plc.write(reg::kPickResult, {0, 0}), 0) << "4..5 are the PICK_RESULT pair";
 	EXPECT_EQ(plc.write(6, {1}), EMBXILADD) << "6..7 stay reserved";
 	EXPECT_EQ(plc.write(reg::kCommand, {0, 1, 2, 0, 0, 0, 0}), EMBXILADD) << "a write reaching into 6";
