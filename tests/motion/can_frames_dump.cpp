@@ -35,8 +35,7 @@ struct Case {
 
 using Signals = std::vector<std::pair<std::string, double>>;
 
-void print_frame(const std::string &case_name, const char *frame_name, const can_frame &f, const Signals &signals)
-{
+void print_frame(const std::string& case_name, const char* frame_name, const can_frame& f, const Signals& signals) {
   std::string hex;
   char byte[3];
   for (unsigned i = 0; i < f.len; ++i) {
@@ -53,9 +52,8 @@ void print_frame(const std::string &case_name, const char *frame_name, const can
 double flag(bool b) { return b ? 1.0 : 0.0; }
 
 // One line per frame kind. Returns false when encode_pick refused the case.
-bool dump(const Case &c)
-{
-  const RobotReport &r = c.report;
+bool dump(const Case& c) {
+  const RobotReport& r = c.report;
   print_frame(c.name, "MFCD_Status", encode_status(r, kCanDefaultBase),
               {{"StatusReady", flag(r.ready != 0 && r.error_code == 0)},
                {"StatusReserved1_2", 0},  // Modbus BUSY/DONE: never sent on CAN
@@ -94,13 +92,12 @@ bool dump(const Case &c)
   return true;
 }
 
-std::vector<Case> cases()
-{
+std::vector<Case> cases() {
   std::vector<Case> out;
   out.push_back({"zeros", RobotReport{}, 0, 0});
 
   Case typical{"typical", {}, 17, 5};
-  RobotReport &t = typical.report;
+  RobotReport& t = typical.report;
   t.job_id = 42;
   t.recipe_id = 3;
   t.objects_remaining = 7;
@@ -126,7 +123,7 @@ std::vector<Case> cases()
 
   // The largest values each signal holds; counts past one byte saturate at 255.
   Case high{"max", {}, 65535, 255};
-  RobotReport &h = high.report;
+  RobotReport& h = high.report;
   h.job_id = h.recipe_id = h.objects_remaining = h.cycle_time_ms = 65535;
   h.candidate_index = 65535;
   h.candidate_count = 300;
@@ -154,7 +151,7 @@ std::vector<Case> cases()
   std::uniform_int_distribution<int> u16(0, 65535), bit(0, 1), code(0, 7);
   for (int i = 0; i < 40; ++i) {
     Case c{"random" + std::to_string(i), {}, static_cast<std::uint16_t>(u16(rng)), static_cast<std::uint8_t>(u16(rng))};
-    RobotReport &r = c.report;
+    RobotReport& r = c.report;
     r.job_id = static_cast<std::uint16_t>(u16(rng));
     r.recipe_id = static_cast<std::uint16_t>(u16(rng));
     r.error_code = static_cast<std::uint16_t>(bit(rng) ? 0 : code(rng));
@@ -173,12 +170,10 @@ std::vector<Case> cases()
   return out;
 }
 
-} // namespace
+}  // namespace
 
-int main()
-{
+int main() {
   bool ok = true;
-  for (const Case &c : cases())
-    ok = dump(c) && ok;
+  for (const Case& c : cases()) ok = dump(c) && ok;
   return ok ? 0 : 1;
 }

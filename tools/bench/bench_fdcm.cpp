@@ -18,12 +18,14 @@ using namespace mfcd::vision;
 
 namespace {
 
-const std::vector<cv::Point2d> kTNut{{-40, -30}, {40, -30}, {40, -10}, {15, -10}, {15, 30}, {-15, 30}, {-15, -10}, {-40, -10}};
+const std::vector<cv::Point2d> kTNut{{-40, -30}, {40, -30}, {40, -10},  {15, -10},
+                                     {15, 30},   {-15, 30}, {-15, -10}, {-40, -10}};
 
 std::vector<cv::Point> place(const std::vector<cv::Point2d>& shape, cv::Point2d at, double angle, double scale = 1) {
   std::vector<cv::Point> out;
   const double c = std::cos(angle), s = std::sin(angle);
-  for (const auto& p : shape) out.emplace_back(cvRound(at.x + scale * (c * p.x - s * p.y)), cvRound(at.y + scale * (s * p.x + c * p.y)));
+  for (const auto& p : shape)
+    out.emplace_back(cvRound(at.x + scale * (c * p.x - s * p.y)), cvRound(at.y + scale * (s * p.x + c * p.y)));
   return out;
 }
 
@@ -60,10 +62,14 @@ struct Query {
     for (int i = 0; i < clutter; ++i) {
       const cv::Point a(ux(rng), uy(rng));
       const double ang = ua(rng), len = ul(rng);
-      cv::line(img, a, a + cv::Point(cvRound(len * std::cos(ang)), cvRound(len * std::sin(ang))), ug(rng), 1, cv::LINE_AA);
+      cv::line(img, a, a + cv::Point(cvRound(len * std::cos(ang)), cvRound(len * std::sin(ang))), ug(rng), 1,
+               cv::LINE_AA);
     }
     for (int k = 0; k < 8; ++k)
-      cv::fillPoly(img, std::vector<std::vector<cv::Point>>{place(kTNut, {90.0 + (k % 4) * 150, 120.0 + (k / 4) * 230}, k * 0.7)}, 200);
+      cv::fillPoly(
+          img,
+          std::vector<std::vector<cv::Point>>{place(kTNut, {90.0 + (k % 4) * 150, 120.0 + (k / 4) * 230}, k * 0.7)},
+          200);
     for (int k = 0; k < blobs; ++k) {
       std::vector<cv::Point> b;
       for (auto p : blob(rng, 30)) b.emplace_back(cvRound(p.x + ux(rng)), cvRound(p.y + uy(rng)));
@@ -140,7 +146,11 @@ static void BM_LineFit640x480(benchmark::State& state) {
   state.counters["edge_pixels"] = q.fit.inputEdgePixels;
   state.counters["lines"] = static_cast<double>(q.fit.set.lines.size());
 }
-BENCHMARK(BM_LineFit640x480)->ArgsProduct({{0, 1}, {1, 2}})->ArgNames({"dense", "threads"})->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_LineFit640x480)
+    ->ArgsProduct({{0, 1}, {1, 2}})
+    ->ArgNames({"dense", "threads"})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 
 // DT3 + IDT3 build at 640x480, q = 60, with 1 and 2 threads.
 static void BM_Dt3Idt3Build(benchmark::State& state) {
@@ -160,7 +170,11 @@ static void BM_Dt3Idt3Build(benchmark::State& state) {
   state.counters["explained_pixels"] = q.fit.explainedEdgePixels;
   omp_set_num_threads(2);
 }
-BENCHMARK(BM_Dt3Idt3Build)->ArgsProduct({{1, 2}, {0, 1}})->ArgNames({"threads", "dense"})->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_Dt3Idt3Build)
+    ->ArgsProduct({{1, 2}, {0, 1}})
+    ->ArgNames({"threads", "dense"})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 
 // The same build with oriented channels (edge polarity, docs/fdcm.md): q = 120 over 2 pi, each
 // query pixel's channel c or c + 60 (Canny edges have no shadow side, so the polarity is made up:
@@ -172,7 +186,8 @@ static void BM_Dt3Idt3BuildOriented(benchmark::State& state) {
   cv::Mat1b oriented = q.fit.channelMap.clone();
   for (int y = 0; y < oriented.rows; ++y)
     for (int x = 0; x < oriented.cols; ++x)
-      if (oriented(y, x) != kNoChannel && (x / 16 + y / 16) % 2) oriented(y, x) = static_cast<uchar>(oriented(y, x) + 60);
+      if (oriented(y, x) != kNoChannel && (x / 16 + y / 16) % 2)
+        oriented(y, x) = static_cast<uchar>(oriented(y, x) + 60);
   Dt3Params p;
   p.q = 120;
   p.oriented = true;
@@ -219,23 +234,33 @@ static void runSearch(benchmark::State& state, MakeMatcher make, int stepChannel
   state.counters["template_pixels"] = ts[0].pixels;
   state.counters["template_lines"] = static_cast<double>(ts[0].segments.size());
 }
-static void BM_Search_FDCM(benchmark::State& s) { runSearch(s, [](const Query& q) { return FdcmMatcher(q.idt); }, 15); }
+static void BM_Search_FDCM(benchmark::State& s) {
+  runSearch(
+      s, [](const Query& q) { return FdcmMatcher(q.idt); }, 15);
+}
 static void BM_Search_OCM(benchmark::State& s) {
-  runSearch(s, [](const Query& q) { return ChamferMatcher(q.costs, ChamferMatcher::Kind::OrientedChamfer); }, 15);
+  runSearch(
+      s, [](const Query& q) { return ChamferMatcher(q.costs, ChamferMatcher::Kind::OrientedChamfer); }, 15);
 }
 static void BM_Search_CM(benchmark::State& s) {
-  runSearch(s, [](const Query& q) { return ChamferMatcher(q.costs, ChamferMatcher::Kind::Chamfer); }, 15);
+  runSearch(
+      s, [](const Query& q) { return ChamferMatcher(q.costs, ChamferMatcher::Kind::Chamfer); }, 15);
 }
-#define SEARCH_ARGS ArgsProduct({{0, 1}, {0, 1}, {0, 1}})->ArgNames({"bounds", "detect", "breaker"})->Unit(benchmark::kMillisecond)
+#define SEARCH_ARGS \
+  ArgsProduct({{0, 1}, {0, 1}, {0, 1}})->ArgNames({"bounds", "detect", "breaker"})->Unit(benchmark::kMillisecond)
 BENCHMARK(BM_Search_FDCM)->SEARCH_ARGS;
 BENCHMARK(BM_Search_OCM)->SEARCH_ARGS->Iterations(1);
 BENCHMARK(BM_Search_CM)->SEARCH_ARGS->Iterations(1);
 
 // Full in-plane rotation (120 rotations of 3 degrees) over every translation, bounds on, 1 thread.
 static void BM_Search_FDCM_FullRotation(benchmark::State& s) {
-  runSearch(s, [](const Query& q) { return FdcmMatcher(q.idt); }, 1);
+  runSearch(
+      s, [](const Query& q) { return FdcmMatcher(q.idt); }, 1);
 }
-BENCHMARK(BM_Search_FDCM_FullRotation)->ArgsProduct({{1}, {0, 1}, {0, 1}})->ArgNames({"bounds", "detect", "breaker"})->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_Search_FDCM_FullRotation)
+    ->ArgsProduct({{1}, {0, 1}, {0, 1}})
+    ->ArgNames({"bounds", "detect", "breaker"})
+    ->Unit(benchmark::kMillisecond);
 
 // How far past the threshold a rejected hypothesis is followed so the spatial bound can skip
 // (SearchParams::spatialReach, in tenths of a px), breaker template, full rotation, 1 thread.
@@ -254,7 +279,10 @@ static void BM_SpatialReach(benchmark::State& state) {
   for (auto _ : state) r = exhaustiveSearch(FdcmMatcher(q.idt), ts, p);
   report(state, r, state.iterations());
 }
-BENCHMARK(BM_SpatialReach)->ArgsProduct({{0, 10, 20, 40, 80, 160, 320}, {0, 1}})->ArgNames({"reach_tenths_px", "detect"})->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_SpatialReach)
+    ->ArgsProduct({{0, 10, 20, 40, 80, 160, 320}, {0, 1}})
+    ->ArgNames({"reach_tenths_px", "detect"})
+    ->Unit(benchmark::kMillisecond);
 
 // Fig. 4: evaluated lines vs template points. Curved blobs of growing size; for each, n template
 // pixels, m lines, m_hat = lines needed to cover 30 % of the pixels (the paper's measure), and
@@ -301,6 +329,16 @@ static void BM_Fig4_LinesVsPoints(benchmark::State& state) {
   state.counters["mhat_over_n"] = mhat / n;
   state.counters["lines_read_per_hypothesis"] = perEval / shapes;
 }
-BENCHMARK(BM_Fig4_LinesVsPoints)->Arg(15)->Arg(25)->Arg(40)->Arg(60)->Arg(90)->Arg(130)->Arg(200)->Arg(280)->Iterations(1)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_Fig4_LinesVsPoints)
+    ->Arg(15)
+    ->Arg(25)
+    ->Arg(40)
+    ->Arg(60)
+    ->Arg(90)
+    ->Arg(130)
+    ->Arg(200)
+    ->Arg(280)
+    ->Iterations(1)
+    ->Unit(benchmark::kMillisecond);
 
 BENCHMARK_MAIN();

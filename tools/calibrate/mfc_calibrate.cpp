@@ -78,7 +78,8 @@ struct Args {
 // `--KEY VALUE` of a subcommand, kept as text in a.values: each command reads and checks its
 // values where it uses them (Args::number words a bad number).
 void add_value(CLI::App& cmd, Args& a, const std::string& key, const std::string& type, const std::string& help) {
-  cmd.add_option_function<std::string>("--" + key, [&a, key](const std::string& v) { a.values[key] = v; }, help)
+  cmd.add_option_function<std::string>(
+         "--" + key, [&a, key](const std::string& v) { a.values[key] = v; }, help)
       ->type_name(type);
 }
 
@@ -88,8 +89,9 @@ void add_board_options(CLI::App& cmd, Args& a) {
 }
 
 void add_sim_options(CLI::App& cmd, Args& a, const std::string& saved) {
-  add_value(cmd, a, "sim", "N", "render N views of the plate in the simulated cell (--camera or\n"
-                                "config/camera-sim.yaml is the true camera); prints the errors");
+  add_value(cmd, a, "sim", "N",
+            "render N views of the plate in the simulated cell (--camera or\n"
+            "config/camera-sim.yaml is the true camera); prints the errors");
   add_value(cmd, a, "save-views", "DIR", "keep the simulated images (" + saved + ")");
   add_value(cmd, a, "seed", "N", "seed of the simulated views (default 1)");
 }
@@ -104,8 +106,9 @@ void add_commands(CLI::App& app, Args& a) {
   add_sim_options(*intrinsics, a, "view-NN.png");
   add_board_options(*intrinsics, a);
   add_value(*intrinsics, a, "distortion", "MODEL", "none|radial|radial-tangential|full (default radial)");
-  add_value(*intrinsics, a, "camera", "BASE.yaml", "the camera file the result is merged into (default: CAM.yaml\n"
-                                                   "when it exists, else config/camera-sim.yaml)");
+  add_value(*intrinsics, a, "camera", "BASE.yaml",
+            "the camera file the result is merged into (default: CAM.yaml\n"
+            "when it exists, else config/camera-sim.yaml)");
   add_value(*intrinsics, a, "out", "CAM.yaml", "the camera file to write");
   add_apply_flag(*intrinsics, a, apply);
 
@@ -119,9 +122,10 @@ void add_commands(CLI::App& app, Args& a) {
   add_apply_flag(*hand_eye, a, apply);
   add_value(*hand_eye, a, "check", "IMAGE", "a view in one more robot pose: predicted vs seen board");
   add_value(*hand_eye, a, "check-pose", "x,y,z,rx,ry,rz", "its flange pose (mm, degrees)");
-  hand_eye->footer("LIST.yaml (OpenCV YAML): views: [ { image: v00.png, pose: [x, y, z, rx, ry, rz] }, ... ]\n"
-                   "  pose: robot flange in the base frame, mm and degrees, R = Rz(rz) Ry(ry) Rx(rx);\n"
-                   "  image paths relative to LIST.yaml.");
+  hand_eye->footer(
+      "LIST.yaml (OpenCV YAML): views: [ { image: v00.png, pose: [x, y, z, rx, ry, rz] }, ... ]\n"
+      "  pose: robot flange in the base frame, mm and degrees, R = Rz(rz) Ry(ry) Rx(rx);\n"
+      "  image paths relative to LIST.yaml.");
 
   CLI::App* rollback =
       app.add_subcommand("rollback", "restore CAM.yaml.previous (the replaced file becomes the previous one)");
@@ -204,7 +208,8 @@ int finish(const Args& a, const CameraConfig& config) {
 
 void save_image(const fs::path& dir, const std::string& name, const cv::Mat& img) {
   fs::create_directories(dir);
-  if (!cv::imwrite((dir / name).string(), img)) throw std::runtime_error((dir / name).string() + ": cannot write image");
+  if (!cv::imwrite((dir / name).string(), img))
+    throw std::runtime_error((dir / name).string() + ": cannot write image");
 }
 
 int run_intrinsics(const Args& a) {
@@ -288,8 +293,8 @@ int run_hand_eye(const Args& a) {
       const fs::path img_path = list.parent_path() / static_cast<std::string>(v["image"]);
       const cv::Mat img = cv::imread(img_path.string(), cv::IMREAD_GRAYSCALE);
       const RobotPose pose{p[0], p[1], p[2], p[3], p[4], p[5]};
-      const ViewReport r = img.empty() ? unreadable(img_path.filename())
-                                       : cal.add_view(img, pose, img_path.filename().string());
+      const ViewReport r =
+          img.empty() ? unreadable(img_path.filename()) : cal.add_view(img, pose, img_path.filename().string());
       std::cout << "  " << img_path.filename().string() << ": " << (r.accepted ? "board found" : r.reason) << '\n';
     }
   } else {
@@ -300,7 +305,8 @@ int run_hand_eye(const Args& a) {
     if (a.has("save-views")) {
       fs::create_directories(a.get("save-views"));
       list.open((fs::path(a.get("save-views")) / "views.yaml").string(), cv::FileStorage::WRITE);
-      list << "views" << "[";
+      list << "views"
+           << "[";
     }
     for (size_t i = 0; i < cell->views.size(); ++i) {
       char name[32];
@@ -309,9 +315,9 @@ int run_hand_eye(const Args& a) {
       const cv::Mat1b img = scene->render(v.T_camera_board, 2000 + i);
       if (list.isOpened()) {
         save_image(a.get("save-views"), name, img);
-        list << "{" << "image" << name << "pose"
-             << std::vector<double>{v.flange.x_mm, v.flange.y_mm, v.flange.z_mm, v.flange.rx_deg, v.flange.ry_deg,
-                                    v.flange.rz_deg}
+        list << "{"
+             << "image" << name << "pose" << std::vector<double>{v.flange.x_mm,   v.flange.y_mm,   v.flange.z_mm,
+                                                                 v.flange.rx_deg, v.flange.ry_deg, v.flange.rz_deg}
              << "}";
       }
       const ViewReport r = cal.add_view(img, v.flange, name);
@@ -331,7 +337,8 @@ int run_hand_eye(const Args& a) {
                 rotation_angle_deg(rotation_of(r.board), rotation_of(cell->board_true)));
     // Check step on one more simulated pose.
     const SimHandEyeCell more = make_sim_hand_eye_cell(*scene, mode, 1, camera_cfg.working_distance_mm, rng);
-    std::cout << "  new pose " << cal.check(r, scene->render(more.views[0].T_camera_board, 99), more.views[0].flange.matrix()).summary();
+    std::cout << "  new pose "
+              << cal.check(r, scene->render(more.views[0].T_camera_board, 99), more.views[0].flange.matrix()).summary();
   }
   if (a.has("check")) {
     const cv::Mat img = cv::imread(a.get("check"), cv::IMREAD_GRAYSCALE);
@@ -345,10 +352,11 @@ int run_hand_eye(const Args& a) {
 }
 
 // import's option for each MFC key, to say how to set the ones that took their default.
-const std::map<std::string, std::string> kMfcKeyOptions = {
-    {"working_distance_mm", "--working-distance"},  {"flashes.ring_radius_mm", "--flash-ring-radius"},
-    {"flashes.first_angle_deg", "--flash-first-angle"}, {"flashes.step_deg", "--flash-step"},
-    {"flashes.plane_z_mm", "--flash-plane-z"}};
+const std::map<std::string, std::string> kMfcKeyOptions = {{"working_distance_mm", "--working-distance"},
+                                                           {"flashes.ring_radius_mm", "--flash-ring-radius"},
+                                                           {"flashes.first_angle_deg", "--flash-first-angle"},
+                                                           {"flashes.step_deg", "--flash-step"},
+                                                           {"flashes.plane_z_mm", "--flash-plane-z"}};
 
 // A number option of import, checked against its range (the camera file's, docs/camera.md).
 std::optional<double> import_option(const Args& a, const std::string& key, double lo, double hi, const char* range) {
@@ -373,8 +381,10 @@ int run_import(const Args& a) {
   o.step_deg = import_option(a, "flash-step", -inf, inf, "a finite angle in degrees");
   o.plane_z_mm = import_option(a, "flash-plane-z", -inf, inf, "a finite length in mm");
   // The MFC keys not given are kept from the camera file being replaced, as intrinsics does.
-  if (a.has("camera")) o.base_camera_file = a.get("camera");
-  else if (fs::exists(out)) o.base_camera_file = out;
+  if (a.has("camera"))
+    o.base_camera_file = a.get("camera");
+  else if (fs::exists(out))
+    o.base_camera_file = out;
 
   const CalibrationImport imp = import_calibration(file, o);
   std::cout << imp.summary(file);
@@ -414,10 +424,11 @@ int run_rollback(const Args& a) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"Camera intrinsics and hand-eye calibration (docs/calibration.md). Prints the figures; writes\n"
-               "CAM.yaml (atomically, keeping CAM.yaml.previous) only with --apply, otherwise shows what it\n"
-               "would write. Exit status: 0 done, 1 calibration failed or file refused, 2 usage.",
-               "mfc-calibrate"};
+  CLI::App app{
+      "Camera intrinsics and hand-eye calibration (docs/calibration.md). Prints the figures; writes\n"
+      "CAM.yaml (atomically, keeping CAM.yaml.previous) only with --apply, otherwise shows what it\n"
+      "would write. Exit status: 0 done, 1 calibration failed or file refused, 2 usage.",
+      "mfc-calibrate"};
   mfcd::tools::init_app(app);
   Args a;
   add_commands(app, a);

@@ -47,25 +47,33 @@ void add_options(CLI::App& app, Options& o) {
   using mfcd::tools::add_double;
   using mfcd::tools::add_int;
   app.add_option("--dataset", o.dataset_dir, "BOP-layout dataset with flash/ and ambient/ images (docs/datasets.md)")
-      ->required()->type_name("DIR");
+      ->required()
+      ->type_name("DIR");
   app.add_option("--split", o.split, "split folder (default test)")->type_name("NAME");
-  app.add_option("--camera", o.camera_file, "camera YAML (docs/camera.md) whose flash positions are used where the\n"
-                                            "dataset's scene_camera.json gives none (a standard BOP dataset)")
+  app.add_option("--camera", o.camera_file,
+                 "camera YAML (docs/camera.md) whose flash positions are used where the\n"
+                 "dataset's scene_camera.json gives none (a standard BOP dataset)")
       ->type_name("FILE");
   // The files after --templates up to the next option; --templates may be repeated.
-  app.add_option("--templates", o.templates, "template databases (mfc-teach); each carries its part's obj_id\n"
-                                           "(required unless the dataset is an mfcd snapshot: its mfcd_replay.json names them)")
-      ->type_name("F...")->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
-  app.add_option("--out", o.out, "BOP results CSV to write; for the BOP toolkit name it METHOD_DATASET-SPLIT.csv\n"
-                                 "(e.g. mfcdetect_mfcsim-test.csv: no '_' in METHOD, no '-' or '_' in DATASET)")
-      ->required()->type_name("FILE");
+  app.add_option("--templates", o.templates,
+                 "template databases (mfc-teach); each carries its part's obj_id\n"
+                 "(required unless the dataset is an mfcd snapshot: its mfcd_replay.json names them)")
+      ->type_name("F...")
+      ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
+  app.add_option("--out", o.out,
+                 "BOP results CSV to write; for the BOP toolkit name it METHOD_DATASET-SPLIT.csv\n"
+                 "(e.g. mfcdetect_mfcsim-test.csv: no '_' in METHOD, no '-' or '_' in DATASET)")
+      ->required()
+      ->type_name("FILE");
   add_int(app, "--views", o.views, "views used by the refinement (default 1; more need camera poses)");
   add_int(app, "--max-per-image", o.max_per_image, "estimates kept per image (default 10)");
   add_double(app, "--max-cost", o.max_cost, "search threshold, mean directional chamfer px (default 10)")
       ->type_name("PX");
-  add_double(app, "--floor", o.floor_mm, "the bin floor's distance from the camera (along the optical axis): poses\n"
-                                         "below it are dropped, the best few just above it also fitted from it\n"
-                                         "(PipelineConfig::floor; default 0: not known)")->type_name("MM");
+  add_double(app, "--floor", o.floor_mm,
+             "the bin floor's distance from the camera (along the optical axis): poses\n"
+             "below it are dropped, the best few just above it also fitted from it\n"
+             "(PipelineConfig::floor; default 0: not known)")
+      ->type_name("MM");
   add_int(app, "--search-rounds", o.search_rounds,
           "search rounds per image, 1-4 (default 2): a later round searches again\n"
           "without the edges of the best estimates so far, so that the other\n"
@@ -118,9 +126,11 @@ PipelineConfig pipeline_config(const CLI::App& app, const Options& o, const fs::
                  (dataset / kReplayManifestName).c_str(), static_cast<unsigned long long>(manifest->cycle),
                  manifest->version.c_str(), manifest->commit.c_str(), obj_id ? "" : ", every part type");
     for (const std::string& k : ignored)
-      std::fprintf(stderr, "mfc-detect: note: parameter '%s' of the snapshot is not known to this mfc-detect\n", k.c_str());
+      std::fprintf(stderr, "mfc-detect: note: parameter '%s' of the snapshot is not known to this mfc-detect\n",
+                   k.c_str());
   } else if (o.templates.empty()) {
-    throw mfcd::tools::UsageError("--templates is required (the dataset has no " + std::string(kReplayManifestName) + ")");
+    throw mfcd::tools::UsageError("--templates is required (the dataset has no " + std::string(kReplayManifestName) +
+                                  ")");
   }
   if (!manifest || !o.templates.empty()) pc.template_files = o.templates;
   if (!manifest || given("--max-per-image")) pc.max_candidates = o.max_per_image;
@@ -136,8 +146,10 @@ PipelineConfig pipeline_config(const CLI::App& app, const Options& o, const fs::
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"The full pipeline on every image of a BOP-layout dataset with multi-flash images; writes the BOP\n"
-               "results CSV (docs/datasets.md).", "mfc-detect"};
+  CLI::App app{
+      "The full pipeline on every image of a BOP-layout dataset with multi-flash images; writes the BOP\n"
+      "results CSV (docs/datasets.md).",
+      "mfc-detect"};
   mfcd::tools::init_app(app);
   Options o;
   add_options(app, o);
@@ -160,8 +172,10 @@ int main(int argc, char** argv) {
 
     // The toolkit takes the dataset and split from the name; other names are fine for mfcd's own tools.
     if (const auto name = parse_bop_results_name(out.string()); !name)
-      std::fprintf(stderr, "mfc-detect: note: %s is not named METHOD_DATASET-SPLIT.csv; rename it before scoring it "
-                   "with the BOP toolkit\n", out.filename().c_str());
+      std::fprintf(stderr,
+                   "mfc-detect: note: %s is not named METHOD_DATASET-SPLIT.csv; rename it before scoring it "
+                   "with the BOP toolkit\n",
+                   out.filename().c_str());
     else if (name->split != split.substr(0, split.find('_')))
       std::fprintf(stderr, "mfc-detect: note: %s names split '%s' but the estimates are of split '%s'\n",
                    out.filename().c_str(), name->split.c_str(), split.c_str());
@@ -189,12 +203,18 @@ int main(int argc, char** argv) {
         total_s += seconds;
         ++images;
         for (const auto& c : result.candidates) {
-          csv << bop_results_row({.scene_id = scene, .im_id = im, .obj_id = c.obj_id, .score = c.score,
-                                  .R = c.R_m2c, .t_mm = c.t_m2c_mm, .time_s = seconds});
+          csv << bop_results_row({.scene_id = scene,
+                                  .im_id = im,
+                                  .obj_id = c.obj_id,
+                                  .score = c.score,
+                                  .R = c.R_m2c,
+                                  .t_mm = c.t_m2c_mm,
+                                  .time_s = seconds});
           ++estimates;
         }
         if (!o.quiet)
-          std::fprintf(stderr, "scene %d image %d: %zu estimates, %.0f ms (edges %.0f, lines %.0f, dt %.0f, search %.0f, "
+          std::fprintf(stderr,
+                       "scene %d image %d: %zu estimates, %.0f ms (edges %.0f, lines %.0f, dt %.0f, search %.0f, "
                        "pose %.0f, refine %.0f)\n",
                        scene, im, result.candidates.size(), seconds * 1e3, result.times.edges_ms, result.times.lines_ms,
                        result.times.distance_ms, result.times.search_ms, result.times.pose_ms, result.times.refine_ms);

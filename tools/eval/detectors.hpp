@@ -22,8 +22,8 @@ struct Estimate {
   cv::Matx33d R = cv::Matx33d::eye();
   cv::Vec3d t_mm{0, 0, 0};
   double score = 0;
-  double rank_px = 0;  // pipeline detectors: the search's ranking measure (PoseCandidate::rank_px)
-  double rank = 0;     // pipeline detectors: the fitted hypothesis' rank (PoseCandidate::fit_rank)
+  double rank_px = 0;           // pipeline detectors: the search's ranking measure (PoseCandidate::rank_px)
+  double rank = 0;              // pipeline detectors: the fitted hypothesis' rank (PoseCandidate::fit_rank)
   double grasp_visibility = 1;  // pipeline detectors: PoseCandidate::grasp_visibility
   // Traced hypotheses (--set trace=1): the measures the rank is made of, by name (HypothesisTrace).
   std::vector<std::pair<std::string, double>> measures;
@@ -52,7 +52,8 @@ class Detector {
   virtual void set_floor_mm(double distance_mm) = 0;
   // How the last detect()'s image scores a given pose (the truth), measured as the detector
   // ranks its own hypotheses; detectors without such a measure return nothing.
-  virtual std::optional<vision::PoseScore> score_pose(int /*obj_id*/, const cv::Matx33d& /*R*/, const cv::Vec3d& /*t_mm*/) {
+  virtual std::optional<vision::PoseScore> score_pose(int /*obj_id*/, const cv::Matx33d& /*R*/,
+                                                      const cv::Vec3d& /*t_mm*/) {
     return std::nullopt;
   }
   // Whether part obj_id at a pose shows a grasp feature, on top and facing the camera, on the
@@ -82,13 +83,12 @@ class Detector {
 // `fit_hypotheses` as PipelineConfig's (the FDCM cost only); `name` is the method's name;
 // `settings` ("key=value", apply_pipeline_setting) are applied last; `grasp_features` as
 // PipelineConfig's (the estimates' grasp_visibility).
-std::unique_ptr<Detector> make_pipeline_detector(const std::string& name, vision::PipelineConfig::Cost cost,
-                                                 const vision::CameraConfig& camera,
-                                                 const std::vector<std::filesystem::path>& templates, int threads,
-                                                 int max_candidates, const std::vector<double>& distances_mm,
-                                                 int refine_candidates, bool fit_hypotheses,
-                                                 const std::vector<std::string>& settings = {},
-                                                 const std::vector<std::pair<int, vision::GraspFeature>>& grasp_features = {});
+std::unique_ptr<Detector> make_pipeline_detector(
+    const std::string& name, vision::PipelineConfig::Cost cost, const vision::CameraConfig& camera,
+    const std::vector<std::filesystem::path>& templates, int threads, int max_candidates,
+    const std::vector<double>& distances_mm, int refine_candidates, bool fit_hypotheses,
+    const std::vector<std::string>& settings = {},
+    const std::vector<std::pair<int, vision::GraspFeature>>& grasp_features = {});
 
 // One "key=value" of mfc-eval --set: a parameter of vision/pipeline/pipeline_parameters.hpp, or
 // floor_distance_mm (the bin floor, mm; 0 = not known). Throws std::invalid_argument naming the
@@ -96,11 +96,11 @@ std::unique_ptr<Detector> make_pipeline_detector(const std::string& name, vision
 void apply_eval_setting(vision::PipelineConfig& config, const std::string& setting);
 
 struct Line2dOptions {
-  double inplane_step_deg = 15;  // in-plane rotations trained per view (LINE-2D is not rotation invariant)
-  int view_stride = 1;           // use every n-th template view
-  float min_similarity = 60;     // cv::linemod match threshold, percent
+  double inplane_step_deg = 15;      // in-plane rotations trained per view (LINE-2D is not rotation invariant)
+  int view_stride = 1;               // use every n-th template view
+  float min_similarity = 60;         // cv::linemod match threshold, percent
   std::vector<double> distances_mm;  // trained at the scale of each (as the pipeline searches); empty = 1
-  vision::BinFloor floor;  // poses below a known floor are moved onto it (as the pipeline's unfitted ones)
+  vision::BinFloor floor;            // poses below a known floor are moved onto it (as the pipeline's unfitted ones)
 };
 // LINE-2D on the max image (the per-pixel maximum of the flash images): for every template
 // view of every part, the part rendered alone at the view's pose by MfcRenderer, turned in the

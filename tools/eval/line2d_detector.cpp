@@ -69,29 +69,30 @@ class Line2dDetector final : public Detector {
         max_image(render.frames, img);
         const cv::Mat1b mask = render.part_index > 0;
         for (double scale : scales)
-        for (double a = 0; a < 360 - 1e-9; a += options.inplane_step_deg) {
-          // cv::getRotationMatrix2D turns x towards -y for positive angles; the placement's
-          // angle turns x towards +y (image axes), hence the minus. Scaling about the part
-          // centre's image is the view at another distance (to first order, as in the FDCM search).
-          const cv::Mat M = cv::getRotationMatrix2D(origin, -a, scale);
-          cv::Mat3b ri;
-          cv::Mat1b rm;
-          cv::warpAffine(img, ri, M, img.size(), cv::INTER_LINEAR, cv::BORDER_CONSTANT);
-          cv::warpAffine(mask, rm, M, mask.size(), cv::INTER_NEAREST, cv::BORDER_CONSTANT);
-          cv::Rect bb;
-          const int id = detector_->addTemplate({ri}, cls, rm, &bb);
-          if (id < 0) continue;  // too few gradient features (a nearly edge-on view)
-          meta_[{cls, id}] = {static_cast<int>(v), a * CV_PI / 180, scale,
-                              cv::Point2f(origin.x - bb.x, origin.y - bb.y), parts_.size()};
-          ++templates_;
-        }
+          for (double a = 0; a < 360 - 1e-9; a += options.inplane_step_deg) {
+            // cv::getRotationMatrix2D turns x towards -y for positive angles; the placement's
+            // angle turns x towards +y (image axes), hence the minus. Scaling about the part
+            // centre's image is the view at another distance (to first order, as in the FDCM search).
+            const cv::Mat M = cv::getRotationMatrix2D(origin, -a, scale);
+            cv::Mat3b ri;
+            cv::Mat1b rm;
+            cv::warpAffine(img, ri, M, img.size(), cv::INTER_LINEAR, cv::BORDER_CONSTANT);
+            cv::warpAffine(mask, rm, M, mask.size(), cv::INTER_NEAREST, cv::BORDER_CONSTANT);
+            cv::Rect bb;
+            const int id = detector_->addTemplate({ri}, cls, rm, &bb);
+            if (id < 0) continue;  // too few gradient features (a nearly edge-on view)
+            meta_[{cls, id}] = {static_cast<int>(v), a * CV_PI / 180, scale,
+                                cv::Point2f(origin.x - bb.x, origin.y - bb.y), parts_.size()};
+            ++templates_;
+          }
       }
       parts_.push_back(std::move(part));
     }
     setup_s_ = std::chrono::duration<double>(Clock::now() - t0).count();
-    std::fprintf(stderr, "mfc-eval: LINE-2D trained %d templates (step %.0f deg, view stride %d, %zu distances) in %.1f s\n",
-                 templates_, options.inplane_step_deg, options.view_stride, std::max<size_t>(1, options.distances_mm.size()),
-                 setup_s_);
+    std::fprintf(stderr,
+                 "mfc-eval: LINE-2D trained %d templates (step %.0f deg, view stride %d, %zu distances) in %.1f s\n",
+                 templates_, options.inplane_step_deg, options.view_stride,
+                 std::max<size_t>(1, options.distances_mm.size()), setup_s_);
   }
 
   std::string name() const override { return "line2d"; }
@@ -125,7 +126,8 @@ class Line2dDetector final : public Detector {
       const Part& part = parts_[meta.part];
       const cv::Point2f origin(m.x + meta.offset.x, m.y + meta.offset.y);
       bool near = false;
-      for (const auto& p : taken) near = near || cv::norm(p - origin) < 0.25 * part.db.diameter_mm * camera_.camera.fx() / part.db.distance_mm;
+      for (const auto& p : taken)
+        near = near || cv::norm(p - origin) < 0.25 * part.db.diameter_mm * camera_.camera.fx() / part.db.distance_mm;
       if (near) continue;
       taken.push_back(origin);
       vision::TemplatePlacement pl;

@@ -24,10 +24,10 @@
 #include <cstdio>
 #include <fstream>
 #include <map>
-#include <tuple>
 #include <set>
 #include <sstream>
 #include <string>
+#include <tuple>
 #include <vector>
 
 namespace fs = std::filesystem;
@@ -38,7 +38,7 @@ using nlohmann::json;
 namespace {
 
 json times_json(const vision::StageTimes& t) {
-  return {{"edges", t.edges_ms}, {"lines", t.lines_ms}, {"dt", t.distance_ms}, {"search", t.search_ms},
+  return {{"edges", t.edges_ms}, {"lines", t.lines_ms},   {"dt", t.distance_ms}, {"search", t.search_ms},
           {"pose", t.pose_ms},   {"refine", t.refine_ms}, {"total", t.total_ms}};
 }
 
@@ -64,7 +64,7 @@ int run_detect(const DetectEvalOptions& o) {
 
   // Every object of the dataset must be a known part with a template file.
   std::map<int, fs::path> tdb_of;
-  std::map<int, cv::Vec3d> centre_of;  // bounding-box centre, model frame: the "position" of a part
+  std::map<int, cv::Vec3d> centre_of;                     // bounding-box centre, model frame: the "position" of a part
   std::map<int, std::vector<cv::Matx44d>> symmetries_of;  // --model-symmetries: models_info.json's
   for (const auto& [obj_id, info] : dataset.models_info()) {
     const PartEntry& p = part_by_id(parts, obj_id, (o.dataset / "models/models_info.json").string());
@@ -83,7 +83,8 @@ int run_detect(const DetectEvalOptions& o) {
   for (int s : dataset.scenes())
     for (int i : dataset.images(s)) images.push_back({s, i});
   if (images.empty()) throw std::runtime_error(o.dataset.string() + ": no images in split '" + o.split + "'");
-  if (o.max_images > 0 && static_cast<int>(images.size()) > o.max_images) images.resize(static_cast<size_t>(o.max_images));
+  if (o.max_images > 0 && static_cast<int>(images.size()) > o.max_images)
+    images.resize(static_cast<size_t>(o.max_images));
   const vision::CameraConfig camera = dataset.camera(images[0].scene, images[0].image).config();
   const std::string key = camera_key(camera);
 
@@ -104,7 +105,8 @@ int run_detect(const DetectEvalOptions& o) {
     const cv::Mat1b visib = dataset.mask_visib(ref.scene, ref.image, static_cast<int>(instance));
     double best = 0;
     for (const auto& [id, feature] : grasp)
-      if (id == gt.obj_id) best = std::max(best, true_grasp_visibility(feature, gt.R, gt.t_mm, camera.camera, mask, visib));
+      if (id == gt.obj_id)
+        best = std::max(best, true_grasp_visibility(feature, gt.R, gt.t_mm, camera.camera, mask, visib));
     return true_grasp_of[which] = best;
   };
 
@@ -130,8 +132,9 @@ int run_detect(const DetectEvalOptions& o) {
                    db.sphere_samples, p.views);
     jparts.push_back({{"name", p.name},
                       {"obj_id", id},
-                      {"symmetry", o.model_symmetries ? "models_info.json (" + std::to_string(symmetries_of.at(id).size()) +
-                                                            " transforms)" : p.symmetry.str()},
+                      {"symmetry", o.model_symmetries ? "models_info.json (" +
+                                                            std::to_string(symmetries_of.at(id).size()) + " transforms)"
+                                                      : p.symmetry.str()},
                       {"templates", f.string()},
                       {"sphere_samples", db.sphere_samples},
                       {"views", db.views.size()}});
@@ -142,8 +145,10 @@ int run_detect(const DetectEvalOptions& o) {
   out["floor_per_scene"] = o.floor_per_scene;
   out["pick_min_score"] = o.pick_min_score;
   out["pick_skip_ambiguous"] = !o.pick_ambiguous;
-  out["refine_candidates"] = o.refine_candidates >= 0 ? o.refine_candidates : vision::PipelineConfig{}.refine_candidates;
-  out["line2d_options"] = {{"inplane_step_deg", o.line2d.inplane_step_deg}, {"view_stride", o.line2d.view_stride},
+  out["refine_candidates"] =
+      o.refine_candidates >= 0 ? o.refine_candidates : vision::PipelineConfig{}.refine_candidates;
+  out["line2d_options"] = {{"inplane_step_deg", o.line2d.inplane_step_deg},
+                           {"view_stride", o.line2d.view_stride},
                            {"min_similarity", o.line2d.min_similarity}};
 
   // Ground truth once.
@@ -163,7 +168,8 @@ int run_detect(const DetectEvalOptions& o) {
   }
 
   auto score = [&](const Estimate& e, const vision::BopGtPose& g) {
-    if (o.model_symmetries) return pose_error(e.R, e.t_mm, g.R, g.t_mm, symmetries_of.at(g.obj_id), centre_of.at(g.obj_id));
+    if (o.model_symmetries)
+      return pose_error(e.R, e.t_mm, g.R, g.t_mm, symmetries_of.at(g.obj_id), centre_of.at(g.obj_id));
     return pose_error(e.R, e.t_mm, g.R, g.t_mm, part_by_id(parts, g.obj_id, "").symmetry, centre_of.at(g.obj_id));
   };
 
@@ -238,8 +244,10 @@ int run_detect(const DetectEvalOptions& o) {
           free = std::max(free, true_grasp(ref, j, gt.gt[j]));
         }
       json entry = candidate_json(e);
-      entry.update({{"height_mm", candidates[i].height_mm}, {"grasp_estimated", e.grasp_visibility},
-                    {"correct", right}, {"grasp_true", free}});
+      entry.update({{"height_mm", candidates[i].height_mm},
+                    {"grasp_estimated", e.grasp_visibility},
+                    {"correct", right},
+                    {"grasp_true", free}});
       listed.push_back(entry);
     }
     for (const bool with_grasp : {false, true}) {
@@ -250,7 +258,8 @@ int run_detect(const DetectEvalOptions& o) {
       pc.weight_grasp = with_grasp ? static_cast<float>(o.grasp_weight) : 0.0f;
       pc.min_grasp_visibility = with_grasp ? static_cast<float>(o.min_grasp_visibility) : 0.0f;
       const auto chosen = motion::choose_pick(candidates, pc);
-      json c = {{"grasp_weight", pc.weight_grasp}, {"min_grasp_visibility", pc.min_grasp_visibility},
+      json c = {{"grasp_weight", pc.weight_grasp},
+                {"min_grasp_visibility", pc.min_grasp_visibility},
                 {"picked", chosen.has_value()}};
       if (chosen) {
         const json& e = listed[*chosen];
@@ -263,11 +272,12 @@ int run_detect(const DetectEvalOptions& o) {
   };
   for (const std::string& m : o.methods) {
     std::unique_ptr<Detector> det;
-    if (m == "line2d") det = make_line2d_detector(camera, tdbs, o.line2d, max_candidates);
+    if (m == "line2d")
+      det = make_line2d_detector(camera, tdbs, o.line2d, max_candidates);
     else {
       const auto cost = m == "fdcm" || m == "fdcm-rounds" || m == "fdcm-search" ? vision::PipelineConfig::Cost::fdcm
-                        : m == "ocm"                                        ? vision::PipelineConfig::Cost::ocm
-                                                                            : vision::PipelineConfig::Cost::cm;
+                        : m == "ocm"                                            ? vision::PipelineConfig::Cost::ocm
+                                                                                : vision::PipelineConfig::Cost::cm;
       // fdcm-rounds: the pipeline's second search round on (after --set, which cannot undo it).
       std::vector<std::string> settings = o.pipeline_settings;
       if (m == "fdcm-rounds") settings.push_back("search_rounds=2");
@@ -291,8 +301,13 @@ int run_detect(const DetectEvalOptions& o) {
         // The best estimate against every instance of the type: correct if it matches any;
         // errors reported for the instance it matches best (smallest position error among the
         // matching ones, else overall).
-        json trial = {{"scene", ref.scene}, {"image", ref.image}, {"obj_id", obj_id}, {"times", times_json(d.times)},
-                      {"found", !d.estimates.empty()}, {"views_searched", d.views_searched}, {"evaluated", d.evaluated},
+        json trial = {{"scene", ref.scene},
+                      {"image", ref.image},
+                      {"obj_id", obj_id},
+                      {"times", times_json(d.times)},
+                      {"found", !d.estimates.empty()},
+                      {"views_searched", d.views_searched},
+                      {"evaluated", d.evaluated},
                       {"escalated", d.escalated}};
         bool correct = false, correct_xy = false, correct_per_angle = false;
         double best_visib = 0;
@@ -337,10 +352,10 @@ int run_detect(const DetectEvalOptions& o) {
                                         e.rotation_deg <= o.criterion.max_rotation_deg);
             // The paper's own test (Sec. 5.1.1): each of the three angles within the bound, here
             // the x-y-z Euler angles of the rotation error.
-            correct_per_angle = correct_per_angle || (e.position_mm <= o.criterion.max_position_mm &&
-                                                      e.abs_r_deg[0] <= o.criterion.max_rotation_deg &&
-                                                      e.abs_r_deg[1] <= o.criterion.max_rotation_deg &&
-                                                      e.abs_r_deg[2] <= o.criterion.max_rotation_deg);
+            correct_per_angle =
+                correct_per_angle ||
+                (e.position_mm <= o.criterion.max_position_mm && e.abs_r_deg[0] <= o.criterion.max_rotation_deg &&
+                 e.abs_r_deg[1] <= o.criterion.max_rotation_deg && e.abs_r_deg[2] <= o.criterion.max_rotation_deg);
           }
           const InstanceMatch matched = match(d.estimates[0], false);
           correct = matched.correct;
@@ -370,10 +385,15 @@ int run_detect(const DetectEvalOptions& o) {
           json truth = json::array();
           for (size_t j : inst)
             if (const auto ps = det->score_pose(obj_id, g.gt[j].R, g.gt[j].t_mm))
-              truth.push_back({{"instance", j}, {"visib_fract", g.info[j].visib_fract}, {"view", ps->view},
-                               {"view_angle_deg", ps->view_angle_deg}, {"cost_px", ps->cost_px},
-                               {"coverage", ps->coverage}, {"rank_px", ps->rank_px},
-                               {"fit_score", ps->fit_score}, {"exact_score", ps->exact_score}});
+              truth.push_back({{"instance", j},
+                               {"visib_fract", g.info[j].visib_fract},
+                               {"view", ps->view},
+                               {"view_angle_deg", ps->view_angle_deg},
+                               {"cost_px", ps->cost_px},
+                               {"coverage", ps->coverage},
+                               {"rank_px", ps->rank_px},
+                               {"fit_score", ps->fit_score},
+                               {"exact_score", ps->exact_score}});
           // Grasp features (--grasp-features): at each instance's true pose, the estimator's answer
           // and the rendered scene's (true_grasp_visibility), to check the estimator itself.
           if (!grasp.empty())
@@ -388,16 +408,19 @@ int run_detect(const DetectEvalOptions& o) {
                     faces = faces || gv->faces_camera;
                   }
               if (estimated >= 0)
-                tj["grasp"] = {{"estimated", estimated}, {"true", true_grasp(ref, j, g.gt[j])}, {"faces_camera", faces}};
+                tj["grasp"] = {
+                    {"estimated", estimated}, {"true", true_grasp(ref, j, g.gt[j])}, {"faces_camera", faces}};
             }
           if (!truth.empty()) trial["truth_scores"] = truth;
-          if (!d.estimates.empty()) trial["best_rank_px"] = d.estimates[0].rank_px, trial["best_score"] = d.estimates[0].rank;
+          if (!d.estimates.empty())
+            trial["best_rank_px"] = d.estimates[0].rank_px, trial["best_score"] = d.estimates[0].rank;
           // The best estimate's grasp visibility (the pipeline's, at its final pose) and, when the
           // estimate is correct, the true one of the instance it matches.
           if (!d.estimates.empty() && !grasp.empty()) {
             trial["grasp_estimated"] = d.estimates[0].grasp_visibility;
-            if (correct) trial["grasp_true"] = true_grasp(ref, trial["matched_instance"].get<size_t>(),
-                                                          g.gt[trial["matched_instance"].get<size_t>()]);
+            if (correct)
+              trial["grasp_true"] = true_grasp(ref, trial["matched_instance"].get<size_t>(),
+                                               g.gt[trial["matched_instance"].get<size_t>()]);
           }
         }
         // Where the first correct estimate stands in the detector's ranking (-1: none of them):
@@ -415,7 +438,8 @@ int run_detect(const DetectEvalOptions& o) {
           for (const Estimate& e : d.estimates) {
             const InstanceMatch near = match(e, false);
             json entry = candidate_json(e);
-            entry.update({{"correct", near.correct}, {"position_mm", near.error.position_mm},
+            entry.update({{"correct", near.correct},
+                          {"position_mm", near.error.position_mm},
                           {"rotation_deg", near.error.rotation_deg}});
             listed.push_back(entry);
           }
@@ -430,9 +454,12 @@ int run_detect(const DetectEvalOptions& o) {
             if (hyps[c].obj_id != obj_id) continue;
             const InstanceMatch matched = match(hyps[c], true);
             if (matched.order < best_key)
-              best_key = matched.order, best = {{"index", c}, {"instance", matched.instance}, {"correct", matched.correct},
-                                      {"position_mm", matched.error.position_mm}, {"rotation_deg", matched.error.rotation_deg},
-                                      {"rank", hyps[c].rank}};
+              best_key = matched.order, best = {{"index", c},
+                                                {"instance", matched.instance},
+                                                {"correct", matched.correct},
+                                                {"position_mm", matched.error.position_mm},
+                                                {"rotation_deg", matched.error.rotation_deg},
+                                                {"rank", hyps[c].rank}};
           }
           return best;
         };
@@ -492,8 +519,13 @@ int run_detect(const DetectEvalOptions& o) {
           for (size_t c = 0; c < d.estimates.size() && rank < 0; ++c)
             if (o.criterion.accepts(score(d.estimates[c], g.gt[j]))) rank = static_cast<int>(c);
           const bool top1 = rank == 0, topk = rank >= 0 && static_cast<size_t>(rank) < inst.size();
-          instances.push_back({{"scene", ref.scene}, {"image", ref.image}, {"obj_id", obj_id}, {"instance", j},
-                               {"visib_fract", g.info[j].visib_fract}, {"top1", top1}, {"topk", topk},
+          instances.push_back({{"scene", ref.scene},
+                               {"image", ref.image},
+                               {"obj_id", obj_id},
+                               {"instance", j},
+                               {"visib_fract", g.info[j].visib_fract},
+                               {"top1", top1},
+                               {"topk", topk},
                                {"rank", rank}});
         }
         ++n_trials;
@@ -505,7 +537,8 @@ int run_detect(const DetectEvalOptions& o) {
       }
     }
     std::printf("%-6s failure rate %.3f over %d trials (%zu images), %.0f ms per detection\n", m.c_str(),
-                n_trials ? double(failures) / n_trials : 0.0, n_trials, images.size(), n_trials ? time_sum / n_trials : 0.0);
+                n_trials ? double(failures) / n_trials : 0.0, n_trials, images.size(),
+                n_trials ? time_sum / n_trials : 0.0);
     std::fflush(stdout);
     methods[m] = {{"setup_s", det->setup_seconds()}, {"trials", trials}, {"instances", instances}};
 
@@ -520,9 +553,13 @@ int run_detect(const DetectEvalOptions& o) {
         if (!d.estimates.empty())
           for (const auto& gp : gts[k].gt)
             if (gp.obj_id == d.estimates[0].obj_id) correct = correct || o.criterion.accepts(score(d.estimates[0], gp));
-        json pick = {{"scene", ref.scene}, {"image", ref.image}, {"found", !d.estimates.empty()},
-                     {"obj_id", d.estimates.empty() ? 0 : d.estimates[0].obj_id}, {"correct", correct},
-                     {"times", times_json(d.times)}, {"escalated", d.escalated}};
+        json pick = {{"scene", ref.scene},
+                     {"image", ref.image},
+                     {"found", !d.estimates.empty()},
+                     {"obj_id", d.estimates.empty() ? 0 : d.estimates[0].obj_id},
+                     {"correct", correct},
+                     {"times", times_json(d.times)},
+                     {"escalated", d.escalated}};
         if (!d.estimates.empty()) pick["score"] = d.estimates[0].score;
         // The cell's pick (without grasp features when none are given: both settings then agree).
         std::tie(pick["cell"], pick["candidates"]) = cell_picks(ref, gts[k], d);

@@ -50,7 +50,13 @@ class PipelineDetector final : public Detector {
     pipeline_->process(frames, obj_id, std::chrono::steady_clock::now() + std::chrono::hours(1), result_);
     out.estimates.clear();
     for (const auto& c : result_.candidates)
-      out.estimates.push_back({c.obj_id, c.R_m2c, c.t_m2c_mm, c.score, c.rank_px, c.fit_rank, c.grasp_visibility,
+      out.estimates.push_back({c.obj_id,
+                               c.R_m2c,
+                               c.t_m2c_mm,
+                               c.score,
+                               c.rank_px,
+                               c.fit_rank,
+                               c.grasp_visibility,
                                {{"fit_rank", c.fit_rank},
                                 {"coverage", c.coverage},
                                 {"inlier_fraction", c.inlier_fraction},
@@ -69,7 +75,13 @@ class PipelineDetector final : public Detector {
     out.fitted_hypotheses.clear();
     for (const auto& h : result_.trace) {
       out.coarse_hypotheses.push_back({h.obj_id, h.R_coarse, h.t_coarse_mm, 0, h.search_cost_px, h.fit_rank, 1, {}});
-      out.fitted_hypotheses.push_back({h.obj_id, h.R_fitted, h.t_fitted_mm, 0, h.search_cost_px, h.fit_rank, 1,
+      out.fitted_hypotheses.push_back({h.obj_id,
+                                       h.R_fitted,
+                                       h.t_fitted_mm,
+                                       0,
+                                       h.search_cost_px,
+                                       h.fit_rank,
+                                       1,
                                        {{"search_cost_px", h.search_cost_px},
                                         {"search_coverage", h.coverage},
                                         {"fit_score", h.fit_score},
@@ -124,13 +136,11 @@ class PipelineDetector final : public Detector {
 
 }  // namespace
 
-std::unique_ptr<Detector> make_pipeline_detector(const std::string& name, vision::PipelineConfig::Cost cost,
-                                                 const vision::CameraConfig& camera,
-                                                 const std::vector<std::filesystem::path>& templates, int threads,
-                                                 int max_candidates, const std::vector<double>& distances_mm,
-                                                 int refine_candidates, bool fit_hypotheses,
-                                                 const std::vector<std::string>& settings,
-                                                 const std::vector<std::pair<int, vision::GraspFeature>>& grasp_features) {
+std::unique_ptr<Detector> make_pipeline_detector(
+    const std::string& name, vision::PipelineConfig::Cost cost, const vision::CameraConfig& camera,
+    const std::vector<std::filesystem::path>& templates, int threads, int max_candidates,
+    const std::vector<double>& distances_mm, int refine_candidates, bool fit_hypotheses,
+    const std::vector<std::string>& settings, const std::vector<std::pair<int, vision::GraspFeature>>& grasp_features) {
   return std::make_unique<PipelineDetector>(name, cost, camera, templates, threads, max_candidates, distances_mm,
                                             refine_candidates, fit_hypotheses, settings, grasp_features);
 }

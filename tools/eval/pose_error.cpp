@@ -110,8 +110,10 @@ std::vector<std::pair<int, vision::GraspFeature>> read_grasp_features_csv(const 
   bool header = false;
   for_each_csv_row(file, "grasp features table", [&](const std::string& where, const std::vector<std::string>& f) {
     if (f.size() != 10)
-      throw std::runtime_error(where + "expected 10 fields name,obj_id,x_mm,y_mm,z_mm,radius_mm,approach_x,"
-                                       "approach_y,approach_z,max_tilt_deg, got " + std::to_string(f.size()));
+      throw std::runtime_error(where +
+                               "expected 10 fields name,obj_id,x_mm,y_mm,z_mm,radius_mm,approach_x,"
+                               "approach_y,approach_z,max_tilt_deg, got " +
+                               std::to_string(f.size()));
     if (!header && f[0] == "name") {
       header = true;
       return;
@@ -120,10 +122,11 @@ std::vector<std::pair<int, vision::GraspFeature>> read_grasp_features_csv(const 
     if (!obj_id) throw std::runtime_error(where + "obj_id '" + f[1] + "' is not an integer");
     const PartEntry& part = part_by_id(parts, *obj_id, where.substr(0, where.size() - 2));
     if (part.name != f[0])
-      throw std::runtime_error(where + "obj_id " + f[1] + " is '" + part.name + "' in the parts table, not '" + f[0] + "'");
+      throw std::runtime_error(where + "obj_id " + f[1] + " is '" + part.name + "' in the parts table, not '" + f[0] +
+                               "'");
     double v[8];
-    static const char* const names[8] = {"x_mm", "y_mm", "z_mm", "radius_mm", "approach_x", "approach_y", "approach_z",
-                                         "max_tilt_deg"};
+    static const char* const names[8] = {"x_mm",       "y_mm",       "z_mm",       "radius_mm",
+                                         "approach_x", "approach_y", "approach_z", "max_tilt_deg"};
     for (int i = 0; i < 8; ++i) {
       try {
         v[i] = tools::parse_double(names[i], f[static_cast<size_t>(i) + 2]);

@@ -52,8 +52,8 @@ double true_grasp_visibility(const vision::GraspFeature& feature, const cv::Matx
 // symmetric equivalent (R_gt * S, S a model symmetry about the model z axis through the model
 // origin) that is closest in rotation to the estimate.
 struct PoseError {
-  double position_mm = 0;   // distance between the part centre (`centre_mm`, model frame) as placed by each pose
-  double rotation_deg = 0;  // angle of R_est * R_gt'^T; for z:inf the angle between the model z axes
+  double position_mm = 0;       // distance between the part centre (`centre_mm`, model frame) as placed by each pose
+  double rotation_deg = 0;      // angle of R_est * R_gt'^T; for z:inf the angle between the model z axes
   cv::Vec3d d_t_mm{0, 0, 0};    // estimate minus truth of the part centre, camera axes
   cv::Vec3d abs_t_mm{0, 0, 0};  // |d_t_mm| per axis
   // |rx|, |ry|, |rz| of the relative rotation R_est * R_gt'^T = Rz(rz) Ry(ry) Rx(rx), camera axes, degrees.

@@ -142,16 +142,22 @@ int run_refine_eval(const RefineEvalOptions& o) {
         t[n == 1 ? "view1" : "view2"] = j;
       }
       if (!o.quiet)
-        std::fprintf(stderr, "%s trial %d: coarse %.1f mm %.1f deg -> 1 view %.2f mm %.2f deg, 2 views %.2f mm %.2f deg\n",
+        std::fprintf(stderr,
+                     "%s trial %d: coarse %.1f mm %.1f deg -> 1 view %.2f mm %.2f deg, 2 views %.2f mm %.2f deg\n",
                      part.name.c_str(), trial, ec.position_mm, ec.rotation_deg, t["view1"]["position_mm"].get<double>(),
                      t["view1"]["rotation_deg"].get<double>(), t["view2"]["position_mm"].get<double>(),
                      t["view2"]["rotation_deg"].get<double>());
       trials.push_back(t);
     }
   }
-  nlohmann::json out = {{"version", version()}, {"commit", git_commit()}, {"seed", o.seed},
-                        {"trials_per_part", o.trials_per_part}, {"side_shift_mm", o.side_shift_mm},
-                        {"camera", o.camera.string()}, {"distances_mm", o.distances_mm}, {"trials", trials}};
+  nlohmann::json out = {{"version", version()},
+                        {"commit", git_commit()},
+                        {"seed", o.seed},
+                        {"trials_per_part", o.trials_per_part},
+                        {"side_shift_mm", o.side_shift_mm},
+                        {"camera", o.camera.string()},
+                        {"distances_mm", o.distances_mm},
+                        {"trials", trials}};
   const std::filesystem::path tmp = o.out.string() + ".tmp";
   {
     std::ofstream f(tmp);

@@ -12,7 +12,7 @@ struct RefineEvalOptions {
   std::filesystem::path templates, parts, camera, out;
   int trials_per_part = 10;
   unsigned seed = 1;
-  double side_shift_mm = 80;      // second camera: moved sideways by this, turned to look at the part
+  double side_shift_mm = 80;  // second camera: moved sideways by this, turned to look at the part
   std::vector<double> distances_mm;
   bool quiet = false;
 };

@@ -45,61 +45,85 @@ CLI::Option* addNumber(CLI::App& app, const std::string& name, T& into, const st
 
 void addOptions(CLI::App& app, Options& o) {
   DetectorParams& p = o.p;
-  app.add_option("--template", o.templates, "edge image (PNG; non-binary images go through Canny) or line file\n"
-                                             "(*.lines); repeat for more templates")
-      ->type_name("FILE")->allow_extra_args(false)->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
+  app.add_option("--template", o.templates,
+                 "edge image (PNG; non-binary images go through Canny) or line file\n"
+                 "(*.lines); repeat for more templates")
+      ->type_name("FILE")
+      ->allow_extra_args(false)
+      ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
   app.add_option("--query", o.query, "query image (binary edge map, or grey/colour -> Canny)")->type_name("IMAGE");
   app.add_option("--json", o.jsonOut, "also write the JSON result to FILE (it always goes to stdout)")
       ->type_name("FILE");
   app.add_option("--overlay", o.overlayOut, "write a PNG of the query with the detections drawn")->type_name("FILE");
   app.add_option("--save-lines", o.saveLines, "write the first template's fitted lines as a line file")
       ->type_name("FILE");
-  app.add_option("--mode", o.mode, "detect: every detection under the threshold (default);\n"
-                                   "rank: best placement of each template, cheapest first (gallery)")
+  app.add_option("--mode", o.mode,
+                 "detect: every detection under the threshold (default);\n"
+                 "rank: best placement of each template, cheapest first (gallery)")
       ->type_name("detect|rank");
-  mfcd::tools::add_converted(app, "--method", p.method,
-                             [](const std::string&, const std::string& v) { return matchMethodFromString(v); },
-                             "matching cost (default fdcm)")->type_name("fdcm|ocm|cm");
-  mfcd::tools::add_converted(app, "--search", p.strategy, [](const std::string&, const std::string& s) {
-    if (s == "exhaustive") return SearchStrategy::Exhaustive;
-    if (s == "lines") return SearchStrategy::MajorLines;
-    throw mfcd::tools::UsageError("--search expects exhaustive or lines, got '" + s + "'");
-  }, "exhaustive bounded search (default) or 1-D search along major lines")->type_name("exhaustive|lines");
+  mfcd::tools::add_converted(
+      app, "--method", p.method, [](const std::string&, const std::string& v) { return matchMethodFromString(v); },
+      "matching cost (default fdcm)")
+      ->type_name("fdcm|ocm|cm");
+  mfcd::tools::add_converted(
+      app, "--search", p.strategy,
+      [](const std::string&, const std::string& s) {
+        if (s == "exhaustive") return SearchStrategy::Exhaustive;
+        if (s == "lines") return SearchStrategy::MajorLines;
+        throw mfcd::tools::UsageError("--search expects exhaustive or lines, got '" + s + "'");
+      },
+      "exhaustive bounded search (default) or 1-D search along major lines")
+      ->type_name("exhaustive|lines");
   addNumber(app, "--threshold", p.threshold, "detection threshold, mean cost in px (default 3)")->type_name("PX");
   addNumber(app, "--max-detections", p.maxDetections, "after non-maximum suppression (default 20)")->type_name("N");
   addNumber(app, "--nms-iou", p.nmsMaxIoU, "max overlap between kept detections (default 0.3)")->type_name("X");
   addNumber(app, "--rotation-step", p.warps.angleStepChannels,
-            "in-plane rotation step in channels of 180/q degrees (default 1)")->type_name("CH");
-  mfcd::tools::add_converted(app, "--angle-min", p.warps.angleMin, [](const std::string& opt, const std::string& v) {
-    return number(opt, v) * CV_PI / 180;
-  }, "rotation range start (default 0)")->type_name("DEG");
-  mfcd::tools::add_converted(app, "--angle-max", p.warps.angleMax, [](const std::string& opt, const std::string& v) {
-    return number(opt, v) * CV_PI / 180;
-  }, "rotation range end (default 360)")->type_name("DEG");
+            "in-plane rotation step in channels of 180/q degrees (default 1)")
+      ->type_name("CH");
+  mfcd::tools::add_converted(
+      app, "--angle-min", p.warps.angleMin,
+      [](const std::string& opt, const std::string& v) { return number(opt, v) * CV_PI / 180; },
+      "rotation range start (default 0)")
+      ->type_name("DEG");
+  mfcd::tools::add_converted(
+      app, "--angle-max", p.warps.angleMax,
+      [](const std::string& opt, const std::string& v) { return number(opt, v) * CV_PI / 180; },
+      "rotation range end (default 360)")
+      ->type_name("DEG");
   addNumber(app, "--scales", o.scales, "N scales (default 1)")->type_name("N");
   addNumber(app, "--scale-ratio", o.scaleRatio, "ratio between neighbouring scales (default 1.2)")->type_name("R");
   addNumber(app, "--aspects", o.aspects, "N aspects (default 1)")->type_name("N");
   addNumber(app, "--aspect-ratio", o.aspectRatio, "ratio between neighbouring aspects (default 1.1)")->type_name("R");
   // q is the line fitter's and DT3's: both are set.
-  mfcd::tools::add_converted(app, "--q", p.dt3.q, [&p](const std::string& opt, const std::string& v) {
-    return p.lines.q = static_cast<int>(number(opt, v));
-  }, "DT3 orientation channels (default 60)")->type_name("N");
+  mfcd::tools::add_converted(
+      app, "--q", p.dt3.q,
+      [&p](const std::string& opt, const std::string& v) { return p.lines.q = static_cast<int>(number(opt, v)); },
+      "DT3 orientation channels (default 60)")
+      ->type_name("N");
   addNumber(app, "--lambda", p.dt3.lambda, "DT3 orientation cost, px per channel (default 0.5)")->type_name("X");
   addNumber(app, "--max-cost", p.dt3.maxCost, "DT3 truncation (default 30 px)")->type_name("PX");
-  app.add_option_function<std::vector<std::string>>("--canny", [&p](const std::vector<std::string>& v) {
-    p.cannyLow = number("--canny", v[0]);
-    p.cannyHigh = number("--canny", v[1]);
-  }, "Canny thresholds for grey images (default 50 150)")->expected(2)->type_name("LOW HIGH");
-  app.add_flag_callback("--no-bounds", [&p] { p.hypothesisBound = p.spatialBound = false; },
-                        "disable both search bounds (exhaustive reference)");
+  app.add_option_function<std::vector<std::string>>(
+         "--canny",
+         [&p](const std::vector<std::string>& v) {
+           p.cannyLow = number("--canny", v[0]);
+           p.cannyHigh = number("--canny", v[1]);
+         },
+         "Canny thresholds for grey images (default 50 150)")
+      ->expected(2)
+      ->type_name("LOW HIGH");
+  app.add_flag_callback(
+      "--no-bounds", [&p] { p.hypothesisBound = p.spatialBound = false; },
+      "disable both search bounds (exhaustive reference)");
   addNumber(app, "--threads", p.threads, "worker threads (default: all cores)")->type_name("N");
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"Finds the templates in the query image with Fast Directional Chamfer Matching and prints the\n"
-               "detections as JSON on stdout.", "mfc-match"};
+  CLI::App app{
+      "Finds the templates in the query image with Fast Directional Chamfer Matching and prints the\n"
+      "detections as JSON on stdout.",
+      "mfc-match"};
   mfcd::tools::init_app(app);
   Options o;
   addOptions(app, o);
@@ -119,8 +143,10 @@ int main(int argc, char** argv) {
     if (img.empty()) throw std::runtime_error(o.query + ": not a readable image");
 
     DetectionReport report;
-    if (o.mode == "rank") report.detections = det.rank(img);
-    else report = det.detect(img);
+    if (o.mode == "rank")
+      report.detections = det.rank(img);
+    else
+      report = det.detect(img);
 
     nlohmann::json out;
     out["version"] = mfcd::version();
@@ -150,8 +176,12 @@ int main(int argc, char** argv) {
                       {"skipped_spatial", report.stats.skipped},
                       {"segments_read", report.stats.segments},
                       {"truncated", report.truncated},
-                      {"ms", {{"edges", report.msEdges}, {"lines", report.msLines}, {"distance", report.msDistance},
-                              {"search", report.msSearch}, {"total", report.msTotal}}}};
+                      {"ms",
+                       {{"edges", report.msEdges},
+                        {"lines", report.msLines},
+                        {"distance", report.msDistance},
+                        {"search", report.msSearch},
+                        {"total", report.msTotal}}}};
     }
     const std::string text = out.dump(2);
     std::cout << text << "\n";

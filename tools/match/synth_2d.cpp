@@ -42,9 +42,12 @@ int main(int argc, char** argv) {
   int copies = 4;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
-    if (a == "--out" && i + 1 < argc) out = argv[++i];
-    else if (a == "--seed" && i + 1 < argc) seed = static_cast<unsigned>(std::atoi(argv[++i]));
-    else if (a == "--copies" && i + 1 < argc) copies = std::atoi(argv[++i]);
+    if (a == "--out" && i + 1 < argc)
+      out = argv[++i];
+    else if (a == "--seed" && i + 1 < argc)
+      seed = static_cast<unsigned>(std::atoi(argv[++i]));
+    else if (a == "--copies" && i + 1 < argc)
+      copies = std::atoi(argv[++i]);
     else {
       std::fprintf(stderr, "usage: mfc-synth-2d --out DIR [--seed N] [--copies N]\n");
       return 2;
@@ -74,7 +77,10 @@ int main(int argc, char** argv) {
     // Angles on the 3-degree grid of q = 60 so the demo's best cost is near zero.
     const double deg = std::round(angle(rng) / 3.0) * 3.0;
     cv::fillPoly(img, std::vector<std::vector<cv::Point>>{place(part.outline, at, deg * CV_PI / 180)}, 190 + k * 7);
-    truth.push_back({{"template", std::string("template_") + part.name}, {"x", at.x}, {"y", at.y}, {"angle_deg", deg},
+    truth.push_back({{"template", std::string("template_") + part.name},
+                     {"x", at.x},
+                     {"y", at.y},
+                     {"angle_deg", deg},
                      {"symmetry_deg", part.symmetryDeg}});
   }
   cv::Mat1s noise(img.size()), tmp;

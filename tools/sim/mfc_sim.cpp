@@ -107,68 +107,98 @@ void add_scene_options(CLI::App& app, BinSceneOptions& opt) {
   using mfcd::tools::add_converted;
   add_converted(app, "--parts-per-image", opt.parts_per_image, to_int, "parts dropped per image (default 6)")
       ->type_name("N");
-  app.add_option_function<std::string>("--bin", [&opt](const std::string& value) {
-    const auto v = split(value, ',');
-    if (v.size() != 3) throw mfcd::tools::UsageError("--bin needs X,Y,H");
-    opt.bin.inner_x_mm = to_double("--bin", v[0]);
-    opt.bin.inner_y_mm = to_double("--bin", v[1]);
-    opt.bin.wall_height_mm = to_double("--bin", v[2]);
-  }, "inner bin size and wall height in mm (default 150,110,60)")->type_name("X,Y,H");
+  app.add_option_function<std::string>(
+         "--bin",
+         [&opt](const std::string& value) {
+           const auto v = split(value, ',');
+           if (v.size() != 3) throw mfcd::tools::UsageError("--bin needs X,Y,H");
+           opt.bin.inner_x_mm = to_double("--bin", v[0]);
+           opt.bin.inner_y_mm = to_double("--bin", v[1]);
+           opt.bin.wall_height_mm = to_double("--bin", v[2]);
+         },
+         "inner bin size and wall height in mm (default 150,110,60)")
+      ->type_name("X,Y,H");
   add_converted(app, "--max-occlusion", opt.max_occlusion, to_double,
-                "reject drops leaving any part more occluded than F (default 1 = off)")->type_name("F");
-  add_converted(app, "--resting-weight", opt.resting_weight, [](const std::string&, const std::string& w) {
-    if (w == "area") return BinSceneOptions::RestingWeight::support_area;
-    if (w == "solid-angle") return BinSceneOptions::RestingWeight::solid_angle;
-    throw mfcd::tools::UsageError("--resting-weight: '" + w + "' is neither area nor solid-angle");
-  }, "how a drop picks the face a part rests on: area (by support area,\n"
-     "default) or solid-angle (by the solid angle at the centre of mass)")->type_name("W");
+                "reject drops leaving any part more occluded than F (default 1 = off)")
+      ->type_name("F");
+  add_converted(
+      app, "--resting-weight", opt.resting_weight,
+      [](const std::string&, const std::string& w) {
+        if (w == "area") return BinSceneOptions::RestingWeight::support_area;
+        if (w == "solid-angle") return BinSceneOptions::RestingWeight::solid_angle;
+        throw mfcd::tools::UsageError("--resting-weight: '" + w + "' is neither area nor solid-angle");
+      },
+      "how a drop picks the face a part rests on: area (by support area,\n"
+      "default) or solid-angle (by the solid angle at the centre of mass)")
+      ->type_name("W");
   add_converted(app, "--max-lean", opt.max_lean_deg, to_double,
                 "tilt each part's resting pose by up to DEG degrees (0-90, default 0):\n"
-                "kept where the tilted part rests stably, i.e. leaning on others")->type_name("DEG");
-  app.add_flag_callback("--no-corrupt", [&opt] { opt.missing.enabled = opt.clutter.enabled = false; },
-                        "neither missing edges nor clutter");
-  app.add_flag_callback("--no-missing-edges", [&opt] { opt.missing.enabled = false; }, "keep every depth edge");
+                "kept where the tilted part rests stably, i.e. leaning on others")
+      ->type_name("DEG");
+  app.add_flag_callback(
+      "--no-corrupt", [&opt] { opt.missing.enabled = opt.clutter.enabled = false; },
+      "neither missing edges nor clutter");
+  app.add_flag_callback(
+      "--no-missing-edges", [&opt] { opt.missing.enabled = false; }, "keep every depth edge");
   add_converted(app, "--missing-fraction", opt.missing.fraction, to_double,
-                "share of found depth-edge pixels to remove (default 0.12)")->type_name("F");
-  app.add_flag_callback("--no-clutter", [&opt] { opt.clutter.enabled = false; }, "no clutter rods");
-  app.add_option_function<std::string>("--clutter-rods", [&opt](const std::string& value) {
-    const auto v = split(value, ',');
-    if (v.size() != 2) throw mfcd::tools::UsageError("--clutter-rods needs MIN,MAX");
-    opt.clutter.min_rods = to_int("--clutter-rods", v[0]);
-    opt.clutter.max_rods = to_int("--clutter-rods", v[1]);
-  }, "clutter rods per image (default 6,12)")->type_name("MIN,MAX");
+                "share of found depth-edge pixels to remove (default 0.12)")
+      ->type_name("F");
+  app.add_flag_callback(
+      "--no-clutter", [&opt] { opt.clutter.enabled = false; }, "no clutter rods");
+  app.add_option_function<std::string>(
+         "--clutter-rods",
+         [&opt](const std::string& value) {
+           const auto v = split(value, ',');
+           if (v.size() != 2) throw mfcd::tools::UsageError("--clutter-rods needs MIN,MAX");
+           opt.clutter.min_rods = to_int("--clutter-rods", v[0]);
+           opt.clutter.max_rods = to_int("--clutter-rods", v[1]);
+         },
+         "clutter rods per image (default 6,12)")
+      ->type_name("MIN,MAX");
 }
 
 void add_options(CLI::App& app, Options& o) {
   using mfcd::tools::add_converted;
   app.add_option("--camera", o.camera_file, "camera YAML (config/camera-sim.yaml)")->required()->type_name("FILE");
   app.add_option("--parts", o.parts_arg, "a folder of .stl/.ply/.obj meshes in mm, or a comma-separated list")
-      ->required()->type_name("DIR|FILES");
+      ->required()
+      ->type_name("DIR|FILES");
   app.add_option("--out", o.out_dir, "dataset root (created; existing scenes are overwritten)")
-      ->required()->type_name("DIR");
+      ->required()
+      ->type_name("DIR");
   add_converted(app, "--scenes", o.scenes, to_int, "number of scenes (default 1)")->type_name("S");
   add_converted(app, "--images-per-scene", o.images, to_int, "images per scene, each a new fill of the bin (default 1)")
       ->type_name("I");
-  add_converted(app, "--seed", o.seed, [](const std::string& opt, const std::string& v) {
-    return static_cast<uint64_t>(to_int(opt, v));
-  }, "base seed (default 1); everything is deterministic in it")->type_name("N");
-  app.add_option_function<std::string>("--obj-ids", [&o](const std::string& value) {
-    for (const auto& id : split(value, ',')) o.obj_ids.push_back(to_int("--obj-ids", id));
-  }, "BOP object ids of the parts, in part order (default 1, 2, ...)")->type_name("A,B,...");
-  app.add_option("--split", o.split_name, "split folder (default test); its BOP19 test targets go to\n"
-                                          "NAME_targets_bop19.json, less a _TYPE suffix\n"
-                                          "(test_x: test_targets_bop19.json)")
+  add_converted(
+      app, "--seed", o.seed,
+      [](const std::string& opt, const std::string& v) { return static_cast<uint64_t>(to_int(opt, v)); },
+      "base seed (default 1); everything is deterministic in it")
+      ->type_name("N");
+  app.add_option_function<std::string>(
+         "--obj-ids",
+         [&o](const std::string& value) {
+           for (const auto& id : split(value, ',')) o.obj_ids.push_back(to_int("--obj-ids", id));
+         },
+         "BOP object ids of the parts, in part order (default 1, 2, ...)")
+      ->type_name("A,B,...");
+  app.add_option("--split", o.split_name,
+                 "split folder (default test); its BOP19 test targets go to\n"
+                 "NAME_targets_bop19.json, less a _TYPE suffix\n"
+                 "(test_x: test_targets_bop19.json)")
       ->type_name("NAME");
   add_scene_options(app, o.sim);
-  app.footer("Part order without --parts files: breaker, diamond, ellipse, tnut, knob, wheel (paper\n"
-             "Table 1), then other names alphabetically; ids follow this order.");
+  app.footer(
+      "Part order without --parts files: breaker, diamond, ellipse, tnut, knob, wheel (paper\n"
+      "Table 1), then other names alphabetically; ids follow this order.");
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"Drops parts into a simulated bin under the multi-flash camera, renders the flash images and\n"
-               "writes a BOP-format dataset (docs/datasets.md).", "mfc-sim"};
+  CLI::App app{
+      "Drops parts into a simulated bin under the multi-flash camera, renders the flash images and\n"
+      "writes a BOP-format dataset (docs/datasets.md).",
+      "mfc-sim"};
   mfcd::tools::init_app(app);
   Options o;
   add_options(app, o);
@@ -216,10 +246,11 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "\n");
     std::printf("wrote %s: %zu models, %d scenes x %d images in %s/ (%.2f s per image)\n", out_dir.c_str(),
                 models.size(), scenes, images, split_name.c_str(), secs / total);
-    std::printf("parts placed %d of %d requested; occlusion mean %.1f %%, max %.1f %%; "
-                "depth edges removed (measured) mean %.1f %%, added by the removal mean %.1f %%\n",
-                placed, requested, placed ? 100 * occl_sum / placed : 0.0, 100 * occl_max,
-                100 * removed_sum / total, 100 * added_sum / total);
+    std::printf(
+        "parts placed %d of %d requested; occlusion mean %.1f %%, max %.1f %%; "
+        "depth edges removed (measured) mean %.1f %%, added by the removal mean %.1f %%\n",
+        placed, requested, placed ? 100 * occl_sum / placed : 0.0, 100 * occl_max, 100 * removed_sum / total,
+        100 * added_sum / total);
     int target_instances = 0;
     for (const auto& t : targets) target_instances += t.inst_count;
     std::printf("%zu BOP19 test targets (%d instances at least %.0f %% visible) in %s\n", targets.size(),

@@ -1,7 +1,8 @@
 // mfc-teach: builds a part's template database (*.tdb) from its CAD model (paper Sec. 4.3).
 //   mfc-teach MODEL --camera CAMERA.yaml --out PART.tdb [--obj-id N] [--name NAME]
 //             [--unit mm|cm|m|in|<mm per unit>] [--chordal-tolerance MM] [--views K] [--symmetry none|z:N|z:inf]
-//             [--views-symmetry none|z:N|z:inf] [--distance MM] [--lighting-turns N[:M]] [--lighting-tolerance PX] [--threads N] [--quiet]
+//             [--views-symmetry none|z:N|z:inf] [--distance MM] [--lighting-turns N[:M]] [--lighting-tolerance PX]
+//             [--threads N] [--quiet]
 // Exit status: 0 written, 1 refused (model, camera, symmetry), 2 usage.
 #include "tools/common/cli.hpp"
 #include "vision/model/mesh.hpp"
@@ -36,9 +37,11 @@ struct Options {
 
 void add_options(CLI::App& app, Options& o) {
   app.add_option("MODEL", o.models, "part model: STL (ASCII/binary), OBJ, PLY, or STEP/IGES (tessellated by OCCT)")
-      ->required()->type_name("");
+      ->required()
+      ->type_name("");
   app.add_option("--camera", o.camera, "camera + flash YAML the templates are rendered for (docs/camera.md)")
-      ->required()->type_name("FILE");
+      ->required()
+      ->type_name("FILE");
   app.add_option("--out", o.out, "template database to write")->required()->type_name("FILE");
   mfcd::tools::add_int(app, "--obj-id", o.obj_id, "BOP object id (default: N from a model named obj_00000N.*, else 1)");
   app.add_option("--name", o.name, "part name (default: the model file's stem)")->type_name("NAME");
@@ -48,27 +51,41 @@ void add_options(CLI::App& app, Options& o) {
                           "STEP/IGES: largest distance between a triangle and its surface\n(default 0.05)")
       ->type_name("MM");
   mfcd::tools::add_int(app, "--views", o.views, "views over the whole sphere (default 300)")->type_name("K");
-  app.add_option("--symmetry", o.symmetry, "none (default), z:N (N-fold about the model z axis), z:inf:\n"
-                                           "the turns that leave the part the same to the gripper")->type_name("S");
-  app.add_option("--views-symmetry", o.views_symmetry, "the symmetry the views are folded by, when the part's edges\n"
-                                                       "have a finer one (a small orienting feature); a subgroup of\n"
-                                                       "--symmetry (default: --symmetry)")->type_name("S");
-  mfcd::tools::add_converted(app, "--distance", o.distance, [](const std::string& opt, const std::string& v) {
-    const double d = mfcd::tools::parse_double(opt, v);
-    if (!(d > 0)) throw mfcd::tools::UsageError(opt + " '" + v + "' is not a positive number");
-    return d;
-  }, "part centre to lens (default: the camera's working_distance_mm)")->type_name("MM");
+  app.add_option("--symmetry", o.symmetry,
+                 "none (default), z:N (N-fold about the model z axis), z:inf:\n"
+                 "the turns that leave the part the same to the gripper")
+      ->type_name("S");
+  app.add_option("--views-symmetry", o.views_symmetry,
+                 "the symmetry the views are folded by, when the part's edges\n"
+                 "have a finer one (a small orienting feature); a subgroup of\n"
+                 "--symmetry (default: --symmetry)")
+      ->type_name("S");
+  mfcd::tools::add_converted(
+      app, "--distance", o.distance,
+      [](const std::string& opt, const std::string& v) {
+        const double d = mfcd::tools::parse_double(opt, v);
+        if (!(d > 0)) throw mfcd::tools::UsageError(opt + " '" + v + "' is not a positive number");
+        return d;
+      },
+      "part centre to lens (default: the camera's working_distance_mm)")
+      ->type_name("MM");
   // N[:M]: N renders per view, M of them must show an edge pixel (M defaults to N).
-  app.add_option_function<std::string>("--lighting-turns", [&o](const std::string& v) {
-    const size_t colon = v.find(':');
-    o.lighting_turns = mfcd::tools::parse_int("--lighting-turns", v.substr(0, colon));
-    o.lighting_min_turns =
-        colon == std::string::npos ? o.lighting_turns : mfcd::tools::parse_int("--lighting-turns", v.substr(colon + 1));
-  }, "render each view N times, turned about the optical axis\n"
-     "over the LED ring's period, and keep the edge pixels that at\n"
-     "least M of them show (default 4:4; M defaults to N; 1 = off)")->type_name("N[:M]");
+  app.add_option_function<std::string>(
+         "--lighting-turns",
+         [&o](const std::string& v) {
+           const size_t colon = v.find(':');
+           o.lighting_turns = mfcd::tools::parse_int("--lighting-turns", v.substr(0, colon));
+           o.lighting_min_turns = colon == std::string::npos
+                                      ? o.lighting_turns
+                                      : mfcd::tools::parse_int("--lighting-turns", v.substr(colon + 1));
+         },
+         "render each view N times, turned about the optical axis\n"
+         "over the LED ring's period, and keep the edge pixels that at\n"
+         "least M of them show (default 4:4; M defaults to N; 1 = off)")
+      ->type_name("N[:M]");
   mfcd::tools::add_int(app, "--lighting-tolerance", o.lighting_tolerance,
-                       "how far from the view's edge a turned render's may lie\n(default 1)")->type_name("PX");
+                       "how far from the view's edge a turned render's may lie\n(default 1)")
+      ->type_name("PX");
   mfcd::tools::add_int(app, "--threads", o.threads, "rendering threads (default: all cores)");
   app.add_option("--preview", o.preview, "also write a contact sheet of up to 64 views (lines over edge points)")
       ->type_name("PNG");
@@ -137,7 +154,8 @@ int main(int argc, char** argv) {
     mo.tessellation = o.tessellation;
     MeshReport report;
     const Mesh mesh = load_mesh(model, mo, &report);
-    for (const auto& w : report.warnings) std::fprintf(stderr, "mfc-teach: %s: warning: %s\n", model.c_str(), w.c_str());
+    for (const auto& w : report.warnings)
+      std::fprintf(stderr, "mfc-teach: %s: warning: %s\n", model.c_str(), w.c_str());
     const CameraConfig cam = load_camera_config(o.camera);
 
     TeachParams tp;
@@ -169,13 +187,15 @@ int main(int argc, char** argv) {
     for (const auto& v : db.views) lines += v.lines.lines.size(), points += v.points.size();
     // The edge offset profiles within 10 degrees of the image axes (docs/template-database.md): the
     // views' and the query's differ by a few tenths of a pixel there, which the pose fit corrects.
-    std::printf("%s: part %s obj_id %d symmetry %s, views folded by %s: %zu views (K = %d), %.1f lines and %.0f edge points per view, "
-                "distance %.1f mm, edge offset near image axes %.2f px (views) / %.2f px (query), lighting turns %d:%d, "
-                "turns from the mesh: %s, %.1f s\n",
-                o.out.c_str(), name.c_str(), obj_id, db.symmetry.str().c_str(), db.views_symmetry.str().c_str(), db.views.size(), o.views,
-                double(lines) / db.views.size(), double(points) / db.views.size(), db.distance_mm,
-                db.template_edge_offset.mean_near(0, 10), db.query_edge_offset.mean_near(0, 10), o.lighting_turns,
-                o.lighting_min_turns, describe(db.turns).c_str(), seconds());
+    std::printf(
+        "%s: part %s obj_id %d symmetry %s, views folded by %s: %zu views (K = %d), %.1f lines and %.0f edge points "
+        "per view, "
+        "distance %.1f mm, edge offset near image axes %.2f px (views) / %.2f px (query), lighting turns %d:%d, "
+        "turns from the mesh: %s, %.1f s\n",
+        o.out.c_str(), name.c_str(), obj_id, db.symmetry.str().c_str(), db.views_symmetry.str().c_str(),
+        db.views.size(), o.views, double(lines) / db.views.size(), double(points) / db.views.size(), db.distance_mm,
+        db.template_edge_offset.mean_near(0, 10), db.query_edge_offset.mean_near(0, 10), o.lighting_turns,
+        o.lighting_min_turns, describe(db.turns).c_str(), seconds());
     return 0;
   } catch (const mfcd::tools::UsageError& e) {
     return mfcd::tools::usage_error(app, e.what());

@@ -2,12 +2,12 @@
 #include "vision/dataset/bop_dataset.hpp"
 
 #include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
 #include <nlohmann/json.hpp>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include <algorithm>
 
@@ -77,10 +77,13 @@ TEST(EvalPoseError, HandMadeAnswers) {
   EXPECT_NEAR(pose_error(rz(20), {0, 0, 300}, I, {0, 0, 300}, PartSymmetry::parse("z:10")).rotation_deg, 16, 1e-6);
   EXPECT_NEAR(pose_error(rz(36), {0, 0, 300}, I, {0, 0, 300}, PartSymmetry::parse("z:10")).rotation_deg, 0, 1e-6);
   // The wheel (z:5) turned 144 degrees about z and tipped 7 about x: 7 degrees off.
-  EXPECT_NEAR(pose_error(rx(7) * rz(144), {0, 0, 300}, I, {0, 0, 300}, PartSymmetry::parse("z:5")).rotation_deg, 7, 1e-6);
+  EXPECT_NEAR(pose_error(rx(7) * rz(144), {0, 0, 300}, I, {0, 0, 300}, PartSymmetry::parse("z:5")).rotation_deg, 7,
+              1e-6);
   // z:inf: any turn about the model z axis is free; only the axis direction counts.
-  EXPECT_NEAR(pose_error(rz(73) * rx(9), {0, 0, 300}, I, {0, 0, 300}, PartSymmetry::parse("z:inf")).rotation_deg, 9, 1e-6);
-  EXPECT_NEAR(pose_error(rx(9) * rz(73), {0, 0, 300}, I, {0, 0, 300}, PartSymmetry::parse("z:inf")).rotation_deg, 9, 1e-6);
+  EXPECT_NEAR(pose_error(rz(73) * rx(9), {0, 0, 300}, I, {0, 0, 300}, PartSymmetry::parse("z:inf")).rotation_deg, 9,
+              1e-6);
+  EXPECT_NEAR(pose_error(rx(9) * rz(73), {0, 0, 300}, I, {0, 0, 300}, PartSymmetry::parse("z:inf")).rotation_deg, 9,
+              1e-6);
   // Position: of the given centre, so a rotation about the origin moves a centre 10 mm away.
   const PoseError e = pose_error(rz(90), {0, 0, 300}, I, {0, 0, 300}, kNone, {10, 0, 0});
   EXPECT_NEAR(e.position_mm, std::sqrt(200.0), 1e-9);
@@ -132,7 +135,8 @@ TEST(EvalPoseError, MatchesBruteForceOnRandomPoses) {
 namespace {
 
 cv::Matx44d rigid(const cv::Matx33d& R, const cv::Vec3d& t) {
-  return {R(0, 0), R(0, 1), R(0, 2), t[0], R(1, 0), R(1, 1), R(1, 2), t[1], R(2, 0), R(2, 1), R(2, 2), t[2], 0, 0, 0, 1};
+  return {R(0, 0), R(0, 1), R(0, 2), t[0], R(1, 0), R(1, 1), R(1, 2), t[1],
+          R(2, 0), R(2, 1), R(2, 2), t[2], 0,       0,       0,       1};
 }
 
 }  // namespace
@@ -281,7 +285,8 @@ TEST_F(EvalFiles, RefusesMalformedPartsTables) {
     part_by_id(parts, 9, "scene 1 scene_gt.json");
     ADD_FAILURE();
   } catch (const std::runtime_error& e) {
-    EXPECT_NE(std::string(e.what()).find("scene 1 scene_gt.json: unknown part: obj_id 9"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("scene 1 scene_gt.json: unknown part: obj_id 9"), std::string::npos)
+        << e.what();
   }
 }
 
@@ -420,12 +425,12 @@ TEST_F(EvalFiles, CommandRefusesMalformedInput) {
 // mfc-sim; `trials` = the trials of its JSON (not empty).
 void detect_on_two_parts(EvalFiles& files, const fs::path& dir, const std::string& options, nlohmann::json& trials) {
   const fs::path data = dir / "data", out = dir / "out.json";
-  const std::string sim = std::string(MFC_SIM_BIN) + " --camera " + MFC_SOURCE_DIR + "/config/camera-sim.yaml --parts " +
-                          MFC_BINARY_DIR + "/parts --out " + data.string() +
+  const std::string sim = std::string(MFC_SIM_BIN) + " --camera " + MFC_SOURCE_DIR +
+                          "/config/camera-sim.yaml --parts " + MFC_BINARY_DIR + "/parts --out " + data.string() +
                           " --scenes 1 --images-per-scene 1 --parts-per-image 2 --no-corrupt --seed 5 >/dev/null 2>&1";
   ASSERT_EQ(std::system(sim.c_str()), 0) << sim;
-  const auto r = files.run("detect --dataset " + data.string() + " --templates " + MFC_BINARY_DIR + "/templates --out " +
-                           out.string() + " --methods fdcm --quiet " + options);
+  const auto r = files.run("detect --dataset " + data.string() + " --templates " + MFC_BINARY_DIR +
+                           "/templates --out " + out.string() + " --methods fdcm --quiet " + options);
   ASSERT_EQ(r.first, 0) << r.second;
   std::ifstream in(out);
   trials = nlohmann::json::parse(in)["methods"]["fdcm"]["trials"];
@@ -476,9 +481,9 @@ TEST_F(EvalFiles, PartsSayHowTheirTemplatesWereTaught) {
   std::string text, line;
   while (std::getline(table_in, line)) text += (line.rfind("tnut,", 0) == 0 ? "tnut,4,z:2,z:2,600" : line) + "\n";
   const fs::path other = write("other.csv", text);
-  const auto r = run("detect --dataset " + (dir_ / "data").string() + " --templates " + MFC_BINARY_DIR +
-                     "/templates --out " + (dir_ / "other.json").string() + " --methods fdcm --quiet --parts " +
-                     other.string());
+  const auto r =
+      run("detect --dataset " + (dir_ / "data").string() + " --templates " + MFC_BINARY_DIR + "/templates --out " +
+          (dir_ / "other.json").string() + " --methods fdcm --quiet --parts " + other.string());
   EXPECT_EQ(r.first, 0) << r.second;
   EXPECT_NE(r.second.find("tnut.tdb was taught with K = 300 views, the parts table says 600"), std::string::npos)
       << r.second;
@@ -602,10 +607,10 @@ TEST_F(EvalFiles, TimingRepeatsAddTheFastestRunsStageTimes) {
 // features (motion::choose_pick), each scored for its pose and the truth of its grasp feature.
 TEST_F(EvalFiles, GraspFeaturesAreEstimatedScoredAndUsedForTheCellsPick) {
   nlohmann::json trials;
-  ASSERT_NO_FATAL_FAILURE(detect_on_two_parts(
-      *this, dir_,
-      "--all-types --pick-grasp 0.5,0.3 --grasp-features " + std::string(MFC_SOURCE_DIR) + "/config/parts/grasp-features.csv",
-      trials));
+  ASSERT_NO_FATAL_FAILURE(detect_on_two_parts(*this, dir_,
+                                              "--all-types --pick-grasp 0.5,0.3 --grasp-features " +
+                                                  std::string(MFC_SOURCE_DIR) + "/config/parts/grasp-features.csv",
+                                              trials));
   int truths = 0;
   for (const auto& t : trials) {
     if (t["found"].get<bool>()) {
