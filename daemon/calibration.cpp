@@ -22,7 +22,8 @@ namespace {
 
 json poseJson(const cv::Matx44d& T) {
   const calib::RobotPose p = calib::RobotPose::from_matrix(T);
-  return {{"x_mm", p.x_mm}, {"y_mm", p.y_mm}, {"z_mm", p.z_mm}, {"rx_deg", p.rx_deg}, {"ry_deg", p.ry_deg}, {"rz_deg", p.rz_deg}};
+  return {{"x_mm", p.x_mm},     {"y_mm", p.y_mm},     {"z_mm", p.z_mm},
+          {"rx_deg", p.rx_deg}, {"ry_deg", p.ry_deg}, {"rz_deg", p.rz_deg}};
 }
 
 json intrinsicsJson(const calib::IntrinsicsResult& r) {
@@ -30,22 +31,33 @@ json intrinsicsJson(const calib::IntrinsicsResult& r) {
   for (const auto& v : r.views) views.push_back({{"label", v.label}, {"rms_px", v.rms_px}, {"rejected", v.rejected}});
   json dist = json::array();
   for (double d : r.camera.distortion) dist.push_back(d);
-  return {{"fx", r.camera.fx()}, {"fy", r.camera.fy()}, {"cx", r.camera.cx()}, {"cy", r.camera.cy()},
-          {"distortion", dist}, {"rms_px", r.rms_px}, {"used_views", r.used_views}, {"views", views},
+  return {{"fx", r.camera.fx()},
+          {"fy", r.camera.fy()},
+          {"cx", r.camera.cx()},
+          {"cy", r.camera.cy()},
+          {"distortion", dist},
+          {"rms_px", r.rms_px},
+          {"used_views", r.used_views},
+          {"views", views},
           {"std_dev_px", {r.std_dev[0], r.std_dev[1], r.std_dev[2], r.std_dev[3]}}};
 }
 
 json handEyeJson(const calib::HandEyeResult& r) {
   json views = json::array();
   for (const auto& v : r.views)
-    views.push_back({{"label", v.label}, {"rms_px", v.rms_px}, {"position_mm", v.position_mm}, {"rotation_deg", v.rotation_deg}});
+    views.push_back(
+        {{"label", v.label}, {"rms_px", v.rms_px}, {"position_mm", v.position_mm}, {"rotation_deg", v.rotation_deg}});
   const bool inHand = r.mode == calib::HandEyeMode::eye_in_hand;
   return {{"mode", calib::to_string(r.mode)},
           {inHand ? "flange_T_camera" : "base_T_camera", poseJson(r.hand_eye)},
           {inHand ? "base_T_board" : "flange_T_board", poseJson(r.board)},
-          {"initial_method", r.initial_method}, {"initial_rms_px", r.initial_rms_px},
-          {"rms_px", r.rms_px}, {"position_rms_mm", r.position_rms_mm}, {"rotation_rms_deg", r.rotation_rms_deg},
-          {"axis_spread_deg", r.axis_spread_deg}, {"views", views}};
+          {"initial_method", r.initial_method},
+          {"initial_rms_px", r.initial_rms_px},
+          {"rms_px", r.rms_px},
+          {"position_rms_mm", r.position_rms_mm},
+          {"rotation_rms_deg", r.rotation_rms_deg},
+          {"axis_spread_deg", r.axis_spread_deg},
+          {"views", views}};
 }
 
 json fail(const std::string& error) { return {{"ok", false}, {"error", error}}; }
@@ -173,7 +185,8 @@ void CalibrationService::start(ClientId client, Kind kind, calib::HandEyeMode mo
     if (kind == Kind::Intrinsics) {
       calib::IntrinsicsOptions options;
       options.distortion = calib::parse_distortion_model(settings.distortion);
-      s = std::make_unique<calib::CalibrationSession>(calib::CalibrationSession::intrinsics(cameraFile, board, options));
+      s = std::make_unique<calib::CalibrationSession>(
+          calib::CalibrationSession::intrinsics(cameraFile, board, options));
     } else {
       s = std::make_unique<calib::CalibrationSession>(calib::CalibrationSession::hand_eye(cameraFile, mode, board));
     }
@@ -182,10 +195,12 @@ void CalibrationService::start(ClientId client, Kind kind, calib::HandEyeMode mo
     mode_ = kind == Kind::HandEye ? (mode == calib::HandEyeMode::eye_in_hand ? "eye-in-hand" : "eye-to-hand") : "";
     figures_.clear();
     captures_ = 0;
-    logf(LogLevel::Notice, "calibration: %s session started on %s (%s)", kind == Kind::Intrinsics ? "intrinsics" : "hand-eye",
-         cameraFile.c_str(), board.describe().c_str());
+    logf(LogLevel::Notice, "calibration: %s session started on %s (%s)",
+         kind == Kind::Intrinsics ? "intrinsics" : "hand-eye", cameraFile.c_str(), board.describe().c_str());
     Done d;
-    d.reply = {{"ok", true}, {"board", board.describe()}, {"file", cameraFile.string()},
+    d.reply = {{"ok", true},
+               {"board", board.describe()},
+               {"file", cameraFile.string()},
                {"message", "session started; picking is paused until it is applied or aborted"}};
     return d;
   });
@@ -206,7 +221,8 @@ void CalibrationService::addView(ClientId client, cv::Mat1b image, std::optional
       j["reason"] = v.reason;
       j["error"] = label + " rejected: " + v.reason + " (" + std::to_string(session_->view_count()) + " views kept)";
     }
-    logf(LogLevel::Info, "calibration: %s %s%s", label.c_str(), v.accepted ? "accepted" : "rejected: ", v.reason.c_str());
+    logf(LogLevel::Info, "calibration: %s %s%s", label.c_str(),
+         v.accepted ? "accepted" : "rejected: ", v.reason.c_str());
     return Done{0, j};
   });
 }
@@ -249,7 +265,8 @@ void CalibrationService::apply(ClientId client, std::vector<RecipeConfig> recipe
     if (!session_) return Done{0, fail("calibrate apply: no calibration session")};
     session_->apply();  // throws: nothing computed, or the write failed (file unchanged)
     const calib::CalibrationStore store(file_);
-    std::string message = "wrote " + file_.string() + " (previous kept as " + store.previous_file().string() + "); session closed";
+    std::string message =
+        "wrote " + file_.string() + " (previous kept as " + store.previous_file().string() + "); session closed";
     json invalidated = json::array();
     try {
       invalidated = invalidatedRecipes(file_, recipes);
@@ -264,12 +281,16 @@ void CalibrationService::apply(ClientId client, std::vector<RecipeConfig> recipe
       message += ": re-teach them with mfc-teach --camera " + file_.string() +
                  " (docs/calibration.md), or calibrate rollback; the cell refuses them until then";
     }
-    json j = {{"ok", true}, {"file", file_.string()}, {"previous", store.previous_file().string()},
-              {"invalidated", invalidated}, {"message", message}};
-    logf(LogLevel::Notice, "calibration applied to %s (previous kept as %s)", file_.c_str(), store.previous_file().c_str());
+    json j = {{"ok", true},
+              {"file", file_.string()},
+              {"previous", store.previous_file().string()},
+              {"invalidated", invalidated},
+              {"message", message}};
+    logf(LogLevel::Notice, "calibration applied to %s (previous kept as %s)", file_.c_str(),
+         store.previous_file().c_str());
     for (const auto& r : invalidated)
-      logf(LogLevel::Warning, "calibration: recipe %d (%s): %s", r["recipe"].get<int>(), r["part"].get<std::string>().c_str(),
-           r["why"].get<std::string>().c_str());
+      logf(LogLevel::Warning, "calibration: recipe %d (%s): %s", r["recipe"].get<int>(),
+           r["part"].get<std::string>().c_str(), r["why"].get<std::string>().c_str());
     session_.reset();
     return Done{0, j, true};
   });
@@ -288,9 +309,11 @@ void CalibrationService::rollback(ClientId client, const fs::path& cameraFile) {
   post(client, "rollback", [cameraFile] {
     calib::CalibrationSession::rollback(cameraFile);  // throws when there is no previous file
     const calib::CalibrationStore store(cameraFile);
-    logf(LogLevel::Notice, "calibration rolled back: %s restored from %s", cameraFile.c_str(), store.previous_file().c_str());
+    logf(LogLevel::Notice, "calibration rolled back: %s restored from %s", cameraFile.c_str(),
+         store.previous_file().c_str());
     return Done{0,
-                {{"ok", true}, {"file", cameraFile.string()},
+                {{"ok", true},
+                 {"file", cameraFile.string()},
                  {"message", "restored " + cameraFile.string() + " from " + store.previous_file().string() +
                                  " (the replaced file is now the previous one: a second rollback undoes this)"}},
                 true};

@@ -30,7 +30,7 @@
 namespace mfcd::daemon {
 
 class CalibrationService {
-public:
+ public:
   enum class Kind { Intrinsics, HandEye };
 
   // Control clients are named by the daemon's id for them (a closed client's fd may be reused).
@@ -73,7 +73,7 @@ public:
   void abort(ClientId client);
   void rollback(ClientId client, const fs::path& cameraFile);
 
-private:
+ private:
   void post(ClientId client, std::string what, std::function<Done()> job);
   void workerMain();
   nlohmann::json sessionState() const;  // worker

@@ -21,10 +21,14 @@ namespace mfcd::daemon {
 
 const char* toString(CycleOrigin o) {
   switch (o) {
-    case CycleOrigin::Plc: return "plc";
-    case CycleOrigin::Control: return "control";
-    case CycleOrigin::Continuous: return "continuous";
-    case CycleOrigin::Benchmark: return "benchmark";
+    case CycleOrigin::Plc:
+      return "plc";
+    case CycleOrigin::Control:
+      return "control";
+    case CycleOrigin::Continuous:
+      return "continuous";
+    case CycleOrigin::Benchmark:
+      return "benchmark";
   }
   return "?";
 }
@@ -183,11 +187,13 @@ void Cell::acquisitionMain(std::promise<void>& ready) {
     webFrames_.allocate(cv::Size(format.width, format.height));
     // Real lenses distort; the simulated cell renders the ideal pinhole the templates were taught
     // for (its camera file has zero distortion, and a fitted k1, k2 on its renders is noise).
-    undistorter_ = source_->simulation() ? vision::FrameUndistorter()
-                                         : vision::FrameUndistorter(vision::load_camera_config(config_.camera.model).camera);
+    undistorter_ = source_->simulation()
+                       ? vision::FrameUndistorter()
+                       : vision::FrameUndistorter(vision::load_camera_config(config_.camera.model).camera);
     if (undistorter_.active()) {
       if (undistorter_.image_size() != cv::Size(format.width, format.height))
-        throw std::runtime_error(config_.camera.model.string() + ": the camera file's image size differs from the camera's " +
+        throw std::runtime_error(config_.camera.model.string() +
+                                 ": the camera file's image size differs from the camera's " +
                                  std::to_string(format.width) + "x" + std::to_string(format.height));
       logf(LogLevel::Info, "acquisition: undistorting every image with %s's lens distortion (K kept)",
            config_.camera.model.string().c_str());
@@ -206,8 +212,10 @@ void Cell::acquisitionMain(std::promise<void>& ready) {
     const int err = pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp);
     realtime_ = err == 0;
     if (err != 0)
-      logf(LogLevel::Notice, "acquisition thread: SCHED_FIFO priority %d not permitted (%s); running SCHED_OTHER "
-           "(grant LimitRTPRIO= or CAP_SYS_NICE)", config_.realtime_priority, std::strerror(err));
+      logf(LogLevel::Notice,
+           "acquisition thread: SCHED_FIFO priority %d not permitted (%s); running SCHED_OTHER "
+           "(grant LimitRTPRIO= or CAP_SYS_NICE)",
+           config_.realtime_priority, std::strerror(err));
     else
       logf(LogLevel::Info, "acquisition thread: SCHED_FIFO priority %d", config_.realtime_priority);
   }
@@ -370,7 +378,8 @@ void Cell::runCycle(FrameSlot& slot, CycleResult& out) {
       // Pick choice and robot-base transform, on fixed-size arrays.
       const motion::PickTransform transform(config_.hand_eye);
       std::array<motion::PickCandidate, CycleResult::kMaxCandidates> choice{};
-      const int n = static_cast<int>(std::min<std::size_t>(pipelineResult_.candidates.size(), CycleResult::kMaxCandidates));
+      const int n =
+          static_cast<int>(std::min<std::size_t>(pipelineResult_.candidates.size(), CycleResult::kMaxCandidates));
       out.candidate_count = n;
       for (int i = 0; i < n; ++i) {
         const vision::PoseCandidate& pc = pipelineResult_.candidates[static_cast<std::size_t>(i)];
@@ -394,12 +403,14 @@ void Cell::runCycle(FrameSlot& slot, CycleResult& out) {
         c.grasp_visibility = static_cast<float>(pc.grasp_visibility);
         c.ambiguous = pc.ambiguous;
         c.box = pc.box;
-        choice[static_cast<std::size_t>(i)] = {c.score, static_cast<float>(config_.pick.bin_floor_distance_mm - pc.t_m2c_mm[2]),
+        choice[static_cast<std::size_t>(i)] = {c.score,
+                                               static_cast<float>(config_.pick.bin_floor_distance_mm - pc.t_m2c_mm[2]),
                                                c.grasp_visibility, c.ambiguous};
         const auto u = motion::pick_utility(choice[static_cast<std::size_t>(i)], config_.pick.choice);
         c.utility = u ? *u : -1.0f;
       }
-      if (slot.request.mode == 0) rankPicks(std::span<const motion::PickCandidate>(choice.data(), static_cast<std::size_t>(n)), out);
+      if (slot.request.mode == 0)
+        rankPicks(std::span<const motion::PickCandidate>(choice.data(), static_cast<std::size_t>(n)), out);
       out.choice_ms = msBetween(visionDone, Clock::now());
     } catch (const std::exception& e) {
       out.error = CycleError::Vision;

@@ -33,7 +33,7 @@ namespace mfcd::daemon {
 using FrameSourceFactory = std::function<std::unique_ptr<FrameSource>(const DaemonConfig&)>;
 
 class Cell {
-public:
+ public:
   static constexpr std::size_t kFrameSlots = 4;
   static constexpr std::size_t kResultSlots = 8;
 
@@ -50,8 +50,8 @@ public:
 
   // --- main thread ---
   bool submit(const CycleRequest& request) noexcept;  // false when the request queue is full
-  int resultFd() const { return resultFd_; }            // readable when results are queued
-  CycleResult* beginResult() noexcept;                  // drains the eventfd; nullptr when none
+  int resultFd() const { return resultFd_; }          // readable when results are queued
+  CycleResult* beginResult() noexcept;                // drains the eventfd; nullptr when none
   void endResult() noexcept { results_.end_read(); }
 
   // Asks the vision worker to save the kept frame set of `cycle` (the last cycle it ran) as a
@@ -77,7 +77,7 @@ public:
   std::uint64_t visionHeartbeat() const { return visionBeat_.load(std::memory_order_relaxed); }
   std::uint64_t framesDropped() const { return framesDropped_.load(std::memory_order_relaxed); }
 
-private:
+ private:
   void acquisitionMain(std::promise<void>& ready);
   void visionMain(std::promise<void>& ready);
   void runCycle(FrameSlot& slot, CycleResult& out);
@@ -113,18 +113,18 @@ private:
   // slot (maps computed once at start), except for calibration captures (raw: calibration fits or
   // removes the distortion itself). A no-op for the simulated cell (an ideal pinhole).
   vision::FrameUndistorter undistorter_;
-  std::unique_ptr<VisionStage> stage_;   // owned by the vision thread
+  std::unique_ptr<VisionStage> stage_;  // owned by the vision thread
   std::string sourceDescription_, visionDescription_;
   std::vector<std::pair<int, std::string>> parts_;
   bool realtime_ = false;
 
   std::atomic<std::uint64_t> acqBeat_{0}, visionBeat_{0}, framesDropped_{0};
-  vision::PipelineResult pipelineResult_;  // vision thread; capacity reserved once
-  CycleResult resultCopy_;                 // vision thread: the last result, kept with its frames
-  RetainedJob retained_;                   // vision thread; allocated before the threads report ready
+  vision::PipelineResult pipelineResult_;      // vision thread; capacity reserved once
+  CycleResult resultCopy_;                     // vision thread: the last result, kept with its frames
+  RetainedJob retained_;                       // vision thread; allocated before the threads report ready
   std::unique_ptr<SnapshotWriter> snapshots_;  // vision thread; made with the stage
   LatestFrame webFrames_;                      // allocated before the threads report ready
-  cv::Mat1b calibrationImage_;             // allocated before the threads report ready
+  cv::Mat1b calibrationImage_;                 // allocated before the threads report ready
 };
 
 }  // namespace mfcd::daemon

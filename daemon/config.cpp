@@ -20,7 +20,9 @@ namespace mfcd::daemon {
 ConfigError::ConfigError(std::string source, int line, std::string key, const std::string& reason)
     : std::runtime_error(source + (line > 0 ? ":" + std::to_string(line) : std::string()) + ": " +
                          (key.empty() ? std::string() : key + ": ") + reason),
-      source_(std::move(source)), key_(std::move(key)), line_(line) {}
+      source_(std::move(source)),
+      key_(std::move(key)),
+      line_(line) {}
 
 const char* toString(RunMode m) { return m == RunMode::Triggered ? "triggered" : "continuous"; }
 
@@ -57,7 +59,7 @@ struct Context {
 // One YAML mapping being read: remembers which keys were asked for so that any other key (a
 // typo, a key from another version) is an error naming it.
 class Section {
-public:
+ public:
   Section(YAML::Node node, std::string path, int line, const Context& ctx)
       : node_(std::move(node)), path_(std::move(path)), line_(line), ctx_(ctx) {
     if (node_.IsDefined() && !node_.IsNull() && !node_.IsMap())
@@ -104,10 +106,10 @@ public:
     errno = 0;
     char* end = nullptr;
     const long long v = std::strtoll(s.c_str(), &end, 0);
-    if (s.empty() || *end != '\0' || errno == ERANGE)
-      fail(key(k), lineOf(n), "'" + s + "' is not an integer");
+    if (s.empty() || *end != '\0' || errno == ERANGE) fail(key(k), lineOf(n), "'" + s + "' is not an integer");
     if (v < min || v > max)
-      fail(key(k), lineOf(n), std::to_string(v) + " is out of range " + std::to_string(min) + ".." + std::to_string(max));
+      fail(key(k), lineOf(n),
+           std::to_string(v) + " is out of range " + std::to_string(min) + ".." + std::to_string(max));
     return v;
   }
   double number(const char* k, double def, double min, double max) {
@@ -170,7 +172,8 @@ public:
     // path through a file) is "not found" here, named with its key, not a filesystem_error.
     std::error_code ec;
     if (p.is_absolute()) {
-      if (!fs::exists(p, ec)) fail(key(k), lineOf(n), "file " + p.string() + " does not exist" + (ec ? " (" + ec.message() + ")" : ""));
+      if (!fs::exists(p, ec))
+        fail(key(k), lineOf(n), "file " + p.string() + " does not exist" + (ec ? " (" + ec.message() + ")" : ""));
       return p;
     }
     std::string tried;
@@ -179,8 +182,9 @@ public:
       if (fs::exists(candidate, ec)) return fs::absolute(candidate).lexically_normal();
       tried += (tried.empty() ? "" : ", ") + dir.string();
     }
-    fail(key(k), lineOf(n), "file '" + p.string() + "' not found in the search path (" + tried +
-                                "); give an absolute path or pass --data-dir");
+    fail(key(k), lineOf(n),
+         "file '" + p.string() + "' not found in the search path (" + tried +
+             "); give an absolute path or pass --data-dir");
   }
   Section section(const char* k) { return Section(child(k), key(k), line_, ctx_); }
 
@@ -192,7 +196,7 @@ public:
     }
   }
 
-private:
+ private:
   YAML::Node node_;
   std::string path_;
   int line_;
@@ -240,33 +244,43 @@ DaemonConfig parseConfig(const std::string& yamlText, const std::string& source,
 
   {
     Section s = top.section("daemon");
-    c.mode = s.choice("mode", RunMode::Triggered, {{"triggered", RunMode::Triggered}, {"continuous", RunMode::Continuous}});
+    c.mode =
+        s.choice("mode", RunMode::Triggered, {{"triggered", RunMode::Triggered}, {"continuous", RunMode::Continuous}});
     c.cycle_budget_ms = static_cast<int>(s.integer("cycle_budget_ms", 1000, 10, 60000));
     c.default_recipe = static_cast<int>(s.integer("default_recipe", 0, 0, 65535));
     c.control_socket = s.string("control_socket", c.control_socket.string());
-    if (!c.control_socket.is_absolute()) s.fail(s.key("control_socket"), lineOf(s.child("control_socket")), "must be an absolute path");
+    if (!c.control_socket.is_absolute())
+      s.fail(s.key("control_socket"), lineOf(s.child("control_socket")), "must be an absolute path");
     if (c.control_socket.string().size() >= 108)
-      s.fail(s.key("control_socket"), lineOf(s.child("control_socket")), "longer than a unix socket path may be (107 bytes)");
+      s.fail(s.key("control_socket"), lineOf(s.child("control_socket")),
+             "longer than a unix socket path may be (107 bytes)");
     c.realtime_priority = static_cast<int>(s.integer("realtime_priority", 50, 0, 99));
     c.lock_memory = s.boolean("lock_memory", true);
     c.log_level = s.choice("log_level", LogLevel::Info,
-                           {{"error", LogLevel::Error}, {"warning", LogLevel::Warning}, {"notice", LogLevel::Notice},
-                            {"info", LogLevel::Info}, {"debug", LogLevel::Debug}});
+                           {{"error", LogLevel::Error},
+                            {"warning", LogLevel::Warning},
+                            {"notice", LogLevel::Notice},
+                            {"info", LogLevel::Info},
+                            {"debug", LogLevel::Debug}});
     s.finish();
   }
   {
     Section s = top.section("camera");
-    c.camera.type = s.choice("type", CameraType::Simulated,
-                             {{"simulated", CameraType::Simulated}, {"v4l2", CameraType::V4L2}, {"aravis", CameraType::Aravis}});
+    c.camera.type =
+        s.choice("type", CameraType::Simulated,
+                 {{"simulated", CameraType::Simulated}, {"v4l2", CameraType::V4L2}, {"aravis", CameraType::Aravis}});
     const bool aravis = c.camera.type == CameraType::Aravis;
     c.camera.model = s.file("model", true);
     if (aravis && !s.has("device"))
-      s.fail(s.key("device"), s.line(), "missing (required for type aravis: the camera id, e.g. Basler-21234567, or its IP address)");
+      s.fail(s.key("device"), s.line(),
+             "missing (required for type aravis: the camera id, e.g. Basler-21234567, or its IP address)");
     c.camera.device = s.string("device", c.camera.device);
     c.camera.bits_per_pixel = static_cast<int>(s.integer("bits_per_pixel", 8, 8, 16));
-    if (c.camera.bits_per_pixel != 8) s.fail(s.key("bits_per_pixel"), lineOf(s.child("bits_per_pixel")), "the vision path takes 8-bit images; use 8");
+    if (c.camera.bits_per_pixel != 8)
+      s.fail(s.key("bits_per_pixel"), lineOf(s.child("bits_per_pixel")), "the vision path takes 8-bit images; use 8");
     if (aravis && s.has("frame_rate"))
-      s.fail(s.key("frame_rate"), lineOf(s.child("frame_rate")), "an aravis camera exposes once per software trigger (one per flash); remove the key");
+      s.fail(s.key("frame_rate"), lineOf(s.child("frame_rate")),
+             "an aravis camera exposes once per software trigger (one per flash); remove the key");
     c.camera.frame_rate = static_cast<int>(s.integer("frame_rate", 0, 0, 1000));
     if (s.has("exposure_us")) c.camera.exposure_us = static_cast<int>(s.integer("exposure_us", 0, 1, 10'000'000));
     if (s.has("gain")) {
@@ -278,14 +292,16 @@ DaemonConfig parseConfig(const std::string& yamlText, const std::string& source,
     c.camera.dequeue_timeout_ms = static_cast<int>(s.integer("dequeue_timeout_ms", 1000, 10, 60000));
     c.camera.packet_size = static_cast<int>(s.integer("packet_size", 0, 0, 16384));
     if (c.camera.packet_size != 0 && c.camera.packet_size < 576)
-      s.fail(s.key("packet_size"), lineOf(s.child("packet_size")), "a GigE Vision packet is at least 576 bytes (0 = Aravis's choice)");
+      s.fail(s.key("packet_size"), lineOf(s.child("packet_size")),
+             "a GigE Vision packet is at least 576 bytes (0 = Aravis's choice)");
     c.camera.simulated_exposure_us = static_cast<int>(s.integer("simulated_exposure_us", 0, 0, 1'000'000));
     s.finish();
   }
   {
     Section s = top.section("lights");
-    c.lights.type = s.choice("type", LightsType::Simulated,
-                             {{"simulated", LightsType::Simulated}, {"gpiod", LightsType::Gpiod}, {"camera", LightsType::Camera}});
+    c.lights.type =
+        s.choice("type", LightsType::Simulated,
+                 {{"simulated", LightsType::Simulated}, {"gpiod", LightsType::Gpiod}, {"camera", LightsType::Camera}});
     c.lights.chip = s.string("chip", c.lights.chip);
     YAML::Node offsets = s.child("offsets");
     if (offsets.IsDefined() && !offsets.IsNull()) {
@@ -319,8 +335,9 @@ DaemonConfig parseConfig(const std::string& yamlText, const std::string& source,
         if (used[j] == used[i])
           s.fail(s.key("select_lines"), select.IsDefined() && !select.IsNull() ? lineOf(select[i - 1]) : s.line(),
                  "line '" + used[i] + "' is used twice (the strobe_line and the 3 select lines must differ)");
-    c.lights.strobe_source = s.choice("strobe_source", StrobeSourceSetting::ExposureActive,
-                                      {{"exposure_active", StrobeSourceSetting::ExposureActive}, {"timer", StrobeSourceSetting::Timer}});
+    c.lights.strobe_source =
+        s.choice("strobe_source", StrobeSourceSetting::ExposureActive,
+                 {{"exposure_active", StrobeSourceSetting::ExposureActive}, {"timer", StrobeSourceSetting::Timer}});
     if (c.lights.strobe_source == StrobeSourceSetting::Timer && !s.has("strobe_pulse_us"))
       s.fail(s.key("strobe_pulse_us"), lineOf(s.child("strobe_source")), "missing (required for strobe_source: timer)");
     c.lights.strobe_pulse_us = static_cast<int>(s.integer("strobe_pulse_us", 0, 1, 1'000'000));
@@ -362,11 +379,12 @@ DaemonConfig parseConfig(const std::string& yamlText, const std::string& source,
       if (!p.cell || !s.has(p.key)) continue;
       using Type = vision::PipelineParameter::Type;
       const double d = p.default_value();
-      const double v = p.type == Type::boolean   ? (s.boolean(p.key, d != 0) ? 1.0 : 0.0)
-                       : p.type == Type::integer ? static_cast<double>(s.integer(p.key, static_cast<long long>(d),
-                                                                                 static_cast<long long>(p.min),
-                                                                                 static_cast<long long>(p.max)))
-                                                 : s.number(p.key, d, p.min, p.max);
+      const double v =
+          p.type == Type::boolean ? (s.boolean(p.key, d != 0) ? 1.0 : 0.0)
+          : p.type == Type::integer
+              ? static_cast<double>(s.integer(p.key, static_cast<long long>(d), static_cast<long long>(p.min),
+                                              static_cast<long long>(p.max)))
+              : s.number(p.key, d, p.min, p.max);
       p.set(c.vision.pipeline, v);
     }
     try {  // the pairs that must agree (the ranges were checked key by key above)
@@ -387,14 +405,16 @@ DaemonConfig parseConfig(const std::string& yamlText, const std::string& source,
   {
     YAML::Node list = top.child("recipes");
     if (!list.IsDefined() || list.IsNull()) top.fail("recipes", top.line(), "missing (required): at least one recipe");
-    if (!list.IsSequence() || list.size() == 0) top.fail("recipes", lineOf(list), "must be a non-empty list of recipes");
+    if (!list.IsSequence() || list.size() == 0)
+      top.fail("recipes", lineOf(list), "must be a non-empty list of recipes");
     std::set<int> ids;
     for (std::size_t i = 0; i < list.size(); ++i) {
       Section s(list[i], "recipes[" + std::to_string(i) + "]", lineOf(list[i]), ctx);
       if (!list[i].IsMap()) s.fail(s.key("id").substr(0, s.key("id").size() - 3), lineOf(list[i]), "must be a mapping");
       RecipeConfig r;
       r.id = static_cast<int>(s.integer("id", 0, 0, 65535, true));
-      if (!ids.insert(r.id).second) s.fail(s.key("id"), lineOf(s.child("id")), "recipe id " + std::to_string(r.id) + " is used twice");
+      if (!ids.insert(r.id).second)
+        s.fail(s.key("id"), lineOf(s.child("id")), "recipe id " + std::to_string(r.id) + " is used twice");
       r.part = s.string("part", "", true);
       r.obj_id = static_cast<int>(s.integer("obj_id", 0, 0, 65535, true));
       if (s.has("templates")) r.templates = s.file("templates", true);
@@ -405,10 +425,12 @@ DaemonConfig parseConfig(const std::string& yamlText, const std::string& source,
         if (r.obj_id == 0)
           s.fail(key, lineOf(features), "a recipe for every part (obj_id 0) has no part to take a grasp feature of");
         if (!features.IsSequence() || features.size() == 0 || features.size() > 8)
-          s.fail(key, lineOf(features), "must be a list of 1 to 8 grasp features {x_mm, y_mm, z_mm, radius_mm, approach, max_tilt_deg}");
+          s.fail(key, lineOf(features),
+                 "must be a list of 1 to 8 grasp features {x_mm, y_mm, z_mm, radius_mm, approach, max_tilt_deg}");
         for (std::size_t k = 0; k < features.size(); ++k) {
           Section f(features[k], key + "[" + std::to_string(k) + "]", lineOf(features[k]), ctx);
-          if (!features[k].IsMap()) f.fail(key + "[" + std::to_string(k) + "]", lineOf(features[k]), "must be a mapping");
+          if (!features[k].IsMap())
+            f.fail(key + "[" + std::to_string(k) + "]", lineOf(features[k]), "must be a mapping");
           GraspFeatureSetting g;
           g.x_mm = f.number("x_mm", 0, -1e4, 1e4);
           g.y_mm = f.number("y_mm", 0, -1e4, 1e4);
@@ -430,7 +452,8 @@ DaemonConfig parseConfig(const std::string& yamlText, const std::string& source,
       c.recipes.push_back(std::move(r));
     }
     if (!c.recipe(c.default_recipe))
-      top.fail("daemon.default_recipe", top.line(), "recipe " + std::to_string(c.default_recipe) + " is not in recipes");
+      top.fail("daemon.default_recipe", top.line(),
+               "recipe " + std::to_string(c.default_recipe) + " is not in recipes");
   }
   {
     Section s = top.section("pick");
@@ -449,8 +472,9 @@ DaemonConfig parseConfig(const std::string& yamlText, const std::string& source,
   }
   {
     Section s = top.section("hand_eye");
-    const auto setup = s.choice("setup", motion::HandEyeSetup::EyeToHand,
-                                {{"eye_to_hand", motion::HandEyeSetup::EyeToHand}, {"eye_in_hand", motion::HandEyeSetup::EyeInHand}});
+    const auto setup =
+        s.choice("setup", motion::HandEyeSetup::EyeToHand,
+                 {{"eye_to_hand", motion::HandEyeSetup::EyeToHand}, {"eye_in_hand", motion::HandEyeSetup::EyeInHand}});
     const bool inHand = setup == motion::HandEyeSetup::EyeInHand;
     // Eye-in-hand: every capture is taken from wherever the robot holds the camera, which the PLC
     // writes into the robot pose block before each TRIGGER; continuous mode has no such moment.
@@ -463,13 +487,15 @@ DaemonConfig parseConfig(const std::string& yamlText, const std::string& source,
     const char* otherKey = inHand ? "base_T_camera" : "flange_T_camera";
     if (s.has(otherKey))
       s.fail(s.key(otherKey), lineOf(s.child(otherKey)),
-             std::string("belongs to setup ") + (inHand ? "eye_to_hand" : "eye_in_hand") + "; with this setup give " + cameraKey);
+             std::string("belongs to setup ") + (inHand ? "eye_to_hand" : "eye_in_hand") + "; with this setup give " +
+                 cameraKey);
     // The camera pose from the camera file's hand_eye section (written by mfcd-ctl calibrate
     // hand-eye apply), so an applied calibration is used for picking after the reload it triggers.
     if (s.boolean("from_camera_file", false)) {
       const int line = lineOf(s.child("from_camera_file"));
       if (s.has(cameraKey))
-        s.fail(s.key(cameraKey), lineOf(s.child(cameraKey)), std::string("give ") + cameraKey + " or from_camera_file: true, not both");
+        s.fail(s.key(cameraKey), lineOf(s.child(cameraKey)),
+               std::string("give ") + cameraKey + " or from_camera_file: true, not both");
       vision::CameraConfig model;
       try {
         model = vision::load_camera_config(c.camera.model);
@@ -504,13 +530,15 @@ DaemonConfig parseConfig(const std::string& yamlText, const std::string& source,
     auto& m = c.modbus;
     m.bind_address = s.string("bind_address", "0.0.0.0");
     m.port = static_cast<std::uint16_t>(s.integer("port", 502, 0, 65535));
-    m.word_order = s.choice("word_order", motion::WordOrder::ABCD, {{"ABCD", motion::WordOrder::ABCD}, {"CDAB", motion::WordOrder::CDAB}});
+    m.word_order = s.choice("word_order", motion::WordOrder::ABCD,
+                            {{"ABCD", motion::WordOrder::ABCD}, {"CDAB", motion::WordOrder::CDAB}});
     m.max_clients = static_cast<unsigned>(s.integer("max_clients", 8, 1, 64));
     m.frame_timeout = std::chrono::milliseconds(s.integer("frame_timeout_ms", 2000, 10, 60000));
     m.idle_timeout = std::chrono::milliseconds(s.integer("idle_timeout_ms", 60000, 100, 3600000));
     YAML::Node allow = s.child("allow_list");
     if (allow.IsDefined() && !allow.IsNull()) {
-      if (!allow.IsSequence()) s.fail(s.key("allow_list"), lineOf(allow), "must be a list of addresses or CIDR prefixes");
+      if (!allow.IsSequence())
+        s.fail(s.key("allow_list"), lineOf(allow), "must be a list of addresses or CIDR prefixes");
       for (std::size_t i = 0; i < allow.size(); ++i) m.allow_list.push_back(s.scalar("allow_list", allow[i]));
     }
     if (std::string e = m.validate(); !e.empty()) s.fail(s.key(""), s.line(), e);
@@ -524,7 +552,8 @@ DaemonConfig parseConfig(const std::string& yamlText, const std::string& source,
     w.port = static_cast<std::uint16_t>(s.integer("port", w.port, 0, 65535));
     YAML::Node allow = s.child("allow_list");
     if (allow.IsDefined() && !allow.IsNull()) {
-      if (!allow.IsSequence()) s.fail(s.key("allow_list"), lineOf(allow), "must be a list of addresses or CIDR prefixes");
+      if (!allow.IsSequence())
+        s.fail(s.key("allow_list"), lineOf(allow), "must be a list of addresses or CIDR prefixes");
       for (std::size_t i = 0; i < allow.size(); ++i) w.allow_list.push_back(s.scalar("allow_list", allow[i]));
     }
     w.allow_control = s.boolean("allow_control", false);
@@ -534,7 +563,8 @@ DaemonConfig parseConfig(const std::string& yamlText, const std::string& source,
       // The page's folder: web/ of the source tree in development, /usr/share/mfcd/web installed.
       for (const fs::path& dir : path)
         if (std::error_code ec; c.web_root.empty() && fs::is_directory(dir / "web", ec)) c.web_root = dir / "web";
-      if (w.enabled && c.web_root.empty()) s.fail(s.key("root"), s.line(), "no web/ folder in the search path; give root");
+      if (w.enabled && c.web_root.empty())
+        s.fail(s.key("root"), s.line(), "no web/ folder in the search path; give root");
     }
     if (std::string e = w.validate(); !e.empty()) s.fail(s.key(""), s.line(), e);
     s.finish();
@@ -564,8 +594,9 @@ DaemonConfig parseConfig(const std::string& yamlText, const std::string& source,
     k.board_columns = static_cast<int>(cols);
     k.board_rows = static_cast<int>(rows);
     k.square_mm = s.number("square_mm", 10, 0.5, 500);
-    k.distortion = s.choice<std::string>("distortion", "radial",
-                                         {{"none", "none"}, {"radial", "radial"}, {"radial-tangential", "radial-tangential"}, {"full", "full"}});
+    k.distortion = s.choice<std::string>(
+        "distortion", "radial",
+        {{"none", "none"}, {"radial", "radial"}, {"radial-tangential", "radial-tangential"}, {"full", "full"}});
     s.finish();
   }
   {

@@ -25,13 +25,13 @@ namespace fs = std::filesystem;
 
 // A configuration error: `what()` is "<source>:<line>: <key>: <reason>".
 class ConfigError : public std::runtime_error {
-public:
+ public:
   ConfigError(std::string source, int line, std::string key, const std::string& reason);
   const std::string& source() const { return source_; }
   int line() const { return line_; }  // 1-based; 0 when the error is about the whole file
   const std::string& key() const { return key_; }
 
-private:
+ private:
   std::string source_, key_;
   int line_;
 };
@@ -47,24 +47,24 @@ const char* toString(RunMode m);
 // must be on top and facing the camera for the pick to be worth trying (pick.weight_grasp,
 // pick.min_grasp_visibility).
 struct GraspFeatureSetting {
-  double x_mm = 0, y_mm = 0, z_mm = 0;  // the spot's centre on the part's surface
-  double radius_mm = 4;                 // the free disc the gripper needs around it
+  double x_mm = 0, y_mm = 0, z_mm = 0;      // the spot's centre on the part's surface
+  double radius_mm = 4;                     // the free disc the gripper needs around it
   std::array<double, 3> approach{0, 0, 0};  // direction the gripper comes from (out of the surface); 0 = any
-  double max_tilt_deg = 60;             // how far the approach may face away from the camera
+  double max_tilt_deg = 60;                 // how far the approach may face away from the camera
 };
 
 struct RecipeConfig {
-  int id = 0;               // the PLC's RECIPE_ID
-  std::string part;         // part name (for logs, status, the simulated bin)
-  int obj_id = 0;           // object id in the template file; 0 = every loaded part
-  std::optional<fs::path> templates;  // .tdb (mfc-teach), resolved
-  std::optional<fs::path> mesh;       // STL for the simulated bin, resolved
+  int id = 0;                                       // the PLC's RECIPE_ID
+  std::string part;                                 // part name (for logs, status, the simulated bin)
+  int obj_id = 0;                                   // object id in the template file; 0 = every loaded part
+  std::optional<fs::path> templates;                // .tdb (mfc-teach), resolved
+  std::optional<fs::path> mesh;                     // STL for the simulated bin, resolved
   std::vector<GraspFeatureSetting> grasp_features;  // none: every candidate counts as graspable
 };
 
 struct CameraSettings {
   CameraType type = CameraType::Simulated;
-  fs::path model;           // camera YAML (intrinsics + flash ring, docs/camera.md), resolved
+  fs::path model;                      // camera YAML (intrinsics + flash ring, docs/camera.md), resolved
   std::string device = "/dev/video0";  // V4L2 node, or the Aravis camera id / IP address
   int bits_per_pixel = 8;
   int frame_rate = 0;
@@ -97,12 +97,12 @@ struct PoseSetting {
 // The simulated cell's calibration plate (simulation.calibration_plate): the ground truth the
 // calibration workflow must recover. The plate itself is the calibration.board.
 struct SimPlateSettings {
-  bool enabled = false;            // the key is present: the simulated cell can show the plate
-  double room_light_dn = 150;      // ambient grey level while the plate is shown (an evenly lit room)
-  PoseSetting eye_to_hand_base_T_camera;   // eye-to-hand: camera fixed above the cell ...
-  PoseSetting eye_to_hand_flange_T_plate;  // ... plate held by the flange
-  PoseSetting eye_in_hand_flange_T_camera; // eye-in-hand: camera on the flange ...
-  PoseSetting eye_in_hand_base_T_plate;    // ... plate lying in the cell
+  bool enabled = false;                     // the key is present: the simulated cell can show the plate
+  double room_light_dn = 150;               // ambient grey level while the plate is shown (an evenly lit room)
+  PoseSetting eye_to_hand_base_T_camera;    // eye-to-hand: camera fixed above the cell ...
+  PoseSetting eye_to_hand_flange_T_plate;   // ... plate held by the flange
+  PoseSetting eye_in_hand_flange_T_camera;  // eye-in-hand: camera on the flange ...
+  PoseSetting eye_in_hand_base_T_plate;     // ... plate lying in the cell
 };
 
 struct SimulationSettings {
@@ -116,8 +116,8 @@ struct SimulationSettings {
 // mfcd-ctl calibrate: the checkerboard the operator shows and the lens model to fit. The
 // result is written to camera.model (the file the cell loads), keeping <file>.previous.
 struct CalibrationSettings {
-  int board_columns = 9;   // inner corners per row
-  int board_rows = 6;      // inner corners per column
+  int board_columns = 9;  // inner corners per row
+  int board_rows = 6;     // inner corners per column
   double square_mm = 10;
   std::string distortion = "radial";  // none | radial | radial-tangential | full
 };

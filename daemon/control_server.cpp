@@ -26,7 +26,8 @@ long long RequestArgs::integer(const char* key, long long fallback, long long lo
   if (!j_.contains(key)) return fallback;
   const json& v = j_[key];
   if (!v.is_number_integer() || v.get<long long>() < lo || v.get<long long>() > hi)
-    throw std::invalid_argument(std::string(key) + " must be an integer " + std::to_string(lo) + ".." + std::to_string(hi));
+    throw std::invalid_argument(std::string(key) + " must be an integer " + std::to_string(lo) + ".." +
+                                std::to_string(hi));
   return v.get<long long>();
 }
 
@@ -215,7 +216,8 @@ void ControlServer::handle_line(ClientId client, std::string_view line) {
     reply(client, {{"ok", false}, {"error", std::string("bad request (one JSON object per line): ") + e.what()}});
     return;
   }
-  const std::string cmd = req.is_object() && req.contains("cmd") && req["cmd"].is_string() ? req["cmd"].get<std::string>() : "";
+  const std::string cmd =
+      req.is_object() && req.contains("cmd") && req["cmd"].is_string() ? req["cmd"].get<std::string>() : "";
   const auto it = commands_.find(cmd);
   if (it == commands_.end()) {
     std::string known;

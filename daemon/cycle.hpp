@@ -39,10 +39,10 @@ enum class CycleError : std::uint16_t {
 // ignore it: the robot or the operator has put the real plate in view).
 struct PlateRequest {
   enum class Kind : std::uint8_t {
-    None,        // the cell as it is (the bin)
-    Camera,      // at `pose` in the camera frame (intrinsics: mfcd-ctl calibrate capture --sim-plate-pose)
-    EyeToHand,   // `pose` is the flange pose; plate on the flange, camera fixed (the sim's true transforms)
-    EyeInHand,   // `pose` is the flange pose; camera on the flange, plate in the cell
+    None,       // the cell as it is (the bin)
+    Camera,     // at `pose` in the camera frame (intrinsics: mfcd-ctl calibrate capture --sim-plate-pose)
+    EyeToHand,  // `pose` is the flange pose; plate on the flange, camera fixed (the sim's true transforms)
+    EyeInHand,  // `pose` is the flange pose; camera on the flange, plate in the cell
   };
   Kind kind = Kind::None;
   std::array<double, 6> pose{};  // x, y, z mm, rx, ry, rz deg, R = Rz Ry Rx
@@ -120,7 +120,7 @@ struct CandidateOut {
   cv::Vec3d t_cam_mm{0, 0, 0};
   motion::PickPose base;  // in the robot base frame
   bool base_valid = false;
-  float utility = -1;     // pick-choice utility, -1 = not eligible
+  float utility = -1;          // pick-choice utility, -1 = not eligible
   float grasp_visibility = 1;  // vision::PoseCandidate::grasp_visibility
   bool ambiguous = false;      // vision::PoseCandidate::ambiguous
   cv::Rect2d box;              // image bounding box of the matched template (snapshot overlays)
@@ -147,7 +147,7 @@ struct CycleResult {
   double capture_ms = 0, queue_ms = 0, vision_ms = 0, choice_ms = 0, total_ms = 0;
   double edges_ms = 0, lines_ms = 0, distance_ms = 0, search_ms = 0, pose_ms = 0, refine_ms = 0;
   int edge_pixels = 0;
-  int search_rounds = 0;  // search rounds the pipeline ran (vision.search_rounds; fewer near the deadline)
+  int search_rounds = 0;   // search rounds the pipeline ran (vision.search_rounds; fewer near the deadline)
   bool escalated = false;  // the pipeline's wide search ran (vision.escalate_below)
   SimTruth truth;
   bool leds_off = true;

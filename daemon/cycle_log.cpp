@@ -36,9 +36,11 @@ void logCycleResult(const CycleResult& r) {
     const CandidateOut& c = r.candidates[static_cast<std::size_t>(r.chosen)];
     const auto& p = c.base;
     std::snprintf(line, sizeof line,
-                  "cycle %llu (%s job %u recipe %u): pick obj %d at %.1f %.1f %.1f / %.1f %.1f %.1f score %.3f, %d found, %.0f ms%s",
-                  id, toString(r.request.origin), r.request.job_id, r.request.recipe_id, c.obj_id, p.x_mm, p.y_mm, p.z_mm,
-                  p.rx_deg, p.ry_deg, p.rz_deg, c.score, r.candidate_count, r.total_ms, r.degraded ? " (degraded)" : "");
+                  "cycle %llu (%s job %u recipe %u): pick obj %d at %.1f %.1f %.1f / %.1f %.1f %.1f score %.3f, %d "
+                  "found, %.0f ms%s",
+                  id, toString(r.request.origin), r.request.job_id, r.request.recipe_id, c.obj_id, p.x_mm, p.y_mm,
+                  p.z_mm, p.rx_deg, p.ry_deg, p.rz_deg, c.score, r.candidate_count, r.total_ms,
+                  r.degraded ? " (degraded)" : "");
   } else {
     level = LogLevel::Notice;
     std::snprintf(line, sizeof line, "cycle %llu (%s job %u recipe %u): no pick, %d found, %.0f ms", id,

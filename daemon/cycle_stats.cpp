@@ -45,20 +45,29 @@ void CycleStats::addPickResult(std::uint16_t outcome) noexcept {
 }
 
 nlohmann::json CycleStats::toJson() const {
-  nlohmann::json j = {{"cycles", cycles_},   {"overruns", overruns_},     {"degraded", degraded_},
-                      {"errors", errors_},   {"empty", empty_},           {"detections", detections_},
-                      {"picks", picks_},     {"window", count_},          {"max_ms", maxMs_},
-                      {"mean_ms", cycles_ ? sumMs_ / static_cast<double>(cycles_) : 0.0}};
+  nlohmann::json j = {{"cycles", cycles_},     {"overruns", overruns_},
+                      {"degraded", degraded_}, {"errors", errors_},
+                      {"empty", empty_},       {"detections", detections_},
+                      {"picks", picks_},       {"window", count_},
+                      {"max_ms", maxMs_},      {"mean_ms", cycles_ ? sumMs_ / static_cast<double>(cycles_) : 0.0}};
   // The robot's reports (Modbus PICK_RESULT): every outcome, and the share of reported picks that failed.
   std::uint64_t reported = 0;
   for (std::size_t k = 1; k < pickResults_.size(); ++k) reported += pickResults_[k];
-  j["pick_results"] = {{"ok", pickResults_[1]},        {"missed", pickResults_[2]},  {"unreachable", pickResults_[3]},
-                       {"collision", pickResults_[4]}, {"dropped", pickResults_[5]}, {"reported", reported},
-                       {"failed_share", reported ? static_cast<double>(reported - pickResults_[1]) / static_cast<double>(reported) : 0.0}};
+  j["pick_results"] = {
+      {"ok", pickResults_[1]},
+      {"missed", pickResults_[2]},
+      {"unreachable", pickResults_[3]},
+      {"collision", pickResults_[4]},
+      {"dropped", pickResults_[5]},
+      {"reported", reported},
+      {"failed_share",
+       reported ? static_cast<double>(reported - pickResults_[1]) / static_cast<double>(reported) : 0.0}};
   j["next_picks"] = nextPicks_;
   for (const char* stage : {"total", "capture", "vision"}) {
-    j["percentiles_ms"][stage] = {{"p50", percentileMs(stage, 50)}, {"p90", percentileMs(stage, 90)},
-                                  {"p99", percentileMs(stage, 99)}, {"max", percentileMs(stage, 100)}};
+    j["percentiles_ms"][stage] = {{"p50", percentileMs(stage, 50)},
+                                  {"p90", percentileMs(stage, 90)},
+                                  {"p99", percentileMs(stage, 99)},
+                                  {"max", percentileMs(stage, 100)}};
   }
   return j;
 }

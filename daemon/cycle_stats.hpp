@@ -11,7 +11,7 @@
 namespace mfcd::daemon {
 
 class CycleStats {
-public:
+ public:
   static constexpr std::size_t kWindow = 1024;
 
   // Returns true when the cycle overran the budget (trigger to result > budget_ms).
@@ -20,7 +20,9 @@ public:
   // published by NEXT.
   void addPickResult(std::uint16_t outcome) noexcept;
   void addNextPick() noexcept { ++nextPicks_; }
-  std::uint64_t pickResults(std::uint16_t outcome) const { return outcome < pickResults_.size() ? pickResults_[outcome] : 0; }
+  std::uint64_t pickResults(std::uint16_t outcome) const {
+    return outcome < pickResults_.size() ? pickResults_[outcome] : 0;
+  }
 
   std::uint64_t cycles() const { return cycles_; }
   std::uint64_t overruns() const { return overruns_; }
@@ -36,7 +38,7 @@ public:
   double percentileMs(const char* stage, double p) const;
   nlohmann::json toJson() const;
 
-private:
+ private:
   struct Sample {
     float total, capture, vision;
   };

@@ -30,7 +30,8 @@ double msSince(Clock::time_point t) { return std::chrono::duration<double, std::
 }  // namespace
 
 DaemonConfig Daemon::load() const {
-  return options_.configFile.empty() ? loadEmbeddedConfig(options_.dataDir) : loadConfigFile(options_.configFile, options_.dataDir);
+  return options_.configFile.empty() ? loadEmbeddedConfig(options_.dataDir)
+                                     : loadConfigFile(options_.configFile, options_.dataDir);
 }
 
 void Daemon::startCell(const DaemonConfig& config) {
@@ -73,7 +74,8 @@ void Daemon::lockMemory() {
   rlimit lim{};
   getrlimit(RLIMIT_MEMLOCK, &lim);
   if (geteuid() != 0 && lim.rlim_cur != RLIM_INFINITY) {
-    logf(LogLevel::Notice, "not locking memory: RLIMIT_MEMLOCK is %llu kB (set LimitMEMLOCK=infinity to allow mlockall)",
+    logf(LogLevel::Notice,
+         "not locking memory: RLIMIT_MEMLOCK is %llu kB (set LimitMEMLOCK=infinity to allow mlockall)",
          static_cast<unsigned long long>(lim.rlim_cur / 1024));
     return;
   }
@@ -96,14 +98,16 @@ bool Daemon::reload(std::string& message) {
   }
   if (next.modbus.bind_address != config_.modbus.bind_address || next.modbus.port != config_.modbus.port ||
       next.modbus.word_order != config_.modbus.word_order || next.modbus.max_clients != config_.modbus.max_clients ||
-      next.modbus.frame_timeout != config_.modbus.frame_timeout || next.modbus.idle_timeout != config_.modbus.idle_timeout ||
-      next.modbus.allow_list != config_.modbus.allow_list)
-    logf(LogLevel::Warning, "reload: modbus.* changed; the Modbus server keeps its settings until mfcd restarts "
+      next.modbus.frame_timeout != config_.modbus.frame_timeout ||
+      next.modbus.idle_timeout != config_.modbus.idle_timeout || next.modbus.allow_list != config_.modbus.allow_list)
+    logf(LogLevel::Warning,
+         "reload: modbus.* changed; the Modbus server keeps its settings until mfcd restarts "
          "(reloading keeps PLC connections open)");
   if (next.control_socket != config_.control_socket)
     logf(LogLevel::Warning, "reload: daemon.control_socket changed; it takes effect at the next start");
   if (next.web.enabled != config_.web.enabled || next.web.bind_address != config_.web.bind_address ||
-      next.web.port != config_.web.port || next.web.allow_list != config_.web.allow_list || next.web_root != config_.web_root)
+      next.web.port != config_.web.port || next.web.allow_list != config_.web.allow_list ||
+      next.web_root != config_.web_root)
     logf(LogLevel::Warning, "reload: web.* changed; the web view keeps its settings until mfcd restarts");
   next.modbus = config_.modbus;
   next.control_socket = config_.control_socket;
@@ -138,8 +142,11 @@ bool Daemon::reload(std::string& message) {
 
 void Daemon::notifyStatus() {
   char status[256];
-  std::snprintf(status, sizeof status, "STATUS=%s, %s mode, %llu cycles, %llu overruns, p50 %.0f ms", 
-                stopping_ ? "stopping" : inFlight_ ? "busy" : cellOk_ ? "ready" : "camera/vision failed",
+  std::snprintf(status, sizeof status, "STATUS=%s, %s mode, %llu cycles, %llu overruns, p50 %.0f ms",
+                stopping_   ? "stopping"
+                : inFlight_ ? "busy"
+                : cellOk_   ? "ready"
+                            : "camera/vision failed",
                 toString(config_.mode), static_cast<unsigned long long>(stats_.cycles()),
                 static_cast<unsigned long long>(stats_.overruns()), stats_.percentileMs(50));
   if (lastStatus_ != status) {
@@ -180,7 +187,8 @@ void Daemon::onTimer() {
     linkDownLogged_ = true;
   }
   // A thread is stuck when it has not woken for longer than any cycle may take.
-  const auto stall = std::max<std::chrono::milliseconds>(std::chrono::seconds(5), 3 * std::chrono::milliseconds(config_.cycle_budget_ms));
+  const auto stall = std::max<std::chrono::milliseconds>(std::chrono::seconds(5),
+                                                         3 * std::chrono::milliseconds(config_.cycle_budget_ms));
   const bool moving = framePathMoving(now, stall);
   if (watchdogUsec_ && moving && linkUp) sd_notify(0, "WATCHDOG=1");
   if (!moving && !stuckLogged_) {
@@ -218,8 +226,8 @@ int Daemon::runBenchmark() {
   std::printf("%s\n", j.dump(2, ' ', false, json::error_handler_t::replace).c_str());
   std::printf("\n| stage | p50 ms | p90 ms | p99 ms | max ms |\n|---|---|---|---|---|\n");
   for (const char* stage : {"total", "capture", "vision"})
-    std::printf("| %s | %.1f | %.1f | %.1f | %.1f |\n", stage, stats_.percentileMs(stage, 50), stats_.percentileMs(stage, 90),
-                stats_.percentileMs(stage, 99), stats_.percentileMs(stage, 100));
+    std::printf("| %s | %.1f | %.1f | %.1f | %.1f |\n", stage, stats_.percentileMs(stage, 50),
+                stats_.percentileMs(stage, 90), stats_.percentileMs(stage, 99), stats_.percentileMs(stage, 100));
   std::printf("\n%llu cycles, %llu overruns of %d ms, %llu degraded, %llu errors, %llu picks\n",
               static_cast<unsigned long long>(stats_.cycles()), static_cast<unsigned long long>(stats_.overruns()),
               config_.cycle_budget_ms, static_cast<unsigned long long>(stats_.degraded()),
@@ -248,7 +256,8 @@ void Daemon::onSignal() {
       reloadPending_ = true;
       updateReady();
     } else if (!stopping_) {
-      logf(LogLevel::Notice, "%s: stopping%s", strsignal(static_cast<int>(si.ssi_signo)), inFlight_ ? " after the current cycle" : "");
+      logf(LogLevel::Notice, "%s: stopping%s", strsignal(static_cast<int>(si.ssi_signo)),
+           inFlight_ ? " after the current cycle" : "");
       stopping_ = true;
       stopRequested_ = Clock::now();
       sd_notify(0, "STOPPING=1");
@@ -344,9 +353,11 @@ void Daemon::mainLoop() {
       const bool graceOver = msSince(stopRequested_) > std::min(config_.cycle_budget_ms, kStopGraceMs) + 2000;
       if (!inFlight_ || graceOver) {
         if (inFlight_) {
-          logf(LogLevel::Warning, "stopping: abandoning cycle %llu", static_cast<unsigned long long>(inFlight_->cycle_id));
+          logf(LogLevel::Warning, "stopping: abandoning cycle %llu",
+               static_cast<unsigned long long>(inFlight_->cycle_id));
           if (inFlight_->origin == CycleOrigin::Plc || inFlight_->origin == CycleOrigin::Continuous)
-            answerJob(inFlight_->job_id, inFlight_->recipe_id, CycleError::Abandoned, "mfcd stopped before the cycle finished");
+            answerJob(inFlight_->job_id, inFlight_->recipe_id, CycleError::Abandoned,
+                      "mfcd stopped before the cycle finished");
         }
         return;
       }

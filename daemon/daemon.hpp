@@ -15,10 +15,10 @@ namespace mfcd::daemon {
 struct DaemonOptions {
   std::filesystem::path configFile;  // empty: the embedded config/sim.yaml
   std::filesystem::path dataDir;
-  bool foreground = false;           // also log to stderr
-  bool checkConfig = false;          // validate the configuration and exit
-  bool ledsOff = false;              // drive every LED line off and exit (systemd ExecStopPost=)
-  int benchmarkCycles = 0;           // > 0: run this many cycles without robot link, print stats, exit
+  bool foreground = false;   // also log to stderr
+  bool checkConfig = false;  // validate the configuration and exit
+  bool ledsOff = false;      // drive every LED line off and exit (systemd ExecStopPost=)
+  int benchmarkCycles = 0;   // > 0: run this many cycles without robot link, print stats, exit
   std::filesystem::path benchmarkJson;
 };
 

@@ -10,7 +10,8 @@ using nlohmann::json;
 void Daemon::handleCalibrate(ControlServer::ClientId client, const json& req) {
   std::string action;
   const auto refuse = [&](const std::string& why) {
-    control_.reply(client, {{"ok", false}, {"error", "calibrate" + (action.empty() ? std::string() : " " + action) + ": " + why}});
+    control_.reply(
+        client, {{"ok", false}, {"error", "calibrate" + (action.empty() ? std::string() : " " + action) + ": " + why}});
   };
   try {
     action = req.contains("action") && req["action"].is_string() ? req["action"].get<std::string>() : "";
@@ -28,12 +29,15 @@ void Daemon::handleCalibrate(ControlServer::ClientId client, const json& req) {
       updateReady();
       return;
     }
-    if (calib_->busy()) return refuse("busy: still working on '" + calib_->working() + "'; try again when it has answered");
+    if (calib_->busy())
+      return refuse("busy: still working on '" + calib_->working() + "'; try again when it has answered");
     if (capture_) return refuse("busy: a capture is in flight");
     if (action == "start") {
       if (calib_->active())
-        return refuse("a " + calib_->state().value("kind", "") + " session is already running (mfcd-ctl calibrate abort ends it)");
-      if (stopping_ || reloadPending_ || !cellOk_) return refuse("mfcd is not ready (stopping, reloading, or the cell failed)");
+        return refuse("a " + calib_->state().value("kind", "") +
+                      " session is already running (mfcd-ctl calibrate abort ends it)");
+      if (stopping_ || reloadPending_ || !cellOk_)
+        return refuse("mfcd is not ready (stopping, reloading, or the cell failed)");
       if (inFlight_ || pendingPlc_) return refuse("busy: a pick cycle is running; try again when it is done");
       const std::string kind = req.contains("kind") && req["kind"].is_string() ? req["kind"].get<std::string>() : "";
       if (kind != "intrinsics" && kind != "hand-eye") return refuse("kind must be intrinsics or hand-eye");
@@ -43,14 +47,16 @@ void Daemon::handleCalibrate(ControlServer::ClientId client, const json& req) {
         mode = vision::calib::parse_hand_eye_mode(req["mode"].get<std::string>());
       }
       lastPlcPoseSeq_.reset();
-      calib_->start(client, kind == "intrinsics" ? CalibrationService::Kind::Intrinsics : CalibrationService::Kind::HandEye, mode,
-                    config_.camera.model, config_.calibration);
+      calib_->start(client,
+                    kind == "intrinsics" ? CalibrationService::Kind::Intrinsics : CalibrationService::Kind::HandEye,
+                    mode, config_.camera.model, config_.calibration);
       updateReady();  // READY drops for the session
       return;
     }
     if (action == "capture" || action == "check") {
       const bool check = action == "check";
-      if (!calib_->active()) return refuse("no calibration session (mfcd-ctl calibrate intrinsics start, or hand-eye start)");
+      if (!calib_->active())
+        return refuse("no calibration session (mfcd-ctl calibrate intrinsics start, or hand-eye start)");
       if (check && (!calib_->handEye() || !calib_->computed()))
         return refuse("check needs a computed hand-eye calibration (calibrate compute first)");
       if (inFlight_ || reloadPending_ || stopping_ || !cellOk_ || !cell_)
@@ -65,9 +71,11 @@ void Daemon::handleCalibrate(ControlServer::ClientId client, const json& req) {
       } else if (fromPlc) {
         const motion::RobotPoseReading p = link_.robot_pose();
         if (p.writes == 0)
-          return refuse("--pose-from-plc: the PLC has not written the robot pose block (registers 36..49, "
-                        "docs/register-map.md)");
-        if (p.valid == 0) return refuse("--pose-from-plc: ROBOT_POSE_VALID (register 48) is 0: the PLC marks the pose as not current");
+          return refuse(
+              "--pose-from-plc: the PLC has not written the robot pose block (registers 36..49, "
+              "docs/register-map.md)");
+        if (p.valid == 0)
+          return refuse("--pose-from-plc: ROBOT_POSE_VALID (register 48) is 0: the PLC marks the pose as not current");
         if (lastPlcPoseSeq_ && *lastPlcPoseSeq_ == p.sequence)
           return refuse("--pose-from-plc: ROBOT_POSE_SEQ (register 49) is still " + std::to_string(p.sequence) +
                         " as for the previous view: the PLC has not written a new pose");
@@ -111,14 +119,16 @@ void Daemon::handleCalibrate(ControlServer::ClientId client, const json& req) {
       if (!calib_->active()) return refuse("no calibration session");
       if (!calib_->computed()) return refuse("nothing computed yet (calibrate compute, then apply)");
       if (!req.value("confirm", false))
-        return refuse("this writes " + config_.camera.model.string() + ": confirm with --yes (mfcd-ctl asks y/N on a terminal)");
+        return refuse("this writes " + config_.camera.model.string() +
+                      ": confirm with --yes (mfcd-ctl asks y/N on a terminal)");
       calib_->apply(client, config_.recipes);
       return;
     }
     if (action == "rollback") {
       if (calib_->active()) return refuse("a calibration session is running: apply or abort it first");
       if (!req.value("confirm", false))
-        return refuse("this overwrites " + config_.camera.model.string() + " with its .previous copy: confirm with --yes");
+        return refuse("this overwrites " + config_.camera.model.string() +
+                      " with its .previous copy: confirm with --yes");
       calib_->rollback(client, config_.camera.model);
       return;
     }
@@ -138,8 +148,9 @@ void Daemon::onCalibrationImage(const CycleResult& r) {
   }
   PendingCapture pc = std::move(*capture_);
   capture_.reset();
-  if (!r.leds_off) logf(LogLevel::Error, "calibration capture %llu: LEDs were not all off after the capture",
-                        static_cast<unsigned long long>(r.request.cycle_id));
+  if (!r.leds_off)
+    logf(LogLevel::Error, "calibration capture %llu: LEDs were not all off after the capture",
+         static_cast<unsigned long long>(r.request.cycle_id));
   if (r.error != CycleError::None) {
     json j = pc.about;
     j["ok"] = false;

@@ -43,7 +43,8 @@ void Daemon::startControlCycle(ClientId client, const RequestArgs& args, bool sn
   const auto refuse = [&](const std::string& why) { control_.reply(client, {{"ok", false}, {"error", why}}); };
   const int recipe = static_cast<int>(args.integer("recipe", selectedRecipe_, 0, 65535));
   if (calibrating())
-    return refuse("busy: a calibration session is running (picking is paused; mfcd-ctl calibrate apply or abort ends it)");
+    return refuse(
+        "busy: a calibration session is running (picking is paused; mfcd-ctl calibrate apply or abort ends it)");
   if (stopping_ || reloadPending_ || inFlight_ || config_.mode == RunMode::Continuous || !cellOk_)
     return refuse(config_.mode == RunMode::Continuous ? "busy: continuous mode runs cycles by itself"
                                                       : "busy: a cycle is running or mfcd is not ready");
@@ -52,7 +53,8 @@ void Daemon::startControlCycle(ClientId client, const RequestArgs& args, bool sn
   // Replied to when the cycle (or its snapshot) is done; a job that could not start (an unknown
   // recipe, no robot pose) has its result already.
   if (!lastResult_.is_null() && lastResult_["cycle"] == *id) {
-    control_.reply(client, {{"ok", false}, {"error", lastResult_.value("message", "not run")}, {"result", lastResult_}});
+    control_.reply(client,
+                   {{"ok", false}, {"error", lastResult_.value("message", "not run")}, {"result", lastResult_}});
     return;
   }
   waiters_.push_back({client, *id, snapshot ? Waiter::What::Snapshot : Waiter::What::Trigger});
@@ -61,11 +63,13 @@ void Daemon::startControlCycle(ClientId client, const RequestArgs& args, bool sn
 void Daemon::selectPart(ClientId client, const RequestArgs& args) {
   const int recipe = static_cast<int>(args.integer("recipe", -1, -1, 65535));
   if (!config_.recipe(recipe)) {
-    control_.reply(client, {{"ok", false}, {"error", "part: give {\"recipe\": id} with an id from the configuration's recipes"}});
+    control_.reply(
+        client, {{"ok", false}, {"error", "part: give {\"recipe\": id} with an id from the configuration's recipes"}});
     return;
   }
   selectedRecipe_ = recipe;
-  logf(LogLevel::Info, "recipe %d (%s) selected by the control socket", selectedRecipe_, config_.recipe(selectedRecipe_)->part.c_str());
+  logf(LogLevel::Info, "recipe %d (%s) selected by the control socket", selectedRecipe_,
+       config_.recipe(selectedRecipe_)->part.c_str());
   control_.reply(client, {{"ok", true}, {"recipe", selectedRecipe_}, {"part", config_.recipe(selectedRecipe_)->part}});
 }
 
@@ -108,9 +112,9 @@ json Daemon::statusJson() const {
     if (calib_->busy()) j["calibration"]["working"] = calib_->working();
   }
   if (!lastResult_.is_null()) {
-    j["last_cycle"] = {{"cycle", lastResult_["cycle"]}, {"total_ms", lastResult_["times_ms"]["total"]},
+    j["last_cycle"] = {{"cycle", lastResult_["cycle"]},     {"total_ms", lastResult_["times_ms"]["total"]},
                        {"overrun", lastResult_["overrun"]}, {"degraded", lastResult_["degraded"]},
-                       {"error", lastResult_["error"]}, {"candidates", lastResult_["candidates"].size()}};
+                       {"error", lastResult_["error"]},     {"candidates", lastResult_["candidates"].size()}};
   }
   return j;
 }

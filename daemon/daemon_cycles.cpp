@@ -13,9 +13,7 @@ namespace mfcd::daemon {
 
 using nlohmann::json;
 
-void Daemon::publish() {
-  link_.publish(report_);
-}
+void Daemon::publish() { link_.publish(report_); }
 
 void Daemon::updateReady() {
   // A calibration session pauses picking: the camera looks at the calibration plate, not the bin.
@@ -29,8 +27,8 @@ void Daemon::updateReady() {
   }
 }
 
-std::optional<std::uint64_t> Daemon::startCycle(CycleOrigin origin, std::uint16_t job, std::uint16_t recipe, std::uint16_t mode,
-                                                bool snapshot) {
+std::optional<std::uint64_t> Daemon::startCycle(CycleOrigin origin, std::uint16_t job, std::uint16_t recipe,
+                                                std::uint16_t mode, bool snapshot) {
   if (!cell_ || inFlight_) return std::nullopt;
   CycleRequest r;
   r.origin = origin;
@@ -53,14 +51,17 @@ std::optional<std::uint64_t> Daemon::startCycle(CycleOrigin origin, std::uint16_
     return r.cycle_id;
   };
   const RecipeConfig* rc = config_.recipe(recipe);
-  if (!rc) return failNow(CycleError::UnknownRecipe, "recipe " + std::to_string(recipe) + " is not in the configuration (" + config_.source + ")");
+  if (!rc)
+    return failNow(CycleError::UnknownRecipe,
+                   "recipe " + std::to_string(recipe) + " is not in the configuration (" + config_.source + ")");
   r.obj_id = rc->obj_id;
   if (config_.hand_eye.setup == motion::HandEyeSetup::EyeInHand) {
     // The camera is where the robot holds it: the PLC's robot pose block, as it is now.
     const motion::RobotPoseReading p = link_.robot_pose();
     if (p.writes == 0 || p.valid != 1)
-      return failNow(CycleError::NoRobotPose, p.writes == 0 ? "eye_in_hand: the PLC has not written the robot pose block (registers 36..49)"
-                                                            : "eye_in_hand: ROBOT_POSE_VALID (register 48) is 0: the pose is not current");
+      return failNow(CycleError::NoRobotPose,
+                     p.writes == 0 ? "eye_in_hand: the PLC has not written the robot pose block (registers 36..49)"
+                                   : "eye_in_hand: ROBOT_POSE_VALID (register 48) is 0: the pose is not current");
     r.flange_valid = true;
     r.base_T_flange = motion::pose_to_isometry({{p.x_mm, p.y_mm, p.z_mm}, {p.rx_deg, p.ry_deg, p.rz_deg}});
   }
@@ -89,8 +90,8 @@ void Daemon::onPlcCommand(const motion::PlcCommand& cmd) {
     case Kind::SaveScene:
       break;
   }
-  logf(LogLevel::Debug, "PLC: %s job %u recipe %u mode %u", cmd.kind == Kind::SaveScene ? "SAVE_SCENE" : "TRIGGER", cmd.job_id,
-       cmd.recipe_id, cmd.mode);
+  logf(LogLevel::Debug, "PLC: %s job %u recipe %u mode %u", cmd.kind == Kind::SaveScene ? "SAVE_SCENE" : "TRIGGER",
+       cmd.job_id, cmd.recipe_id, cmd.mode);
   if (calibrating()) {
     // READY is clear during a session, so only a trigger racing the session's start gets here:
     // it is answered at once with ERROR_CODE 6 rather than left pending.
@@ -130,13 +131,14 @@ void Daemon::onPickResult(const motion::PlcCommand& cmd) {
   const char* outcome = cmd.outcome < std::size(kNames) ? kNames[cmd.outcome] : "?";
   stats_.addPickResult(cmd.outcome);
   const bool failed = cmd.outcome != static_cast<std::uint16_t>(motion::reg::PickOutcome::Ok);
-  logf(failed ? LogLevel::Warning : LogLevel::Info, "PLC: pick result of job %u, pick %u: %s", cmd.job_id, cmd.rank + 1, outcome);
+  logf(failed ? LogLevel::Warning : LogLevel::Info, "PLC: pick result of job %u, pick %u: %s", cmd.job_id, cmd.rank + 1,
+       outcome);
   const bool ours = cmd.job_id == report_.job_id && lastJobCycle_ != 0;
   if (ours && !lastResult_.is_null() && lastResult_["cycle"] == lastJobCycle_)
     lastResult_["pick_results"].push_back({{"rank", cmd.rank}, {"outcome", outcome}});
   if (!failed || !config_.snapshots.on_failed_pick || !ours || !cell_) return;
-  const std::string reason = std::string("pick result: ") + outcome + " (job " + std::to_string(cmd.job_id) + ", pick " +
-                             std::to_string(cmd.rank + 1) + ")";
+  const std::string reason = std::string("pick result: ") + outcome + " (job " + std::to_string(cmd.job_id) +
+                             ", pick " + std::to_string(cmd.rank + 1) + ")";
   if (!cell_->requestSnapshot(lastJobCycle_, reason.c_str()))
     logf(LogLevel::Warning, "PLC: no snapshot of job %u: the snapshot queue is full", cmd.job_id);
 }
@@ -144,7 +146,8 @@ void Daemon::onPickResult(const motion::PlcCommand& cmd) {
 void Daemon::startPlcJob(const motion::PlcCommand& cmd) {
   const bool snapshot = cmd.kind == motion::PlcCommand::Kind::SaveScene;
   if (!startCycle(CycleOrigin::Plc, cmd.job_id, cmd.recipe_id, cmd.mode, snapshot))
-    answerJob(cmd.job_id, cmd.recipe_id, CycleError::Unavailable, cell_ ? "the cell's request queue is full" : "no cell is running");
+    answerJob(cmd.job_id, cmd.recipe_id, CycleError::Unavailable,
+              cell_ ? "the cell's request queue is full" : "no cell is running");
 }
 
 void Daemon::answerJob(std::uint16_t job, std::uint16_t recipe, CycleError error, const char* why) {
@@ -176,11 +179,13 @@ void Daemon::onResult(const CycleResult& r) {
   }
   if (r.kind == CycleResult::Kind::SnapshotSaved) {
     if (r.snapshot_dir[0]) {
-      logf(LogLevel::Info, "snapshot of cycle %llu saved in %s", static_cast<unsigned long long>(r.request.cycle_id), r.snapshot_dir);
+      logf(LogLevel::Info, "snapshot of cycle %llu saved in %s", static_cast<unsigned long long>(r.request.cycle_id),
+           r.snapshot_dir);
       ++report_.snapshots_saved;  // wraps, as SNAPSHOT_COUNT does
       publish();
     } else {
-      logf(LogLevel::Warning, "snapshot of cycle %llu failed: %s", static_cast<unsigned long long>(r.request.cycle_id), r.message);
+      logf(LogLevel::Warning, "snapshot of cycle %llu failed: %s", static_cast<unsigned long long>(r.request.cycle_id),
+           r.message);
     }
     for (auto it = waiters_.begin(); it != waiters_.end();) {
       if (it->what == Waiter::What::Snapshot && it->cycle == r.request.cycle_id) {
@@ -200,8 +205,9 @@ void Daemon::onResult(const CycleResult& r) {
     if (framesOk_) logf(LogLevel::Error, "VISION_OK cleared: %s; the next cycle retries", r.message);
     framesOk_ = false;
   } else if (r.error != CycleError::UnknownRecipe) {  // captured and processed: camera and vision work
-    if (!framesOk_) logf(LogLevel::Notice, "VISION_OK set again: cycle %llu captured and processed its frames",
-                         static_cast<unsigned long long>(r.request.cycle_id));
+    if (!framesOk_)
+      logf(LogLevel::Notice, "VISION_OK set again: cycle %llu captured and processed its frames",
+           static_cast<unsigned long long>(r.request.cycle_id));
     framesOk_ = true;
   }
   const bool overrun = stats_.add(r, config_.cycle_budget_ms);
@@ -211,8 +217,9 @@ void Daemon::onResult(const CycleResult& r) {
   // result over; never on the frame path.
   logCycleResult(r);
   if (overrun)
-    logf(LogLevel::Warning, "cycle %llu overran its budget: %.0f ms > %d ms (capture %.0f, vision %.0f; %s)", id, r.total_ms,
-         config_.cycle_budget_ms, r.capture_ms, r.vision_ms, r.degraded ? "degraded result" : "full result");
+    logf(LogLevel::Warning, "cycle %llu overran its budget: %.0f ms > %d ms (capture %.0f, vision %.0f; %s)", id,
+         r.total_ms, config_.cycle_budget_ms, r.capture_ms, r.vision_ms,
+         r.degraded ? "degraded result" : "full result");
   if (!r.leds_off) logf(LogLevel::Error, "cycle %llu: LEDs were not all off after the capture", id);
 
   // Robot link: PLC jobs and continuous cycles are published; control-socket cycles are not (they

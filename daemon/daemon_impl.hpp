@@ -40,11 +40,11 @@ struct Waiter {
 };
 
 class Daemon {
-public:
+ public:
   Daemon(DaemonOptions options, VisionStageFactory vision) : options_(std::move(options)), vision_(std::move(vision)) {}
   int run();
 
-private:
+ private:
   DaemonConfig load() const;
   void startCell(const DaemonConfig& config);
   // Stops the cell (LEDs off, devices released), after the web view has let go of its frames.
@@ -72,8 +72,8 @@ private:
   void onCalibrationDone();
 
   // daemon_cycles.cpp
-  std::optional<std::uint64_t> startCycle(CycleOrigin origin, std::uint16_t job, std::uint16_t recipe, std::uint16_t mode,
-                                          bool snapshot);
+  std::optional<std::uint64_t> startCycle(CycleOrigin origin, std::uint16_t job, std::uint16_t recipe,
+                                          std::uint16_t mode, bool snapshot);
   void onPlcCommand(const motion::PlcCommand& cmd);
   // NEXT (already published by the Modbus server): the report follows with that pick.
   void onNextPick(const motion::PlcCommand& cmd);
@@ -146,8 +146,8 @@ private:
   std::string lastStatus_;
   bool stuckLogged_ = false;
   bool linkDownLogged_ = false;
-  bool framesOk_ = true;            // the last cycle captured and ran its vision stage (VISION_OK)
-  Clock::time_point busyUntil_{};   // the latest deadline of a request handed to the cell
+  bool framesOk_ = true;           // the last cycle captured and ran its vision stage (VISION_OK)
+  Clock::time_point busyUntil_{};  // the latest deadline of a request handed to the cell
 };
 
 }  // namespace mfcd::daemon

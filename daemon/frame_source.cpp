@@ -11,8 +11,8 @@
 #include "mfcd/hal/simulated.hpp"
 #include "mfcd/hal/v4l2_camera.hpp"
 #include "vision/calib/sim_board.hpp"
-#include "vision/common/rotation.hpp"
 #include "vision/camera/camera.hpp"
+#include "vision/common/rotation.hpp"
 #include "vision/model/mesh.hpp"
 #include "vision/render/mfc_renderer.hpp"
 
@@ -57,7 +57,8 @@ hal::AravisCameraConfig aravisConfig(const DaemonConfig& c, const vision::Camera
     hal::CameraStrobeConfig s;
     s.strobe_line = c.lights.strobe_line;
     s.select_lines = c.lights.select_lines;
-    s.source = c.lights.strobe_source == StrobeSourceSetting::Timer ? hal::StrobeSource::Timer : hal::StrobeSource::ExposureActive;
+    s.source = c.lights.strobe_source == StrobeSourceSetting::Timer ? hal::StrobeSource::Timer
+                                                                    : hal::StrobeSource::ExposureActive;
     s.pulse_us = c.lights.strobe_pulse_us;
     s.strobe_inverted = c.lights.active_low;
     a.strobe = s;
@@ -68,7 +69,7 @@ hal::AravisCameraConfig aravisConfig(const DaemonConfig& c, const vision::Camera
 // Real devices: a V4L2 or GenICam (Aravis) camera, the LEDs on GPIO lines or on the camera's own
 // outputs. The strobe ring borrows the camera: members are destroyed sequencer, ring, camera.
 class HardwareFrameSource final : public FrameSource {
-public:
+ public:
   explicit HardwareFrameSource(const DaemonConfig& c) {
     const vision::CameraConfig model = vision::load_camera_config(c.camera.model);
     if (c.camera.type == CameraType::Aravis) {
@@ -98,7 +99,7 @@ public:
   hal::LedMask leds() const override { return lights_->state(); }
   std::string describe() const override { return camera_->describe() + " + " + lights_->describe(); }
 
-private:
+ private:
   std::unique_ptr<hal::Camera> camera_;
   std::unique_ptr<hal::LightRing> lights_;
   std::unique_ptr<hal::MfcSequencer> sequencer_;
@@ -108,7 +109,7 @@ private:
 // seed), rendered through SimulatedCamera + SimulatedLightRing by the HAL sequencer. Without any
 // recipe mesh it serves the HAL's deterministic test pattern instead (no OpenGL needed).
 class SimulatedCellSource final : public FrameSource, public SimulatedWorld {
-public:
+ public:
   explicit SimulatedCellSource(const DaemonConfig& c) : sim_(c.simulation), rng_(c.simulation.seed) {
     model_ = vision::load_camera_config(c.camera.model);
     const hal::ImageFormat format{model_.camera.image_size.width, model_.camera.image_size.height, 8};
@@ -133,10 +134,11 @@ public:
       fillBin();
     }
     camera_ = std::make_unique<hal::SimulatedCamera>(
-        hal::SimulatedCameraConfig{format, "sim-cell", static_cast<std::int64_t>(c.camera.simulated_exposure_us) * 1000},
+        hal::SimulatedCameraConfig{format, "sim-cell",
+                                   static_cast<std::int64_t>(c.camera.simulated_exposure_us) * 1000},
         lights_, cell_.get());
-    sequencer_ = std::make_unique<hal::MfcSequencer>(*camera_, lights_,
-                                                     hal::SequencerConfig{c.max_stale_frames, static_cast<std::int64_t>(c.settle_us) * 1000});
+    sequencer_ = std::make_unique<hal::MfcSequencer>(
+        *camera_, lights_, hal::SequencerConfig{c.max_stale_frames, static_cast<std::int64_t>(c.settle_us) * 1000});
   }
   void activate() override {
     sequencer_->configure();
@@ -174,7 +176,8 @@ public:
       if (d < bestDist) bestDist = d, best = i;
     }
     if (best == bin_.size()) {
-      logf(LogLevel::Warning, "simulated cell: the pick at (%.1f, %.1f, %.1f) mm (camera frame) is not on any part", t[0], t[1], t[2]);
+      logf(LogLevel::Warning, "simulated cell: the pick at (%.1f, %.1f, %.1f) mm (camera frame) is not on any part",
+           t[0], t[1], t[2]);
       return;
     }
     bin_.erase(bin_.begin() + static_cast<std::ptrdiff_t>(best));
@@ -201,25 +204,29 @@ public:
       return;
     }
     if (!cell_)
-      throw std::runtime_error("the simulated camera shows a test pattern (no recipe meshes, no simulation.calibration_plate): "
-                               "it cannot show the calibration plate");
+      throw std::runtime_error(
+          "the simulated camera shows a test pattern (no recipe meshes, no simulation.calibration_plate): "
+          "it cannot show the calibration plate");
     namespace calib = vision::calib;
     const auto matrix = [](const PoseSetting& p) {
       return calib::RobotPose{p.x_mm, p.y_mm, p.z_mm, p.rx_deg, p.ry_deg, p.rz_deg}.matrix();
     };
     const cv::Matx44d given =
-        calib::RobotPose{plate.pose[0], plate.pose[1], plate.pose[2], plate.pose[3], plate.pose[4], plate.pose[5]}.matrix();
+        calib::RobotPose{plate.pose[0], plate.pose[1], plate.pose[2], plate.pose[3], plate.pose[4], plate.pose[5]}
+            .matrix();
     cv::Matx44d T_camera_board = given;
     if (plate.kind != PlateRequest::Kind::Camera) {
       if (!sim_.plate.enabled)
-        throw std::runtime_error("simulation.calibration_plate is not configured: the simulated cell has no true hand-eye "
-                                 "transform to place the plate by the flange pose");
+        throw std::runtime_error(
+            "simulation.calibration_plate is not configured: the simulated cell has no true hand-eye "
+            "transform to place the plate by the flange pose");
       const auto& t = sim_.plate;
-      T_camera_board = plate.kind == PlateRequest::Kind::EyeToHand
-                           ? calib::sim_camera_board(calib::HandEyeMode::eye_to_hand, matrix(t.eye_to_hand_base_T_camera),
-                                                     matrix(t.eye_to_hand_flange_T_plate), given)
-                           : calib::sim_camera_board(calib::HandEyeMode::eye_in_hand, matrix(t.eye_in_hand_flange_T_camera),
-                                                     matrix(t.eye_in_hand_base_T_plate), given);
+      T_camera_board =
+          plate.kind == PlateRequest::Kind::EyeToHand
+              ? calib::sim_camera_board(calib::HandEyeMode::eye_to_hand, matrix(t.eye_to_hand_base_T_camera),
+                                        matrix(t.eye_to_hand_flange_T_plate), given)
+              : calib::sim_camera_board(calib::HandEyeMode::eye_in_hand, matrix(t.eye_in_hand_flange_T_camera),
+                                        matrix(t.eye_in_hand_base_T_plate), given);
     }
     // The room light is switched on for calibration: the ambient image (no flash) is the
     // calibration image. The bin is out of the way (the robot holds the plate above it).
@@ -231,7 +238,7 @@ public:
     cell_->setParts(plate_->parts(T_camera_board));
   }
 
-private:
+ private:
   struct PartType {
     vision::Mesh mesh;
     int obj_id;
@@ -277,7 +284,8 @@ private:
     updateScene();
   }
   void updateScene() {
-    std::vector<vision::ScenePart> scene{{floorMesh_, cv::Matx33d::eye(), {0, 0, sim_.floor_distance_mm}, vision::Material::matte(0.45f)}};
+    std::vector<vision::ScenePart> scene{
+        {floorMesh_, cv::Matx33d::eye(), {0, 0, sim_.floor_distance_mm}, vision::Material::matte(0.45f)}};
     for (const auto& p : bin_) scene.push_back(p.scene);
     cell_->setParts(std::move(scene));
   }
@@ -304,13 +312,18 @@ private:
 std::unique_ptr<FrameSource> makeFrameSource(const DaemonConfig& config) {
   if (config.camera.type == CameraType::Simulated) {
     if (config.lights.type != LightsType::Simulated)
-      throw std::runtime_error(config.source + ": lights.type: a simulated camera needs simulated lights (the camera renders what the simulated ring lights)");
+      throw std::runtime_error(config.source +
+                               ": lights.type: a simulated camera needs simulated lights (the camera renders what the "
+                               "simulated ring lights)");
     return std::make_unique<SimulatedCellSource>(config);
   }
   if (config.lights.type == LightsType::Simulated)
-    throw std::runtime_error(config.source + ": lights.type: a real camera needs real LEDs (gpiod, or camera with camera.type aravis)");
+    throw std::runtime_error(config.source +
+                             ": lights.type: a real camera needs real LEDs (gpiod, or camera with camera.type aravis)");
   if (config.lights.type == LightsType::Camera && config.camera.type != CameraType::Aravis)
-    throw std::runtime_error(config.source + ": lights.type: camera fires the LEDs from a GenICam camera's outputs; it needs camera.type: aravis");
+    throw std::runtime_error(
+        config.source +
+        ": lights.type: camera fires the LEDs from a GenICam camera's outputs; it needs camera.type: aravis");
   return std::make_unique<HardwareFrameSource>(config);
 }
 
@@ -318,7 +331,8 @@ std::string switchLedsOff(const DaemonConfig& config) {
   if (config.lights.type == LightsType::Simulated) return "simulated LEDs: no lines to switch off";
   // The camera's strobe line only lights an LED while the camera exposes, and nothing triggers it
   // once mfcd is gone: no line is left driving an LED.
-  if (config.lights.type == LightsType::Camera) return "camera strobe outputs: the LEDs light only during an exposure; nothing to switch off";
+  if (config.lights.type == LightsType::Camera)
+    return "camera strobe outputs: the LEDs light only during an exposure; nothing to switch off";
   hal::GpiodLightRing lights(gpiodConfig(config));
   lights.configure();  // requests the lines as outputs, all off; released (still off) at scope end
   return lights.describe() + ": all 8 LED lines driven off";

@@ -16,7 +16,7 @@ namespace mfcd::daemon {
 // What only the simulated cell can do, below the FrameSource interface: its ground truth, the
 // robot taking a part, a fresh bin, the calibration plate. A real cell has none of it.
 class SimulatedWorld {
-public:
+ public:
   virtual ~SimulatedWorld() = default;
   // The bin's ground truth for the frame set just captured.
   virtual void truth(SimTruth& out) const = 0;
@@ -29,10 +29,10 @@ public:
 };
 
 class FrameSource {
-public:
+ public:
   virtual ~FrameSource() = default;
-  virtual void activate() = 0;            // configure + activate the devices
-  virtual void deactivate() noexcept = 0; // LEDs off, streaming stopped
+  virtual void activate() = 0;             // configure + activate the devices
+  virtual void deactivate() noexcept = 0;  // LEDs off, streaming stopped
   // One multi-flash capture; throws hal::HalError. Valid until the next capture().
   virtual const hal::FrameSet& capture() = 0;
   virtual hal::ImageFormat format() const = 0;

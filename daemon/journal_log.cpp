@@ -17,7 +17,6 @@
 #include <stdexcept>
 #include <string>
 
-
 namespace mfcd::daemon {
 
 namespace {
@@ -136,7 +135,8 @@ bool JournalSink::send(const JournalFields& entry) const {
     errno = EINVAL;  // an empty entry
     return false;
   }
-  const ssize_t sent = ::sendto(fd_, datagram, n, MSG_DONTWAIT | MSG_NOSIGNAL, reinterpret_cast<const sockaddr*>(&addr_), addrLen_);
+  const ssize_t sent =
+      ::sendto(fd_, datagram, n, MSG_DONTWAIT | MSG_NOSIGNAL, reinterpret_cast<const sockaddr*>(&addr_), addrLen_);
   return sent == static_cast<ssize_t>(n);
 }
 

@@ -19,11 +19,11 @@ struct WebFrame {
   cv::Mat1b composite;  // max over the flash images: every outline lit (the overlay's background)
   cv::Mat1b edges;      // the pipeline's depth edges; valid when haveEdges
   bool haveEdges = false;
-  CycleResult result;   // the cycle's result (candidates, chosen, ranked)
+  CycleResult result;  // the cycle's result (candidates, chosen, ranked)
 };
 
 class LatestFrame {
-public:
+ public:
   // Before the writer runs: every buffer for images of `size`.
   void allocate(cv::Size size);
 
@@ -35,7 +35,7 @@ public:
   // The newest published frame, or nullptr before the first. Valid until the next call.
   const WebFrame* newest() noexcept;
 
-private:
+ private:
   static constexpr unsigned kIndex = 3u, kNew = 4u;
   std::array<WebFrame, 3> buffers_;
   std::atomic<unsigned> ready_{2};  // index of the ready buffer, | kNew when the reader has not taken it

@@ -16,11 +16,16 @@ namespace mfcd::daemon {
 
 const char* toString(LogLevel l) {
   switch (l) {
-    case LogLevel::Error: return "error";
-    case LogLevel::Warning: return "warning";
-    case LogLevel::Notice: return "notice";
-    case LogLevel::Info: return "info";
-    case LogLevel::Debug: return "debug";
+    case LogLevel::Error:
+      return "error";
+    case LogLevel::Warning:
+      return "warning";
+    case LogLevel::Notice:
+      return "notice";
+    case LogLevel::Info:
+      return "info";
+    case LogLevel::Debug:
+      return "debug";
   }
   return "?";
 }
@@ -28,9 +33,9 @@ const char* toString(LogLevel l) {
 namespace {
 std::atomic<int> gLevel{LOG_INFO};
 std::atomic<bool> gStderr{true};
-char gIdent[64] = "mfcd";                  // openlog keeps the pointer: static storage
-std::unique_ptr<JournalSink> gJournal;     // set before other threads log (logOpen, logOpenJournal)
-std::atomic<bool> gJournalFailed{false};   // a send failed once: said once, not per line
+char gIdent[64] = "mfcd";                 // openlog keeps the pointer: static storage
+std::unique_ptr<JournalSink> gJournal;    // set before other threads log (logOpen, logOpenJournal)
+std::atomic<bool> gJournalFailed{false};  // a send failed once: said once, not per line
 
 // The plain path: syslog, and stderr in the foreground.
 void plainLine(int prio, const char* line) {
@@ -88,7 +93,8 @@ void logStructured(LogLevel level, const JournalFields& extra, const char* messa
     const int error = errno;
     if (!gJournalFailed.exchange(true)) {
       char why[160];
-      std::snprintf(why, sizeof why, "journal: a structured entry could not be sent (%s); such lines go to syslog without fields",
+      std::snprintf(why, sizeof why,
+                    "journal: a structured entry could not be sent (%s); such lines go to syslog without fields",
                     std::strerror(error));
       plainLine(LOG_WARNING, why);
     }

@@ -5,13 +5,13 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <cmath>
 #include <cstring>
 #include <iostream>
-#include <sstream>
 #include <optional>
+#include <sstream>
 #include <string>
 
 #include <nlohmann/json.hpp>
@@ -55,8 +55,8 @@ std::optional<nlohmann::json> roundTrip(const Connection& conn, const nlohmann::
   }
   std::strncpy(addr.sun_path, socketPath.c_str(), sizeof addr.sun_path - 1);
   if (::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0) {
-    std::fprintf(stderr, "mfcd-ctl: cannot connect to %s: %s (is mfcd running? -s sets the socket)\n", socketPath.c_str(),
-                 std::strerror(errno));
+    std::fprintf(stderr, "mfcd-ctl: cannot connect to %s: %s (is mfcd running? -s sets the socket)\n",
+                 socketPath.c_str(), std::strerror(errno));
     ::close(fd);
     return std::nullopt;
   }
@@ -100,16 +100,18 @@ struct Command {
 
 // A recipe id argument: an integer (mfcd checks its range and whether it is configured).
 CLI::Option* addRecipe(CLI::App& cmd, Command& c, const std::string& help) {
-  return cmd.add_option_function<std::string>("RECIPE", [&c](const std::string& v) {
-    c.request["recipe"] = mfcd::tools::parse_int("RECIPE", v);
-  }, help)->type_name("");
+  return cmd
+      .add_option_function<std::string>(
+          "RECIPE", [&c](const std::string& v) { c.request["recipe"] = mfcd::tools::parse_int("RECIPE", v); }, help)
+      ->type_name("");
 }
 
 CLI::Option* addPose(CLI::App& cmd, Command& c, const std::string& name, const std::string& key,
                      const std::string& help) {
-  return cmd.add_option_function<std::string>(name, [&c, name, key](const std::string& v) {
-    c.request[key] = parsePose(v, name);
-  }, help)->type_name("x,y,z,rx,ry,rz");
+  return cmd
+      .add_option_function<std::string>(
+          name, [&c, name, key](const std::string& v) { c.request[key] = parsePose(v, name); }, help)
+      ->type_name("x,y,z,rx,ry,rz");
 }
 
 // mfcd-ctl calibrate ACTION: each sets "action" (and "kind" for start) when selected.
@@ -130,22 +132,26 @@ void addCalibrate(CLI::App& app, Command& c) {
       c.request = {{"cmd", "calibrate"}, {"action", "start"}, {"kind", kind}};
     });
     if (std::string(kind) == "hand-eye")
-      start->add_option_function<std::string>("--mode", [&c](const std::string& m) { c.request["mode"] = m; },
-                                              "eye-to-hand (default) or eye-in-hand")->type_name("MODE");
+      start
+          ->add_option_function<std::string>(
+              "--mode", [&c](const std::string& m) { c.request["mode"] = m; }, "eye-to-hand (default) or eye-in-hand")
+          ->type_name("MODE");
   }
   CLI::App* capture = cal->add_subcommand(
       "capture", "grab the next frame set's ambient image as a view (hand-eye: with the flange pose)");
   action(capture, "capture");
   addPose(*capture, c, "--pose", "pose", "the robot flange pose (mm, degrees)");
-  capture->add_flag_callback("--pose-from-plc", [&c] { c.request["pose_from_plc"] = true; },
-                             "the flange pose from the PLC's robot-pose block (registers 36..49)");
+  capture->add_flag_callback(
+      "--pose-from-plc", [&c] { c.request["pose_from_plc"] = true; },
+      "the flange pose from the PLC's robot-pose block (registers 36..49)");
   addPose(*capture, c, "--sim-plate-pose", "sim_plate_pose", "place the plate on the simulated cell");
   action(cal->add_subcommand("compute", "compute and show the figures (nothing is written)"), "compute");
   CLI::App* check = cal->add_subcommand("check", "hand-eye: predicted vs seen board in a new view");
   action(check, "check");
   addPose(*check, c, "--pose", "pose", "the robot flange pose (mm, degrees)");
-  check->add_flag_callback("--pose-from-plc", [&c] { c.request["pose_from_plc"] = true; },
-                           "the flange pose from the PLC's robot-pose block");
+  check->add_flag_callback(
+      "--pose-from-plc", [&c] { c.request["pose_from_plc"] = true; },
+      "the flange pose from the PLC's robot-pose block");
   for (const char* confirmed : {"apply", "rollback"}) {
     CLI::App* sub = cal->add_subcommand(confirmed, std::string(confirmed) == "apply"
                                                        ? "write the camera file (keeps .previous) and reload"

@@ -26,9 +26,7 @@ struct Snapshot {
   float f(int addr, WordOrder o) const { return decode_float(at(addr), at(addr + 1), o); }
 };
 
-bool readStatus(modbus_t* ctx, Snapshot& s) {
-  return modbus_read_registers(ctx, reg::kStatus, 28, s.regs) == 28;
-}
+bool readStatus(modbus_t* ctx, Snapshot& s) { return modbus_read_registers(ctx, reg::kStatus, 28, s.regs) == 28; }
 
 struct Options {
   std::string host = "127.0.0.1";
@@ -37,20 +35,24 @@ struct Options {
 
 // The command line into `o`; the exit status when the program ends here (help, version, usage).
 std::optional<int> parseOptions(int argc, char** argv, Options& o) {
-  CLI::App app{"mfc-plc-client: triggers N cycles on mfcd over Modbus/TCP (the job-id handshake of\n"
-               "docs/register-map.md) and prints each pick: job, recipe, x y z [mm] rx ry rz [deg] in the robot\n"
-               "base frame, score, cycle time [ms].", "mfc-plc-client"};
+  CLI::App app{
+      "mfc-plc-client: triggers N cycles on mfcd over Modbus/TCP (the job-id handshake of\n"
+      "docs/register-map.md) and prints each pick: job, recipe, x y z [mm] rx ry rz [deg] in the robot\n"
+      "base frame, score, cycle time [ms].",
+      "mfc-plc-client"};
   mfcd::tools::init_app(app);
   app.add_option("--host", o.host, "mfcd's address (default 127.0.0.1)")->type_name("H");
   mfcd::tools::add_int(app, "--port", o.port, "Modbus/TCP port (default 1502)")->type_name("P");
   mfcd::tools::add_int(app, "--cycles", o.cycles, "cycles to trigger (default 5)");
   mfcd::tools::add_int(app, "--recipe", o.recipe, "RECIPE_ID of every trigger (default 0)")->type_name("R");
-  app.add_flag_callback("--count-only", [&o] { o.mode = 1; }, "MODE = COUNT_ONLY (objects remaining, no pick)");
+  app.add_flag_callback(
+      "--count-only", [&o] { o.mode = 1; }, "MODE = COUNT_ONLY (objects remaining, no pick)");
   mfcd::tools::add_int(app, "--first-job", o.firstJob, "the first job id (default: one past the last echoed)")
       ->type_name("J");
   mfcd::tools::add_int(app, "--timeout-ms", o.timeoutMs, "how long one cycle may take (default 10000)")->type_name("T");
   mfcd::tools::add_int(app, "--connect-timeout-ms", o.connectMs,
-                       "retries the connection while mfcd starts (default 30000)")->type_name("T");
+                       "retries the connection while mfcd starts (default 30000)")
+      ->type_name("T");
   app.footer("Exit status: 0 all cycles answered, 1 a cycle failed or timed out, 2 usage/connection.");
   return mfcd::tools::parse(app, argc, argv);
 }
@@ -92,7 +94,9 @@ int main(int argc, char** argv) {
   int failures = 0;
   for (int c = 0; c < cycles; ++c, job = static_cast<std::uint16_t>(job == 65535 ? 1 : job + 1)) {
     const auto start = std::chrono::steady_clock::now();
-    const auto expired = [&] { return std::chrono::steady_clock::now() - start > std::chrono::milliseconds(timeoutMs); };
+    const auto expired = [&] {
+      return std::chrono::steady_clock::now() - start > std::chrono::milliseconds(timeoutMs);
+    };
     // 1. wait for READY; 2-3. trigger in one FC 0x10 write.
     bool triggered = false;
     while (!triggered && !expired()) {
@@ -108,8 +112,10 @@ int main(int argc, char** argv) {
         continue;
       }
       const std::uint16_t cmd[4] = {1, job, static_cast<std::uint16_t>(recipe), static_cast<std::uint16_t>(mode)};
-      if (modbus_write_registers(ctx, reg::kCommand, 4, cmd) == 4) triggered = true;
-      else std::this_thread::sleep_for(10ms);  // 0x06 busy: retry
+      if (modbus_write_registers(ctx, reg::kCommand, 4, cmd) == 4)
+        triggered = true;
+      else
+        std::this_thread::sleep_for(10ms);  // 0x06 busy: retry
     }
     // 4. poll until JOB_ID_ECHO = job.
     bool done = false;
@@ -136,8 +142,8 @@ int main(int argc, char** argv) {
                   s.f(reg::kPickRy, order), s.f(reg::kPickRz, order), s.f(reg::kScore, order), s.at(reg::kCycleTimeMs),
                   s.at(reg::kObjectsRemaining));
     else
-      std::printf("%6u %6u %9s %9s %9s %8s %8s %8s %6s %8u %u found, no pick\n", job, s.at(reg::kRecipeEcho), "-", "-", "-", "-",
-                  "-", "-", "-", s.at(reg::kCycleTimeMs), s.at(reg::kObjectsRemaining));
+      std::printf("%6u %6u %9s %9s %9s %8s %8s %8s %6s %8u %u found, no pick\n", job, s.at(reg::kRecipeEcho), "-", "-",
+                  "-", "-", "-", "-", "-", s.at(reg::kCycleTimeMs), s.at(reg::kObjectsRemaining));
     std::fflush(stdout);
   }
   modbus_close(ctx);

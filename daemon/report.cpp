@@ -1,13 +1,13 @@
 #include "daemon/report.hpp"
 
 #include <algorithm>
-#include <ctime>
 #include <cstring>
+#include <ctime>
 #include <fstream>
 #include <stdexcept>
 
-#include "tools/common/build_version.hpp"
 #include "motion/pick_transform.hpp"
+#include "tools/common/build_version.hpp"
 
 namespace mfcd::daemon {
 
@@ -36,15 +36,24 @@ json matJson(const cv::Matx33d& R) {
 }
 const char* errorName(CycleError e) {
   switch (e) {
-    case CycleError::None: return "none";
-    case CycleError::UnknownRecipe: return "unknown recipe";
-    case CycleError::Capture: return "capture failed";
-    case CycleError::Vision: return "vision failed";
-    case CycleError::Transform: return "pick transform failed";
-    case CycleError::Abandoned: return "abandoned";
-    case CycleError::Calibrating: return "calibrating";
-    case CycleError::Unavailable: return "cell unavailable";
-    case CycleError::NoRobotPose: return "no robot pose";
+    case CycleError::None:
+      return "none";
+    case CycleError::UnknownRecipe:
+      return "unknown recipe";
+    case CycleError::Capture:
+      return "capture failed";
+    case CycleError::Vision:
+      return "vision failed";
+    case CycleError::Transform:
+      return "pick transform failed";
+    case CycleError::Abandoned:
+      return "abandoned";
+    case CycleError::Calibrating:
+      return "calibrating";
+    case CycleError::Unavailable:
+      return "cell unavailable";
+    case CycleError::NoRobotPose:
+      return "no robot pose";
   }
   return "?";
 }
@@ -66,14 +75,14 @@ json resultJson(const CycleResult& r, const DaemonConfig& config) {
   // Eye-in-hand: the flange pose the picks were transformed with.
   if (r.request.flange_valid) {
     const motion::PoseXYZ f = motion::isometry_to_pose(r.request.base_T_flange);
-    j["robot_pose"] = {{"x", f.position_mm.x()}, {"y", f.position_mm.y()}, {"z", f.position_mm.z()},
+    j["robot_pose"] = {{"x", f.position_mm.x()},  {"y", f.position_mm.y()},  {"z", f.position_mm.z()},
                        {"rx", f.rotation.rx_deg}, {"ry", f.rotation.ry_deg}, {"rz", f.rotation.rz_deg}};
   }
   j["degraded"] = r.degraded;
   j["overrun"] = r.total_ms > config.cycle_budget_ms;
   j["leds_off_after_capture"] = r.leds_off;
-  j["times_ms"] = {{"capture", r.capture_ms}, {"queue", r.queue_ms}, {"vision", r.vision_ms},
-                   {"choice", r.choice_ms},   {"total", r.total_ms},   {"edges", r.edges_ms},
+  j["times_ms"] = {{"capture", r.capture_ms}, {"queue", r.queue_ms},       {"vision", r.vision_ms},
+                   {"choice", r.choice_ms},   {"total", r.total_ms},       {"edges", r.edges_ms},
                    {"lines", r.lines_ms},     {"distance", r.distance_ms}, {"search", r.search_ms},
                    {"pose", r.pose_ms},       {"refine", r.refine_ms}};
   j["budget_ms"] = config.cycle_budget_ms;
@@ -83,8 +92,13 @@ json resultJson(const CycleResult& r, const DaemonConfig& config) {
   json cands = json::array();
   for (int i = 0; i < r.candidate_count; ++i) {
     const CandidateOut& c = r.candidates[static_cast<std::size_t>(i)];
-    json cj = {{"obj_id", c.obj_id}, {"score", c.score}, {"cost_px", c.cost_px}, {"refined", c.refined},
-               {"utility", c.utility}, {"grasp_visibility", c.grasp_visibility}, {"ambiguous", c.ambiguous},
+    json cj = {{"obj_id", c.obj_id},
+               {"score", c.score},
+               {"cost_px", c.cost_px},
+               {"refined", c.refined},
+               {"utility", c.utility},
+               {"grasp_visibility", c.grasp_visibility},
+               {"ambiguous", c.ambiguous},
                {"R_cam", matJson(c.R_cam)},
                {"t_cam_mm", {c.t_cam_mm[0], c.t_cam_mm[1], c.t_cam_mm[2]}}};
     if (c.base_valid) cj["base"] = poseJson(c.base);
@@ -114,7 +128,8 @@ json resultJson(const CycleResult& r, const DaemonConfig& config) {
   return j;
 }
 
-vision::PipelineResult overlayCandidates(const CycleResult& result, const std::vector<std::pair<int, std::string>>& parts) {
+vision::PipelineResult overlayCandidates(const CycleResult& result,
+                                         const std::vector<std::pair<int, std::string>>& parts) {
   vision::PipelineResult out;
   for (int i = 0; i < result.candidate_count; ++i) {
     const CandidateOut& c = result.candidates[static_cast<std::size_t>(i)];

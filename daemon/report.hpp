@@ -24,6 +24,7 @@ nlohmann::json resultJson(const CycleResult& result, const DaemonConfig& config)
 
 // The candidates a cycle reported, as vision::draw_candidates draws them (with their part names
 // from `parts`: obj_id, name).
-vision::PipelineResult overlayCandidates(const CycleResult& result, const std::vector<std::pair<int, std::string>>& parts);
+vision::PipelineResult overlayCandidates(const CycleResult& result,
+                                         const std::vector<std::pair<int, std::string>>& parts);
 
 }  // namespace mfcd::daemon

@@ -13,7 +13,7 @@
 namespace mfcd::daemon {
 
 class RetainedJob {
-public:
+ public:
   // Before the cell's threads run frames: buffers for images of `format`.
   void allocate(const hal::ImageFormat& format);
   // Vision worker, after the cycle's result has been handed over: copies the slot's images, the
@@ -28,7 +28,7 @@ public:
   // The cycle's depth edges; nullptr when it had none (capture or vision failed).
   const cv::Mat1b* edges() const { return haveEdges_ ? &edges_ : nullptr; }
 
-private:
+ private:
   FrameSlot slot_;
   CycleResult result_;
   cv::Mat1b edges_;

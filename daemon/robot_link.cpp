@@ -28,7 +28,8 @@ void RobotLink::stop(std::chrono::milliseconds drain) {
   // The last report (a final job's result, READY 0) reaches every connected PLC before the
   // connections close.
   if (!modbus_->drain(drain))
-    logf(LogLevel::Notice, "stopping: a Modbus client did not poll within %lld ms", static_cast<long long>(drain.count()));
+    logf(LogLevel::Notice, "stopping: a Modbus client did not poll within %lld ms",
+         static_cast<long long>(drain.count()));
   modbus_->stop();
 }
 
@@ -54,10 +55,10 @@ motion::RobotPoseReading RobotLink::robot_pose() const noexcept {
 void RobotLink::describe(nlohmann::json& j) const {
   if (modbus_) {
     const auto s = modbus_->stats();
-    j["modbus"] = {{"port", modbus_->port()},         {"clients", s.clients_now},    {"requests", s.requests_answered},
-                   {"commands", s.commands_queued},   {"exceptions", s.exceptions_sent},
-                   {"idle_closed", s.connections_idle}, {"evicted", s.connections_evicted},
-                   {"dropped", s.connections_dropped}, {"serving", modbus_->serving()}};
+    j["modbus"] = {
+        {"port", modbus_->port()},          {"clients", s.clients_now},         {"requests", s.requests_answered},
+        {"commands", s.commands_queued},    {"exceptions", s.exceptions_sent},  {"idle_closed", s.connections_idle},
+        {"evicted", s.connections_evicted}, {"dropped", s.connections_dropped}, {"serving", modbus_->serving()}};
   }
   if (can_) j["can"] = {{"interface", can_config_.interface}, {"state", motion::to_string(can_->state())}};
 }

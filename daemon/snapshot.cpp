@@ -21,7 +21,8 @@ namespace {
 std::uintmax_t directorySize(const fs::path& dir) {
   std::uintmax_t total = 0;
   std::error_code ec;
-  for (auto it = fs::recursive_directory_iterator(dir, ec); !ec && it != fs::recursive_directory_iterator(); it.increment(ec))
+  for (auto it = fs::recursive_directory_iterator(dir, ec); !ec && it != fs::recursive_directory_iterator();
+       it.increment(ec))
     if (it->is_regular_file(ec)) total += it->file_size(ec);
   return total;
 }
@@ -31,11 +32,14 @@ std::uintmax_t directorySize(const fs::path& dir) {
 std::string spaceNote(const fs::path& dir) {
   std::error_code ec;
   const fs::space_info space = fs::space(dir, ec);
-  if (!ec && space.available < (1u << 20)) return ": no space left (" + std::to_string(space.available / 1024) + " kB free)";
+  if (!ec && space.available < (1u << 20))
+    return ": no space left (" + std::to_string(space.available / 1024) + " kB free)";
   return "";
 }
 
-std::string writeFailure(const fs::path& file) { return "cannot write " + file.string() + spaceNote(file.parent_path()); }
+std::string writeFailure(const fs::path& file) {
+  return "cannot write " + file.string() + spaceNote(file.parent_path());
+}
 
 void writePng(const fs::path& file, const cv::Mat& image) {
   bool ok = false;
@@ -50,7 +54,8 @@ void writePng(const fs::path& file, const cv::Mat& image) {
 void copyFile(const fs::path& from, const fs::path& to) {
   std::error_code ec;
   fs::copy_file(from, to, fs::copy_options::overwrite_existing, ec);
-  if (ec) throw std::runtime_error("snapshot: cannot copy " + from.string() + " to " + to.string() + ": " + ec.message());
+  if (ec)
+    throw std::runtime_error("snapshot: cannot copy " + from.string() + " to " + to.string() + ": " + ec.message());
 }
 
 // A new directory for cycle `cycle` saved now: <UTC time>-cycle<N>, with -2, -3, ... when the
@@ -123,7 +128,8 @@ std::string SnapshotWriter::save(const RetainedJob& job, const VisionStage* stag
   return dir.string();
 }
 
-void SnapshotWriter::writeFiles(const fs::path& dir, const RetainedJob& job, const VisionStage* stage, const char* reason) const {
+void SnapshotWriter::writeFiles(const fs::path& dir, const RetainedJob& job, const VisionStage* stage,
+                                const char* reason) const {
   const FrameSlot& slot = job.slot();
   const CycleResult& result = job.result();
   std::string replayable = replayError_;
@@ -135,7 +141,8 @@ void SnapshotWriter::writeFiles(const fs::path& dir, const RetainedJob& job, con
       if (const cv::Mat1b* edges = job.edges()) writePng(dir / "edges.png", *edges);
       // Overlay on the brightest-flash composite, where every outline is lit.
       cv::Mat composite = slot.mfc.flash[0].clone();
-      for (int k = 1; k < hal::kLedCount; ++k) cv::max(composite, cv::Mat(slot.mfc.flash[static_cast<std::size_t>(k)]), composite);
+      for (int k = 1; k < hal::kLedCount; ++k)
+        cv::max(composite, cv::Mat(slot.mfc.flash[static_cast<std::size_t>(k)]), composite);
       writePng(dir / "overlay.png", stage->overlay(cv::Mat1b(composite), overlayCandidates(result, stage->parts())));
     }
   } else {

@@ -19,7 +19,7 @@ class RetainedJob;
 class VisionStage;
 
 class SnapshotWriter {
-public:
+ public:
   // Reads what every snapshot of this configuration shares: the camera file and, when every
   // recipe names a template file, the replay manifest (the files' CRCs: read once, here). Never
   // throws: what cannot be had is recorded, and the snapshots say they are not replayable and why.
@@ -33,8 +33,9 @@ public:
   // Empty when snapshots are replayable; else why not.
   const std::string& notReplayable() const { return replayError_; }
 
-private:
-  void writeFiles(const std::filesystem::path& dir, const RetainedJob& job, const VisionStage* stage, const char* reason) const;
+ private:
+  void writeFiles(const std::filesystem::path& dir, const RetainedJob& job, const VisionStage* stage,
+                  const char* reason) const;
   void writeScene(const std::filesystem::path& dir, const RetainedJob& job) const;
 
   DaemonConfig config_;

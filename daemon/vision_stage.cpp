@@ -20,7 +20,8 @@ vision::PipelineConfig pipelineConfig(const DaemonConfig& config) {
       pc.template_files.push_back(*r.templates);
   }
   if (pc.template_files.empty())
-    throw std::runtime_error(config.source + ": recipes: no recipe names a template file; the vision pipeline has nothing to look for");
+    throw std::runtime_error(config.source +
+                             ": recipes: no recipe names a template file; the vision pipeline has nothing to look for");
   for (const auto& r : config.recipes)
     for (const GraspFeatureSetting& g : r.grasp_features) {
       vision::GraspFeature f;
@@ -30,7 +31,8 @@ vision::PipelineConfig pipelineConfig(const DaemonConfig& config) {
       f.max_tilt_deg = g.max_tilt_deg;
       pc.grasp_features.emplace_back(r.obj_id, f);
     }
-  if (config.vision.floor_check) pc.floor.distance_mm = config.pick.bin_floor_distance_mm;  // the camera looks straight down at it
+  if (config.vision.floor_check)
+    pc.floor.distance_mm = config.pick.bin_floor_distance_mm;  // the camera looks straight down at it
   return pc;
 }
 
@@ -39,7 +41,7 @@ vision::PipelineConfig pipelineConfig(const DaemonConfig& config) {
 namespace {
 
 class PipelineVisionStage final : public VisionStage {
-public:
+ public:
   PipelineVisionStage(const vision::CameraConfig& camera, vision::PipelineConfig config, std::string files)
       : pipeline_(camera, std::move(config)), files_(std::move(files)) {}
   void process(const VisionInput& in, vision::PipelineResult& out) override {
@@ -53,7 +55,7 @@ public:
   }
   std::string describe() const override { return "BinPickingPipeline (" + files_ + ")"; }
 
-private:
+ private:
   vision::BinPickingPipeline pipeline_;
   std::string files_;
   bool haveEdges_ = false;
@@ -87,7 +89,8 @@ std::unique_ptr<VisionStage> makePipelineStage(const DaemonConfig& config) {
 bool pipelineAvailable() { return false; }
 
 std::unique_ptr<VisionStage> makePipelineStage(const DaemonConfig&) {
-  throw std::runtime_error("this mfcd was built without vision/pipeline (target mfcd_vision_pipeline), so it has no vision backend");
+  throw std::runtime_error(
+      "this mfcd was built without vision/pipeline (target mfcd_vision_pipeline), so it has no vision backend");
 }
 
 #endif

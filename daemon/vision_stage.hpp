@@ -26,7 +26,7 @@ struct VisionInput {
 };
 
 class VisionStage {
-public:
+ public:
   virtual ~VisionStage() = default;
   // Fills `out` (its candidates vector has its capacity reserved once). Must not block past the
   // deadline by more than one stage; sets out.degraded when it cut work short.

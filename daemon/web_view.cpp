@@ -19,7 +19,8 @@ void WebView::update(json status, json last, json stats) {
   stats_ = std::move(stats);
 }
 
-void WebView::setCell(LatestFrame* frames, std::vector<std::pair<int, std::string>> parts, vision::CameraConfig camera) {
+void WebView::setCell(LatestFrame* frames, std::vector<std::pair<int, std::string>> parts,
+                      vision::CameraConfig camera) {
   std::lock_guard lock(frameMutex_);
   frames_ = frames;
   parts_ = std::move(parts);

@@ -20,7 +20,7 @@
 namespace mfcd::daemon {
 
 class WebView final : public WebData {
-public:
+ public:
   explicit WebView(std::filesystem::path snapshotDirectory);
 
   // --- main thread ---
@@ -37,7 +37,7 @@ public:
   bool image_png(const std::string& name, std::string& png) override;
   std::filesystem::path snapshot_file(const std::string& snapshot, const std::string& file) override;
 
-private:
+ private:
   const std::filesystem::path snapshotDir_;
   std::mutex jsonMutex_;
   nlohmann::json status_, last_, stats_;

@@ -31,7 +31,8 @@ constexpr double kEyeInHandPlate[6] = {450.0, -60.0, 15.0, 180.0, 0.0, 12.0};   
 
 std::string yamlPose(const double p[6]) {
   char s[200];
-  std::snprintf(s, sizeof s, "{x_mm: %g, y_mm: %g, z_mm: %g, rx_deg: %g, ry_deg: %g, rz_deg: %g}", p[0], p[1], p[2], p[3], p[4], p[5]);
+  std::snprintf(s, sizeof s, "{x_mm: %g, y_mm: %g, z_mm: %g, rx_deg: %g, ry_deg: %g, rz_deg: %g}", p[0], p[1], p[2],
+                p[3], p[4], p[5]);
   return s;
 }
 cv::Matx44d matrix(const double p[6]) { return calib::RobotPose{p[0], p[1], p[2], p[3], p[4], p[5]}.matrix(); }
@@ -42,9 +43,10 @@ std::string config(const fs::path& dir) {
     << "\n  lock_memory: false\n  realtime_priority: 0\n"
     << "camera:\n  model: camera.yaml\n"
     << "simulation:\n  calibration_plate:\n"
-    << "    eye_to_hand:\n      base_T_camera: " << yamlPose(kEyeToHandCamera) << "\n      flange_T_plate: " << yamlPose(kEyeToHandPlate)
-    << "\n    eye_in_hand:\n      flange_T_camera: " << yamlPose(kEyeInHandCamera) << "\n      base_T_plate: " << yamlPose(kEyeInHandPlate)
-    << "\nrecipes:\n  - {id: 0, part: any, obj_id: 0}\n"
+    << "    eye_to_hand:\n      base_T_camera: " << yamlPose(kEyeToHandCamera)
+    << "\n      flange_T_plate: " << yamlPose(kEyeToHandPlate)
+    << "\n    eye_in_hand:\n      flange_T_camera: " << yamlPose(kEyeInHandCamera)
+    << "\n      base_T_plate: " << yamlPose(kEyeInHandPlate) << "\nrecipes:\n  - {id: 0, part: any, obj_id: 0}\n"
     << "calibration:\n  board: 9x6\n  square_mm: 10\n"
     << "modbus:\n  bind_address: 127.0.0.1\n  port: 0\n"
     << "snapshots:\n  directory: " << (dir / "snapshots").string() << "\n  on_failure: false\n";
@@ -78,7 +80,7 @@ struct CtlResult {
 };
 
 class CalibrationE2E : public ::testing::Test {
-protected:
+ protected:
   void SetUp() override {
     proc = std::make_unique<DaemonProcess>("calib");
     fs::copy_file(MFC_SOURCE_DIR "/config/camera-sim.yaml", proc->dir() / "camera.yaml");
@@ -86,7 +88,8 @@ protected:
     proc->start(MFCD_TEST_DAEMON);
     if (!proc->waitReady()) {
       const std::string log = proc->log();
-      if (log.find("EGL") != std::string::npos || log.find("OpenGL") != std::string::npos) GTEST_SKIP() << "no offscreen OpenGL: " << log;
+      if (log.find("EGL") != std::string::npos || log.find("OpenGL") != std::string::npos)
+        GTEST_SKIP() << "no offscreen OpenGL: " << log;
       FAIL() << "mfcd did not become ready:\n" << log;
     }
     truth = mfcd::vision::load_camera_config(proc->dir() / "camera.yaml");
@@ -105,7 +108,9 @@ protected:
     while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) r.text.append(buf, n);
     const int status = ::pclose(p);
     r.exit = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    const auto at = r.text.rfind("\n{\n") != std::string::npos ? r.text.rfind("\n{\n") + 1 : r.text.rfind("{\n", 0) == 0 ? 0 : std::string::npos;
+    const auto at = r.text.rfind("\n{\n") != std::string::npos ? r.text.rfind("\n{\n") + 1
+                    : r.text.rfind("{\n", 0) == 0              ? 0
+                                                               : std::string::npos;
     if (at != std::string::npos) r.answer = json::parse(r.text.substr(at), nullptr, false);
     return r;
   }
@@ -150,7 +155,8 @@ TEST_F(CalibrationE2E, IntrinsicsRecoverTheSimulatedCameraAndApplyKeepsThePrevio
   std::mt19937 rng(7);
   const auto views = calib::random_plate_views(truth.camera, board, 20, truth.working_distance_mm, rng, 60, 0.7, 1.1);
   for (int i = 0; i < 2; ++i) {
-    r = ctl("calibrate capture --sim-plate-pose " + poseArg(calib::RobotPose::from_matrix(views[static_cast<size_t>(i)])));
+    r = ctl("calibrate capture --sim-plate-pose " +
+            poseArg(calib::RobotPose::from_matrix(views[static_cast<size_t>(i)])));
     ASSERT_EQ(r.exit, 0) << r.text;
     EXPECT_TRUE(r.answer["accepted"]);
   }
@@ -182,7 +188,8 @@ TEST_F(CalibrationE2E, IntrinsicsRecoverTheSimulatedCameraAndApplyKeepsThePrevio
     while (::poll(&p, 1, 0) == 0) {
       const auto s0 = std::chrono::steady_clock::now();
       const json st = proc->ctl({{"cmd", "status"}}, 5000);
-      slowestStatusMs = std::max(slowestStatusMs, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - s0).count());
+      slowestStatusMs = std::max(
+          slowestStatusMs, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - s0).count());
       ASSERT_TRUE(st["ok"]) << st.dump();
       ++statusRequests;
       if (st["calibration"].value("working", "") == "compute") ++statusWhileWorking;
@@ -190,8 +197,9 @@ TEST_F(CalibrationE2E, IntrinsicsRecoverTheSimulatedCameraAndApplyKeepsThePrevio
     }
     const double computeMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     ::close(fd);
-    std::printf("[ figures  ] intrinsics compute took %.0f ms; %d status requests answered meanwhile, slowest %.1f ms\n",
-                computeMs, statusWhileWorking, slowestStatusMs);
+    std::printf(
+        "[ figures  ] intrinsics compute took %.0f ms; %d status requests answered meanwhile, slowest %.1f ms\n",
+        computeMs, statusWhileWorking, slowestStatusMs);
     // Every status sent before compute answered says so (the last may cross its end).
     EXPECT_GE(statusWhileWorking, statusRequests - 1) << "status was not answered while compute ran";
     EXPECT_LT(slowestStatusMs, 250) << "the main loop waited for compute";
@@ -200,10 +208,12 @@ TEST_F(CalibrationE2E, IntrinsicsRecoverTheSimulatedCameraAndApplyKeepsThePrevio
   ASSERT_EQ(r.exit, 0) << r.text;
   const json k = r.answer["intrinsics"];
   const double fx = k["fx"], fy = k["fy"], cx = k["cx"], cy = k["cy"];
-  std::printf("[ figures  ] intrinsics from 20 daemon captures: fx %.3f (%+.3f%%) fy %.3f (%+.3f%%) cx %.3f (%+.3f%%) "
-              "cy %.3f (%+.3f%%), RMS %.4f px, 1-sigma %s px\n",
-              fx, 100 * (fx / truth.camera.fx() - 1), fy, 100 * (fy / truth.camera.fy() - 1), cx,
-              100 * (cx / truth.camera.cx() - 1), cy, 100 * (cy / truth.camera.cy() - 1), k["rms_px"].get<double>(), k["std_dev_px"].dump().c_str());
+  std::printf(
+      "[ figures  ] intrinsics from 20 daemon captures: fx %.3f (%+.3f%%) fy %.3f (%+.3f%%) cx %.3f (%+.3f%%) "
+      "cy %.3f (%+.3f%%), RMS %.4f px, 1-sigma %s px\n",
+      fx, 100 * (fx / truth.camera.fx() - 1), fy, 100 * (fy / truth.camera.fy() - 1), cx,
+      100 * (cx / truth.camera.cx() - 1), cy, 100 * (cy / truth.camera.cy() - 1), k["rms_px"].get<double>(),
+      k["std_dev_px"].dump().c_str());
   EXPECT_NEAR(fx, truth.camera.fx(), 0.005 * truth.camera.fx());
   EXPECT_NEAR(fy, truth.camera.fy(), 0.005 * truth.camera.fy());
   EXPECT_NEAR(cx, truth.camera.cx(), 0.005 * truth.camera.cx());
@@ -299,7 +309,8 @@ TEST_F(CalibrationE2E, DegenerateMotionAndAbortWriteNothing) {
   for (int i = 0; i < 8; ++i) {
     const cv::Matx33d R = calib::euler_to_rotation(0, 0, -30 + 8.0 * i);
     const cv::Matx44d T = calib::make_transform(R, cv::Vec3d(0, 0, 300) - R * centre);
-    const auto r = ctl("calibrate capture --pose " + poseArg(reported(calib::sim_flange_pose(calib::HandEyeMode::eye_to_hand, X, Y, T))));
+    const auto r = ctl("calibrate capture --pose " +
+                       poseArg(reported(calib::sim_flange_pose(calib::HandEyeMode::eye_to_hand, X, Y, T))));
     ASSERT_EQ(r.exit, 0) << r.text;
   }
   auto r = ctl("calibrate compute");

@@ -8,8 +8,8 @@
 
 #include "daemon/config.hpp"
 #include "daemon/frame_source.hpp"
-#include "vision/pipeline/pipeline_parameters.hpp"
 #include "vision/camera/camera.hpp"
+#include "vision/pipeline/pipeline_parameters.hpp"
 
 #include <unistd.h>
 
@@ -20,7 +20,8 @@ namespace {
 const std::vector<fs::path> kPath{MFC_SOURCE_DIR "/config", MFC_BINARY_DIR};
 
 // A minimal valid file; tests splice errors into it at known lines.
-std::string minimal(const std::string& extra = "", const std::string& recipes = "recipes:\n  - {id: 0, part: any, obj_id: 0}\n") {
+std::string minimal(const std::string& extra = "",
+                    const std::string& recipes = "recipes:\n  - {id: 0, part: any, obj_id: 0}\n") {
   return "camera:\n  model: camera-sim.yaml\n" + recipes + extra;
 }
 
@@ -92,7 +93,9 @@ TEST(Config, WrongTypeAndRangeNameKeyAndLine) {
 
 TEST(Config, RefinementIsOffUnlessAsked) {
   EXPECT_EQ(parseConfig(minimal(), "test.yaml", kPath).vision.pipeline.refine_candidates, 0);
-  EXPECT_EQ(parseConfig(minimal("vision:\n  refine_candidates: 2\n"), "test.yaml", kPath).vision.pipeline.refine_candidates, 2);
+  EXPECT_EQ(
+      parseConfig(minimal("vision:\n  refine_candidates: 2\n"), "test.yaml", kPath).vision.pipeline.refine_candidates,
+      2);
 }
 
 // The floor check needs a floor distance someone set: off unless asked; the tolerance is ranged.
@@ -124,8 +127,11 @@ TEST(Config, SearchRoundsAreOneUnlessAsked) {
 TEST(Config, EscalationThresholdIsThePipelinesUnlessSet) {
   EXPECT_EQ(parseConfig(minimal(), "test.yaml", kPath).vision.pipeline.escalate_below,
             mfcd::vision::PipelineConfig{}.escalate_below);
-  EXPECT_EQ(parseConfig(minimal("vision:\n  escalate_below: 0\n"), "test.yaml", kPath).vision.pipeline.escalate_below, 0.0);
-  EXPECT_EQ(parseConfig(minimal("vision:\n  escalate_below: 0.15\n"), "test.yaml", kPath).vision.pipeline.escalate_below, 0.15);
+  EXPECT_EQ(parseConfig(minimal("vision:\n  escalate_below: 0\n"), "test.yaml", kPath).vision.pipeline.escalate_below,
+            0.0);
+  EXPECT_EQ(
+      parseConfig(minimal("vision:\n  escalate_below: 0.15\n"), "test.yaml", kPath).vision.pipeline.escalate_below,
+      0.15);
   for (const char* bad : {"-0.1", "2.5", "high"}) {
     const ConfigError e = errorOf(minimal(std::string("vision:\n  escalate_below: ") + bad + "\n"));
     EXPECT_EQ(e.key(), "vision.escalate_below") << bad;
@@ -155,12 +161,12 @@ TEST(Config, VisionSectionIsThePipelinesParameterTable) {
     // A value in range other than the default: the maximum, or the minimum when that is the default.
     double v = std::isinf(p.max) ? p.min + 1 : p.max;
     if (v == p.default_value()) v = p.min;
-    const std::string text = p.type == PipelineParameter::Type::boolean ? (v != 0 ? "true" : "false")
-                                                                         : number_text(v);
-    const std::string extra = key == "fit_inlier_cost_px" ? "  fit_score_gate_px: 100\n"
-                              : key == "edges_low_threshold" ? "  edges_high_threshold: 8\n"
+    const std::string text = p.type == PipelineParameter::Type::boolean ? (v != 0 ? "true" : "false") : number_text(v);
+    const std::string extra = key == "fit_inlier_cost_px"     ? "  fit_score_gate_px: 100\n"
+                              : key == "edges_low_threshold"  ? "  edges_high_threshold: 8\n"
                               : key == "edges_high_threshold" ? "  edges_low_threshold: 0\n"
-                              : key == "fit_score_gate_px" ? "  fit_inlier_cost_px: 0.01\n" : "";
+                              : key == "fit_score_gate_px"    ? "  fit_inlier_cost_px: 0.01\n"
+                                                              : "";
     const DaemonConfig c = parseConfig(minimal("vision:\n  " + key + ": " + text + "\n" + extra), "test.yaml", kPath);
     EXPECT_EQ(p.get(c.vision.pipeline), v) << key;
     if (p.type != PipelineParameter::Type::boolean) {
@@ -178,8 +184,7 @@ TEST(Config, VisionSectionIsThePipelinesParameterTable) {
 // Search distances: a list of 1..4 numbers; an element out of range is named with its line.
 TEST(Config, SearchDistancesAreAListOfDistances) {
   EXPECT_TRUE(parseConfig(minimal(), "test.yaml", kPath).vision.pipeline.distances_mm.empty());
-  const DaemonConfig two =
-      parseConfig(minimal("vision:\n  search_distances_mm: [315, 299]\n"), "test.yaml", kPath);
+  const DaemonConfig two = parseConfig(minimal("vision:\n  search_distances_mm: [315, 299]\n"), "test.yaml", kPath);
   EXPECT_EQ(two.vision.pipeline.distances_mm, (std::vector<double>{315, 299}));
   ConfigError e = errorOf(minimal("vision:\n  search_distances_mm:\n    - 300\n    - 10\n"));
   EXPECT_EQ(e.key(), "vision.search_distances_mm");
@@ -229,7 +234,8 @@ TEST(Config, GraspFeaturesAreReadPerRecipe) {
   e = errorOf(minimal("", head + "      z_mm: 18\n"));
   EXPECT_EQ(e.key(), "recipes[0].grasp_features");
   EXPECT_NE(std::string(e.what()).find("list of 1 to 8"), std::string::npos) << e.what();
-  e = errorOf(minimal("", "recipes:\n  - id: 0\n    part: any\n    obj_id: 0\n    grasp_features:\n      - {z_mm: 1}\n"));
+  e = errorOf(
+      minimal("", "recipes:\n  - id: 0\n    part: any\n    obj_id: 0\n    grasp_features:\n      - {z_mm: 1}\n"));
   EXPECT_EQ(e.key(), "recipes[0].grasp_features");
   EXPECT_EQ(e.line(), 8);  // where the list starts
   EXPECT_NE(std::string(e.what()).find("obj_id 0"), std::string::npos) << e.what();
@@ -246,7 +252,8 @@ TEST(Config, MissingRequiredKeys) {
 }
 
 TEST(Config, MissingFileNamesTheSearchPath) {
-  const ConfigError e = errorOf(minimal("", "recipes:\n  - id: 3\n    part: wheel\n    obj_id: 6\n    mesh: parts/nope.stl\n"));
+  const ConfigError e =
+      errorOf(minimal("", "recipes:\n  - id: 3\n    part: wheel\n    obj_id: 6\n    mesh: parts/nope.stl\n"));
   EXPECT_EQ(e.key(), "recipes[0].mesh");
   EXPECT_EQ(e.line(), 7);
   const std::string what = e.what();
@@ -294,11 +301,13 @@ TEST(Config, RelativePathsResolveInSearchPathOrder) {
   const fs::path dir = fs::temp_directory_path() / ("mfcd-config-test-" + std::to_string(::getpid()));
   fs::create_directories(dir / "first");
   fs::create_directories(dir / "second");
-  fs::copy_file(MFC_SOURCE_DIR "/config/camera-sim.yaml", dir / "second" / "cam.yaml", fs::copy_options::overwrite_existing);
+  fs::copy_file(MFC_SOURCE_DIR "/config/camera-sim.yaml", dir / "second" / "cam.yaml",
+                fs::copy_options::overwrite_existing);
   const std::string text = "camera:\n  model: cam.yaml\nrecipes:\n  - {id: 0, part: any, obj_id: 0}\n";
   DaemonConfig c = parseConfig(text, "t", {dir / "first", dir / "second"});
   EXPECT_EQ(c.camera.model, dir / "second" / "cam.yaml");
-  fs::copy_file(MFC_SOURCE_DIR "/config/camera-sim.yaml", dir / "first" / "cam.yaml", fs::copy_options::overwrite_existing);
+  fs::copy_file(MFC_SOURCE_DIR "/config/camera-sim.yaml", dir / "first" / "cam.yaml",
+                fs::copy_options::overwrite_existing);
   c = parseConfig(text, "t", {dir / "first", dir / "second"});
   EXPECT_EQ(c.camera.model, dir / "first" / "cam.yaml") << "the config file's directory comes first";
 
@@ -356,8 +365,9 @@ TEST(Config, SimAndCellConfigsParse) {
   std::vector<std::pair<int, std::array<double, 8>>> configured;
   for (const auto& r : sim.recipes)
     for (const auto& g : r.grasp_features)
-      configured.push_back({r.obj_id, {g.x_mm, g.y_mm, g.z_mm, g.radius_mm, g.approach[0], g.approach[1], g.approach[2],
-                                       g.max_tilt_deg}});
+      configured.push_back(
+          {r.obj_id,
+           {g.x_mm, g.y_mm, g.z_mm, g.radius_mm, g.approach[0], g.approach[1], g.approach[2], g.max_tilt_deg}});
   EXPECT_EQ(configured, listed);
   EXPECT_EQ(configured.size(), 12u);
   EXPECT_GT(sim.pick.choice.weight_grasp, 0);
@@ -423,7 +433,8 @@ TEST(Config, HandEyeFromTheCameraFile) {
   cam.hand_eye = he;
   mfcd::vision::save_camera_config(cam, dir / "calibrated.yaml");
   const auto text = [&](const std::string& file, const std::string& he_extra) {
-    return "camera:\n  model: " + (dir / file).string() + "\nrecipes:\n  - {id: 0, part: any, obj_id: 0}\nhand_eye:\n" + he_extra;
+    return "camera:\n  model: " + (dir / file).string() + "\nrecipes:\n  - {id: 0, part: any, obj_id: 0}\nhand_eye:\n" +
+           he_extra;
   };
   const DaemonConfig c = parseConfig(text("calibrated.yaml", "  from_camera_file: true\n"), "test.yaml", kPath);
   EXPECT_NEAR(c.hand_eye.camera.translation().x(), 620, 1e-9);
@@ -445,10 +456,11 @@ TEST(Config, HandEyeFromTheCameraFile) {
 TEST(Config, AravisCameraAndCameraStrobe) {
   const std::string recipes = "recipes:\n  - {id: 0, part: any, obj_id: 0}\n";
   const std::string aravis = "camera:\n  model: camera-sim.yaml\n  type: aravis\n  device: Basler-21234567\n";
-  DaemonConfig c = parseConfig(aravis + "  gain: 2.5\n  packet_size: 8192\n" + recipes +
-                                   "lights:\n  type: camera\n  strobe_line: Line1\n  select_lines: [Line2, Line3, Line4]\n"
-                                   "  strobe_source: timer\n  strobe_pulse_us: 1500\n  active_low: true\n",
-                               "test.yaml", kPath);
+  DaemonConfig c =
+      parseConfig(aravis + "  gain: 2.5\n  packet_size: 8192\n" + recipes +
+                      "lights:\n  type: camera\n  strobe_line: Line1\n  select_lines: [Line2, Line3, Line4]\n"
+                      "  strobe_source: timer\n  strobe_pulse_us: 1500\n  active_low: true\n",
+                  "test.yaml", kPath);
   EXPECT_EQ(c.camera.type, CameraType::Aravis);
   EXPECT_EQ(c.camera.device, "Basler-21234567");
   ASSERT_TRUE(c.camera.gain);
@@ -498,7 +510,8 @@ TEST(Config, AravisCameraAndCameraStrobe) {
   } catch (const std::runtime_error& err) {
     EXPECT_NE(std::string(err.what()).find("lights.type"), std::string::npos) << err.what();
   }
-  c = parseConfig("camera:\n  model: camera-sim.yaml\n  type: v4l2\n" + recipes + "lights:\n  type: camera\n", "test.yaml", kPath);
+  c = parseConfig("camera:\n  model: camera-sim.yaml\n  type: v4l2\n" + recipes + "lights:\n  type: camera\n",
+                  "test.yaml", kPath);
   try {
     makeFrameSource(c);
     ADD_FAILURE() << "camera strobe without an aravis camera was accepted";

@@ -94,16 +94,20 @@ class ControlServerTest : public ::testing::Test {
 TEST_F(ControlServerTest, CommandsGoThroughTheTableWithTypedArguments) {
   Peer p(path);
   ASSERT_TRUE(p.connected());
-  json r = ask(p, R"({"cmd":"echo","text":"hi","n":3})" "\n");
+  json r = ask(p, R"({"cmd":"echo","text":"hi","n":3})"
+                  "\n");
   EXPECT_EQ(r["ok"], true);
   EXPECT_EQ(r["text"], "hi");
   EXPECT_EQ(r["n"], 3);
-  r = ask(p, R"({"cmd":"echo","n":11})" "\n");
+  r = ask(p, R"({"cmd":"echo","n":11})"
+             "\n");
   EXPECT_EQ(r["ok"], false);
   EXPECT_EQ(r["error"], "echo: n must be an integer 0..10");
-  r = ask(p, R"({"cmd":"echo","text":5})" "\n");
+  r = ask(p, R"({"cmd":"echo","text":5})"
+             "\n");
   EXPECT_EQ(r["error"], "echo: text must be a string");
-  r = ask(p, R"({"cmd":"nope"})" "\n");
+  r = ask(p, R"({"cmd":"nope"})"
+             "\n");
   EXPECT_EQ(r["error"], "unknown command 'nope' (boom, echo)");
   r = ask(p, "not json\n");
   EXPECT_NE(r["error"].get<std::string>().find("bad request (one JSON object per line)"), std::string::npos);
@@ -111,10 +115,12 @@ TEST_F(ControlServerTest, CommandsGoThroughTheTableWithTypedArguments) {
 
 TEST_F(ControlServerTest, AThrowingHandlerIsAnsweredAndTheServerGoesOn) {
   Peer p(path);
-  json r = ask(p, R"({"cmd":"boom"})" "\n");
+  json r = ask(p, R"({"cmd":"boom"})"
+                  "\n");
   EXPECT_EQ(r["ok"], false);
   EXPECT_EQ(r["error"], "request failed: exploded");
-  r = ask(p, R"({"cmd":"echo","text":"still here"})" "\n");
+  r = ask(p, R"({"cmd":"echo","text":"still here"})"
+             "\n");
   EXPECT_EQ(r["text"], "still here");
 }
 
@@ -125,7 +131,8 @@ TEST_F(ControlServerTest, InvalidUtf8IsAnsweredWithValidJson) {
   EXPECT_EQ(r["ok"], false);
   r = ask(p, "{\"cmd\":\"echo\",\"text\":\"caf\xe9\"}\n");  // Latin-1 é inside a string
   EXPECT_EQ(r["ok"], false);
-  r = ask(p, R"({"cmd":"echo","text":"ok"})" "\n");
+  r = ask(p, R"({"cmd":"echo","text":"ok"})"
+             "\n");
   EXPECT_EQ(r["text"], "ok");
 }
 
@@ -154,7 +161,9 @@ TEST_F(ControlServerTest, ClientsAreBoundedAndASlotFreesOnClose) {
   for (int i = 0; i < 5; ++i) loop.run_once(20);
   EXPECT_EQ(server.clients(), ControlServer::kMaxClients - 1);
   Peer next(path);
-  EXPECT_EQ(ask(next, R"({"cmd":"echo","text":"in"})" "\n")["text"], "in");
+  EXPECT_EQ(ask(next, R"({"cmd":"echo","text":"in"})"
+                      "\n")["text"],
+            "in");
 }
 
 TEST_F(ControlServerTest, OutOfDescriptorsRefusesTheNewcomerWithoutSpinning) {
@@ -183,7 +192,10 @@ TEST_F(ControlServerTest, OutOfDescriptorsRefusesTheNewcomerWithoutSpinning) {
   EXPECT_EQ(server.refused(), 1u);
   EXPECT_EQ(server.clients(), 0u);
   Peer later(path);
-  EXPECT_EQ(ask(later, R"({"cmd":"echo","text":"back"})" "\n")["text"], "back") << "the spare descriptor is back";
+  EXPECT_EQ(ask(later, R"({"cmd":"echo","text":"back"})"
+                       "\n")["text"],
+            "back")
+      << "the spare descriptor is back";
 }
 
 TEST(EventLoop, CallsReadySourcesInOrderAndSkipsOnesRemovedInTheRound) {

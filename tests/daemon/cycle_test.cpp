@@ -16,10 +16,10 @@
 #include "../hal/alloc_counter.hpp"
 #include "daemon/cell.hpp"
 #include "daemon/cycle_stats.hpp"
-#include "vision/camera/camera.hpp"
-#include "vision/camera/frame_undistorter.hpp"
 #include "run_cycle.hpp"
 #include "test_vision_stage.hpp"
+#include "vision/camera/camera.hpp"
+#include "vision/camera/frame_undistorter.hpp"
 
 using namespace mfcd::daemon;
 using namespace std::chrono_literals;
@@ -28,9 +28,11 @@ namespace {
 
 DaemonConfig patternConfig(int budgetMs) {
   // No recipe mesh: the simulated camera serves the HAL's test pattern (no OpenGL needed).
-  DaemonConfig c = parseConfig("camera:\n  model: camera-sim.yaml\nrecipes:\n  - {id: 0, part: any, obj_id: 0}\n"
-                               "daemon:\n  realtime_priority: 0\n  cycle_budget_ms: " + std::to_string(budgetMs) + "\n",
-                               "test", {MFC_SOURCE_DIR "/config"});
+  DaemonConfig c = parseConfig(
+      "camera:\n  model: camera-sim.yaml\nrecipes:\n  - {id: 0, part: any, obj_id: 0}\n"
+      "daemon:\n  realtime_priority: 0\n  cycle_budget_ms: " +
+          std::to_string(budgetMs) + "\n",
+      "test", {MFC_SOURCE_DIR "/config"});
   return c;
 }
 
@@ -112,7 +114,9 @@ TEST(Cycle, ABackendIgnoringTheDeadlineIsCountedAsOverrun) {
 
 TEST(Cycle, BackendFailureAtStartIsReportedAndThreadsJoined) {
   const DaemonConfig config = patternConfig(100);
-  Cell cell(config, [](const DaemonConfig&) -> std::unique_ptr<VisionStage> { throw std::runtime_error("templates/x.tdb: corrupt"); });
+  Cell cell(config, [](const DaemonConfig&) -> std::unique_ptr<VisionStage> {
+    throw std::runtime_error("templates/x.tdb: corrupt");
+  });
   try {
     cell.start();
     FAIL() << "start() should throw";
@@ -148,7 +152,7 @@ namespace {
 // The simulated camera's frames served as if by a real camera (no SimulatedWorld), so the Cell
 // undistorts them with the camera file's lens distortion.
 class AsRealCamera final : public FrameSource {
-public:
+ public:
   explicit AsRealCamera(std::unique_ptr<FrameSource> inner) : inner_(std::move(inner)) {}
   void activate() override { inner_->activate(); }
   void deactivate() noexcept override { inner_->deactivate(); }
@@ -157,7 +161,7 @@ public:
   mfcd::hal::LedMask leds() const override { return inner_->leds(); }
   std::string describe() const override { return "as real: " + inner_->describe(); }
 
-private:
+ private:
   std::unique_ptr<FrameSource> inner_;
 };
 }  // namespace
@@ -166,11 +170,15 @@ TEST(Cycle, NoAllocationOnTheFramePathInSteadyStateWithLensDistortion) {
   DaemonConfig config = patternConfig(1000);
   mfcd::vision::CameraConfig camera = mfcd::vision::load_camera_config(config.camera.model);
   camera.camera.distortion = {-0.2, 0.05, 0.001, -0.001, 0.0};
-  const std::filesystem::path file = std::filesystem::temp_directory_path() / ("mfcd-cycle-distorted-" + std::to_string(::getpid()) + ".yaml");
+  const std::filesystem::path file =
+      std::filesystem::temp_directory_path() / ("mfcd-cycle-distorted-" + std::to_string(::getpid()) + ".yaml");
   mfcd::vision::save_camera_config(camera, file);
   config.camera.model = file;
-  Cell cell(config, [](const DaemonConfig&) { return std::make_unique<test::TruthVisionStage>(1ms); },
-            [](const DaemonConfig& c) -> std::unique_ptr<FrameSource> { return std::make_unique<AsRealCamera>(makeFrameSource(c)); });
+  Cell cell(
+      config, [](const DaemonConfig&) { return std::make_unique<test::TruthVisionStage>(1ms); },
+      [](const DaemonConfig& c) -> std::unique_ptr<FrameSource> {
+        return std::make_unique<AsRealCamera>(makeFrameSource(c));
+      });
   cell.start();
   EXPECT_EQ(steadyStateAllocations(cell), 0u) << "acquisition, undistortion into the ring, vision worker, results";
   cell.stop();
@@ -190,7 +198,8 @@ TEST(Cycle, UndistortingCopyRemapsEveryImageIntoTheSlotAndKeepsTheMetadata) {
     from.frames[k].image.allocate(format);
     to.frames[k].image.allocate(format);
     for (int y = 0; y < 48; ++y)
-      for (int x = 0; x < 64; ++x) from.frames[k].image.row(y)[x] = static_cast<std::uint8_t>((x * 4 + y * 3 + static_cast<int>(k) * 17) & 0xff);
+      for (int x = 0; x < 64; ++x)
+        from.frames[k].image.row(y)[x] = static_cast<std::uint8_t>((x * 4 + y * 3 + static_cast<int>(k) * 17) & 0xff);
     from.frames[k].led = static_cast<int>(k);
     from.frames[k].onNs = 1000 + static_cast<std::int64_t>(k);
   }
@@ -235,8 +244,8 @@ TEST(Cycle, PatternCheckRefusesWrongLedStaleAndUntaggedFrames) {
   const auto expose = [&](std::uint64_t first) {
     hal::PatternSceneRenderer pattern;
     for (int k = 0; k <= hal::kLedCount; ++k)
-      pattern.render(k < hal::kLedCount ? hal::LedMask(1u << k) : hal::LedMask(0), first + static_cast<std::uint64_t>(k),
-                     images[static_cast<std::size_t>(k)]);
+      pattern.render(k < hal::kLedCount ? hal::LedMask(1u << k) : hal::LedMask(0),
+                     first + static_cast<std::uint64_t>(k), images[static_cast<std::size_t>(k)]);
   };
   mfcd::vision::MfcFrames frames;
   for (int k = 0; k < hal::kLedCount; ++k)
@@ -259,7 +268,8 @@ TEST(Cycle, PatternCheckRefusesWrongLedStaleAndUntaggedFrames) {
     EXPECT_EQ(out.candidates.size(), 1u);
     expose(109);
     EXPECT_EQ(process(stage), "") << "the next set";
-    EXPECT_NE(process(stage).find("flash0 has exposure index 109, not newer"), std::string::npos) << "the same set again: stale";
+    EXPECT_NE(process(stage).find("flash0 has exposure index 109, not newer"), std::string::npos)
+        << "the same set again: stale";
   }
   {
     test::TruthVisionStage stage(0ms, true, 0, true);
@@ -275,7 +285,8 @@ TEST(Cycle, PatternCheckRefusesWrongLedStaleAndUntaggedFrames) {
 // A pick reported failed after its cycle (Modbus PICK_RESULT): the kept frame set is saved until
 // the next cycle replaces it, then the request is answered with the reason.
 TEST(Cycle, KeptFrameSetIsSavedUntilTheNextCycleReplacesIt) {
-  const std::filesystem::path dir = std::filesystem::temp_directory_path() / ("mfcd-kept-" + std::to_string(::getpid()));
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("mfcd-kept-" + std::to_string(::getpid()));
   DaemonConfig config = patternConfig(1000);
   config.snapshots.directory = dir;
   Cell cell(config, [](const DaemonConfig&) { return std::make_unique<test::TruthVisionStage>(5ms, true, 0, true); });
@@ -286,8 +297,8 @@ TEST(Cycle, KeptFrameSetIsSavedUntilTheNextCycleReplacesIt) {
   ASSERT_NE(saved.snapshot_dir[0], '\0') << saved.message;
   EXPECT_EQ(saved.request.cycle_id, 1u);
   const std::filesystem::path snap = saved.snapshot_dir;
-  for (const char* f : {"test/000001/flash/000000_0.png", "test/000001/flash/000000_7.png", "test/000001/ambient/000000.png",
-                        "overlay.png", "result.json"})
+  for (const char* f : {"test/000001/flash/000000_0.png", "test/000001/flash/000000_7.png",
+                        "test/000001/ambient/000000.png", "overlay.png", "result.json"})
     EXPECT_TRUE(std::filesystem::exists(snap / f)) << f;
   const std::string json = readFile(snap / "result.json");
   EXPECT_NE(json.find("\"snapshot_reason\": \"pick result: missed (job 1, pick 1)\""), std::string::npos) << json;
@@ -325,7 +336,8 @@ TEST(CycleStats, PercentilesMatchASortedReference) {
       k = k == 0 ? 0 : k - 1;
       EXPECT_FLOAT_EQ(static_cast<float>(stats.percentileMs(p)), window[k]) << "p" << p << " n " << n;
     }
-    EXPECT_EQ(stats.overruns(), static_cast<std::uint64_t>(std::count_if(all.begin(), all.end(), [](float v) { return v > 150; })));
+    EXPECT_EQ(stats.overruns(),
+              static_cast<std::uint64_t>(std::count_if(all.begin(), all.end(), [](float v) { return v > 150; })));
     EXPECT_EQ(stats.cycles(), static_cast<std::uint64_t>(n));
   }
 }

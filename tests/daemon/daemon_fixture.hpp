@@ -12,14 +12,16 @@
 namespace mfcd::daemon::test {
 
 class DaemonFixture : public ::testing::Test {
-protected:
-  void startDaemon(const std::string& name, int budgetMs = 1000, std::vector<std::string> env = {}, const std::string& extra = "") {
+ protected:
+  void startDaemon(const std::string& name, int budgetMs = 1000, std::vector<std::string> env = {},
+                   const std::string& extra = "") {
     proc = std::make_unique<DaemonProcess>(name);
     proc->writeConfig(simCellConfig(proc->dir(), budgetMs, extra));
     proc->start(MFCD_TEST_DAEMON, {}, std::move(env));
     if (!proc->waitReady()) {
       const std::string log = proc->log();
-      if (log.find("EGL") != std::string::npos || log.find("OpenGL") != std::string::npos) GTEST_SKIP() << "no offscreen OpenGL: " << log;
+      if (log.find("EGL") != std::string::npos || log.find("OpenGL") != std::string::npos)
+        GTEST_SKIP() << "no offscreen OpenGL: " << log;
       FAIL() << "mfcd did not become ready:\n" << log;
     }
     port = proc->modbusPort();

@@ -34,17 +34,19 @@ inline std::string simCellConfig(const fs::path& dir, int budgetMs = 1000, const
                                  bool templates = false) {
   std::ostringstream s;
   s << "daemon:\n  cycle_budget_ms: " << budgetMs << "\n  control_socket: " << (dir / "ctl.sock").string()
-    << "\n  lock_memory: false\n  realtime_priority: 0\n" << extraDaemon
-    << "camera:\n  model: camera-sim.yaml\nsimulation:\n  parts_per_bin: 4\n  seed: 5\nrecipes:\n"
+    << "\n  lock_memory: false\n  realtime_priority: 0\n"
+    << extraDaemon << "camera:\n  model: camera-sim.yaml\nsimulation:\n  parts_per_bin: 4\n  seed: 5\nrecipes:\n"
     << "  - {id: 0, part: any, obj_id: 0}\n";
   // In the order of config/parts/parts.csv: obj_id = position + 1.
   const char* parts[] = {"breaker", "diamond", "ellipse", "tnut", "knob", "wheel"};
   for (int i = 0; i < 6; ++i) {
-    s << "  - {id: " << i + 1 << ", part: " << parts[i] << ", obj_id: " << i + 1 << ", mesh: parts/" << parts[i] << ".stl";
+    s << "  - {id: " << i + 1 << ", part: " << parts[i] << ", obj_id: " << i + 1 << ", mesh: parts/" << parts[i]
+      << ".stl";
     if (templates) s << ", templates: templates/" << parts[i] << ".tdb";
     s << "}\n";
   }
-  // A candidate's score is its fitted rank clamped to 0..1 (PoseCandidate::score): a correct match often scores 0.2-0.4.
+  // A candidate's score is its fitted rank clamped to 0..1 (PoseCandidate::score): a correct match often scores
+  // 0.2-0.4.
   s << "pick:\n  min_score: 0.1\n";
   s << "hand_eye:\n  base_T_camera: {x_mm: 500, y_mm: 0, z_mm: 800, rx_deg: 180, ry_deg: 0, rz_deg: 0}\n"
     << "modbus:\n  bind_address: 127.0.0.1\n  port: 0\n"
@@ -85,7 +87,7 @@ inline json ctlRequest(const fs::path& socket, const json& request, int timeoutM
 }
 
 class DaemonProcess {
-public:
+ public:
   explicit DaemonProcess(const std::string& name) {
     dir_ = fs::temp_directory_path() / ("mfcd-test-" + name + "-" + std::to_string(::getpid()));
     fs::remove_all(dir_);
@@ -174,7 +176,7 @@ public:
     return s.str();
   }
 
-private:
+ private:
   fs::path dir_;
   pid_t pid_ = -1;
   int exitCode_ = -1;

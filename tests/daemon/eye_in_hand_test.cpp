@@ -23,9 +23,10 @@ namespace {
 Eigen::Isometry3d poseOf(double x, double y, double z, double rx, double ry, double rz) {
   const double d = M_PI / 180;
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear() = (Eigen::AngleAxisd(rz * d, Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(ry * d, Eigen::Vector3d::UnitY()) *
-                Eigen::AngleAxisd(rx * d, Eigen::Vector3d::UnitX()))
-                   .toRotationMatrix();
+  T.linear() =
+      (Eigen::AngleAxisd(rz * d, Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(ry * d, Eigen::Vector3d::UnitY()) *
+       Eigen::AngleAxisd(rx * d, Eigen::Vector3d::UnitX()))
+          .toRotationMatrix();
   T.translation() = Eigen::Vector3d(x, y, z);
   return T;
 }
@@ -44,7 +45,8 @@ constexpr double kFlangeToCamera[6] = {10, -20, 150, 0, 0, 90};  // flange_T_cam
 
 std::string eyeInHandConfig(const fs::path& dir) {
   std::string c = simCellConfig(dir, 2000);
-  const std::string eyeToHand = "hand_eye:\n  base_T_camera: {x_mm: 500, y_mm: 0, z_mm: 800, rx_deg: 180, ry_deg: 0, rz_deg: 0}\n";
+  const std::string eyeToHand =
+      "hand_eye:\n  base_T_camera: {x_mm: 500, y_mm: 0, z_mm: 800, rx_deg: 180, ry_deg: 0, rz_deg: 0}\n";
   const auto at = c.find(eyeToHand);
   if (at == std::string::npos) return "";
   return c.replace(at, eyeToHand.size(),
@@ -62,7 +64,8 @@ TEST(EyeInHand, PickIsTransformedWithTheRobotPoseOfItsCapture) {
   proc.start(MFCD_TEST_DAEMON);
   if (!proc.waitReady()) {
     const std::string log = proc.log();
-    if (log.find("EGL") != std::string::npos || log.find("OpenGL") != std::string::npos) GTEST_SKIP() << "no offscreen OpenGL";
+    if (log.find("EGL") != std::string::npos || log.find("OpenGL") != std::string::npos)
+      GTEST_SKIP() << "no offscreen OpenGL";
     FAIL() << "mfcd did not become ready:\n" << log;
   }
   Client plc(proc.modbusPort());
@@ -79,7 +82,7 @@ TEST(EyeInHand, PickIsTransformedWithTheRobotPoseOfItsCapture) {
   ASSERT_EQ(modbus_write_registers(plc.ctx, reg::kCommand, 1, &reset), 1);
 
   const Eigen::Isometry3d flange_T_camera = poseOf(kFlangeToCamera[0], kFlangeToCamera[1], kFlangeToCamera[2],
-                                                  kFlangeToCamera[3], kFlangeToCamera[4], kFlangeToCamera[5]);
+                                                   kFlangeToCamera[3], kFlangeToCamera[4], kFlangeToCamera[5]);
   const double views[2][6] = {{400, 50, 600, 180, 0, 30}, {520, -80, 640, 175, 4, -60}};
   for (int v = 0; v < 2; ++v) {
     const std::uint16_t job = static_cast<std::uint16_t>(10 + v);
@@ -97,7 +100,8 @@ TEST(EyeInHand, PickIsTransformedWithTheRobotPoseOfItsCapture) {
     Eigen::Isometry3d cam_T_part = Eigen::Isometry3d::Identity();
     for (int i = 0; i < 9; ++i) cam_T_part.linear()(i / 3, i % 3) = c["R_cam"][i].get<double>();
     for (int i = 0; i < 3; ++i) cam_T_part.translation()(i) = c["t_cam_mm"][i].get<double>();
-    const Eigen::Isometry3d base_T_flange = poseOf(views[v][0], views[v][1], views[v][2], views[v][3], views[v][4], views[v][5]);
+    const Eigen::Isometry3d base_T_flange =
+        poseOf(views[v][0], views[v][1], views[v][2], views[v][3], views[v][4], views[v][5]);
     const Eigen::Vector3d expect = (base_T_flange * flange_T_camera * cam_T_part).translation();
     EXPECT_NEAR(r.f(reg::kPickX), expect.x(), 0.01) << "view " << v;
     EXPECT_NEAR(r.f(reg::kPickY), expect.y(), 0.01) << "view " << v;

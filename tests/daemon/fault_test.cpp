@@ -28,7 +28,8 @@ TEST(DaemonFaults, AFullDiskFailsTheSnapshotWithTheReasonAndLeavesNoHalfSnapshot
   proc.start(MFCD_TEST_DAEMON);
   if (!proc.waitReady()) {
     const std::string log = proc.log();
-    if (log.find("EGL") != std::string::npos || log.find("OpenGL") != std::string::npos) GTEST_SKIP() << "no offscreen OpenGL";
+    if (log.find("EGL") != std::string::npos || log.find("OpenGL") != std::string::npos)
+      GTEST_SKIP() << "no offscreen OpenGL";
     FAIL() << log;
   }
   const json snap = proc.ctl({{"cmd", "snapshot"}, {"recipe", 0}});

@@ -36,8 +36,8 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
-#include <chrono>
 #include <cerrno>
+#include <chrono>
 #include <cstdio>
 #include <cstring>
 #include <map>
@@ -101,7 +101,8 @@ UniqueFd connect_from(const std::string& source, const std::string& server, int 
     pollfd p{fd.get(), POLLOUT, 0};
     int err = 0;
     socklen_t len = sizeof err;
-    if (::poll(&p, 1, timeout_ms) != 1 || ::getsockopt(fd.get(), SOL_SOCKET, SO_ERROR, &err, &len) != 0 || err != 0) return {};
+    if (::poll(&p, 1, timeout_ms) != 1 || ::getsockopt(fd.get(), SOL_SOCKET, SO_ERROR, &err, &len) != 0 || err != 0)
+      return {};
   }
   const int flags = ::fcntl(fd.get(), F_GETFL);
   ::fcntl(fd.get(), F_SETFL, flags & ~O_NONBLOCK);  // libmodbus expects a blocking socket
@@ -207,12 +208,16 @@ int plc_main(const std::map<std::string, std::string>& o) {
       break;
     }
     if (regs[reg::kErrorCode - reg::kStatus] != 0) {
-      why = "job " + std::to_string(job) + " answered with error code " + std::to_string(regs[reg::kErrorCode - reg::kStatus]);
+      why = "job " + std::to_string(job) + " answered with error code " +
+            std::to_string(regs[reg::kErrorCode - reg::kStatus]);
       break;
     }
     served = true;
   }
-  const json line = {{"served", served}, {"after_s", seconds_since(start)}, {"attempts", attempts}, {"refused", refused},
+  const json line = {{"served", served},
+                     {"after_s", seconds_since(start)},
+                     {"attempts", attempts},
+                     {"refused", refused},
                      {"why", served ? "" : why}};
   std::printf("%s\n", line.dump().c_str());
   return served ? 0 : 1;
@@ -223,7 +228,9 @@ int plc_main(const std::map<std::string, std::string>& o) {
 int fd_count(pid_t pid) {
   int n = 0;
   std::error_code ec;
-  for (auto it = fs::directory_iterator("/proc/" + std::to_string(pid) + "/fd", ec); !ec && it != fs::directory_iterator(); ++it) ++n;
+  for (auto it = fs::directory_iterator("/proc/" + std::to_string(pid) + "/fd", ec);
+       !ec && it != fs::directory_iterator(); ++it)
+    ++n;
   return n;
 }
 
@@ -242,7 +249,7 @@ int shell(const std::string& command, std::string* output = nullptr) {
 // A child process with its stdin and stdout on pipes; stdin closed (EOF) and the child reaped when
 // this object goes, SIGKILL after 3 s if it has not exited by then.
 class Child {
-public:
+ public:
   explicit Child(const std::vector<std::string>& argv) {
     int in[2], out[2];
     if (::pipe2(in, O_CLOEXEC) != 0 || ::pipe2(out, O_CLOEXEC) != 0) throw std::runtime_error("pipe2 failed");
@@ -310,7 +317,7 @@ public:
   int exit_code() const { return exit_code_; }
   void close_stdin() { stdin_.reset(); }
 
-private:
+ private:
   pid_t pid_ = -1;
   int exit_code_ = -1;
   UniqueFd stdin_, stdout_;
@@ -345,7 +352,9 @@ LinkStats link_stats(const DaemonProcess& proc) {
 // ESTABLISHED TCP connections from `source` to server:port as the namespace's kernel sees them.
 int established_in_netns(const std::string& netns, const std::string& source, const std::string& server, int port) {
   std::string out;
-  shell("ip netns exec " + netns + " ss -Htn state established src " + source + " dst " + server + ":" + std::to_string(port), &out);
+  shell("ip netns exec " + netns + " ss -Htn state established src " + source + " dst " + server + ":" +
+            std::to_string(port),
+        &out);
   int n = 0;
   for (char c : out) n += c == '\n';
   return n;
@@ -365,10 +374,15 @@ std::vector<std::string> in_netns(const Setup& s, std::vector<std::string> args)
 // Both directions of the holder's address, inside the namespace (so the host is not touched); the
 // table goes with the namespace at the latest.
 bool drop_holder(const Setup& s, std::string& error) {
-  const std::string rules = "table inet mfcd_halfopen {\n"
-                            "  chain in { type filter hook input priority 0; policy accept; ip daddr " + s.holder_addr + " drop; }\n"
-                            "  chain out { type filter hook output priority 0; policy accept; ip saddr " + s.holder_addr + " drop; }\n"
-                            "}\n";
+  const std::string rules =
+      "table inet mfcd_halfopen {\n"
+      "  chain in { type filter hook input priority 0; policy accept; ip daddr " +
+      s.holder_addr +
+      " drop; }\n"
+      "  chain out { type filter hook output priority 0; policy accept; ip saddr " +
+      s.holder_addr +
+      " drop; }\n"
+      "}\n";
   const fs::path file = fs::temp_directory_path() / ("mfcd-halfopen-" + std::to_string(::getpid()) + ".nft");
   std::ofstream(file) << rules;
   const int rc = shell("ip netns exec " + s.netns + " nft -f " + file.string(), &error);
@@ -414,8 +428,8 @@ int wait_fds(pid_t pid, int want, double limit_s) {
 }
 
 json run_plc(const Setup& s) {
-  Child plc(in_netns(s, {"plc", "--server", s.host, "--port", std::to_string(s.port), "--source", s.plc_addr, "--within-s",
-                         std::to_string(kWithinS)}));
+  Child plc(in_netns(s, {"plc", "--server", s.host, "--port", std::to_string(s.port), "--source", s.plc_addr,
+                         "--within-s", std::to_string(kWithinS)}));
   const std::string line = plc.read_line(static_cast<int>(kWithinS * 1000) + 25000);
   try {
     return json::parse(line);
@@ -425,11 +439,13 @@ json run_plc(const Setup& s) {
 }
 
 void phase_idle(const Setup& s, DaemonProcess& proc, int fds_before, Checks& check) {
-  std::printf("--- phase 1: %d idle peers made half-open; the PLC reconnects from %s\n", kMaxClients, s.plc_addr.c_str());
+  std::printf("--- phase 1: %d idle peers made half-open; the PLC reconnects from %s\n", kMaxClients,
+              s.plc_addr.c_str());
   Child holder(in_netns(s, {"hold", "--server", s.host, "--port", std::to_string(s.port), "--source", s.holder_addr,
                             "--connections", std::to_string(kMaxClients)}));
   const std::string held = holder.read_line(15000);
-  check(held == "held " + std::to_string(kMaxClients), "the holder's " + std::to_string(kMaxClients) + " connections were served ('" + held + "')");
+  check(held == "held " + std::to_string(kMaxClients),
+        "the holder's " + std::to_string(kMaxClients) + " connections were served ('" + held + "')");
   if (held.empty()) return;
   const LinkStats before = link_stats(proc);
   check(before.clients == kMaxClients, "every slot taken: " + std::to_string(before.clients) + " clients");
@@ -448,24 +464,25 @@ void phase_idle(const Setup& s, DaemonProcess& proc, int fds_before, Checks& che
         "the PLC was served (a read and a whole job) within " + std::to_string(served_at) + " s of the drop (<= 30 s)");
   const LinkStats after_plc = link_stats(proc);
   check(after_plc.evicted == before.evicted + 1, "it took the slot of the idle-longest half-open peer (evicted +" +
-                                                    std::to_string(after_plc.evicted - before.evicted) + ")");
+                                                     std::to_string(after_plc.evicted - before.evicted) + ")");
 
   // The PLC has left; the other three half-open peers must go by keepalive / TCP_USER_TIMEOUT.
   const double gone_s = wait_clients(proc, 0, t_drop, kWithinS);
   std::printf("half-open peers closed by the server %.1f s after the drop\n", gone_s);
   check(gone_s >= 0, "the remaining half-open peers were closed within 30 s of the drop");
   const LinkStats after = link_stats(proc);
-  check(after.dropped - before.dropped == kMaxClients - 1,
-        "closed as dead (keepalive / user timeout: dropped +" + std::to_string(after.dropped - before.dropped) + ", want +" +
-            std::to_string(kMaxClients - 1) + ")");
+  check(after.dropped - before.dropped == kMaxClients - 1, "closed as dead (keepalive / user timeout: dropped +" +
+                                                               std::to_string(after.dropped - before.dropped) +
+                                                               ", want +" + std::to_string(kMaxClients - 1) + ")");
   check(after.idle_closed == before.idle_closed, "not by the idle timeout (idle_closed unchanged)");
   const bool holder_alive = holder.running();
   const int still_established = established_in_netns(s.netns, s.holder_addr, s.host, s.port);
-  check(holder_alive && still_established == kMaxClients,
-        "half-open: the holder is alive and its side still has " + std::to_string(still_established) + " of " +
-            std::to_string(kMaxClients) + " connections ESTABLISHED");
+  check(holder_alive && still_established == kMaxClients, "half-open: the holder is alive and its side still has " +
+                                                              std::to_string(still_established) + " of " +
+                                                              std::to_string(kMaxClients) + " connections ESTABLISHED");
   const int fds = wait_fds(proc.pid(), fds_before, 5);
-  check(fds == fds_before, "daemon descriptors back to " + std::to_string(fds_before) + " (now " + std::to_string(fds) + ")");
+  check(fds == fds_before,
+        "daemon descriptors back to " + std::to_string(fds_before) + " (now " + std::to_string(fds) + ")");
   holder.close_stdin();
   check(holder.wait_exit(5000) && holder.exit_code() == 0, "the holder ended cleanly");
   lift_drop(s);
@@ -476,10 +493,12 @@ void phase_mid_frame(const Setup& s, DaemonProcess& proc, int fds_before, Checks
   Child holder(in_netns(s, {"hold", "--server", s.host, "--port", std::to_string(s.port), "--source", s.holder_addr,
                             "--connections", std::to_string(kMaxClients), "--mid-frame"}));
   const std::string held = holder.read_line(15000);
-  check(held == "held " + std::to_string(kMaxClients), "the holder's mid-frame connections were served ('" + held + "')");
+  check(held == "held " + std::to_string(kMaxClients),
+        "the holder's mid-frame connections were served ('" + held + "')");
   if (held.empty()) return;
   const LinkStats before = link_stats(proc);
-  check(before.clients == kMaxClients, "every slot taken, each mid-frame: " + std::to_string(before.clients) + " clients");
+  check(before.clients == kMaxClients,
+        "every slot taken, each mid-frame: " + std::to_string(before.clients) + " clients");
   std::string error;
   const bool dropped = drop_holder(s, error);
   check(dropped, "nft drop rule" + (dropped ? "" : ": " + error));
@@ -490,17 +509,19 @@ void phase_mid_frame(const Setup& s, DaemonProcess& proc, int fds_before, Checks
   std::printf("PLC: %s\n", plc.dump().c_str());
   check(plc.value("served", false) && served_at <= kWithinS,
         "the PLC was served " + std::to_string(served_at) + " s after the drop (<= 30 s)");
-  check(plc.value("refused", 0) >= 1, "it was refused while every slot was mid-frame (" + std::to_string(plc.value("refused", 0)) +
-                                          " refusals; frame_timeout_ms " + std::to_string(kFrameTimeoutMs) + ")");
+  check(plc.value("refused", 0) >= 1, "it was refused while every slot was mid-frame (" +
+                                          std::to_string(plc.value("refused", 0)) + " refusals; frame_timeout_ms " +
+                                          std::to_string(kFrameTimeoutMs) + ")");
   const double gone_s = wait_clients(proc, 0, t_drop, kWithinS);
   check(gone_s >= 0, "every mid-frame half-open peer closed");
   const LinkStats after = link_stats(proc);
   check(after.dropped - before.dropped == kMaxClients,
-        "closed by the frame timeout (dropped +" + std::to_string(after.dropped - before.dropped) + "), none evicted (+" +
-            std::to_string(after.evicted - before.evicted) + ")");
+        "closed by the frame timeout (dropped +" + std::to_string(after.dropped - before.dropped) +
+            "), none evicted (+" + std::to_string(after.evicted - before.evicted) + ")");
   check(after.evicted == before.evicted, "no mid-frame client was evicted");
   const int fds = wait_fds(proc.pid(), fds_before, 5);
-  check(fds == fds_before, "daemon descriptors back to " + std::to_string(fds_before) + " (now " + std::to_string(fds) + ")");
+  check(fds == fds_before,
+        "daemon descriptors back to " + std::to_string(fds_before) + " (now " + std::to_string(fds) + ")");
   holder.close_stdin();
   check(holder.wait_exit(5000) && holder.exit_code() == 0, "the holder ended cleanly");
   lift_drop(s);
@@ -529,7 +550,8 @@ int run_main(const std::map<std::string, std::string>& o) {
   const std::string modbus = "modbus:\n  bind_address: 127.0.0.1\n  port: 0\n";
   config.replace(config.find(modbus), modbus.size(),
                  "modbus:\n  bind_address: " + s.host + "\n  port: 0\n  max_clients: " + std::to_string(kMaxClients) +
-                     "\n  frame_timeout_ms: " + std::to_string(kFrameTimeoutMs) + "\n  idle_timeout_ms: " + std::to_string(kIdleTimeoutMs) + "\n");
+                     "\n  frame_timeout_ms: " + std::to_string(kFrameTimeoutMs) +
+                     "\n  idle_timeout_ms: " + std::to_string(kIdleTimeoutMs) + "\n");
   proc.writeConfig(config);
   for (int sig : {SIGTERM, SIGINT, SIGHUP}) ::signal(sig, on_terminate);
   proc.start(need(o, "--daemon"));
@@ -541,8 +563,8 @@ int run_main(const std::map<std::string, std::string>& o) {
   }
   s.port = proc.modbusPort();
   const int fds_before = settled_fd_count(proc.pid());
-  std::printf("daemon pid %d on %s:%d, %d descriptors; max_clients %d, frame_timeout_ms %d, idle_timeout_ms %d\n", proc.pid(),
-              s.host.c_str(), s.port, fds_before, kMaxClients, kFrameTimeoutMs, kIdleTimeoutMs);
+  std::printf("daemon pid %d on %s:%d, %d descriptors; max_clients %d, frame_timeout_ms %d, idle_timeout_ms %d\n",
+              proc.pid(), s.host.c_str(), s.port, fds_before, kMaxClients, kFrameTimeoutMs, kIdleTimeoutMs);
   Checks check;
   phase_idle(s, proc, fds_before, check);
   phase_mid_frame(s, proc, fds_before, check);

@@ -227,7 +227,8 @@ TEST(JournalStream, MalformedValuesDoNotMatch) {
   for (const std::string& bad :
        {std::string(), std::string(":"), dev, dev + ":", ":" + ino, ino + ":" + dev, " " + dev + ":" + ino,
         dev + ":" + ino + " ", dev + ":" + ino + "\n", dev + " :" + ino, "+" + dev + ":" + ino, "-" + dev + ":" + ino,
-        dev + ":0x" + ino, dev + ":" + ino + ":0", dev + "/" + ino, "99999999999999999999999:" + ino, std::string("a:b")})
+        dev + ":0x" + ino, dev + ":" + ino + ":0", dev + "/" + ino, "99999999999999999999999:" + ino,
+        std::string("a:b")})
     EXPECT_FALSE(journalStreamMatches(bad.c_str(), file)) << "'" << bad << "'";
   ::close(file);
 }
@@ -264,9 +265,10 @@ TEST(JournalFields, NamesAreCheckedAsJournaldDoes) {
   for (const char* good : {"MESSAGE", "MFCD_CYCLE", "MFCD_ERROR_CODE", "A", "X9_", "PRIORITY"})
     EXPECT_TRUE(journalFieldNameValid(good)) << good;
   EXPECT_TRUE(journalFieldNameValid(std::string(64, 'A')));
-  for (const std::string& bad : {std::string(), std::string("mfcd_cycle"), std::string("Mfcd_Cycle"), std::string("_PID"),
-                                 std::string("1ABC"), std::string("MFCD-CYCLE"), std::string("MFCD CYCLE"),
-                                 std::string("MFCD=X"), std::string(65, 'A'), std::string("MFCD\nX")})
+  for (const std::string& bad :
+       {std::string(), std::string("mfcd_cycle"), std::string("Mfcd_Cycle"), std::string("_PID"), std::string("1ABC"),
+        std::string("MFCD-CYCLE"), std::string("MFCD CYCLE"), std::string("MFCD=X"), std::string(65, 'A'),
+        std::string("MFCD\nX")})
     EXPECT_FALSE(journalFieldNameValid(bad)) << bad;
   JournalFields f;
   EXPECT_FALSE(f.add("mfcd_cycle", "1"));
@@ -280,7 +282,8 @@ TEST(JournalFields, ValuesAreSanitisedToOneLine) {
   ASSERT_TRUE(f.add("MFCD_PART", "\xc2\xb5-part"));  // UTF-8 stays as it is
   ASSERT_TRUE(f.addf("MFCD_SCORE", "%.3f", 0.5));
   ASSERT_TRUE(f.add("EMPTY", ""));
-  EXPECT_EQ(asStrings(f), (Fields{"MESSAGE=camera failed EIO  again   end", "MFCD_PART=\xc2\xb5-part", "MFCD_SCORE=0.500", "EMPTY="}));
+  EXPECT_EQ(asStrings(f), (Fields{"MESSAGE=camera failed EIO  again   end", "MFCD_PART=\xc2\xb5-part",
+                                  "MFCD_SCORE=0.500", "EMPTY="}));
 }
 
 TEST(JournalFields, FullListDropsWholeFields) {
@@ -314,8 +317,8 @@ TEST(CycleJournalFields, ErrorResult) {
 TEST(CycleJournalFields, PickResult) {
   JournalFields f;
   cycleJournalFields(pickResult(18446744073709551615ull, 65535), f);
-  EXPECT_EQ(asStrings(f), (Fields{"MFCD_CYCLE=18446744073709551615", "MFCD_JOB_ID=65535", "MFCD_ERROR_CODE=0", "MFCD_PART=4",
-                                  "MFCD_SCORE=0.625"}));
+  EXPECT_EQ(asStrings(f), (Fields{"MFCD_CYCLE=18446744073709551615", "MFCD_JOB_ID=65535", "MFCD_ERROR_CODE=0",
+                                  "MFCD_PART=4", "MFCD_SCORE=0.625"}));
 }
 
 TEST(CycleJournalFields, ResultWithoutAPick) {
@@ -443,10 +446,11 @@ TEST(JournalLog, PlainLineUnchangedWithoutJournal) {
   logCycleResult(errorResult(41, 7));
   logCycleResult(pickResult(42, 8));
   logCycleResult(noPickResult(43, 9));
-  EXPECT_EQ(capture.text(), "mfcd[error]: cycle 41 (plc job 7 recipe 2): error 2: camera: VIDIOC_DQBUF failed\nEIO\n"
-                            "mfcd[info]: cycle 42 (plc job 8 recipe 3): pick obj 4 at 512.5 -20.0 130.3 / 180.0 0.0 -35.5 "
-                            "score 0.625, 3 found, 180 ms\n"
-                            "mfcd[notice]: cycle 43 (control job 9 recipe 1): no pick, 0 found, 96 ms\n");
+  EXPECT_EQ(capture.text(),
+            "mfcd[error]: cycle 41 (plc job 7 recipe 2): error 2: camera: VIDIOC_DQBUF failed\nEIO\n"
+            "mfcd[info]: cycle 42 (plc job 8 recipe 3): pick obj 4 at 512.5 -20.0 130.3 / 180.0 0.0 -35.5 "
+            "score 0.625, 3 found, 180 ms\n"
+            "mfcd[notice]: cycle 43 (control job 9 recipe 1): no pick, 0 found, 96 ms\n");
   EXPECT_FALSE(journal.receive(50));
 }
 
@@ -475,10 +479,14 @@ TEST(JournalLog, FallsBackToThePlainLineWhenJournaldIsGone) {
   logCycleResult(errorResult(41, 7));
   logCycleResult(noPickResult(43, 9));
   const std::string text = capture.text();
-  EXPECT_EQ(text, "mfcd[warning]: journal: a structured entry could not be sent (No such file or directory); such lines go "
-                  "to syslog without fields\n"
-                  "mfcd[error]: " + errorLine(41, 7) + "\n"
-                  "mfcd[notice]: " + noPickLine(43, 9) + "\n");
+  EXPECT_EQ(text,
+            "mfcd[warning]: journal: a structured entry could not be sent (No such file or directory); such lines go "
+            "to syslog without fields\n"
+            "mfcd[error]: " +
+                errorLine(41, 7) +
+                "\n"
+                "mfcd[notice]: " +
+                noPickLine(43, 9) + "\n");
   logOpenJournal(nullptr);
 }
 
@@ -553,9 +561,12 @@ TEST(JournalRoundTrip, JournalctlSelectsCyclesByTheirFields) {
   std::string section, mode;
   std::istringstream lines(out);
   for (std::string line; std::getline(lines, line);) {
-    if (line.rfind("== mode ", 0) == 0) mode = line.substr(8);
-    else if (line.rfind("== ", 0) == 0) section = line.substr(3);
-    else if (!line.empty() && line[0] == '{') sections[section].push_back(nlohmann::json::parse(line));
+    if (line.rfind("== mode ", 0) == 0)
+      mode = line.substr(8);
+    else if (line.rfind("== ", 0) == 0)
+      section = line.substr(3);
+    else if (!line.empty() && line[0] == '{')
+      sections[section].push_back(nlohmann::json::parse(line));
   }
   ASSERT_FALSE(mode.empty()) << out;
   std::printf("journald: %s\n", mode.c_str());
@@ -563,7 +574,9 @@ TEST(JournalRoundTrip, JournalctlSelectsCyclesByTheirFields) {
   // The three cycle lines, native entries with their fields, in order.
   const auto& entries = sections["entries"];
   ASSERT_EQ(entries.size(), 3u) << out;
-  const auto field = [](const nlohmann::json& e, const char* name) { return e.contains(name) ? e[name].get<std::string>() : "-"; };
+  const auto field = [](const nlohmann::json& e, const char* name) {
+    return e.contains(name) ? e[name].get<std::string>() : "-";
+  };
   for (std::size_t i = 0; i < 3; ++i) {
     EXPECT_EQ(field(entries[i], "_TRANSPORT"), "journal");
     EXPECT_EQ(field(entries[i], "SYSLOG_IDENTIFIER"), "mfcd");

@@ -65,7 +65,8 @@ inline CycleResult noPickResult(std::uint64_t cycle, std::uint16_t job) {
   return r;
 }
 inline std::string noPickLine(std::uint64_t cycle, std::uint16_t job) {
-  return "cycle " + std::to_string(cycle) + " (control job " + std::to_string(job) + " recipe 1): no pick, 0 found, 96 ms";
+  return "cycle " + std::to_string(cycle) + " (control job " + std::to_string(job) +
+         " recipe 1): no pick, 0 found, 96 ms";
 }
 
 }  // namespace mfcd::daemon::test

@@ -27,8 +27,8 @@
 #include <sys/socket.h>
 
 #include <algorithm>
-#include <cmath>
 #include <atomic>
+#include <cmath>
 #include <cstdio>
 #include <iostream>
 #include <mutex>
@@ -71,21 +71,36 @@ Options parse(int argc, char** argv) {
       if (i + 1 >= argc) throw std::invalid_argument(a + " needs a value");
       return argv[++i];
     };
-    if (a == "--daemon") o.daemon = value();
-    else if (a == "--seconds") o.seconds = std::stod(value());
-    else if (a == "--clients") o.clients = std::stoi(value());
-    else if (a == "--poll-ms") o.poll_ms = std::stoi(value());
-    else if (a == "--churn") o.churn = std::stoi(value());
-    else if (a == "--budget-ms") o.budget_ms = std::stoi(value());
-    else if (a == "--warmup-s") o.warmup_s = std::stod(value());
-    else if (a == "--max-rss-growth-kb") o.max_rss_growth_kb = std::stol(value());
-    else if (a == "--json") o.json_file = value();
-    else if (a == "--sighup-ms") o.sighup_ms = std::stoi(value());
-    else if (a == "--max-heartbeat-stand-s") o.max_heartbeat_stand_s = std::stod(value());
-    else if (a == "--jobs") o.jobs = std::stol(value());
-    else if (a == "--camera") o.camera = value();
-    else if (a == "--vision-ms") o.vision_ms = std::stoi(value());
-    else throw std::invalid_argument("unknown option " + a);
+    if (a == "--daemon")
+      o.daemon = value();
+    else if (a == "--seconds")
+      o.seconds = std::stod(value());
+    else if (a == "--clients")
+      o.clients = std::stoi(value());
+    else if (a == "--poll-ms")
+      o.poll_ms = std::stoi(value());
+    else if (a == "--churn")
+      o.churn = std::stoi(value());
+    else if (a == "--budget-ms")
+      o.budget_ms = std::stoi(value());
+    else if (a == "--warmup-s")
+      o.warmup_s = std::stod(value());
+    else if (a == "--max-rss-growth-kb")
+      o.max_rss_growth_kb = std::stol(value());
+    else if (a == "--json")
+      o.json_file = value();
+    else if (a == "--sighup-ms")
+      o.sighup_ms = std::stoi(value());
+    else if (a == "--max-heartbeat-stand-s")
+      o.max_heartbeat_stand_s = std::stod(value());
+    else if (a == "--jobs")
+      o.jobs = std::stol(value());
+    else if (a == "--camera")
+      o.camera = value();
+    else if (a == "--vision-ms")
+      o.vision_ms = std::stoi(value());
+    else
+      throw std::invalid_argument("unknown option " + a);
   }
   if (o.daemon.empty()) throw std::invalid_argument("--daemon PATH is required");
   if (o.clients < 0 || o.clients > 60) throw std::invalid_argument("--clients must be 0..60");
@@ -116,7 +131,9 @@ long rss_kb(pid_t pid) {
 int fd_count(pid_t pid) {
   int n = 0;
   std::error_code ec;
-  for (auto it = fs::directory_iterator("/proc/" + std::to_string(pid) + "/fd", ec); !ec && it != fs::directory_iterator(); ++it) ++n;
+  for (auto it = fs::directory_iterator("/proc/" + std::to_string(pid) + "/fd", ec);
+       !ec && it != fs::directory_iterator(); ++it)
+    ++n;
   return n;
 }
 
@@ -165,7 +182,8 @@ void poll_loop(int port, int poll_ms, const std::atomic<bool>& stop, PollerResul
       if (have_beat && beat != last_beat) {
         // Wraps 65535 -> 0; anything else that goes down is a fault.
         if (static_cast<std::uint16_t>(beat - last_beat) > 1000) ++out.heartbeat_backwards;
-        out.longest_heartbeat_stand_s = std::max(out.longest_heartbeat_stand_s, std::chrono::duration<double>(t1 - beat_changed).count());
+        out.longest_heartbeat_stand_s =
+            std::max(out.longest_heartbeat_stand_s, std::chrono::duration<double>(t1 - beat_changed).count());
         beat_changed = t1;
       }
       if (!have_beat) beat_changed = t1;
@@ -175,7 +193,8 @@ void poll_loop(int port, int poll_ms, const std::atomic<bool>& stop, PollerResul
     next += std::chrono::milliseconds(poll_ms);
     std::this_thread::sleep_until(next);
   }
-  out.longest_heartbeat_stand_s = std::max(out.longest_heartbeat_stand_s, std::chrono::duration<double>(Clock::now() - beat_changed).count());
+  out.longest_heartbeat_stand_s =
+      std::max(out.longest_heartbeat_stand_s, std::chrono::duration<double>(Clock::now() - beat_changed).count());
   modbus_close(ctx);
   modbus_free(ctx);
 }
@@ -368,9 +387,11 @@ int main(int argc, char** argv) {
   // median of the last quarter of the samples minus the median of the first quarter.
   const std::size_t quarter = std::max<std::size_t>(1, rss_after_warmup.size() / 4);
   const double rss_growth_kb =
-      rss_after_warmup.empty() ? 0.0
-                               : percentile({rss_after_warmup.end() - static_cast<std::ptrdiff_t>(quarter), rss_after_warmup.end()}, 50) -
-                                     percentile({rss_after_warmup.begin(), rss_after_warmup.begin() + static_cast<std::ptrdiff_t>(quarter)}, 50);
+      rss_after_warmup.empty()
+          ? 0.0
+          : percentile({rss_after_warmup.end() - static_cast<std::ptrdiff_t>(quarter), rss_after_warmup.end()}, 50) -
+                percentile({rss_after_warmup.begin(), rss_after_warmup.begin() + static_cast<std::ptrdiff_t>(quarter)},
+                           50);
   PollerResult all;
   for (const auto& p : pollers) {
     all.reads += p.reads;
@@ -379,32 +400,59 @@ int main(int argc, char** argv) {
     all.longest_heartbeat_stand_s = std::max(all.longest_heartbeat_stand_s, p.longest_heartbeat_stand_s);
     all.latency_ms.insert(all.latency_ms.end(), p.latency_ms.begin(), p.latency_ms.end());
   }
-  json j = {{"seconds", o.seconds}, {"elapsed_s", elapsed_s}, {"camera", o.camera}, {"vision_ms", o.vision_ms},
-            {"clients", o.clients}, {"poll_ms", o.poll_ms}, {"budget_ms", o.budget_ms},
-            {"reads", all.reads}, {"read_failures", all.failures},
-            {"read_latency_ms", {{"p50", percentile(all.latency_ms, 50)}, {"p99", percentile(all.latency_ms, 99)},
-                                 {"max", percentile(all.latency_ms, 100)}}},
-            {"heartbeat_backwards", all.heartbeat_backwards}, {"heartbeat_longest_stand_s", all.longest_heartbeat_stand_s},
-            {"jobs", plc.jobs}, {"jobs_answered", plc.answered.load()}, {"job_errors", plc.job_errors},
-            {"lost_jobs", plc.lost_jobs}, {"triggers_refused", plc.refused}, {"picks", plc.picks},
+  json j = {{"seconds", o.seconds},
+            {"elapsed_s", elapsed_s},
+            {"camera", o.camera},
+            {"vision_ms", o.vision_ms},
+            {"clients", o.clients},
+            {"poll_ms", o.poll_ms},
+            {"budget_ms", o.budget_ms},
+            {"reads", all.reads},
+            {"read_failures", all.failures},
+            {"read_latency_ms",
+             {{"p50", percentile(all.latency_ms, 50)},
+              {"p99", percentile(all.latency_ms, 99)},
+              {"max", percentile(all.latency_ms, 100)}}},
+            {"heartbeat_backwards", all.heartbeat_backwards},
+            {"heartbeat_longest_stand_s", all.longest_heartbeat_stand_s},
+            {"jobs", plc.jobs},
+            {"jobs_answered", plc.answered.load()},
+            {"job_errors", plc.job_errors},
+            {"lost_jobs", plc.lost_jobs},
+            {"triggers_refused", plc.refused},
+            {"picks", plc.picks},
             {"cycles_per_s", elapsed_s > 0 ? static_cast<double>(plc.answered.load()) / elapsed_s : 0.0},
             {"daemon_log", {{"errors", log_errors}, {"warnings", log_warnings}}},
-            {"cycle_ms", {{"p50", percentile(plc.cycle_ms, 50)}, {"p99", percentile(plc.cycle_ms, 99)}, {"max", percentile(plc.cycle_ms, 100)}}},
-            {"churn", o.churn}, {"churn_failures", churn_failures.load()}, {"reloads", reloads.load()},
-            {"control_requests", control_requests.load()}, {"control_failures", control_failures.load()},
-            {"rss_kb", {{"first_sample", rss_first}, {"after_warmup", rss_warm}, {"end", rss_last}, {"growth", rss_growth_kb},
-                        {"series", rss_series}}},
+            {"cycle_ms",
+             {{"p50", percentile(plc.cycle_ms, 50)},
+              {"p99", percentile(plc.cycle_ms, 99)},
+              {"max", percentile(plc.cycle_ms, 100)}}},
+            {"churn", o.churn},
+            {"churn_failures", churn_failures.load()},
+            {"reloads", reloads.load()},
+            {"control_requests", control_requests.load()},
+            {"control_failures", control_failures.load()},
+            {"rss_kb",
+             {{"first_sample", rss_first},
+              {"after_warmup", rss_warm},
+              {"end", rss_last},
+              {"growth", rss_growth_kb},
+              {"series", rss_series}}},
             {"fds", {{"before", fds_before}, {"after_warmup", fds_warm}, {"max", fds_max}, {"idle_after", fds_idle}}},
-            {"daemon_alive", alive}, {"exit_code", code ? *code : -1}};
+            {"daemon_alive", alive},
+            {"exit_code", code ? *code : -1}};
   std::vector<std::string> failed;
-  const auto check = [&](bool ok, const std::string& what) { if (!ok) failed.push_back(what); };
+  const auto check = [&](bool ok, const std::string& what) {
+    if (!ok) failed.push_back(what);
+  };
   check(alive && code && *code == 0, "the daemon ran to the end and stopped cleanly");
   check(all.failures == 0, "no failed read");
   check(all.heartbeat_backwards == 0 && all.longest_heartbeat_stand_s < o.max_heartbeat_stand_s,
         "HEARTBEAT monotone, never still for " + std::to_string(o.max_heartbeat_stand_s) + " s");
   check(plc.jobs > 0 && plc.job_errors == 0 && plc.lost_jobs == 0, "every job answered without error");
   check(o.jobs == 0 || plc.answered.load() >= o.jobs, "the --jobs count reached within --seconds");
-  check(o.camera != "pattern" || plc.picks == plc.answered.load() - plc.job_errors, "pattern camera: every job carries the stand-in pick");
+  check(o.camera != "pattern" || plc.picks == plc.answered.load() - plc.job_errors,
+        "pattern camera: every job carries the stand-in pick");
   check(log_errors == 0, "no error line in the daemon's log");
   check(percentile(plc.cycle_ms, 99) <= o.budget_ms, "cycle p99 within the budget");
   check(churn_failures == 0, "every churn connection served");
@@ -416,23 +464,28 @@ int main(int argc, char** argv) {
   std::printf("%s\n", text.c_str());
   if (!o.json_file.empty()) std::ofstream(o.json_file) << text << "\n";
   std::printf("\n| figure | value |\n|---|---|\n");
-  std::printf("| reads (%d clients every %d ms, %.0f s) | %ld, %ld failed |\n", o.clients, o.poll_ms, elapsed_s, all.reads, all.failures);
+  std::printf("| reads (%d clients every %d ms, %.0f s) | %ld, %ld failed |\n", o.clients, o.poll_ms, elapsed_s,
+              all.reads, all.failures);
   std::printf("| read latency p50 / p99 / max | %.2f / %.2f / %.2f ms |\n", percentile(all.latency_ms, 50),
               percentile(all.latency_ms, 99), percentile(all.latency_ms, 100));
   std::printf("| camera; test backend work time | %s; %d ms |\n", o.camera.c_str(), o.vision_ms);
-  std::printf("| jobs back to back | %ld, %ld errors, %ld lost; %ld with a pick |\n", plc.jobs, plc.job_errors, plc.lost_jobs,
-              plc.picks);
-  std::printf("| cycles per second | %.1f (%ld answered in %.0f s) |\n", elapsed_s > 0 ? static_cast<double>(plc.answered.load()) / elapsed_s : 0.0,
-              plc.answered.load(), elapsed_s);
+  std::printf("| jobs back to back | %ld, %ld errors, %ld lost; %ld with a pick |\n", plc.jobs, plc.job_errors,
+              plc.lost_jobs, plc.picks);
+  std::printf("| cycles per second | %.1f (%ld answered in %.0f s) |\n",
+              elapsed_s > 0 ? static_cast<double>(plc.answered.load()) / elapsed_s : 0.0, plc.answered.load(),
+              elapsed_s);
   std::printf("| daemon log | %ld error lines, %ld warning lines |\n", log_errors, log_warnings);
-  std::printf("| cycle p50 / p99 / max (budget %d ms) | %.0f / %.0f / %.0f ms |\n", o.budget_ms, percentile(plc.cycle_ms, 50),
-              percentile(plc.cycle_ms, 99), percentile(plc.cycle_ms, 100));
+  std::printf("| cycle p50 / p99 / max (budget %d ms) | %.0f / %.0f / %.0f ms |\n", o.budget_ms,
+              percentile(plc.cycle_ms, 50), percentile(plc.cycle_ms, 99), percentile(plc.cycle_ms, 100));
   std::printf("| HEARTBEAT longest stand | %.2f s |\n", all.longest_heartbeat_stand_s);
   std::printf("| churn connections | %d, %ld failed |\n", o.churn, churn_failures.load());
   if (o.sighup_ms > 0) std::printf("| reloads (SIGHUP every %d ms) | %ld |\n", o.sighup_ms, reloads.load());
-  std::printf("| daemon RSS first sample; after warm-up -> end; growth (median last - first quarter) | %ld; %ld -> %ld kB; %.0f kB |\n",
-              rss_first, rss_warm, rss_last, rss_growth_kb);
-  std::printf("| daemon fds before / after warm-up / max / idle after | %d / %d / %d / %d |\n", fds_before, fds_warm, fds_max, fds_idle);
+  std::printf(
+      "| daemon RSS first sample; after warm-up -> end; growth (median last - first quarter) | %ld; %ld -> %ld kB; "
+      "%.0f kB |\n",
+      rss_first, rss_warm, rss_last, rss_growth_kb);
+  std::printf("| daemon fds before / after warm-up / max / idle after | %d / %d / %d / %d |\n", fds_before, fds_warm,
+              fds_max, fds_idle);
   for (const auto& f : failed) std::printf("FAILED: %s\n", f.c_str());
   return failed.empty() ? 0 : 1;
 }

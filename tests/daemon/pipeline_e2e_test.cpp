@@ -75,7 +75,8 @@ TEST(PipelineE2E, RealMfcdPicksSimulatedPartsWithinToleranceAndBudget) {
     if (!(at(reg::kStatus) & reg::kPickValid)) {
       std::string found;
       for (const auto& c : last["candidates"])
-        found += " obj " + std::to_string(c["obj_id"].get<int>()) + " score " + std::to_string(c["score"].get<double>());
+        found +=
+            " obj " + std::to_string(c["obj_id"].get<int>()) + " score " + std::to_string(c["score"].get<double>());
       std::string truth;
       for (const auto& t : last["sim_truth"]) truth += " " + std::to_string(t["obj_id"].get<int>());
       ADD_FAILURE() << "job " << job << ": no pick; candidates:" << found << "; parts in the bin (obj ids):" << truth
@@ -87,14 +88,19 @@ TEST(PipelineE2E, RealMfcdPicksSimulatedPartsWithinToleranceAndBudget) {
     double best = 1e9, dxy = 0, dz = 0;
     int truthObj = 0;
     for (const auto& t : last["sim_truth"]) {
-      const double ex = t["base"]["x"].get<double>() - x, ey = t["base"]["y"].get<double>() - y, ez = t["base"]["z"].get<double>() - z;
+      const double ex = t["base"]["x"].get<double>() - x, ey = t["base"]["y"].get<double>() - y,
+                   ez = t["base"]["z"].get<double>() - z;
       const double d = std::sqrt(ex * ex + ey * ey + ez * ez);
       if (d < best) best = d, truthObj = t["obj_id"].get<int>(), dxy = std::hypot(ex, ey), dz = ez;
     }
-    std::printf("job %u: pick %.1f %.1f %.1f obj %d score %.2f; nearest part obj %d: %.2f mm (xy %.2f, z %+.2f); cycle %u ms%s\n",
-                job, x, y, z, last["pick"]["obj_id"].get<int>(), f(reg::kScore), truthObj, best, dxy, dz,
-                at(reg::kCycleTimeMs), last["degraded"].get<bool>() ? " degraded" : "");
-    if (dxy <= kLateralToleranceMm && std::abs(dz) <= kDepthToleranceMm && truthObj == last["pick"]["obj_id"].get<int>()) ++matched;
+    std::printf(
+        "job %u: pick %.1f %.1f %.1f obj %d score %.2f; nearest part obj %d: %.2f mm (xy %.2f, z %+.2f); cycle %u "
+        "ms%s\n",
+        job, x, y, z, last["pick"]["obj_id"].get<int>(), f(reg::kScore), truthObj, best, dxy, dz, at(reg::kCycleTimeMs),
+        last["degraded"].get<bool>() ? " degraded" : "");
+    if (dxy <= kLateralToleranceMm && std::abs(dz) <= kDepthToleranceMm &&
+        truthObj == last["pick"]["obj_id"].get<int>())
+      ++matched;
   }
   modbus_close(ctx);
   modbus_free(ctx);
@@ -168,8 +174,9 @@ TEST(PipelineE2E, SnapshotReplaysToTheSameCandidates) {
   const json result = snap["result"];
   ASSERT_FALSE(result["degraded"].get<bool>()) << "the cycle was cut short: nothing to compare";
   ASSERT_GT(result["candidates"].size(), 0u);
-  for (const char* f : {"mfcd_replay.json", "camera.json", "camera.yaml", "mfcd.yaml", "test/000001/scene_camera.json",
-                        "test/000001/scene_gt.json", "test/000001/flash/000000_7.png", "test/000001/ambient/000000.png"})
+  for (const char* f :
+       {"mfcd_replay.json", "camera.json", "camera.yaml", "mfcd.yaml", "test/000001/scene_camera.json",
+        "test/000001/scene_gt.json", "test/000001/flash/000000_7.png", "test/000001/ambient/000000.png"})
     EXPECT_TRUE(fs::exists(dir / f)) << f;
 
   const fs::path csv = proc.dir() / "replay_mfcsnap-test.csv";
@@ -183,7 +190,8 @@ TEST(PipelineE2E, SnapshotReplaysToTheSameCandidates) {
     const json& c = cands[i];
     EXPECT_EQ(replayed[i].obj_id, c["obj_id"].get<int>()) << "candidate " << i;
     EXPECT_NEAR(replayed[i].score, c["score"].get<double>(), 1e-4) << "candidate " << i;
-    for (int k = 0; k < 3; ++k) EXPECT_NEAR(replayed[i].t[k], c["t_cam_mm"][k].get<double>(), 1e-3) << "candidate " << i;
+    for (int k = 0; k < 3; ++k)
+      EXPECT_NEAR(replayed[i].t[k], c["t_cam_mm"][k].get<double>(), 1e-3) << "candidate " << i;
     for (int k = 0; k < 9; ++k) EXPECT_NEAR(replayed[i].R[k], c["R_cam"][k].get<double>(), 1e-5) << "candidate " << i;
   }
   proc.signal(SIGTERM);

@@ -13,10 +13,10 @@
 
 #include "daemon_fixture.hpp"
 #include "daemon_process.hpp"
-#include "tools/common/build_version.hpp"
-#include "plc_test_client.hpp"
 #include "motion/float_codec.hpp"
 #include "motion/register_map.hpp"
+#include "plc_test_client.hpp"
+#include "tools/common/build_version.hpp"
 
 using namespace mfcd::daemon::test;
 using namespace mfcd::motion;
@@ -28,7 +28,8 @@ namespace {
 double distanceToTruth(const json& last, float x, float y, float z, int* objId = nullptr) {
   double best = 1e9;
   for (const auto& t : last["sim_truth"]) {
-    const double d = std::hypot(t["base"]["x"].get<double>() - x, t["base"]["y"].get<double>() - y, t["base"]["z"].get<double>() - z);
+    const double d = std::hypot(t["base"]["x"].get<double>() - x, t["base"]["y"].get<double>() - y,
+                                t["base"]["z"].get<double>() - z);
     if (d < best) {
       best = d;
       if (objId) *objId = t["obj_id"].get<int>();
@@ -57,7 +58,8 @@ TEST_F(DaemonE2E, PlcTriggerPublishesThePickOfASimulatedPartWithinBudget) {
     const json last = proc->ctl({{"cmd", "last"}})["result"];
     ASSERT_EQ(last["job_id"], job);
     const float x = r.f(reg::kPickX), y = r.f(reg::kPickY), z = r.f(reg::kPickZ);
-    EXPECT_LT(distanceToTruth(last, x, y, z), 0.01) << "the published pick is a simulated part's pose in the base frame";
+    EXPECT_LT(distanceToTruth(last, x, y, z), 0.01)
+        << "the published pick is a simulated part's pose in the base frame";
     // Camera 800 mm above the base looking down, floor 330 mm below the camera.
     EXPECT_NEAR(z, 800 - 330, 30);
     EXPECT_NEAR(std::abs(r.f(reg::kPickRx)), 0, 1e-3) << "flat parts: gripper rotation about the base z only";
@@ -157,8 +159,8 @@ TEST_F(DaemonE2E, ClientDroppingMidTransactionDoesNotDisturbTheOthers) {
   ::close(fd);
   // A whole trigger (job 5), then gone before reading the answer: the job still runs.
   fd = rawConnect();
-  const std::uint8_t trig[] = {0x00, 0x02, 0x00, 0x00, 0x00, 0x0F, 0xFF, 0x10, 0x00, 0x00, 0x00, 0x04,
-                               0x08, 0x00, 0x01, 0x00, 0x05, 0x00, 0x00, 0x00, 0x00};
+  const std::uint8_t trig[] = {0x00, 0x02, 0x00, 0x00, 0x00, 0x0F, 0xFF, 0x10, 0x00, 0x00, 0x00,
+                               0x04, 0x08, 0x00, 0x01, 0x00, 0x05, 0x00, 0x00, 0x00, 0x00};
   ASSERT_EQ(::send(fd, trig, sizeof trig, MSG_NOSIGNAL), static_cast<ssize_t>(sizeof trig));
   ::close(fd);
   Client plc(port);
@@ -172,7 +174,7 @@ TEST_F(DaemonE2E, ClientDroppingMidTransactionDoesNotDisturbTheOthers) {
 
 TEST_F(DaemonE2E, ControlSocketStatusStatsSnapshotAndTheRealCli) {
   startDaemon("ctl");
-  struct stat st{};
+  struct stat st {};
   ASSERT_EQ(::stat(proc->socket().c_str(), &st), 0);
   EXPECT_EQ(st.st_mode & 0777, 0660u);
   json s = proc->ctl({{"cmd", "status"}});
@@ -184,8 +186,9 @@ TEST_F(DaemonE2E, ControlSocketStatusStatsSnapshotAndTheRealCli) {
   const json snap = proc->ctl({{"cmd", "snapshot"}, {"recipe", 0}});
   ASSERT_TRUE(snap["ok"]) << snap.dump();
   const fs::path dir = snap["snapshot"].get<std::string>();
-  for (const char* f : {"test/000001/flash/000000_0.png", "test/000001/flash/000000_7.png", "test/000001/ambient/000000.png",
-                        "test/000001/scene_camera.json", "edges.png", "overlay.png", "result.json"})
+  for (const char* f :
+       {"test/000001/flash/000000_0.png", "test/000001/flash/000000_7.png", "test/000001/ambient/000000.png",
+        "test/000001/scene_camera.json", "edges.png", "overlay.png", "result.json"})
     EXPECT_TRUE(fs::exists(dir / f)) << f;
   const json saved = json::parse(std::ifstream(dir / "result.json"));
   EXPECT_EQ(saved["cycle"], snap["result"]["cycle"]);
@@ -207,7 +210,7 @@ TEST_F(DaemonE2E, ControlSocketStatusStatsSnapshotAndTheRealCli) {
   // Bytes that are not UTF-8 come back in the error text: the reply must still be valid JSON
   // (invalid bytes replaced) and the daemon must go on answering.
   for (const std::string& raw : {std::string("\xff\n"), std::string("{\"cmd\": \"\xc3\x28\"}\n"),
-                                std::string("{\"cmd\": \"part\", \"recipe\": \"\xfe\"}\n")}) {
+                                 std::string("{\"cmd\": \"part\", \"recipe\": \"\xfe\"}\n")}) {
     const std::string answer = ctlLine(proc->socket(), raw);
     ASSERT_FALSE(answer.empty()) << "no answer to a request with invalid UTF-8";
     const json bad = json::parse(answer);
@@ -216,7 +219,8 @@ TEST_F(DaemonE2E, ControlSocketStatusStatsSnapshotAndTheRealCli) {
   EXPECT_EQ(proc->ctl({{"cmd", "status"}})["state"], "ready") << "the daemon survives invalid UTF-8";
 
   // mfcd-ctl itself.
-  const std::string cmd = std::string(MFCD_CTL) + " -s " + proc->socket().string() + " status > " + (proc->dir() / "cli.json").string();
+  const std::string cmd =
+      std::string(MFCD_CTL) + " -s " + proc->socket().string() + " status > " + (proc->dir() / "cli.json").string();
   EXPECT_EQ(std::system(cmd.c_str()), 0);
   const json cli = json::parse(std::ifstream(proc->dir() / "cli.json"));
   EXPECT_EQ(cli["recipe"], 3);
@@ -271,7 +275,8 @@ TEST_F(DaemonE2E, SighupReloadsWithoutDroppingTheModbusConnection) {
   // An invalid new configuration is refused, the running one kept.
   proc->writeConfig(simCellConfig(proc->dir(), 777) + "bogus_key: 1\n");
   proc->signal(SIGHUP);
-  for (int i = 0; i < 100 && proc->log().find("reload refused") == std::string::npos; ++i) std::this_thread::sleep_for(50ms);
+  for (int i = 0; i < 100 && proc->log().find("reload refused") == std::string::npos; ++i)
+    std::this_thread::sleep_for(50ms);
   const std::string log = proc->log();
   EXPECT_NE(log.find("reload refused, keeping the running configuration"), std::string::npos) << log;
   EXPECT_NE(log.find("mfcd.yaml:"), std::string::npos);
@@ -466,7 +471,8 @@ TEST_F(DaemonE2E, CanLinkDownDoesNotStopThePlcLink) {
 TEST_F(DaemonE2E, PlcClientDemoProgramPrintsEachPick) {
   startDaemon("plcclient");
   const fs::path out = proc->dir() / "plc.txt";
-  const std::string cmd = std::string(MFC_PLC_CLIENT) + " --port " + std::to_string(port) + " --cycles 3 --first-job 40 > " + out.string();
+  const std::string cmd =
+      std::string(MFC_PLC_CLIENT) + " --port " + std::to_string(port) + " --cycles 3 --first-job 40 > " + out.string();
   ASSERT_EQ(std::system(cmd.c_str()), 0);
   std::ifstream in(out);
   std::string line;
@@ -475,7 +481,8 @@ TEST_F(DaemonE2E, PlcClientDemoProgramPrintsEachPick) {
     unsigned job = 0, recipe = 0;
     float x, y, z, rx, ry, rz, score;
     unsigned ms = 0;
-    if (std::sscanf(line.c_str(), "%u %u %f %f %f %f %f %f %f %u", &job, &recipe, &x, &y, &z, &rx, &ry, &rz, &score, &ms) == 10) {
+    if (std::sscanf(line.c_str(), "%u %u %f %f %f %f %f %f %f %u", &job, &recipe, &x, &y, &z, &rx, &ry, &rz, &score,
+                    &ms) == 10) {
       EXPECT_EQ(job, 40u + static_cast<unsigned>(rows));
       EXPECT_NEAR(z, 470.0f, 30.0f);
       EXPECT_GT(score, 0.5f);

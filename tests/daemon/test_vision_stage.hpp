@@ -28,7 +28,7 @@
 namespace mfcd::daemon::test {
 
 class TruthVisionStage final : public VisionStage {
-public:
+ public:
   // failFirst: the first that many calls throw, as a failing vision stage does.
   explicit TruthVisionStage(std::chrono::milliseconds work, bool honourDeadline = true, int failFirst = 0,
                             bool check_pattern = false)
@@ -90,13 +90,14 @@ public:
   cv::Mat3b overlay(const cv::Mat1b& image, const vision::PipelineResult& result) const override {
     cv::Mat3b out;
     cv::cvtColor(image, out, cv::COLOR_GRAY2BGR);
-    for (const auto& c : result.candidates) cv::circle(out, {320 + int(c.t_m2c_mm[0]), 240 + int(c.t_m2c_mm[1])}, 5, {0, 0, 255}, 2);
+    for (const auto& c : result.candidates)
+      cv::circle(out, {320 + int(c.t_m2c_mm[0]), 240 + int(c.t_m2c_mm[1])}, 5, {0, 0, 255}, 2);
     return out;
   }
   std::string describe() const override { return "test backend: simulated ground truth"; }
   int calls = 0;
 
-private:
+ private:
   // Throws std::runtime_error naming the image and what is wrong with its tag. No allocation
   // unless it throws.
   void check_pattern_tags(const vision::MfcFrames& frames) {
@@ -109,8 +110,9 @@ private:
       std::uint64_t exposure = 0;
       for (int b = 0; b < 8; ++b) exposure |= std::uint64_t{image(0, 2 + b)} << (8 * b);
       if (lit != want_lit)
-        throw std::runtime_error(std::string("test backend: ") + name + std::to_string(index) + " was exposed with LED mask " +
-                                 std::to_string(lit) + ", expected " + std::to_string(want_lit));
+        throw std::runtime_error(std::string("test backend: ") + name + std::to_string(index) +
+                                 " was exposed with LED mask " + std::to_string(lit) + ", expected " +
+                                 std::to_string(want_lit));
       if (have_previous_ && exposure <= previous_newest_)
         throw std::runtime_error(std::string("test backend: ") + name + std::to_string(index) + " has exposure index " +
                                  std::to_string(exposure) + ", not newer than the previous frame set's " +

@@ -96,16 +96,18 @@ TEST(LatestFrame, TheReaderAlwaysTakesAWholeFrameAndNeverAnOlderOne) {
   }
   writer.join();
   EXPECT_EQ(last, static_cast<std::uint64_t>(kFrames)) << "the last frame reaches the reader";
-  std::printf("[ figures  ] %llu distinct frames taken of %d published\n", static_cast<unsigned long long>(taken), kFrames);
+  std::printf("[ figures  ] %llu distinct frames taken of %d published\n", static_cast<unsigned long long>(taken),
+              kFrames);
 }
 
 // The web view serves the cell's images while cycles run; the cell's threads allocate nothing
 // (the web server's threads, named mfcd-web*, may).
 TEST(WebView, FramePathDoesNotAllocateWhileABrowserPolls) {
-  DaemonConfig config = parseConfig("camera:\n  model: camera-sim.yaml\nrecipes:\n  - {id: 0, part: any, obj_id: 0}\n"
-                                    "daemon:\n  realtime_priority: 0\n  cycle_budget_ms: 1000\n"
-                                    "web:\n  enabled: true\n  port: 0\n",
-                                    "test", {MFC_SOURCE_DIR "/config", MFC_SOURCE_DIR});
+  DaemonConfig config = parseConfig(
+      "camera:\n  model: camera-sim.yaml\nrecipes:\n  - {id: 0, part: any, obj_id: 0}\n"
+      "daemon:\n  realtime_priority: 0\n  cycle_budget_ms: 1000\n"
+      "web:\n  enabled: true\n  port: 0\n",
+      "test", {MFC_SOURCE_DIR "/config", MFC_SOURCE_DIR});
   ASSERT_FALSE(config.web_root.empty());
   Cell cell(config, [](const DaemonConfig&) { return std::make_unique<test::TruthVisionStage>(20ms, true, 0, true); });
   cell.start();
@@ -147,7 +149,8 @@ TEST(WebView, FramePathDoesNotAllocateWhileABrowserPolls) {
   browser.join();
   server.stop();
   view.setCell(nullptr, {}, {});
-  EXPECT_EQ(allocations, 0u) << "acquisition, vision worker and results while the web view served " << images << " images";
+  EXPECT_EQ(allocations, 0u) << "acquisition, vision worker and results while the web view served " << images
+                             << " images";
   EXPECT_GE(images, 5) << "the browser's requests ran alongside the cycles";
   std::printf("[ figures  ] %d images served during 20 cycles\n", images);
 }
