@@ -32,15 +32,31 @@ const RecipeConfig* DaemonConfig::recipe(int id) const {
   return nullptr;
 }
 
+#ifdef MFCD_DEV_DATA_DIRS
+namespace {
+// True when this program runs from the build tree that compiled it. The package installs these
+// very binaries: an installed copy (a .../usr/bin/ program, also one installed under the build
+// tree by the package tests) must not look for a developer's files.
+bool runFromBuildTree() {
+  std::error_code ec;
+  const std::string exe = fs::read_symlink("/proc/self/exe", ec).string();
+  const std::string build = std::string(MFCD_BUILD_DIR) + "/";
+  return !ec && exe.rfind(build, 0) == 0 && exe.find("/usr/bin/", build.size() - 1) == std::string::npos;
+}
+}  // namespace
+#endif
+
 std::vector<fs::path> searchPath(const fs::path& configDir, const fs::path& dataDir) {
   std::vector<fs::path> path;
   if (!configDir.empty()) path.push_back(configDir);
   if (!dataDir.empty()) path.push_back(dataDir);
 #ifdef MFCD_DEV_DATA_DIRS
-  // Development runs from the build tree find the generated parts/templates and config/.
-  std::stringstream dev(MFCD_DEV_DATA_DIRS);
-  for (std::string dir; std::getline(dev, dir, ':');)
-    if (!dir.empty()) path.emplace_back(dir);
+  // Development runs from the build tree find the generated parts/templates, config/ and web/.
+  if (runFromBuildTree()) {
+    std::stringstream dev(MFCD_DEV_DATA_DIRS);
+    for (std::string dir; std::getline(dev, dir, ':');)
+      if (!dir.empty()) path.emplace_back(dir);
+  }
 #endif
   path.emplace_back("/var/lib/mfcd");
   path.emplace_back("/usr/share/mfcd");  // what the package ships (cell.yaml, camera-sim.yaml, web/)

@@ -401,6 +401,8 @@ int Daemon::run() {
     config_ = load();
   } catch (const std::exception& e) {
     logf(LogLevel::Error, "configuration: %s", e.what());
+    // --check-config is run by a person: the reason goes to the terminal, not only to the journal.
+    if (options_.checkConfig && !options_.foreground) std::fprintf(stderr, "mfcd: configuration: %s\n", e.what());
     return 2;
   }
   logSetLevel(config_.log_level);

@@ -52,6 +52,20 @@ for p in "$@"; do
 done
 echo "programs: $# run --help from the tree"
 
+# The installed mfcd does not search the build and source trees it was compiled in (the package
+# ships these very binaries): a relative camera file is looked for in the config's folder,
+# /var/lib/mfcd and /usr/share/mfcd only. The build tree's own mfcd finds it in config/.
+case " $* " in *" mfcd "*)
+  mkdir -p "$work/paths"
+  printf 'camera:\n  model: camera-sim.yaml\nrecipes:\n  - {id: 0, part: any, obj_id: 0}\n' > "$work/paths/mfcd.yaml"
+  out="$("$root/usr/bin/mfcd" --config "$work/paths/mfcd.yaml" --check-config 2>&1)" && fail "installed mfcd found camera-sim.yaml: $out"
+  echo "$out" | grep -q "not found in the search path ($work/paths, /var/lib/mfcd, /usr/share/mfcd)" ||
+    fail "installed mfcd's search path is not the config folder, /var/lib/mfcd, /usr/share/mfcd: $out"
+  "$build/daemon/mfcd" --config "$work/paths/mfcd.yaml" --check-config > /dev/null 2>&1 ||
+    fail "the build tree's mfcd does not find config/camera-sim.yaml"
+  echo "search path: the installed mfcd leaves the build tree out" ;;
+esac
+
 # systemd-analyze verify. Its --root (systemd 252 has it) would need the whole OS in the root
 # (sysinit.target, /bin/kill), so the installed unit is verified as a copy whose Exec lines name the
 # installed mfcd.
