@@ -5,6 +5,7 @@
 //             [--threads N] [--quiet]
 // Exit status: 0 written, 1 refused (model, camera, symmetry), 2 usage.
 #include "tools/common/cli.hpp"
+#include "vision/model/cad_reader.hpp"
 #include "vision/model/mesh.hpp"
 #include "vision/templates/template_teacher.hpp"
 
@@ -153,7 +154,7 @@ int main(int argc, char** argv) {
     mo.unit_mm = parse_unit_mm(o.unit);
     mo.tessellation = o.tessellation;
     MeshReport report;
-    const Mesh mesh = load_mesh(model, mo, &report);
+    const Mesh mesh = load_part(model, mo, &report);
     for (const auto& w : report.warnings)
       std::fprintf(stderr, "mfc-teach: %s: warning: %s\n", model.c_str(), w.c_str());
     const CameraConfig cam = load_camera_config(o.camera);

@@ -153,4 +153,14 @@ Mesh read_cad(const std::filesystem::path& file, const CadTessellation& t) {
   return mesh;
 }
 
+Mesh load_part(const std::filesystem::path& file, const MeshLoadOptions& options, MeshReport* report) {
+  if (!is_cad_file(file)) return load_mesh(file, options, report);
+  const std::string src = file.string();
+  if (!std::filesystem::exists(file)) throw std::runtime_error(src + ": no such file");
+  // A CAD exchange file states its length unit; OCCT converts to millimetres.
+  if (options.unit_mm != 1.0)
+    throw std::runtime_error(src + ": a STEP or IGES file carries its own length unit; give no other unit for it");
+  return finish_loading(read_cad(file, options.tessellation), options, report, src);
+}
+
 }  // namespace mfcd::vision

@@ -1,5 +1,4 @@
 #include "vision/model/mesh.hpp"
-#include "vision/model/cad_reader.hpp"
 #include "vision/model/ply_reader.hpp"
 
 #include <assimp/Importer.hpp>
@@ -115,8 +114,6 @@ MeshReport validate_mesh(const Mesh& mesh, const MeshLoadOptions& options, const
   return r;
 }
 
-namespace {
-
 // What every format's loader ends with: shared vertices welded, the mesh validated, findings
 // reported (to `report`, else syslog).
 Mesh finish_loading(Mesh mesh, const MeshLoadOptions& options, MeshReport* report, const std::string& src) {
@@ -129,8 +126,6 @@ Mesh finish_loading(Mesh mesh, const MeshLoadOptions& options, MeshReport* repor
   return mesh;
 }
 
-}  // namespace
-
 Mesh load_mesh(const std::filesystem::path& file, const MeshLoadOptions& options, MeshReport* report) {
   const std::string src = file.string();
   if (!(options.unit_mm > 0) || !std::isfinite(options.unit_mm))
@@ -139,12 +134,9 @@ Mesh load_mesh(const std::filesystem::path& file, const MeshLoadOptions& options
   std::string ext = file.extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   if (ext == ".ply") return finish_loading(read_ply(file, static_cast<float>(options.unit_mm)), options, report, src);
-  if (is_cad_file(file)) {
-    // A CAD exchange file states its length unit; OCCT converts to millimetres.
-    if (options.unit_mm != 1.0)
-      throw std::runtime_error(src + ": a STEP or IGES file carries its own length unit; give no other unit for it");
-    return finish_loading(read_cad(file, options.tessellation), options, report, src);
-  }
+  if (ext == ".step" || ext == ".stp" || ext == ".iges" || ext == ".igs")
+    throw std::runtime_error(src + ": STEP and IGES parts are read by load_part (vision/model/cad_reader.hpp, OCCT), "
+                                   "as mfc-teach does");
   // assimp reads some 40 formats, most of them never meant for a part model; only its STL and
   // OBJ importers are used, chosen by the extension (assimp sniffs the content only for an
   // extension no importer claims, and refuses a file its extension's importer cannot read).

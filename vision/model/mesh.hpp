@@ -38,8 +38,8 @@ struct MeshLoadOptions {
   // they almost always mean a wrong unit.
   double min_size_mm = 1.0;
   double max_size_mm = 2000.0;
-  // STEP and IGES: how their surfaces become triangles (cad_reader.hpp). Their length unit comes
-  // from the file; unit_mm must stay 1 for them.
+  // STEP and IGES (load_part, cad_reader.hpp): how their surfaces become triangles. Their length
+  // unit comes from the file; unit_mm must stay 1 for them.
   CadTessellation tessellation;
 };
 
@@ -54,14 +54,19 @@ struct MeshReport {
   std::vector<std::string> warnings;
 };
 
-// Loads an STL (ASCII or binary) or OBJ with assimp, a PLY (ASCII or binary) with read_ply
-// (vision/model/ply_reader.hpp), or a STEP or IGES file with read_cad (vision/model/cad_reader.hpp,
-// tessellated as options.tessellation says), merges all its meshes into one, scales to mm, welds
-// identical vertices and validates. The extension (.stl, .obj, .ply, .step, .stp, .iges, .igs, any
-// case) picks the reader; any other is refused. Throws std::runtime_error naming the file on an unsupported extension, an
+// Loads an STL (ASCII or binary) or OBJ with assimp, or a PLY (ASCII or binary) with read_ply
+// (vision/model/ply_reader.hpp), merges all its meshes into one, scales to mm, welds identical
+// vertices and validates. The extension (.stl, .obj, .ply, any case) picks the reader; any other is
+// refused (STEP and IGES with a pointer to load_part, vision/model/cad_reader.hpp: OCCT is a
+// library of its own, linked only by what reads a user's CAD). Throws std::runtime_error naming the file on an unsupported extension, an
 // unreadable, empty or absurdly sized mesh, a face index outside the vertices or a non-finite
 // vertex; non-manifold geometry only adds warnings to *report (and to syslog when report is null).
 Mesh load_mesh(const std::filesystem::path& file, const MeshLoadOptions& options = {}, MeshReport* report = nullptr);
+
+// What every loader ends with: checks indices and coordinates, welds identical vertices and
+// validates (validate_mesh; its warnings to *report, or to syslog when report is null). Throws as
+// load_mesh does, naming `source`.
+Mesh finish_loading(Mesh mesh, const MeshLoadOptions& options, MeshReport* report, const std::string& source);
 
 // Checks topology and size. Throws on an empty mesh, bad indices, non-finite vertices or
 // a size outside the options' range; returns the topology findings.

@@ -2,6 +2,10 @@
 // with a hole through it, an assembly of two placed solids, a box in inches), read back by
 // load_mesh and checked against the analytic shapes: size, volume, closed and outward, the
 // chordal tolerance kept; and malformed files refused with the reason.
+//
+// OCCT keeps one-time allocations in its libraries' static state (readers' and writers' editors
+// and controllers) and never frees them: LeakSanitizer is told to leave allocations whose stack
+// passes through OCCT alone; a leak of ours still shows.
 #include "vision/model/cad_reader.hpp"
 #include "vision/model/mesh.hpp"
 
@@ -29,6 +33,12 @@
 
 using namespace mfcd::vision;
 namespace fs = std::filesystem;
+
+extern "C" const char* __lsan_default_suppressions() {
+  return "leak:libTKernel.so\nleak:libTKXSBase.so\nleak:libTKSTEP\nleak:libTKIGES.so\nleak:libTKXSBase\n"
+         "leak:libTKBRep.so\nleak:libTKMesh.so\nleak:libTKG3d.so\nleak:libTKGeomBase.so\nleak:libTKPrim.so\n"
+         "leak:libTKBO.so\nleak:libTKTopAlgo.so\nleak:libTKShHealing.so\nleak:libTKMath.so\nleak:libTKG2d.so\n";
+}
 
 namespace {
 
@@ -73,7 +83,7 @@ TEST(CadReader, StepBoxIsClosedOutwardAndExact) {
   TempDir tmp;
   write_step(BRepPrimAPI_MakeBox(30, 20, 10).Shape(), tmp.path / "box.step");
   MeshReport report;
-  const Mesh m = load_mesh(tmp.path / "box.step", {}, &report);
+  const Mesh m = load_part(tmp.path / "box.step", {}, &report);
   EXPECT_EQ(report.open_edges, 0u) << "faces share their edges' vertices: watertight after welding";
   EXPECT_EQ(report.non_manifold_edges, 0u);
   EXPECT_EQ(m.vertices.size(), 8u);
@@ -92,7 +102,7 @@ TEST(CadReader, CylinderWithAHoleKeepsTheChordalTolerance) {
     o.tessellation.chordal_tolerance_mm = tol;
     o.tessellation.angular_tolerance_deg = 90;  // the chordal tolerance alone decides
     MeshReport report;
-    const Mesh m = load_mesh(tmp.path / "bushing.STP", o, &report);
+    const Mesh m = load_part(tmp.path / "bushing.STP", o, &report);
     EXPECT_EQ(report.open_edges, 0u) << "tolerance " << tol;
     const double exact = M_PI * (R * R - r * r) * h;
     // Chords lie inside the outer wall and outside the hole's: the mesh's volume is smaller, by at
@@ -126,7 +136,7 @@ TEST(CadReader, AnAssemblyOfTwoSolidsKeepsTheirPlacements) {
   b.Add(both, BRepBuilderAPI_Transform(cylinder_with_hole(6, 2, 8), moved).Shape());
   write_step(both, tmp.path / "assembly.step");
   MeshReport report;
-  const Mesh m = load_mesh(tmp.path / "assembly.step", {}, &report);
+  const Mesh m = load_part(tmp.path / "assembly.step", {}, &report);
   EXPECT_EQ(report.open_edges, 0u);
   EXPECT_NEAR(m.bbox_min()[0], 0, 1e-4);
   EXPECT_NEAR(m.bbox_max()[0], 56, 1e-4) << "the second solid at x = 50, radius 6";
@@ -141,17 +151,28 @@ TEST(CadReader, UnitsComeFromTheFile) {
   std::stringstream text;
   text << in.rdbuf();
   ASSERT_NE(text.str().find("INCH"), std::string::npos) << "the file is written in inches";
-  const Mesh m = load_mesh(tmp.path / "inch.step");
+  const Mesh m = load_part(tmp.path / "inch.step");
   EXPECT_NEAR(m.bbox_max()[0], 25.4, 1e-3);
   EXPECT_NEAR(m.bbox_max()[1], 50.8, 1e-3);
   EXPECT_NEAR(m.bbox_max()[2], 12.7, 1e-3);
   MeshLoadOptions o;
   o.unit_mm = 25.4;
   try {
-    load_mesh(tmp.path / "inch.step", o);
+    load_part(tmp.path / "inch.step", o);
     ADD_FAILURE() << "a unit given for a STEP file was accepted";
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("carries its own length unit"), std::string::npos) << e.what();
+  }
+}
+
+TEST(CadReader, LoadMeshPointsToLoadPart) {
+  TempDir tmp;
+  write_step(BRepPrimAPI_MakeBox(5, 5, 5).Shape(), tmp.path / "box.step");
+  try {
+    load_mesh(tmp.path / "box.step");
+    ADD_FAILURE() << "load_mesh read a STEP file";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("load_part"), std::string::npos) << e.what();
   }
 }
 
@@ -162,7 +183,7 @@ TEST(CadReader, IgesToo) {
   writer.AddShape(BRepPrimAPI_MakeBox(12, 8, 4).Shape());
   writer.ComputeModel();
   ASSERT_TRUE(writer.Write((tmp.path / "box.igs").c_str()));
-  const Mesh m = load_mesh(tmp.path / "box.igs");
+  const Mesh m = load_part(tmp.path / "box.igs");
   EXPECT_NEAR(m.bbox_max()[0], 12, 1e-4);
   EXPECT_NEAR(std::abs(volume(m)), 12 * 8 * 4, 1e-2);
 }
@@ -172,7 +193,7 @@ TEST(CadReader, MalformedFilesAreRefusedWithTheReason) {
   const auto refused = [&](const std::string& name, const std::string& content, const std::string& why) {
     std::ofstream(tmp.path / name) << content;
     try {
-      load_mesh(tmp.path / name);
+      load_part(tmp.path / name);
       ADD_FAILURE() << name << " was read";
     } catch (const std::runtime_error& e) {
       const std::string what = e.what();
