@@ -55,6 +55,35 @@ def to_float(first, second):  # CDAB: the lower address holds bits 15..0
     return struct.unpack(">f", struct.pack(">HH", second, first))[0]
 
 
+def start_daemon(daemon, tmp, sock):
+    """Starts DAEMON on tmp/mfcd.yaml in the foreground, its stderr in tmp/log.txt. Returns the
+    process and its status once the control socket says ready (else the last status or None)."""
+    log = open(os.path.join(tmp, "log.txt"), "w")
+    proc = subprocess.Popen([daemon, "-c", os.path.join(tmp, "mfcd.yaml"), "-f"], stderr=log)
+    status = None
+    for _ in range(600):
+        if proc.poll() is not None:
+            break
+        try:
+            status = ctl(sock, {"cmd": "status"}, 2)
+            if status.get("state") == "ready":
+                break
+        except OSError:
+            pass
+        time.sleep(0.05)
+    return proc, status
+
+
+def stop_daemon(proc):
+    """SIGTERM, then its exit code (None when it had to be killed after 15 s)."""
+    proc.send_signal(signal.SIGTERM)
+    try:
+        return proc.wait(timeout=15)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        return None
+
+
 def run_job(client, job, command):
     for _ in range(500):
         regs = client.read_holding_registers(0, 64, slave=1).registers
@@ -162,20 +191,8 @@ modbus:
 snapshots:
   directory: {tmp}/snapshots
 """)
-        log = open(os.path.join(tmp, "log.txt"), "w")
-        proc = subprocess.Popen([daemon, "-c", os.path.join(tmp, "mfcd.yaml"), "-f"], stderr=log)
+        proc, status = start_daemon(daemon, tmp, sock)
         try:
-            status = None
-            for _ in range(600):
-                if proc.poll() is not None:
-                    break
-                try:
-                    status = ctl(sock, {"cmd": "status"}, 2)
-                    if status.get("state") == "ready":
-                        break
-                except OSError:
-                    pass
-                time.sleep(0.05)
             check(status is not None and status.get("state") == "ready", "mfcd ready")
             if failures:
                 print(open(os.path.join(tmp, "log.txt")).read())
@@ -198,12 +215,7 @@ snapshots:
             map_v3(client, sock, os.path.join(tmp, "snapshots"))
             client.close()
         finally:
-            proc.send_signal(signal.SIGTERM)
-            try:
-                code = proc.wait(timeout=15)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                code = None
+            code = stop_daemon(proc)
             check(code == 0, f"clean exit on SIGTERM ({code})")
     return 1 if failures else 0
 

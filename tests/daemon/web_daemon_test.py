@@ -12,8 +12,6 @@ as OUT_DIR/web_daemon.png. Exit 0 ok, 1 failure, 77 when chromium or pymodbus is
 """
 import json
 import os
-import signal
-import subprocess
 import sys
 import tempfile
 import time
@@ -28,6 +26,7 @@ import pymodbus_client_test  # noqa: E402
 pymodbus_client_test.failures = failures
 pymodbus_client_test.check = check
 ctl, run_job = pymodbus_client_test.ctl, pymodbus_client_test.run_job
+start_daemon, stop_daemon = pymodbus_client_test.start_daemon, pymodbus_client_test.stop_daemon
 
 
 def get(url):
@@ -72,20 +71,8 @@ web:
 snapshots:
   directory: {tmp}/snapshots
 """)
-        log = open(os.path.join(tmp, "log.txt"), "w")
-        proc = subprocess.Popen([daemon, "-c", os.path.join(tmp, "mfcd.yaml"), "-f"], stderr=log)
+        proc, status = start_daemon(daemon, tmp, sock)
         try:
-            status = None
-            for _ in range(600):
-                if proc.poll() is not None:
-                    break
-                try:
-                    status = ctl(sock, {"cmd": "status"}, 2)
-                    if status.get("state") == "ready":
-                        break
-                except OSError:
-                    pass
-                time.sleep(0.05)
             check(status is not None and status.get("state") == "ready" and "web" in status, "mfcd ready, web view listed")
             if failures:
                 print(open(os.path.join(tmp, "log.txt")).read())
@@ -114,8 +101,7 @@ snapshots:
                 check(code == 200 and body.startswith(b"\x89PNG") and len(body) > 1000, "%s.png served (%d bytes)" % (name, len(body)))
             code, kind, body = get(base + "/api/snapshots")
             snaps = json.loads(body)["snapshots"]
-            check(len(snaps) >= 1 and "mfcd_replay.json" in snaps[0]["files"] or "result.json" in snaps[0]["files"],
-                  "the snapshot is listed with its files")
+            check(len(snaps) >= 1 and "result.json" in snaps[0]["files"], "the snapshot is listed with its files")
 
             with tempfile.TemporaryDirectory(prefix="mfcd-web-chromium-") as profile:
                 common = [chromium, "--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
@@ -139,15 +125,11 @@ snapshots:
             check(regs[9] == 4, "a job after the browser's visit")
             client.close()
         finally:
-            proc.send_signal(signal.SIGTERM)
-            try:
-                code = proc.wait(timeout=15)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                code = None
+            code = stop_daemon(proc)
             check(code == 0, "clean exit on SIGTERM (%s)" % code)
+            if failures:
+                print(open(os.path.join(tmp, "log.txt")).read())
     if failures:
-        print(open(os.path.join(tmp, "log.txt")).read() if os.path.exists(os.path.join(tmp, "log.txt")) else "")
         print("%d check(s) failed" % len(failures))
         return 1
     print("all checks passed")
