@@ -9,6 +9,7 @@
 #include <Eigen/Geometry>
 #include <cmath>
 
+#include "daemon_fixture.hpp"
 #include "daemon_process.hpp"
 #include "motion/float_codec.hpp"
 #include "motion/register_map.hpp"
@@ -56,18 +57,13 @@ std::string eyeInHandConfig(const fs::path& dir) {
 
 }  // namespace
 
-TEST(EyeInHand, PickIsTransformedWithTheRobotPoseOfItsCapture) {
-  DaemonProcess proc("eye-in-hand");
-  const std::string config = eyeInHandConfig(proc.dir());
-  ASSERT_FALSE(config.empty()) << "simCellConfig's hand_eye changed";
-  proc.writeConfig(config);
-  proc.start(MFCD_TEST_DAEMON);
-  if (!proc.waitReady()) {
-    const std::string log = proc.log();
-    if (log.find("EGL") != std::string::npos || log.find("OpenGL") != std::string::npos)
-      GTEST_SKIP() << "no offscreen OpenGL";
-    FAIL() << "mfcd did not become ready:\n" << log;
-  }
+class EyeInHand : public DaemonFixture {};
+
+TEST_F(EyeInHand, PickIsTransformedWithTheRobotPoseOfItsCapture) {
+  ASSERT_FALSE(eyeInHandConfig("/tmp").empty()) << "simCellConfig's hand_eye changed";
+  startDaemonOn("eye-in-hand", eyeInHandConfig);
+  if (IsSkipped() || HasFailure()) return;
+  DaemonProcess& proc = *this->proc;
   Client plc(proc.modbusPort());
   ASSERT_TRUE(plc.connected);
   ASSERT_TRUE(plc.waitReady());
@@ -117,7 +113,7 @@ TEST(EyeInHand, PickIsTransformedWithTheRobotPoseOfItsCapture) {
   EXPECT_EQ(proc.wait(15000), 0);
 }
 
-TEST(EyeInHand, ConfigurationRulesNameTheKey) {
+TEST(EyeInHandConfig, ConfigurationRulesNameTheKey) {
   DaemonProcess proc("eye-in-hand-config");
   std::string config = eyeInHandConfig(proc.dir());
   ASSERT_FALSE(config.empty());
