@@ -323,12 +323,12 @@ void Cell::visionMain(std::promise<void>& ready) {
                         : config_.snapshots.on_failure && failed && slot->request.origin != CycleOrigin::Benchmark
                             ? (out->error != CycleError::None ? "failed cycle" : "nothing found")
                             : nullptr;
-      resultCopy_ = *out;
+      retained_.keepResult(*out);  // before the result leaves: the slot is the main thread's then
       results_.end_write();
       signalFd(resultFd_);
       // Kept after the result has left: a pick reported failed later is saved from here.
-      retained_.keep(*slot, resultCopy_, resultCopy_.error == CycleError::None ? stage_->lastEdges() : nullptr);
-      if (config_.web.enabled && slot->ok) webFrames_.publish(retained_.slot(), resultCopy_, retained_.edges());
+      retained_.keepFrames(*slot, retained_.result().error == CycleError::None ? stage_->lastEdges() : nullptr);
+      if (config_.web.enabled && slot->ok) webFrames_.publish(retained_.slot(), retained_.result(), retained_.edges());
       frames_.end_read();
       if (why) writeSnapshot(why);
     }

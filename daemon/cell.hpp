@@ -120,7 +120,6 @@ class Cell {
 
   std::atomic<std::uint64_t> acqBeat_{0}, visionBeat_{0}, framesDropped_{0};
   vision::PipelineResult pipelineResult_;      // vision thread; capacity reserved once
-  CycleResult resultCopy_;                     // vision thread: the last result, kept with its frames
   RetainedJob retained_;                       // vision thread; allocated before the threads report ready
   std::unique_ptr<SnapshotWriter> snapshots_;  // vision thread; made with the stage
   LatestFrame webFrames_;                      // allocated before the threads report ready

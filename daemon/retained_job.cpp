@@ -9,7 +9,12 @@ void RetainedJob::allocate(const hal::ImageFormat& format) {
   valid_ = false;
 }
 
-void RetainedJob::keep(const FrameSlot& slot, const CycleResult& result, const vision::DepthEdges* edges) {
+void RetainedJob::keepResult(const CycleResult& result) {
+  result_ = result;
+  valid_ = false;  // until its frames are kept too
+}
+
+void RetainedJob::keepFrames(const FrameSlot& slot, const vision::DepthEdges* edges) {
   copyFrameSet(slot.frames, slot_.frames);
   slot_.request = slot.request;
   slot_.ok = slot.ok;
@@ -18,7 +23,6 @@ void RetainedJob::keep(const FrameSlot& slot, const CycleResult& result, const v
   slot_.captured = slot.captured;
   slot_.truth = slot.truth;
   slot_.leds_after = slot.leds_after;
-  result_ = result;
   // Same size and type as the preallocated buffer: copyTo writes into it.
   haveEdges_ = edges && !edges->edges.empty() && edges->edges.size() == edges_.size();
   if (haveEdges_) edges->edges.copyTo(edges_);

@@ -16,9 +16,11 @@ class RetainedJob {
  public:
   // Before the cell's threads run frames: buffers for images of `format`.
   void allocate(const hal::ImageFormat& format);
-  // Vision worker, after the cycle's result has been handed over: copies the slot's images, the
-  // result and the edges (nullptr: none) into the preallocated buffers. No allocation.
-  void keep(const FrameSlot& slot, const CycleResult& result, const vision::DepthEdges* edges);
+  // Vision worker, in two steps: the cycle's result before it is handed over (a fixed-size copy),
+  // then, after, the slot's images and the edges (nullptr: none), into the preallocated buffers.
+  // No allocation.
+  void keepResult(const CycleResult& result);
+  void keepFrames(const FrameSlot& slot, const vision::DepthEdges* edges);
   // True when the kept cycle is `cycle`.
   bool holds(std::uint64_t cycle) const { return valid_ && result_.request.cycle_id == cycle; }
   std::uint64_t cycle() const { return valid_ ? result_.request.cycle_id : 0; }
