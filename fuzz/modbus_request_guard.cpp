@@ -15,8 +15,8 @@ namespace {
 
 using namespace mfcd::motion;
 
-// motion/modbus_server.cpp's kPolicy: reads [0, 64), writes [0, 4) (control block) or
-// [36, 50) (robot pose block).
+// motion/modbus_requests.cpp's kPolicy: reads [0, 80) (the whole map), writes [0, 6) (control
+// block) or [36, 50) (robot pose block).
 constexpr RegisterPolicy kPolicy{reg::kBlockSize, 0, reg::kWritableEnd, reg::kRobotPoseBegin, reg::kRobotPoseEnd};
 
 bool inside(uint32_t address, uint32_t count, uint32_t begin, uint32_t end) {

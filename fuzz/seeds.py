@@ -58,6 +58,9 @@ def modbus():
     write(n, "bad-protocol", mbap(12, 1, struct.pack(">BHH", 0x03, 0, 1), protocol=1))
     write(n, "length-past-frame", mbap(13, 1, struct.pack(">BHH", 0x03, 0, 1), length=200))
     write(n, "short-header", b"\x00\x01\x00\x00\x00")
+    write(n, "fc03-read-map-v4", mbap(14, 1, struct.pack(">BHH", 0x03, 0, 80)))
+    write(n, "fc03-read-past-map", mbap(15, 1, struct.pack(">BHH", 0x03, 79, 2)))
+    write(n, "fc16-look", mbap(16, 1, struct.pack(">BHHB4H", 0x10, 0, 4, 8, 5, 8, 2, 0)))
 
 
 # --- camera_config: OpenCV FileStorage YAML / JSON / XML --------------------------------------
@@ -266,6 +269,9 @@ def session():
     write(n, "pipelined", bytes([0x13]) + read_all * 6)
     write(n, "cut-off", bytes([0x01]) + read_all[:9])
     write(n, "bad-protocol", bytes([0x07]) + mbap(4, 1, bytes([0x03, 0, 0, 0, 1]), protocol=1) + read_all)
+    read_map_v4 = mbap(5, 1, bytes([0x03, 0, 0, 0, 80]))
+    look = mbap(6, 1, bytes([0x10, 0, 0, 0, 4, 8, 0, 5, 0, 8, 0, 0, 0, 0]))
+    write(n, "trigger-then-look", bytes([0x33]) + trigger + read_map_v4 + look + read_map_v4)
 
 
 # --- control_line: one JSON request per line ---------------------------------------------------

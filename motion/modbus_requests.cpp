@@ -35,9 +35,12 @@ RobotReport ModbusServer::Impl::refresh_registers() {
   if (job_pending) status |= reg::kBusy;
   if (!job_pending && last_job != 0 && r.job_id == last_job) status |= reg::kDone;
   if (r.error_code != 0) status |= reg::kError;
-  if (r.pick_valid) status |= reg::kPickValid;
+  // A result that asks for a second look has no pick to show, whatever pick_valid says.
+  const bool look = r.look_wanted != 0;
+  const bool valid = r.pick_valid != 0 && !look;
+  if (valid) status |= reg::kPickValid;
   if (r.vision_ok) status |= reg::kVisionOk;
-  const bool valid = r.pick_valid != 0;
+  if (look) status |= reg::kLookWanted;
   RankedPick shown{r.pick, r.score, r.candidate_index, 0};
   if (r.pick_count > 0 && shown_rank < r.pick_count) shown = r.ranked[shown_rank];
   regs[reg::kStatus] = status;
@@ -71,6 +74,13 @@ RobotReport ModbusServer::Impl::refresh_registers() {
   regs[reg::kSnapshotCount] = r.snapshots_saved;
   regs[reg::kSoftwareVersion] = config.software_version;
   regs[reg::kSoftwarePatch] = config.software_patch;
+  regs[reg::kLookReason] = look ? r.look_reason : 0;
+  put(reg::kLookX, look ? r.look_pose.x_mm : 0.0f);
+  put(reg::kLookY, look ? r.look_pose.y_mm : 0.0f);
+  put(reg::kLookZ, look ? r.look_pose.z_mm : 0.0f);
+  put(reg::kLookRx, look ? r.look_pose.rx_deg : 0.0f);
+  put(reg::kLookRy, look ? r.look_pose.ry_deg : 0.0f);
+  put(reg::kLookRz, look ? r.look_pose.rz_deg : 0.0f);
   std::memcpy(map->tab_input_registers, regs, reg::kBlockSize * sizeof(std::uint16_t));
   return r;
 }
@@ -95,18 +105,27 @@ ModbusException ModbusServer::Impl::decide_command(const RegisterWrite& w, const
   std::uint16_t control[reg::kControlEnd];
   control_after(w, control);
   const PlcCommand asked{PlcCommand::Kind::Trigger, control[reg::kJobId], control[reg::kRecipeId], control[reg::kMode]};
-  switch (static_cast<reg::Command>(control[reg::kCommand])) {
+  const auto command_code = static_cast<reg::Command>(control[reg::kCommand]);
+  switch (command_code) {
     case reg::Command::None:
       return ModbusException::None;
     case reg::Command::Trigger:
     case reg::Command::SaveScene:
+    case reg::Command::Look:
+      // A new job: same checks, same handshake for all three.
       if (asked.job_id == 0 || asked.job_id == last_job || asked.mode > reg::kModeMax)
         return ModbusException::IllegalDataValue;
       if (job_pending || !report.ready || report.error_code != 0 || queue_full())
         return ModbusException::ServerDeviceBusy;
+      // LOOK continues the job in the registers, and only when its result asked for a second look.
+      if (command_code == reg::Command::Look && (report.job_id == 0 || !report.look_wanted))
+        return ModbusException::IllegalDataValue;
       command = asked;
-      if (control[reg::kCommand] == static_cast<std::uint16_t>(reg::Command::SaveScene))
-        command->kind = PlcCommand::Kind::SaveScene;
+      if (command_code == reg::Command::SaveScene) command->kind = PlcCommand::Kind::SaveScene;
+      if (command_code == reg::Command::Look) {
+        command->kind = PlcCommand::Kind::Look;
+        command->look_of_job = report.job_id;
+      }
       return ModbusException::None;
     case reg::Command::Reset:
       if (queue_full()) return ModbusException::ServerDeviceBusy;
@@ -116,7 +135,7 @@ ModbusException ModbusServer::Impl::decide_command(const RegisterWrite& w, const
     case reg::Command::Next:
       // The job in the registers: its next pick, if it has one.
       if (job_pending || report.error_code != 0 || queue_full()) return ModbusException::ServerDeviceBusy;
-      if (!report.pick_valid || report.job_id == 0 || shown_rank + 1 >= report.pick_count)
+      if (!report.pick_valid || report.look_wanted || report.job_id == 0 || shown_rank + 1 >= report.pick_count)
         return ModbusException::IllegalDataValue;
       command = PlcCommand{
           PlcCommand::Kind::Next, report.job_id, report.recipe_id, 0, static_cast<std::uint16_t>(shown_rank + 1), 0};
@@ -133,7 +152,7 @@ ModbusException ModbusServer::Impl::decide_pick_result(const RegisterWrite& w, c
   if (outcome == static_cast<std::uint16_t>(reg::PickOutcome::None)) return ModbusException::None;
   if (outcome > reg::kPickOutcomeMax) return ModbusException::IllegalDataValue;
   // Only the pick in the registers can be reported on: the job must be JOB_ID_ECHO and have a pick.
-  if (report.job_id == 0 || control[reg::kPickResultJob] != report.job_id || !report.pick_valid)
+  if (report.job_id == 0 || control[reg::kPickResultJob] != report.job_id || !report.pick_valid || report.look_wanted)
     return ModbusException::IllegalDataValue;
   if (reported_job == report.job_id && reported_rank == shown_rank) return ModbusException::None;  // a repeat
   if (queue_full()) return ModbusException::ServerDeviceBusy;
@@ -180,6 +199,7 @@ void ModbusServer::Impl::queue_command(const PlcCommand& command) {
   switch (command.kind) {
     case PlcCommand::Kind::Trigger:
     case PlcCommand::Kind::SaveScene:
+    case PlcCommand::Kind::Look:
       job_pending = true;
       last_job = command.job_id;
       break;

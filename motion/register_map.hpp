@@ -8,14 +8,15 @@ namespace mfcd::motion::reg {
 
 // Everything lives in one block of holding registers starting at protocol address 0, so a
 // single "read holding registers" (FC 0x03) of kBlockSize covers the whole map.
-inline constexpr std::uint16_t kBlockSize = 64;
-inline constexpr std::uint16_t kMapVersion = 3;  // 2: robot pose block at 36..49; 3: NEXT, SAVE_SCENE, PICK_RESULT
+inline constexpr std::uint16_t kBlockSize = 80;
+// 2: robot pose block at 36..49; 3: NEXT, SAVE_SCENE, PICK_RESULT; 4: LOOK, LOOK_WANTED, 55..67
+inline constexpr std::uint16_t kMapVersion = 4;
 
 // --- Control block: written by the PLC ---------------------------------------------------
 inline constexpr std::uint16_t kCommand = 0;   // command code, see Command; reads back 0 once taken
-inline constexpr std::uint16_t kJobId = 1;     // job id for the next TRIGGER (1..65535)
-inline constexpr std::uint16_t kRecipeId = 2;  // part / recipe id for the next TRIGGER
-inline constexpr std::uint16_t kMode = 3;      // cycle mode for the next TRIGGER, see Mode
+inline constexpr std::uint16_t kJobId = 1;     // job id for the next TRIGGER, SAVE_SCENE or LOOK (1..65535)
+inline constexpr std::uint16_t kRecipeId = 2;  // part / recipe id for the next job
+inline constexpr std::uint16_t kMode = 3;      // cycle mode for the next job, see Mode
 // The outcome of the pick in the registers (JOB_ID_ECHO, PICK_RANK), see PickOutcome; a
 // nonzero value written here is a report, taken when PICK_RESULT_JOB names JOB_ID_ECHO.
 inline constexpr std::uint16_t kPickResult = 4;
@@ -69,15 +70,37 @@ inline constexpr std::uint16_t kPicksLeft = 51;      // further picks NEXT can s
 inline constexpr std::uint16_t kSnapshotCount = 52;  // snapshots saved since mfcd started, wraps at 65535
 inline constexpr std::uint16_t kSoftwareVersion = 53;  // mfcd's release: major << 8 | minor
 inline constexpr std::uint16_t kSoftwarePatch = 54;    // mfcd's release: patch
-// 55..63 reserved, read 0.
+
+// --- Second look: written by mfcd, read-only (map version 4) -------------------------------
+// Eye-in-hand: the result in the registers asks the robot to take the camera to a second
+// pose (STATUS kLookWanted); LOOK then fuses a frame set taken there with the first one.
+inline constexpr std::uint16_t kLookReason = 55;  // see LookReason; 0 while kLookWanted is clear
+// The flange pose in the robot base frame to take the second look from: float32 pairs in the
+// configured word order like PICK_X..PICK_RZ; 0.0 while kLookWanted is clear.
+inline constexpr std::uint16_t kLookX = 56;  // mm
+inline constexpr std::uint16_t kLookY = 58;
+inline constexpr std::uint16_t kLookZ = 60;
+inline constexpr std::uint16_t kLookRx = 62;  // degrees, R = Rz(rz) * Ry(ry) * Rx(rx)
+inline constexpr std::uint16_t kLookRy = 64;
+inline constexpr std::uint16_t kLookRz = 66;
+// 68..79 reserved, read 0.
 
 // TRIGGER and SAVE_SCENE start a job (SAVE_SCENE also saves its frame set as a snapshot);
-// NEXT publishes the job's next pick at once, without a new capture.
-enum class Command : std::uint16_t { None = 0, Trigger = 1, Reset = 2, Next = 3, SaveScene = 4 };
+// NEXT publishes the job's next pick at once, without a new capture; LOOK starts a job that
+// takes a second frame set at the robot's current pose and fuses it with the first look of
+// the job in JOB_ID_ECHO (accepted only while that result has kLookWanted).
+enum class Command : std::uint16_t { None = 0, Trigger = 1, Reset = 2, Next = 3, SaveScene = 4, Look = 5 };
 // What the robot made of a published pick (PICK_RESULT). Anything but Ok counts as a failed
 // pick, and mfcd keeps a snapshot of the job's frame set.
 enum class PickOutcome : std::uint16_t { None = 0, Ok = 1, Missed = 2, Unreachable = 3, Collision = 4, Dropped = 5 };
 inline constexpr std::uint16_t kPickOutcomeMax = 5;
+// Why a result asks for a second look (LOOK_REASON).
+enum class LookReason : std::uint16_t {
+  None = 0,
+  Always = 1,     // the configuration asks for a second look on every job
+  Ambiguous = 2,  // the best candidate is ambiguous
+  LowScore = 3,   // the best candidate scored below pick.min_score
+};
 enum class Mode : std::uint16_t { Pick = 0, CountOnly = 1 };
 inline constexpr std::uint16_t kModeMax = 1;
 
@@ -88,6 +111,9 @@ enum StatusBit : std::uint16_t {
   kError = 1u << 3,      // ERROR_CODE != 0; send RESET to clear
   kPickValid = 1u << 4,  // the pick registers hold a pick for JOB_ID_ECHO
   kVisionOk = 1u << 5,   // the daemon reports its camera and vision pipeline healthy
+  // The result of JOB_ID_ECHO asks for a second look (map version 4): kLookX..kLookRz hold the
+  // flange pose to take it from, and kPickValid is clear.
+  kLookWanted = 1u << 6,
 };
 
 }  // namespace mfcd::motion::reg

@@ -45,6 +45,13 @@ struct RobotReport {
   std::uint16_t pick_count = 0;
   std::uint16_t snapshots_saved = 0;  // snapshots written since mfcd started, wraps
   std::uint16_t reserved = 0;
+  // Second look (eye-in-hand): 1 when the result of job_id asks the robot to take the camera to
+  // look_pose (the flange pose in the robot base frame, mm/deg like `pick`) for a LOOK; then
+  // pick_valid is 0 (the Modbus link shows no pick for such a report). look_reason says why
+  // (reg::LookReason); both 0 and look_pose zero when no second look is wanted.
+  std::uint16_t look_wanted = 0;
+  std::uint16_t look_reason = 0;
+  PickPose look_pose;
   std::array<RankedPick, kMaxRankedPicks> ranked{};
 };
 
@@ -62,15 +69,20 @@ struct RobotPoseReading {
 //   Reset: clear an error, abandon a pending job;
 //   Next: the server has already published the pick of rank `rank` of job job_id;
 //   PickResult: not a COMMAND but a PICK_RESULT write: `outcome` (reg::PickOutcome) of the
-//   pick of rank `rank` of job job_id.
+//   pick of rank `rank` of job job_id;
+//   Look: start job job_id like Trigger (recipe_id, mode; the robot pose block read at job
+//   start), taking the second frame set at the robot's current pose and fusing it with the
+//   first look of job look_of_job, whose published result asked for it (look_wanted).
+// Kind's values are not COMMAND codes (reg::Command); the server maps one to the other.
 struct PlcCommand {
-  enum class Kind : std::uint16_t { Trigger = 1, Reset = 2, Next = 3, SaveScene = 4, PickResult = 5 };
+  enum class Kind : std::uint16_t { Trigger = 1, Reset = 2, Next = 3, SaveScene = 4, PickResult = 5, Look = 6 };
   Kind kind = Kind::Trigger;
   std::uint16_t job_id = 0;
   std::uint16_t recipe_id = 0;
   std::uint16_t mode = 0;
   std::uint16_t rank = 0;
   std::uint16_t outcome = 0;
+  std::uint16_t look_of_job = 0;  // Look: the job (JOB_ID_ECHO when LOOK was taken) whose look it continues
 };
 
 }  // namespace mfcd::motion

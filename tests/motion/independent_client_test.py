@@ -13,13 +13,20 @@ import subprocess
 import sys
 import time
 
-STATUS, JOB_ECHO, PICK_X, SCORE, TEST_VECTOR, WORD_ORDER = 8, 9, 20, 32, 34, 17
-DONE, PICK_VALID = 1 << 2, 1 << 4
+STATUS, JOB_ECHO, PICK_X, SCORE, TEST_VECTOR, WORD_ORDER, MAP_VERSION = 8, 9, 20, 32, 34, 17, 18
+DONE, PICK_VALID, LOOK_WANTED = 1 << 2, 1 << 4, 1 << 6
 PICK_RANK, PICKS_LEFT, NEXT = 50, 51, 3
+LOOK_REASON, LOOK_X, LOOK = 55, 56, 5
+BLOCK = 80  # registers 0..79: the whole map (map version 4)
+SIM_LOOK_RECIPE = 90  # recipe 90 + k: the result asks for a second look for reason k
 
 
 def pick_for_job(job):  # tests/motion/sim_daemon.hpp
     return [100.0 + job, -250.5, 42.25, 180.0, -0.5, float(job % 360) - 90.0]
+
+
+def look_pose_for_job(job):  # tests/motion/sim_daemon.hpp
+    return [300.0 + job, -120.25, 615.5, 179.5, -12.75, float(job % 180) - 45.0]
 
 
 def to_float(first, second, order):
@@ -61,9 +68,12 @@ def run_pymodbus(binary):
         server = Server(binary, order)
         client = ModbusTcpClient("127.0.0.1", port=server.port, timeout=3)
         check(client.connect(), f"{order}: connect")
-        rr = client.read_holding_registers(0, 64, slave=1)
-        check(not rr.isError() and len(rr.registers) == 64, f"{order}: whole map in one read")
+        rr = client.read_holding_registers(0, BLOCK, slave=1)
+        check(not rr.isError() and len(rr.registers) == BLOCK, f"{order}: whole map in one read of {BLOCK}")
         regs = rr.registers
+        check(regs[MAP_VERSION] == 4, f"{order}: map version 4")
+        rr = client.read_holding_registers(0, 64, slave=1)
+        check(not rr.isError() and len(rr.registers) == 64, f"{order}: a read of 64 (map version 3) still works")
         expect = [0x47F1, 0x2000] if order == "ABCD" else [0x2000, 0x47F1]
         check(regs[TEST_VECTOR:TEST_VECTOR + 2] == expect, f"{order}: test vector registers {expect}")
         check(regs[WORD_ORDER] == (0 if order == "ABCD" else 1), f"{order}: word order register")
@@ -72,19 +82,14 @@ def run_pymodbus(binary):
         # Job-id handshake: TRIGGER job 21, recipe 3, mode 0 in one write; wait for the echo.
         wr = client.write_registers(0, [1, 21, 3, 0], slave=1)
         check(not wr.isError(), f"{order}: trigger accepted")
-        regs = None
-        for _ in range(300):
-            regs = client.read_holding_registers(0, 64, slave=1).registers
-            if regs[JOB_ECHO] == 21:
-                break
-            time.sleep(0.01)
+        regs = wait_for_echo(client, 21)
         check(regs[JOB_ECHO] == 21, f"{order}: job id echoed")
         check(regs[STATUS] & DONE and regs[STATUS] & PICK_VALID, f"{order}: done and pick valid")
         pose = [to_float(regs[PICK_X + 2 * i], regs[PICK_X + 2 * i + 1], order) for i in range(6)]
         check(pose == pick_for_job(21), f"{order}: pick {pose}")
         check(to_float(regs[SCORE], regs[SCORE + 1], order) == 0.875, f"{order}: score")
 
-        rr = client.read_holding_registers(60, 10, slave=1)
+        rr = client.read_holding_registers(BLOCK - 1, 2, slave=1)
         check(rr.isError() and rr.exception_code == 2, f"{order}: read past the map -> exception 2")
         rr = client.write_register(STATUS, 1, slave=1)
         check(rr.isError() and rr.exception_code == 2, f"{order}: write to status -> exception 2")
@@ -95,8 +100,44 @@ def run_pymodbus(binary):
         rr = client.readwrite_registers(read_address=TEST_VECTOR, read_count=2, write_address=1,
                                         write_registers=[22, 3], slave=1)
         check(not rr.isError() and rr.registers == expect, f"{order}: FC 0x17 read/write")
+        pymodbus_second_look(client, order)
         client.close()
         server.close()
+
+
+def wait_for_echo(client, job):
+    regs = None
+    for _ in range(300):
+        regs = client.read_holding_registers(0, BLOCK, slave=1).registers
+        if regs[JOB_ECHO] == job:
+            break
+        time.sleep(0.01)
+    return regs
+
+
+def pymodbus_second_look(client, order):
+    """TRIGGER answered with LOOK_WANTED, then LOOK (map version 4)."""
+    wr = client.write_registers(0, [1, 23, SIM_LOOK_RECIPE + 2, 0], slave=1)
+    check(not wr.isError(), f"{order}: trigger job 23 (second look wanted) accepted")
+    regs = wait_for_echo(client, 23)
+    check(regs[JOB_ECHO] == 23 and regs[STATUS] & LOOK_WANTED and not regs[STATUS] & PICK_VALID,
+          f"{order}: job 23: LOOK_WANTED, no pick: status {regs[STATUS]:#06x}")
+    check(regs[LOOK_REASON] == 2, f"{order}: LOOK_REASON 2 (ambiguous)")
+    pose = [to_float(regs[LOOK_X + 2 * i], regs[LOOK_X + 2 * i + 1], order) for i in range(6)]
+    check(pose == look_pose_for_job(23), f"{order}: look pose {pose}")
+    rr = client.write_registers(0, [NEXT], slave=1)
+    check(rr.isError() and rr.exception_code == 3, f"{order}: NEXT on a second-look result -> exception 3")
+
+    wr = client.write_registers(0, [LOOK, 24, SIM_LOOK_RECIPE + 2, 0], slave=1)
+    check(not wr.isError(), f"{order}: LOOK job 24 accepted")
+    regs = wait_for_echo(client, 24)
+    check(regs[STATUS] & DONE and regs[STATUS] & PICK_VALID and not regs[STATUS] & LOOK_WANTED,
+          f"{order}: LOOK job 24: done with a pick: status {regs[STATUS]:#06x}")
+    check(regs[LOOK_REASON:LOOK_X + 12] == [0] * 13, f"{order}: registers 55..67 read 0 without LOOK_WANTED")
+    pose = [to_float(regs[PICK_X + 2 * i], regs[PICK_X + 2 * i + 1], order) for i in range(6)]
+    check(pose == pick_for_job(24), f"{order}: LOOK job 24's pick {pose}")
+    rr = client.write_registers(0, [LOOK, 25, SIM_LOOK_RECIPE + 2, 0], slave=1)
+    check(rr.isError() and rr.exception_code == 3, f"{order}: LOOK without LOOK_WANTED -> exception 3")
 
 
 def run_mbpoll(binary):
@@ -113,12 +154,13 @@ def run_mbpoll(binary):
         lines = [l for l in out.stdout.splitlines() if l.startswith(f"[{TEST_VECTOR}]")]
         check(out.returncode == 0 and lines and lines[0].split(":")[1].strip() == "123456",
               f"{order}: mbpoll reads the test vector as 123456: {lines}")
-        out = subprocess.run([mbpoll, "-m", "tcp", "-p", str(server.port), "-a", "1", "-0", "-1", "-r", "60",
-                              "-c", "10", "127.0.0.1"], capture_output=True, text=True, timeout=20)
+        out = subprocess.run([mbpoll, "-m", "tcp", "-p", str(server.port), "-a", "1", "-0", "-1", "-r",
+                              str(BLOCK - 1), "-c", "2", "127.0.0.1"], capture_output=True, text=True, timeout=20)
         text = out.stdout + out.stderr
         check("Illegal data address" in text, f"{order}: mbpoll read past the map -> illegal data address")
         if order == "ABCD":
             mbpoll_map_v3(mbpoll, server.port)
+            mbpoll_map_v4(mbpoll, server.port)
         server.close()
 
 
@@ -158,6 +200,41 @@ def mbpoll_map_v3(mbpoll, port):
     write(0, NEXT)
     code, text = write(0, NEXT)
     check(code != 0 and "Illegal data value" in text, "mbpoll: NEXT with no pick left -> illegal data value")
+
+
+def mbpoll_map_v4(mbpoll, port):
+    """A result asking for a second look read, and LOOK written, by mbpoll (map version 4, ABCD)."""
+    base = [mbpoll, "-m", "tcp", "-p", str(port), "-a", "1", "-0", "-1"]
+
+    def run(*args):
+        out = subprocess.run(base + [str(a) for a in args], capture_output=True, text=True, timeout=20)
+        values = {}
+        for line in out.stdout.splitlines():
+            if line.startswith("["):
+                key, value = line.split(":", 1)
+                values[int(key.strip("[]"))] = value.strip()
+        return out.returncode, out.stdout + out.stderr, values
+
+    def wait_for_echo(job):
+        for _ in range(100):
+            if run("-r", JOB_ECHO, "-c", 1, "127.0.0.1")[2].get(JOB_ECHO) == str(job):
+                return True
+            time.sleep(0.02)
+        return False
+
+    code, _, _ = run("-r", 0, "127.0.0.1", 1, 41, SIM_LOOK_RECIPE + 1, 0)
+    check(code == 0 and wait_for_echo(41), "mbpoll: TRIGGER job 41 (second look wanted) done")
+    _, _, regs = run("-r", STATUS, "-c", 1, "127.0.0.1")
+    check(int(regs.get(STATUS, "0")) & LOOK_WANTED, f"mbpoll: job 41 LOOK_WANTED: {regs}")
+    _, _, regs = run("-r", LOOK_REASON, "-c", 1, "127.0.0.1")
+    check(regs.get(LOOK_REASON) == "1", f"mbpoll: LOOK_REASON 1: {regs}")
+    _, _, regs = run("-r", LOOK_X, "-c", 6, "-t", "4:float", "-B", "127.0.0.1")
+    pose = [float(regs.get(LOOK_X + 2 * i, "nan")) for i in range(6)]
+    check(pose == look_pose_for_job(41), f"mbpoll: look pose {pose}")
+    code, _, _ = run("-r", 0, "127.0.0.1", LOOK, 42, SIM_LOOK_RECIPE + 1, 0)
+    check(code == 0 and wait_for_echo(42), "mbpoll: LOOK job 42 done")
+    code, text, _ = run("-r", 0, "127.0.0.1", LOOK, 43, SIM_LOOK_RECIPE + 1, 0)
+    check(code != 0 and "Illegal data value" in text, "mbpoll: LOOK without LOOK_WANTED -> illegal data value")
 
 
 if __name__ == "__main__":

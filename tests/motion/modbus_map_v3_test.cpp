@@ -64,9 +64,9 @@ TEST(ModbusMapV3, VersionAndControlBlock) {
   ModbusServer server(config);
   server.start();
   LibmodbusClient plc(server.port());
-  EXPECT_EQ(plc.read(reg::kMapVersionReg, 1)[0], 3);
+  EXPECT_GE(plc.read(reg::kMapVersionReg, 1)[0], 3) << "later versions keep every version 3 address";
   EXPECT_EQ(plc.read(reg::kSoftwareVersion, 2), (std::vector<std::uint16_t>{2 << 8 | 17, 4})) << "release 2.17.4";
-  EXPECT_EQ(plc.read(55, 9), std::vector<std::uint16_t>(9, 0)) << "55..63 reserved";
+  EXPECT_EQ(plc.read(55, 9), std::vector<std::uint16_t>(9, 0)) << "55..63 read 0 (map version 4: no second look)";
   EXPECT_EQ(plc.write(reg::kPickResult, {0, 0}), 0) << "4..5 are the PICK_RESULT pair";
   EXPECT_EQ(plc.write(6, {1}), EMBXILADD) << "6..7 stay reserved";
   EXPECT_EQ(plc.write(reg::kCommand, {0, 1, 2, 0, 0, 0, 0}), EMBXILADD) << "a write reaching into 6";

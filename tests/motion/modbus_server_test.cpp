@@ -271,7 +271,7 @@ TEST(ModbusServer, MalformedFramesGetExceptionsOrClose) {
   const Case cases[] = {
       {"unknown function 0x2b", {0x2b, 0x0e, 0x01, 0x00}, 0x01},
       {"read coils (no coils in the map)", {0x01, 0, 0, 0, 1}, 0x01},
-      {"read past the map", {0x03, 0, 60, 0, 10}, 0x02},
+      {"read past the map", {0x03, 0, 75, 0, 10}, 0x02},
       {"read quantity 0", {0x03, 0, 0, 0, 0}, 0x03},
       {"read quantity 126", {0x03, 0, 0, 0, 126}, 0x03},
       {"write to the status block", {0x06, 0, reg::kStatus, 0, 1}, 0x02},
@@ -543,10 +543,10 @@ TEST(ModbusServer, RobotPoseBlockWrittenByThePlc) {
     EXPECT_EQ(plc.write(reg::kRobotPoseX, pose_block(inf_pose, 1, 18, order)), EMBXILVAL) << "infinity";
     EXPECT_EQ(plc.write(reg::kRobotPoseValid, {2}), EMBXILVAL) << "valid flag must be 0 or 1";
     EXPECT_EQ(plc.write(reg::kRobotPoseX - 2, {0, 0, 0, 0}), EMBXILADD) << "starts in TEST_VECTOR (read-only)";
-    EXPECT_EQ(plc.write(reg::kRobotPoseSeq, {1, 2}), EMBXILADD) << "runs into the reserved 50..63";
+    EXPECT_EQ(plc.write(reg::kRobotPoseSeq, {1, 2}), EMBXILADD) << "runs into the read-only 50";
     EXPECT_EQ(plc.write(reg::kMode, std::vector<std::uint16_t>(reg::kRobotPoseSeq - reg::kMode + 1, 0)), EMBXILADD)
         << "control and pose blocks in one write cross the read-only status block";
-    EXPECT_EQ(plc.write(55, {1}), EMBXILADD) << "reserved";
+    EXPECT_EQ(plc.write(reg::kLookReason, {1}), EMBXILADD) << "read-only";
     EXPECT_EQ(server.robot_pose().writes, 2u);
     EXPECT_EQ(plc.read(reg::kRobotPoseX, 14), pose_block(pose, 0, 17, order));
     // The pose block is not a command: nothing was queued for the daemon.

@@ -19,6 +19,8 @@ static RobotReport make_report(std::uint32_t n) {
   r.pick.x_mm = static_cast<float>(n);
   r.pick.rz_deg = static_cast<float>(n) * 0.5f;
   r.score = static_cast<float>(n & 0xffff) / 65536.0f;
+  r.look_reason = static_cast<std::uint16_t>(n % 4);
+  r.look_pose.rz_deg = static_cast<float>(n) * 0.25f;
   return r;
 }
 
@@ -26,7 +28,8 @@ static bool consistent(const RobotReport& r) {
   const auto n = static_cast<std::uint32_t>(r.pick.x_mm);
   const RobotReport want = make_report(n);
   return r.job_id == want.job_id && r.recipe_id == want.recipe_id && r.error_code == want.error_code &&
-         r.objects_remaining == want.objects_remaining && r.pick.rz_deg == want.pick.rz_deg && r.score == want.score;
+         r.objects_remaining == want.objects_remaining && r.pick.rz_deg == want.pick.rz_deg && r.score == want.score &&
+         r.look_reason == want.look_reason && r.look_pose.rz_deg == want.look_pose.rz_deg;
 }
 
 TEST(Seqlock, ReadersNeverSeeATornReport) {

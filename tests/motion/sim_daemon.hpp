@@ -28,6 +28,14 @@ inline RankedPick ranked_pick(std::uint16_t job, std::uint16_t rank) {
   return p;
 }
 
+// Second look (map version 4): a TRIGGER or SAVE_SCENE with recipe kSimLookRecipe + k
+// (k = 1..3) is answered with a second look wanted for reason k (reg::LookReason) from
+// look_pose_for_job, and no pick; a LOOK is answered with the fused pick, pick_for_job.
+inline constexpr std::uint16_t kSimLookRecipe = 90;
+inline PickPose look_pose_for_job(std::uint16_t job) {
+  return {300.0f + job, -120.25f, 615.5f, 179.5f, -12.75f, static_cast<float>(job % 180) - 45.0f};
+}
+
 // Stands in for the daemon's cycle: consumes PLC commands from the server and publishes
 // results through the same API the daemon uses.
 class SimulatedDaemon {
@@ -43,12 +51,14 @@ class SimulatedDaemon {
     stop_ = true;
     thread_.join();
   }
-  std::atomic<int> triggers{0}, resets{0}, save_scenes{0}, nexts{0}, pick_results{0};
+  std::atomic<int> triggers{0}, resets{0}, save_scenes{0}, nexts{0}, pick_results{0}, looks{0};
   // The last NEXT and PICK_RESULT as the daemon received them; `order` records the kinds as
   // they arrived (N = NEXT, R = PICK_RESULT), for checks of one write carrying both.
   std::atomic<std::uint16_t> next_rank{0}, result_job{0}, result_rank{0xffff}, result_outcome{0};
   std::atomic<std::uint32_t> order{0};
   std::atomic<std::uint16_t> last_mode{0xffff}, last_recipe{0xffff};
+  // The last LOOK as the daemon received it.
+  std::atomic<std::uint16_t> look_job{0}, look_of_job{0};
   std::atomic<bool> fail_next{false};
 
  private:
@@ -82,10 +92,17 @@ class SimulatedDaemon {
           continue;
         }
         const bool save = cmd->kind == PlcCommand::Kind::SaveScene;
+        const bool look = cmd->kind == PlcCommand::Kind::Look;
         if (save)
           ++save_scenes;
+        else if (look)
+          ++looks;
         else
           ++triggers;
+        if (look) {
+          look_job = cmd->job_id;
+          look_of_job = cmd->look_of_job;
+        }
         last_mode = cmd->mode;
         last_recipe = cmd->recipe_id;
         std::this_thread::sleep_for(cycle_);
@@ -103,6 +120,12 @@ class SimulatedDaemon {
           report_.pick = pick_for_job(cmd->job_id);
           report_.score = 0.875f;
         }
+        const auto reason = static_cast<std::uint16_t>(cmd->recipe_id - kSimLookRecipe);
+        const bool wants_look = !look && report_.error_code == 0 && reason >= 1 && reason <= 3;
+        report_.look_wanted = wants_look;
+        report_.look_reason = wants_look ? reason : 0;
+        report_.look_pose = wants_look ? look_pose_for_job(cmd->job_id) : PickPose{};
+        if (wants_look) report_.pick_valid = 0;
         report_.pick_rank = 0;
         report_.pick_count = report_.pick_valid ? kSimPicksPerJob : 0;
         for (std::uint16_t k = 0; k < report_.pick_count; ++k) report_.ranked[k] = ranked_pick(cmd->job_id, k);
