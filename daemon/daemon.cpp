@@ -130,6 +130,8 @@ bool Daemon::reload(std::string& message) {
     sd_notify(0, "READY=1");
     return false;
   }
+  next.can.software_version = config_.can.software_version;
+  next.can.software_patch = config_.can.software_patch;
   link_.reconfigure_can(next.can_enabled, next.can);
   config_ = std::move(next);
   logSetLevel(config_.log_level);
@@ -295,6 +297,9 @@ bool Daemon::startServices() {
       modbus.software_version = static_cast<std::uint16_t>((std::min(major, 255u) << 8) | std::min(minor, 255u));
       modbus.software_patch = static_cast<std::uint16_t>(std::min(patch, 65535u));
     }
+    // The same release in MFCD_Version; kept in config_.can so a reload's new publisher has it too.
+    config_.can.software_version = modbus.software_version;
+    config_.can.software_patch = modbus.software_patch;
     link_.start(modbus, config_.can_enabled, config_.can);
     control_.open(config_.control_socket);
     calib_ = std::make_unique<CalibrationService>();

@@ -72,6 +72,16 @@ can_frame encode_heartbeat(std::uint16_t heartbeat, const RobotReport& r, canid_
   return f;
 }
 
+can_frame encode_version(std::uint16_t software_version, std::uint16_t software_patch, canid_t base) noexcept {
+  can_frame f = frame(base + kCanVersionOffset);
+  put_le(f, 0, 1, software_version >> 8u);    // major
+  put_le(f, 1, 1, software_version & 0xffu);  // minor
+  put_le(f, 2, 2, software_patch);
+  put_le(f, 4, 1, reg::kMapVersion);
+  put_le(f, 5, 1, kCanDbcVersion);
+  return f;  // bytes 6-7 reserved: 0
+}
+
 std::optional<std::array<can_frame, 3>> encode_pick(const RobotReport& r, std::uint8_t sequence,
                                                     canid_t base) noexcept {
   const auto x = scaled(r.pick.x_mm, kCanMmPerBit, 24);
@@ -120,6 +130,17 @@ std::optional<CanPick> decode_pick(const std::array<can_frame, 3>& f, canid_t ba
   p.valid = (f[2].data[7] & 1u) != 0;
   p.rank = static_cast<std::uint8_t>(f[2].data[7] >> 1);
   return p;
+}
+
+std::optional<CanVersion> decode_version(const can_frame& f, canid_t base) noexcept {
+  if (f.can_id != base + kCanVersionOffset || f.len != 8) return std::nullopt;
+  CanVersion v;
+  v.major = f.data[0];
+  v.minor = f.data[1];
+  v.patch = static_cast<std::uint16_t>(get_le(f, 2, 2));
+  v.map_version = f.data[4];
+  v.dbc_version = f.data[5];
+  return v;
 }
 
 CanErrorKind classify_error_frame(const can_frame& f) noexcept {

@@ -208,6 +208,8 @@ void CanPublisher::run() {
   std::uint16_t last_status = 0;
   std::uint16_t last_status_job = 0, last_status_error = 0, last_status_objects = 0;
   bool status_known = false;
+  // The release does not change while the publisher runs: one frame, built once.
+  const can_frame version = encode_version(config_.software_version, config_.software_patch, config_.id_base);
   Clock::time_point next_beat = Clock::now();
   Clock::time_point next_retry = Clock::now();
 
@@ -228,7 +230,12 @@ void CanPublisher::run() {
     const bool beat_due = now >= next_beat;
     const bool healthy = now.time_since_epoch().count() < health_until_ns_.load(std::memory_order_acquire);
     if (beat_due) {
-      if (healthy) send(encode_heartbeat(heartbeat++, report, config_.id_base));
+      // The version frame follows each heartbeat under the same lease, so a receiver that
+      // starts listening learns mfcd's release within one heartbeat period.
+      if (healthy) {
+        send(encode_heartbeat(heartbeat++, report, config_.id_base));
+        send(version);
+      }
       next_beat += config_.heartbeat_period;
       if (next_beat < now) next_beat = now + config_.heartbeat_period;
     }

@@ -1,4 +1,5 @@
-// Publishes the robot link's status, heartbeat and picks on a SocketCAN interface.
+// Publishes the robot link's status, heartbeat, release (MFCD_Version) and picks on a SocketCAN
+// interface.
 //
 // Runs its own thread. The daemon's result writer calls publish() (seqlock store plus an
 // eventfd write: no lock, no allocation, never blocks). Link-down (interface missing or
@@ -26,6 +27,11 @@ struct CanConfig {
   canid_t id_base = kCanDefaultBase;  // 11-bit; frames use base .. base+0x12
   std::chrono::milliseconds heartbeat_period{1000};
   std::chrono::milliseconds retry_interval{1000};
+  // mfcd's release sent in MFCD_Version, packed as the Modbus registers 53..54 hold it
+  // (ModbusServerConfig): major << 8 | minor, and patch. 0 and 0 when the daemon's version
+  // string is not "major.minor.patch".
+  std::uint16_t software_version = 0;
+  std::uint16_t software_patch = 0;
 
   std::string validate() const;
 };
@@ -55,9 +61,10 @@ class CanPublisher {
   // pick_valid set is sent as a pick; status goes out on every change and with each heartbeat.
   void publish(const RobotReport& report) noexcept;
 
-  // The heartbeat frame goes out only while now < `until` (the daemon renews this lease while
-  // its threads move, as for the Modbus HEARTBEAT): a receiver's heartbeat timeout then means
-  // mfcd is down or hung. Until the first lease the publisher beats on its own.
+  // The heartbeat frame, and the version frame right after it, go out only while now < `until`
+  // (the daemon renews this lease while its threads move, as for the Modbus HEARTBEAT): a
+  // receiver's heartbeat timeout then means mfcd is down or hung. Until the first lease the
+  // publisher beats on its own.
   void lease_health(std::chrono::steady_clock::time_point until) noexcept {
     health_until_ns_.store(until.time_since_epoch().count(), std::memory_order_release);
   }

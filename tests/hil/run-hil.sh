@@ -5,7 +5,7 @@
 # Usage: run-hil.sh --out DIR [--candump] HIL_TEST_BINARY [BENCH_BINARY] [-- GTEST_ARGS...]
 #   DIR receives hil_tests.xml, bench_hal_vivid.json and the guest's output.
 #   --candump: candump (can-utils) records vcan0 while the tests run, as an independent reader;
-#   the tier fails unless it saw every frame of docs/mfcd.dbc (status 0x180, heartbeat 0x181,
+#   the tier fails unless it saw every frame of docs/mfcd.dbc (status 0x180, heartbeat 0x181, version 0x182,
 #   pick 0x190-0x192). Its log is DIR/candump.log.
 # Exit: 0 pass, 77 skipped (QEMU/kernel bits unavailable; MFC_HIL_REQUIRED=1 makes that a failure),
 #       anything else a failure.
@@ -38,7 +38,7 @@ rm -f "$OUT"/hil_tests.xml "$OUT"/bench_hal_vivid.json
   fi
   if [[ $CANDUMP == 1 ]]; then
     printf 'sleep 0.5; kill $cpid; wait $cpid 2>/dev/null\n'
-    printf 'for id in 180 181 190 191 192; do grep -q " vcan0 $id#" %q || { echo "candump saw no frame $id on vcan0"; rc=1; }; done\n' "$OUT/candump.log"
+    printf 'for id in 180 181 182 190 191 192; do grep -q " vcan0 $id#" %q || { echo "candump saw no frame $id on vcan0"; rc=1; }; done\n' "$OUT/candump.log"
     printf 'echo "candump recorded $(wc -l < %q) frames on vcan0"\n' "$OUT/candump.log"
   fi
   echo 'exit $rc'

@@ -1,6 +1,6 @@
-// Prints every kind of CAN frame mfcd sends (motion/can_frames.hpp: status, heartbeat, pick
-// A/B/C), each built by the library's own encoders, for a set of representative reports, as
-// JSON lines for tests/motion/dbc_canmatrix_test.py:
+// Prints every kind of CAN frame mfcd sends (motion/can_frames.hpp: status, heartbeat, version,
+// pick A/B/C), each built by the library's own encoders, for a set of representative reports
+// (and releases), as JSON lines for tests/motion/dbc_canmatrix_test.py:
 //
 //   {"case":"typical","frame":"MFCD_Status","id":384,"dlc":8,"data":"0100...",
 //    "signals":{"StatusReady":1,...}}
@@ -8,7 +8,7 @@
 // "frame" is the docs/mfcd.dbc frame the encoder claims to produce, "data" the payload as
 // sent (dlc bytes, hex), and "signals" the physical value of every DBC signal of that frame
 // as the encoder was asked to send it, taken from the report (not from the frame): mm, deg,
-// ms, 0..1 score, counters. The Python side decodes "data" with an independent DBC parser and
+// ms, 0..1 score, counters, version numbers. The Python side decodes "data" with an independent DBC parser and
 // compares. Floats print with 9 significant digits, so they read back as the exact float.
 // Exit 1 if an encoder refuses a case (all cases are within the signal ranges).
 #include "motion/can_frames.hpp"
@@ -31,6 +31,9 @@ struct Case {
   RobotReport report;
   std::uint16_t heartbeat = 0;
   std::uint8_t sequence = 0;
+  // The release in MFCD_Version (CanConfig packing): major << 8 | minor, and patch.
+  std::uint16_t software_version = 0;
+  std::uint16_t software_patch = 0;
 };
 
 using Signals = std::vector<std::pair<std::string, double>>;
@@ -70,6 +73,13 @@ bool dump(const Case& c) {
                {"RecipeEcho", r.recipe_id},
                {"CandidateCount", std::min<int>(r.candidate_count, 255)},  // saturates in one byte
                {"MapVersion", reg::kMapVersion}});
+  print_frame(c.name, "MFCD_Version", encode_version(c.software_version, c.software_patch, kCanDefaultBase),
+              {{"SoftwareMajor", c.software_version >> 8},
+               {"SoftwareMinor", c.software_version & 0xff},
+               {"SoftwarePatch", c.software_patch},
+               {"RegisterMapVersion", reg::kMapVersion},
+               {"DbcVersion", kCanDbcVersion},
+               {"VersionReserved48_63", 0}});
   const auto pick = encode_pick(r, c.sequence, kCanDefaultBase);
   if (!pick) {
     std::fprintf(stderr, "case %s: encode_pick refused a pick inside the signal ranges\n", c.name.c_str());
@@ -96,7 +106,7 @@ std::vector<Case> cases() {
   std::vector<Case> out;
   out.push_back({"zeros", RobotReport{}, 0, 0});
 
-  Case typical{"typical", {}, 17, 5};
+  Case typical{"typical", {}, 17, 5, 0x0102, 3};  // release 1.2.3
   RobotReport& t = typical.report;
   t.job_id = 42;
   t.recipe_id = 3;
@@ -122,7 +132,7 @@ std::vector<Case> cases() {
   }
 
   // The largest values each signal holds; counts past one byte saturate at 255.
-  Case high{"max", {}, 65535, 255};
+  Case high{"max", {}, 65535, 255, 0xffff, 0xffff};  // release 255.255.65535
   RobotReport& h = high.report;
   h.job_id = h.recipe_id = h.objects_remaining = h.cycle_time_ms = 65535;
   h.candidate_index = 65535;
@@ -134,12 +144,12 @@ std::vector<Case> cases() {
   out.push_back(high);
 
   // The most negative values the signed signals hold, and the smallest steps around zero.
-  Case low{"min", {}, 1, 128};
+  Case low{"min", {}, 1, 128, 0x0100, 0};  // release 1.0.0
   low.report.pick = {-83886.08f, -83886.08f, -83886.08f, -327.68f, -327.68f, -327.68f};
   low.report.candidate_count = 255;
   low.report.candidate_index = 255;
   out.push_back(low);
-  Case tiny{"tiny", {}, 2, 1};
+  Case tiny{"tiny", {}, 2, 1, 0x0001, 1};  // release 0.1.1
   tiny.report.pick = {-0.01f, 0.01f, -0.02f, -0.01f, 0.01f, -0.01f};
   tiny.report.score = 0.0001f;
   tiny.report.job_id = 1;
@@ -147,6 +157,7 @@ std::vector<Case> cases() {
 
   // Seeded random reports: a fixed, repeatable sample of the ordinary range.
   std::mt19937 rng(43);
+  std::mt19937 release_rng(44);  // own stream: the reports drawn from rng do not depend on it
   std::uniform_real_distribution<float> mm(-3000.0f, 3000.0f), deg(-180.0f, 180.0f), unit(0.0f, 1.0f);
   std::uniform_int_distribution<int> u16(0, 65535), bit(0, 1), code(0, 7);
   for (int i = 0; i < 40; ++i) {
@@ -165,6 +176,8 @@ std::vector<Case> cases() {
     r.pick = {mm(rng), mm(rng), mm(rng), deg(rng), deg(rng) / 2, deg(rng)};
     r.score = unit(rng);
     r.pick_rank = static_cast<std::uint16_t>(u16(rng) % 8);
+    c.software_version = static_cast<std::uint16_t>(u16(release_rng));
+    c.software_patch = static_cast<std::uint16_t>(u16(release_rng));
     out.push_back(c);
   }
   return out;

@@ -132,7 +132,7 @@ RobotReport random_report(std::mt19937& rng) {
 }  // namespace
 
 TEST_F(CanDbc, DescribesEveryFrameWeSend) {
-  ASSERT_EQ(dbc->size(), 5u);
+  ASSERT_EQ(dbc->size(), 6u);
   for (const auto& [id, m] : *dbc) {
     EXPECT_EQ(m.dlc, 8u) << m.name;
     for (const auto& [name, s] : m.signals) {
@@ -142,6 +142,7 @@ TEST_F(CanDbc, DescribesEveryFrameWeSend) {
   }
   EXPECT_EQ(dbc->at(kCanDefaultBase + kCanStatusOffset).name, "MFCD_Status");
   EXPECT_EQ(dbc->at(kCanDefaultBase + kCanHeartbeatOffset).name, "MFCD_Heartbeat");
+  EXPECT_EQ(dbc->at(kCanDefaultBase + kCanVersionOffset).name, "MFCD_Version");
   EXPECT_EQ(dbc->at(kCanDefaultBase + kCanPickAOffset).name, "MFCD_PickA");
   EXPECT_EQ(dbc->at(kCanDefaultBase + kCanPickBOffset).name, "MFCD_PickB");
   EXPECT_EQ(dbc->at(kCanDefaultBase + kCanPickCOffset).name, "MFCD_PickC");
@@ -174,6 +175,67 @@ TEST_F(CanDbc, StatusAndHeartbeatMatchTheDbc) {
     ASSERT_EQ(signal(h, "CandidateCount"), std::min<int>(r.candidate_count, 255));
     ASSERT_EQ(signal(h, "MapVersion"), reg::kMapVersion) << "the heartbeat names the Modbus register map version";
   }
+}
+
+TEST_F(CanDbc, VersionFrameMatchesTheDbc) {
+  // Release 1.2.772 (as the Modbus registers 53..54 hold it: 0x0102, 0x0304), byte by byte:
+  // major, minor, patch little-endian, register map version, DBC version, two reserved bytes.
+  const can_frame f = encode_version(0x0102, 0x0304, kCanDefaultBase);
+  EXPECT_EQ(f.can_id, kCanDefaultBase + kCanVersionOffset);
+  ASSERT_EQ(f.len, 8u);
+  EXPECT_EQ(f.data[0], 0x01) << "SoftwareMajor";
+  EXPECT_EQ(f.data[1], 0x02) << "SoftwareMinor";
+  EXPECT_EQ(f.data[2], 0x04) << "SoftwarePatch, low byte";
+  EXPECT_EQ(f.data[3], 0x03) << "SoftwarePatch, high byte";
+  EXPECT_EQ(f.data[4], reg::kMapVersion) << "RegisterMapVersion";
+  EXPECT_EQ(f.data[5], kCanDbcVersion) << "DbcVersion";
+  EXPECT_EQ(f.data[6], 0) << "VersionReserved48_63";
+  EXPECT_EQ(f.data[7], 0) << "VersionReserved48_63";
+
+  std::mt19937 rng(13);
+  std::uniform_int_distribution<int> u16(0, 65535);
+  for (int i = 0; i < 2000; ++i) {
+    const auto version = static_cast<std::uint16_t>(i < 2 ? i * 0xffff : u16(rng));
+    const auto patch = static_cast<std::uint16_t>(i < 2 ? i * 0xffff : u16(rng));
+    const can_frame v = encode_version(version, patch, kCanDefaultBase);
+    ASSERT_EQ(signal(v, "SoftwareMajor"), version >> 8);
+    ASSERT_EQ(signal(v, "SoftwareMinor"), version & 0xff);
+    ASSERT_EQ(signal(v, "SoftwarePatch"), patch);
+    ASSERT_EQ(signal(v, "RegisterMapVersion"), reg::kMapVersion);
+    ASSERT_EQ(signal(v, "DbcVersion"), kCanDbcVersion);
+    ASSERT_EQ(signal(v, "VersionReserved48_63"), 0);
+    const auto d = decode_version(v, kCanDefaultBase);
+    ASSERT_TRUE(d);
+    ASSERT_EQ(d->major, version >> 8);
+    ASSERT_EQ(d->minor, version & 0xff);
+    ASSERT_EQ(d->patch, patch);
+    ASSERT_EQ(d->map_version, reg::kMapVersion);
+    ASSERT_EQ(d->dbc_version, kCanDbcVersion);
+  }
+}
+
+TEST(CanFrames, DbcVersionIsTheDbcFilesVersion) {
+  std::ifstream in(MFC_SOURCE_DIR "/docs/mfcd.dbc");
+  std::string line;
+  ASSERT_TRUE(std::getline(in, line));
+  unsigned n = 0;
+  int used = 0;
+  ASSERT_EQ(std::sscanf(line.c_str(), "VERSION \"mfcd robot link %u\"%n", &n, &used), 1) << line;
+  ASSERT_EQ(static_cast<std::size_t>(used), line.size()) << line;
+  EXPECT_EQ(n, kCanDbcVersion) << "kCanDbcVersion (can_frames.hpp) is sent as DbcVersion: raise both together";
+}
+
+TEST(CanFrames, DecodeVersionChecksIdAndLength) {
+  can_frame f = encode_version(0x0a0b, 12, kCanDefaultBase);
+  EXPECT_FALSE(decode_version(f, kCanDefaultBase + 1)) << "wrong id";
+  f.len = 7;
+  EXPECT_FALSE(decode_version(f, kCanDefaultBase)) << "short frame";
+  f.len = 8;
+  const auto d = decode_version(f, kCanDefaultBase);
+  ASSERT_TRUE(d);
+  EXPECT_EQ(d->major, 10);
+  EXPECT_EQ(d->minor, 11);
+  EXPECT_EQ(d->patch, 12);
 }
 
 TEST_F(CanDbc, PickFramesMatchTheDbc) {
@@ -236,6 +298,7 @@ TEST(CanFrames, IdBaseMovesAllFrames) {
   RobotReport r;
   EXPECT_EQ(encode_status(r, 0x300).can_id, 0x300u);
   EXPECT_EQ(encode_heartbeat(0, r, 0x300).can_id, 0x301u);
+  EXPECT_EQ(encode_version(0, 0, 0x300).can_id, 0x302u);
   EXPECT_EQ((*encode_pick(r, 0, 0x300))[2].can_id, 0x312u);
 }
 

@@ -1,6 +1,7 @@
 // CanPublisher against the kernel: link-down reporting everywhere, and real frames on vcan0
 // where the machine has it (the VM tier); elsewhere those tests skip.
 #include "motion/can_publisher.hpp"
+#include "motion/register_map.hpp"
 
 #include <gtest/gtest.h>
 #include <linux/can/raw.h>
@@ -91,7 +92,7 @@ TEST(CanPublisher, BadConfigurationIsNamed) {
   EXPECT_NE(config.validate().find("id_base"), std::string::npos);
 }
 
-TEST(CanPublisher, SendsStatusHeartbeatAndPickOnVcan0) {
+TEST(CanPublisher, SendsStatusHeartbeatVersionAndPickOnVcan0) {
   if (!have_vcan0())
     GTEST_SKIP() << "vcan0 not present (needs the vcan module: modprobe vcan; ip link add vcan0 type vcan; "
                     "ip link set vcan0 up) - runs in the VM tier";
@@ -99,6 +100,8 @@ TEST(CanPublisher, SendsStatusHeartbeatAndPickOnVcan0) {
   CanConfig config;
   config.interface = "vcan0";
   config.heartbeat_period = 100ms;
+  config.software_version = 0x0203;  // release 2.3.17
+  config.software_patch = 17;
   CanPublisher publisher(config);
   publisher.start();
   ASSERT_TRUE(eventually([&] { return publisher.state() == CanLinkState::Up; }));
@@ -114,13 +117,19 @@ TEST(CanPublisher, SendsStatusHeartbeatAndPickOnVcan0) {
 
   std::map<canid_t, can_frame> last;
   std::optional<CanPick> pick;
-  int heartbeats = 0;
+  int heartbeats = 0, versions = 0, versions_after_heartbeat = 0;
+  canid_t previous = 0;
   const auto end = std::chrono::steady_clock::now() + 3s;
-  while (std::chrono::steady_clock::now() < end && (!pick || heartbeats < 3)) {
+  while (std::chrono::steady_clock::now() < end && (!pick || heartbeats < 3 || versions < 3)) {
     const auto f = reader.next();
     if (!f) break;
     last[f->can_id] = *f;
     if (f->can_id == kCanDefaultBase + kCanHeartbeatOffset) ++heartbeats;
+    if (f->can_id == kCanDefaultBase + kCanVersionOffset) {
+      ++versions;
+      if (previous == kCanDefaultBase + kCanHeartbeatOffset) ++versions_after_heartbeat;
+    }
+    previous = f->can_id;
     if (f->can_id == kCanDefaultBase + kCanPickCOffset && last.count(kCanDefaultBase + kCanPickAOffset) &&
         last.count(kCanDefaultBase + kCanPickBOffset))
       pick = decode_pick({last[kCanDefaultBase + kCanPickAOffset], last[kCanDefaultBase + kCanPickBOffset], *f},
@@ -131,9 +140,42 @@ TEST(CanPublisher, SendsStatusHeartbeatAndPickOnVcan0) {
   EXPECT_NEAR(pick->pose.x_mm, 412.25f, 0.006f);
   EXPECT_NEAR(pick->pose.rz_deg, 45.0f, 0.006f);
   EXPECT_GE(heartbeats, 3);
+  // One version frame each heartbeat period, right after the heartbeat frame.
+  EXPECT_GE(versions, 3);
+  EXPECT_EQ(versions_after_heartbeat, versions);
+  EXPECT_LE(std::abs(heartbeats - versions), 1);
+  ASSERT_TRUE(last.count(kCanDefaultBase + kCanVersionOffset));
+  const auto version = decode_version(last[kCanDefaultBase + kCanVersionOffset], kCanDefaultBase);
+  ASSERT_TRUE(version);
+  EXPECT_EQ(version->major, 2);
+  EXPECT_EQ(version->minor, 3);
+  EXPECT_EQ(version->patch, 17);
+  EXPECT_EQ(version->map_version, reg::kMapVersion);
+  EXPECT_EQ(version->dbc_version, kCanDbcVersion);
   ASSERT_TRUE(last.count(kCanDefaultBase + kCanStatusOffset));
   EXPECT_EQ(last[kCanDefaultBase + kCanStatusOffset].data[2], 33);
   EXPECT_EQ(publisher.stats().picks_sent, 1u);
+}
+
+TEST(CanPublisher, VersionFollowsTheHeartbeatLeaseOnVcan0) {
+  if (!have_vcan0()) GTEST_SKIP() << "vcan0 not present - runs in the VM tier";
+  CanReader reader("vcan0");
+  CanConfig config;
+  config.interface = "vcan0";
+  config.heartbeat_period = 50ms;
+  CanPublisher publisher(config);
+  publisher.lease_health(std::chrono::steady_clock::now() - 1s);  // lapsed: mfcd counts as hung
+  publisher.start();
+  ASSERT_TRUE(eventually([&] { return publisher.state() == CanLinkState::Up; }));
+  std::map<canid_t, int> seen;
+  const auto end = std::chrono::steady_clock::now() + 400ms;
+  while (std::chrono::steady_clock::now() < end) {
+    const auto f = reader.next(100);
+    if (f) ++seen[f->can_id];
+  }
+  EXPECT_GE(seen[kCanDefaultBase + kCanStatusOffset], 3) << "status goes out every period, lease or not";
+  EXPECT_EQ(seen[kCanDefaultBase + kCanHeartbeatOffset], 0);
+  EXPECT_EQ(seen[kCanDefaultBase + kCanVersionOffset], 0) << "the version frame is withheld with the heartbeat";
 }
 
 TEST(CanPublisher, LinkDownAndBackOnVcan0) {

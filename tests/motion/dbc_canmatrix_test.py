@@ -15,7 +15,9 @@ for representative reports, as JSON lines with the values it encoded. Checks:
     the bit model is checked against canmatrix's own decoder, and the overlap check against
     a built-in DBC with known overlaps;
   * BusType "CAN", a GenMsgSendType for every frame, GenMsgCycleTime for the periodic ones
-    (the default heartbeat period in motion/can_publisher.hpp), value tables for ErrorCode
+    (the default heartbeat period in motion/can_publisher.hpp; status, heartbeat and version
+    frames must be periodic), the VERSION "mfcd robot link N" with N = kCanDbcVersion of
+    motion/can_frames.hpp (sent as DbcVersion), value tables for ErrorCode
     (every code of daemon/cycle.hpp CycleError) and the flags, a comment naming the unit of
     every signal;
   * every dumped frame: id and dlc equal the DBC frame's, each signal canmatrix decodes equals
@@ -247,6 +249,21 @@ def cycle_errors(source_dir):
     return {int(v): name for name, v in re.findall(r"(\w+)\s*=\s*(\d+)\s*,", body.group(1))}
 
 
+# The frames sent every heartbeat period (motion/can_publisher.cpp).
+PERIODIC = ("MFCD_Status", "MFCD_Heartbeat", "MFCD_Version")
+
+
+def check_version(source_dir, text):
+    """The DBC's VERSION "mfcd robot link N" and kCanDbcVersion, the N mfcd sends as DbcVersion."""
+    version = re.match(r'VERSION "mfcd robot link (\d+)"\s*$', text.splitlines()[0]) if text else None
+    frames_hpp = open(os.path.join(source_dir, "motion/can_frames.hpp")).read()
+    sent = re.search(r"kCanDbcVersion = (\d+);", frames_hpp)
+    if check(version is not None and sent is not None,
+             "docs/mfcd.dbc starts with VERSION \"mfcd robot link N\"; motion/can_frames.hpp has kCanDbcVersion"):
+        check(int(version.group(1)) == int(sent.group(1)),
+              f"DBC version {version.group(1)} is kCanDbcVersion {sent.group(1)}, the DbcVersion mfcd sends")
+
+
 def check_attributes(source_dir, db):
     check(db.attributes.get("BusType") == "CAN", f"BusType is \"CAN\" (got {db.attributes.get('BusType')!r})")
     send_types = getattr(db.frame_defines.get("GenMsgSendType"), "values", [])
@@ -264,9 +281,10 @@ def check_attributes(source_dir, db):
         else:
             check(cycle == 0, f"{f.name}: event frame without GenMsgCycleTime (got {cycle})")
     frames = {f.name: f for f in db.frames}
-    check(frames.get("MFCD_Heartbeat") is not None and
-          frames["MFCD_Heartbeat"].attributes.get("GenMsgSendType", "").startswith("Cyclic"),
-          "the heartbeat frame is periodic")
+    for name in PERIODIC:
+        check(frames.get(name) is not None and
+              frames[name].attributes.get("GenMsgSendType", "").startswith("Cyclic"),
+              f"{name} is periodic")
 
     codes = cycle_errors(source_dir)
     error_code = frames["MFCD_Status"].signal_by_name("ErrorCode") if "MFCD_Status" in frames else None
@@ -333,8 +351,9 @@ def main():
     path = os.path.join(source_dir, "docs/mfcd.dbc")
     raw = open(path, "rb").read()
     db = load_dbc(raw, "docs/mfcd.dbc")
-    check(len(db.frames) == 5, f"docs/mfcd.dbc has the 5 frames mfcd sends (got {len(db.frames)})")
+    check(len(db.frames) == 6, f"docs/mfcd.dbc has the 6 frames mfcd sends (got {len(db.frames)})")
     check_statements(raw.decode("iso-8859-1"), db)
+    check_version(source_dir, raw.decode("iso-8859-1"))
     check_layout(db)
     check_attributes(source_dir, db)
     check_frames(db, dump_program)
