@@ -222,6 +222,21 @@ int main(int argc, char** argv) {
         trial["first"] = scored_json(a);
         trial["fused"] = scored_json(b);
         trial["fused_from"] = fused.candidates.empty() ? 0 : fused.candidates.front().proposed_by;
+        // Every fused candidate with what the fused confidence model takes (fit_confidence.py
+        // --second-look fits it on these).
+        json fused_candidates = json::array();
+        for (const SecondLookCandidate& c : fused.candidates) {
+          const FusedEvidence e = c.evidence();
+          fused_candidates.push_back({{"right", score(c.R_m2c, c.t_m2c_mm, part, first.instances, obj).right},
+                                      {"score", c.score},
+                                      {"rank_first", e.rank_first},
+                                      {"rank_second", e.rank_second},
+                                      {"has_alternative", e.has_alternative},
+                                      {"alternative_margin", e.alternative_margin},
+                                      {"proposed_by", c.proposed_by}});
+        }
+        trial["fused_candidates"] = fused_candidates;
+        trial["fused_score"] = fused.candidates.empty() ? 0.0 : fused.candidates.front().score;
         trial["first_ms"] = first_ms.back();
         trial["fuse_ms"] = fuse_ms.back();
         trials.push_back(trial);

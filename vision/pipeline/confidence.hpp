@@ -36,4 +36,25 @@ struct ConfidenceModel {
   double probability(const PoseEvidence& e) const;
 };
 
+// What a second look measured of one fused candidate (SecondLookCandidate's fields).
+struct FusedEvidence {
+  double rank_first = 0;           // fitted rank in the first image, about 0..1
+  double rank_second = 0;          // fitted rank in the second image
+  bool has_alternative = false;    // a distinct other pose of the part was fitted at its place
+  double alternative_margin = 0;   // rank sum less the alternative's; 0 without one
+};
+
+// The fused candidates' confidence: the same logistic form over FusedEvidence. A model of its
+// own because the fused measures are not the single view's (two images, no edge-support terms).
+struct FusedConfidenceModel {
+  double bias = 0;
+  double rank_first = 0;
+  double rank_second = 0;
+  double has_alternative = 0;
+  double alternative_margin = 0;
+
+  double logit(const FusedEvidence& e) const;
+  double probability(const FusedEvidence& e) const;
+};
+
 }  // namespace mfcd::vision

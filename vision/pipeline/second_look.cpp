@@ -16,7 +16,40 @@ void SecondLookParams::validate() const {
   if (!(same_part_fraction > 0 && same_part_fraction <= 1))
     throw std::invalid_argument("second look: same_part_fraction " + std::to_string(same_part_fraction) +
                                 " out of range (0, 1]");
+  if (!(same_pose_mm > 0 && same_pose_mm <= 50))
+    throw std::invalid_argument("second look: same_pose_mm " + std::to_string(same_pose_mm) + " out of range (0, 50]");
+  if (!(same_pose_deg > 0 && same_pose_deg <= 90))
+    throw std::invalid_argument("second look: same_pose_deg " + std::to_string(same_pose_deg) +
+                                " out of range (0, 90]");
 }
+
+FusedEvidence SecondLookCandidate::evidence() const {
+  return {rank_first, rank_second, has_alternative, has_alternative ? rank - alternative_rank : 0.0};
+}
+
+namespace {
+
+double angle_between(const cv::Matx33d& a, const cv::Matx33d& b) { return rotation_angle(a.t() * b); }
+
+// Whether rotations a and b of the part are the same after one of its symmetries (each symmetry
+// axis on its own: a turn about one axis composed with one about another is not tried, which
+// can only call two poses distinct that are not).
+bool same_rotation(const MeshTurns& turns, const cv::Matx33d& a, const cv::Matx33d& b, double tol_rad) {
+  if (angle_between(a, b) < tol_rad) return true;
+  for (const MeshTurn& s : turns.symmetries) {
+    if (s.kind != MeshTurn::Kind::symmetry) continue;
+    if (s.order == 0) {  // continuous: any turn about the axis, so only where the axis goes counts
+      if (std::acos(std::clamp((a * s.axis).dot(b * s.axis), -1.0, 1.0)) < tol_rad) return true;
+      continue;
+    }
+    cv::Matx33d power = s.R;
+    for (int k = 1; k < s.order; ++k, power = power * s.R)
+      if (angle_between(a, b * power) < tol_rad) return true;
+  }
+  return false;
+}
+
+}  // namespace
 
 SecondLook::SecondLook(const CameraConfig& camera, const PipelineConfig& config, const SecondLookParams& params)
     : params_(params) {
@@ -88,18 +121,62 @@ void SecondLook::fuse(const PipelineResult& first_result, const MfcFrames& secon
   }
   std::stable_sort(out.candidates.begin(), out.candidates.end(),
                    [](const SecondLookCandidate& l, const SecondLookCandidate& r) { return l.rank > r.rank; });
-  // One per part: a lower-ranked fit whose centre lies near a kept one's is the same part.
+  // One per part: a lower-ranked fit whose centre lies near a kept one's is the same part; the
+  // best of those in another pose is the kept one's alternative.
+  const double tol_rad = params_.same_pose_deg * CV_PI / 180.0;
   std::vector<SecondLookCandidate> kept;
   for (const auto& c : out.candidates) {
     const TemplateDatabase& db = a.part_of(c.obj_id).db;
     const cv::Vec3d centre = c.R_m2c * db.center_mm + c.t_m2c_mm;
-    const bool same = std::any_of(kept.begin(), kept.end(), [&](const SecondLookCandidate& k) {
-      if (k.obj_id != c.obj_id) return false;
-      return cv::norm(k.R_m2c * db.center_mm + k.t_m2c_mm - centre) < params_.same_part_fraction * db.diameter_mm;
-    });
-    if (!same) kept.push_back(c);
+    bool same_part = false;
+    for (SecondLookCandidate& k : kept) {
+      if (k.obj_id != c.obj_id) continue;
+      const double apart = cv::norm(k.R_m2c * db.center_mm + k.t_m2c_mm - centre);
+      if (apart >= params_.same_part_fraction * db.diameter_mm) continue;
+      same_part = true;
+      const bool same_pose = apart < params_.same_pose_mm && same_rotation(db.turns, k.R_m2c, c.R_m2c, tol_rad);
+      if (!same_pose && !k.has_alternative) k.has_alternative = true, k.alternative_rank = c.rank;
+      break;
+    }
+    if (!same_part) kept.push_back(c);
   }
+  for (SecondLookCandidate& k : kept) k.score = params_.confidence.probability(k.evidence());
   out.candidates = std::move(kept);
+}
+
+void SecondLook::to_pipeline_result(const SecondLookResult& fused, PipelineResult& out) const {
+  BinPickingPipeline::Impl& a = *first_->impl_;
+  const PinholeCamera& cam = a.camera.camera;
+  out.candidates.clear();
+  for (const SecondLookCandidate& f : fused.candidates) {
+    const TemplateDatabase& db = a.part_of(f.obj_id).db;
+    PoseCandidate p;
+    p.obj_id = f.obj_id;
+    p.part = db.part_name;
+    p.R_m2c = f.R_m2c;
+    p.t_m2c_mm = f.t_m2c_mm;
+    p.score = f.score;
+    p.fit_rank = f.rank;
+    p.refined = true;
+    p.has_alternative = f.has_alternative;
+    p.alternative_rank = f.alternative_rank;
+    bool any = false;
+    double best = 0;
+    for (const auto& [feature_obj_id, feature] : a.config.grasp_features)
+      if (feature_obj_id == f.obj_id) {
+        any = true;
+        best = std::max(best, a.grasp_visibility(f.obj_id, RigidPose{f.R_m2c, f.t_m2c_mm}, feature).visible);
+      }
+    p.grasp_visibility = any ? best : 1.0;
+    // The part's sphere (centre, half its diameter) as the image sees it.
+    const cv::Vec3d c = f.R_m2c * db.center_mm + f.t_m2c_mm;
+    if (c[2] > 0) {
+      const double rx = cam.fx() * db.diameter_mm / 2 / c[2], ry = cam.fy() * db.diameter_mm / 2 / c[2];
+      const double u = cam.fx() * c[0] / c[2] + cam.cx(), v = cam.fy() * c[1] / c[2] + cam.cy();
+      p.box = cv::Rect2d(u - rx, v - ry, 2 * rx, 2 * ry);
+    }
+    out.candidates.push_back(std::move(p));
+  }
 }
 
 }  // namespace mfcd::vision

@@ -10,6 +10,7 @@
 // loaded twice). Not thread-safe; fuse() allocates (it is not on the single-view frame path).
 
 #include "vision/pipeline/bin_picking_pipeline.hpp"
+#include "vision/pipeline/second_look_fitted.hpp"
 #include "vision/pose/rigid_transform.hpp"
 
 #include <chrono>
@@ -25,6 +26,14 @@ struct SecondLookParams {
   // Two fused candidates whose part centres lie nearer than this share of the part's diameter
   // are the same part, and only the better ranked is kept. Range (0, 1].
   double same_part_fraction = 0.25;
+  // Two fits of one part are the same pose when their centres lie within this distance, mm, and
+  // their rotations within rotation_deg of each other modulo the part's symmetries: the bench's
+  // criterion of a right pose. Range (0, 50] mm, (0, 90] degrees.
+  double same_pose_mm = 5;
+  double same_pose_deg = 10;
+  // The fused candidates' confidence (second_look_fitted.hpp, fitted by
+  // tools/bench/fit_confidence.py --second-look on the dev split's two-view bins).
+  FusedConfidenceModel confidence = kFittedFusedConfidence;
   void validate() const;  // throws std::invalid_argument naming the field
 };
 
@@ -36,6 +45,14 @@ struct SecondLookCandidate {
   // and their sum, by which the candidates are ordered.
   double rank_first = 0, rank_second = 0, rank = 0;
   int proposed_by = 1;  // the frame set whose search found the starting pose: 1 or 2
+  // The best-ranked other fit of the same part at its place whose pose differs (same_pose_mm,
+  // same_pose_deg, symmetries); none when every fit there converged to this pose.
+  bool has_alternative = false;
+  double alternative_rank = 0;
+  // 0..1: the estimated probability that the pose is right (5 mm, 10 degrees), params.confidence.
+  double score = 0;
+
+  FusedEvidence evidence() const;
 };
 
 struct SecondLookResult {
@@ -65,6 +82,12 @@ class SecondLook {
   // scores on). Past `deadline` the fusion stops and keeps what it fitted.
   void fuse(const PipelineResult& first_result, const MfcFrames& second_frames, const RigidTransform& motion,
             int obj_id, std::chrono::steady_clock::time_point deadline, SecondLookResult& out);
+
+  // The fused candidates as the first camera's pick candidates, best first: pose, score, rank
+  // (fit_rank: the two images' sum), grasp visibility in the first image, the part's projected
+  // box. Fields the fusion does not measure keep their defaults; none is ambiguous (the fused
+  // score carries the doubt). Allocates.
+  void to_pipeline_result(const SecondLookResult& fused, PipelineResult& out) const;
 
  private:
   SecondLookParams params_;

@@ -36,6 +36,23 @@ TEST(Confidence, ProbabilityIsTheLogisticOfTheWeightedMeasures) {
   }
 }
 
+TEST(Confidence, FusedProbabilityIsTheLogisticOfTheWeightedMeasures) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> w(-20, 20), x(-1, 2);
+  for (int trial = 0; trial < 2000; ++trial) {
+    const FusedConfidenceModel m{w(rng), w(rng), w(rng), w(rng), w(rng)};
+    const FusedEvidence e{x(rng), x(rng), x(rng) > 0.5, x(rng)};
+    // Slow twin, in long double.
+    const long double z = static_cast<long double>(m.bias) + m.rank_first * e.rank_first +
+                          m.rank_second * e.rank_second + (e.has_alternative ? m.has_alternative : 0.0) +
+                          m.alternative_margin * e.alternative_margin;
+    ASSERT_NEAR(m.probability(e), static_cast<double>(1.0L / (1.0L + std::exp(-z))), 1e-12) << "trial " << trial;
+  }
+  const FusedConfidenceModel huge{0, 1e6, 0, 0, 0};
+  EXPECT_EQ(huge.probability({1, 0, false, 0}), 1.0);
+  EXPECT_EQ(huge.probability({-1, 0, false, 0}), 0.0);
+}
+
 TEST(Confidence, ExtremeLogitsStayFinite) {
   ConfidenceModel m;
   m.fit_rank = 1e6;

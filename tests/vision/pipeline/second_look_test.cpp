@@ -1,7 +1,7 @@
 // SecondLook (paper Sec. 4.5's second camera position): the suggested camera centres the part and
 // turns about it by the configured tilt; fusing a second frame set from there ranks each fused
-// candidate by both images, keeps one per part, and places a diamond standing on its rim nearer
-// its true pose than the one view did, on every render.
+// candidate by both images, keeps one per part, scores it with the fused confidence model, and
+// places a diamond standing on its rim nearer its true pose than the one view did, on every render.
 #include "vision/pipeline/second_look.hpp"
 
 #include "tests/vision/support/pose_errors.hpp"
@@ -89,9 +89,28 @@ TEST(SecondLook, PlacesADiamondOnItsRimNearerTheTruthThanOneView) {
     dt_one += dt1, dr_one += dr1, dt_fused += dt2, dr_fused += dr2;
     std::printf("render %d: one view %.2f mm %.2f deg, two views %.2f mm %.2f deg (ranks %.3f + %.3f, from view %d)\n",
                 k, dt1, dr1, dt2, dr2, best.rank_first, best.rank_second, best.proposed_by);
+    // The first camera's pick candidates: the same poses, scores and ranks, in the same order.
+    PipelineResult picks;
+    look.to_pipeline_result(fused, picks);
+    ASSERT_EQ(picks.candidates.size(), fused.candidates.size());
     for (size_t i = 0; i < fused.candidates.size(); ++i) {
       const SecondLookCandidate& c = fused.candidates[i];
       EXPECT_DOUBLE_EQ(c.rank, c.rank_first + c.rank_second);
+      // The fused score is the fused model's probability of the candidate's own measures.
+      EXPECT_DOUBLE_EQ(c.score, SecondLookParams{}.confidence.probability(c.evidence()));
+      EXPECT_EQ(c.evidence().alternative_margin, c.has_alternative ? c.rank - c.alternative_rank : 0.0);
+      const PoseCandidate& p = picks.candidates[i];
+      EXPECT_EQ(p.obj_id, c.obj_id);
+      EXPECT_EQ(p.part, db.part_name);
+      EXPECT_EQ(p.score, c.score);
+      EXPECT_EQ(p.fit_rank, c.rank);
+      EXPECT_EQ(cv::norm(p.t_m2c_mm - c.t_m2c_mm), 0.0);
+      EXPECT_FALSE(p.ambiguous);
+      // The projected part box holds the image of its centre.
+      const cv::Vec3d centre_cam = c.R_m2c * db.center_mm + c.t_m2c_mm;
+      const cv::Point2d u(scene.cam.camera.fx() * centre_cam[0] / centre_cam[2] + scene.cam.camera.cx(),
+                          scene.cam.camera.fy() * centre_cam[1] / centre_cam[2] + scene.cam.camera.cy());
+      EXPECT_TRUE(p.box.contains(u)) << "render " << k;
       if (i > 0) {
         EXPECT_LE(c.rank, fused.candidates[i - 1].rank);
       }
