@@ -228,12 +228,14 @@ void Cell::acquisitionMain(std::promise<void>& ready) {
     while (!stop_.load()) {
       const auto request = requests_.pop();
       if (!request) break;
+      SimulatedWorld* sim = source_->simulation();
+      const Eigen::Isometry3d* flange = request->flange_valid ? &request->base_T_flange : nullptr;
       if (request->kind == CycleRequest::Kind::RemovePicked) {
-        if (SimulatedWorld* sim = source_->simulation()) sim->removePicked(request->picked_t_cam_mm);  // may allocate
+        if (sim) sim->removePicked(request->picked_t_cam_mm, flange);  // may allocate
         continue;
       }
       if (request->kind == CycleRequest::Kind::Refill) {
-        if (SimulatedWorld* sim = source_->simulation()) sim->refill();
+        if (sim) sim->refill();
         continue;
       }
       FrameSlot* slot = frames_.begin_write();
@@ -249,7 +251,9 @@ void Cell::acquisitionMain(std::promise<void>& ready) {
         // A calibration capture (operator-driven, picking paused) may re-stage the simulated
         // scene; that allocates, which the cycle path never does.
         // A real cell ignores the plate request: the plate is really there.
-        if (calibration && source_->simulation()) source_->simulation()->showPlate(request->plate);
+        if (calibration && sim) sim->showPlate(request->plate);
+        // Eye-in-hand: the simulated camera is where the job's robot pose holds it.
+        if (!calibration && sim) sim->moveCamera(flange);
         const hal::FrameSet& set = source_->capture();
         // Calibration images stay as the lens made them: intrinsics calibration fits the
         // distortion from them, hand-eye undistorts the board corners itself.
@@ -264,7 +268,7 @@ void Cell::acquisitionMain(std::promise<void>& ready) {
       }
       if (calibration) {
         try {
-          if (source_->simulation()) source_->simulation()->showPlate({});
+          if (sim) sim->showPlate({});
         } catch (const std::exception& e) {
           logf(LogLevel::Error, "simulated cell: putting the bin back after a calibration capture: %s", e.what());
         }
@@ -273,7 +277,7 @@ void Cell::acquisitionMain(std::promise<void>& ready) {
       slot->capture_ms = msBetween(t0, slot->captured);
       slot->leds_after = source_->leds();
       slot->truth.count = 0;
-      if (const SimulatedWorld* sim = source_->simulation()) sim->truth(slot->truth);
+      if (sim) sim->truth(slot->truth);
       frames_.end_write();
       signalFd(visionWake_);
     }
@@ -289,6 +293,7 @@ void Cell::visionMain(std::promise<void>& ready) {
     visionDescription_ = stage_->describe();
     parts_ = stage_->parts();
     pipelineResult_.candidates.reserve(64);
+    firstLook_.candidates.reserve(64);
     snapshots_ = std::make_unique<SnapshotWriter>(config_);
     if (!snapshots_->notReplayable().empty())
       logf(LogLevel::Info, "snapshots will not be replayable by mfc-detect: %s", snapshots_->notReplayable().c_str());
@@ -364,7 +369,14 @@ void Cell::runCycle(FrameSlot& slot, CycleResult& out) {
   out.truth = slot.truth;
   if (captured) {
     try {
-      stage_->process({slot.mfc, slot.request.obj_id, slot.request.deadline, &slot.truth}, pipelineResult_);
+      const CycleRequest& request = slot.request;
+      const VisionInput in{slot.mfc, request.obj_id, request.deadline, &slot.truth};
+      if (request.second_look) {
+        fuseLook(in, request);
+      } else {
+        firstLookCycle_ = 0;  // the backend's state of the kept first look is overwritten now
+        stage_->process(in, pipelineResult_);
+      }
       const Clock::time_point visionDone = Clock::now();
       out.vision_ms = msBetween(start, visionDone);
       const auto& t = pipelineResult_.times;
@@ -374,43 +386,15 @@ void Cell::runCycle(FrameSlot& slot, CycleResult& out) {
       out.edge_pixels = pipelineResult_.edge_pixels;
       out.search_rounds = pipelineResult_.rounds;
       out.escalated = pipelineResult_.escalated;
-
-      // Pick choice and robot-base transform, on fixed-size arrays.
-      const motion::PickTransform transform(config_.hand_eye);
+      // A fused result is in the first look's camera frame: its picks go with that flange pose.
+      const Eigen::Isometry3d* flange = !request.flange_valid ? nullptr
+                                        : request.second_look ? &request.first_base_T_flange
+                                                              : &request.base_T_flange;
       std::array<motion::PickCandidate, CycleResult::kMaxCandidates> choice{};
-      const int n =
-          static_cast<int>(std::min<std::size_t>(pipelineResult_.candidates.size(), CycleResult::kMaxCandidates));
-      out.candidate_count = n;
-      for (int i = 0; i < n; ++i) {
-        const vision::PoseCandidate& pc = pipelineResult_.candidates[static_cast<std::size_t>(i)];
-        CandidateOut& c = out.candidates[static_cast<std::size_t>(i)];
-        c.obj_id = pc.obj_id;
-        c.score = static_cast<float>(pc.score);
-        c.cost_px = static_cast<float>(pc.cost_px);
-        c.refined = pc.refined;
-        c.R_cam = pc.R_m2c;
-        c.t_cam_mm = pc.t_m2c_mm;
-        Eigen::Isometry3d cam_T_part = Eigen::Isometry3d::Identity();
-        for (int r = 0; r < 3; ++r) {
-          for (int k = 0; k < 3; ++k) cam_T_part.linear()(r, k) = pc.R_m2c(r, k);
-          cam_T_part.translation()(r) = pc.t_m2c_mm[r];
-        }
-        const auto pose = transform.pick_pose(
-            cam_T_part, slot.request.flange_valid ? std::optional(slot.request.base_T_flange) : std::nullopt);
-        c.base_valid = pose.has_value();
-        if (pose) c.base = *pose;
-        // Grasp visibility: the pipeline's estimate for the recipes' grasp features (1 without any).
-        c.grasp_visibility = static_cast<float>(pc.grasp_visibility);
-        c.ambiguous = pc.ambiguous;
-        c.box = pc.box;
-        choice[static_cast<std::size_t>(i)] = {c.score,
-                                               static_cast<float>(config_.pick.bin_floor_distance_mm - pc.t_m2c_mm[2]),
-                                               c.grasp_visibility, c.ambiguous};
-        const auto u = motion::pick_utility(choice[static_cast<std::size_t>(i)], config_.pick.choice);
-        c.utility = u ? *u : -1.0f;
-      }
-      if (slot.request.mode == 0)
+      const int n = fillCandidates(flange, choice, out);
+      if (request.mode == 0)
         rankPicks(std::span<const motion::PickCandidate>(choice.data(), static_cast<std::size_t>(n)), out);
+      if (!request.second_look) planLook(request, out);
       out.choice_ms = msBetween(visionDone, Clock::now());
     } catch (const std::exception& e) {
       out.error = CycleError::Vision;
@@ -418,6 +402,43 @@ void Cell::runCycle(FrameSlot& slot, CycleResult& out) {
     }
   }
   out.total_ms = msBetween(slot.request.trigger, Clock::now());
+}
+
+int Cell::fillCandidates(const Eigen::Isometry3d* base_T_flange,
+                         std::array<motion::PickCandidate, CycleResult::kMaxCandidates>& choice,
+                         CycleResult& out) const {
+  // Pick choice and robot-base transform, on fixed-size arrays.
+  const motion::PickTransform transform(config_.hand_eye);
+  const int n = static_cast<int>(std::min<std::size_t>(pipelineResult_.candidates.size(), CycleResult::kMaxCandidates));
+  out.candidate_count = n;
+  for (int i = 0; i < n; ++i) {
+    const vision::PoseCandidate& pc = pipelineResult_.candidates[static_cast<std::size_t>(i)];
+    CandidateOut& c = out.candidates[static_cast<std::size_t>(i)];
+    c.obj_id = pc.obj_id;
+    c.score = static_cast<float>(pc.score);
+    c.cost_px = static_cast<float>(pc.cost_px);
+    c.refined = pc.refined;
+    c.R_cam = pc.R_m2c;
+    c.t_cam_mm = pc.t_m2c_mm;
+    Eigen::Isometry3d cam_T_part = Eigen::Isometry3d::Identity();
+    for (int r = 0; r < 3; ++r) {
+      for (int k = 0; k < 3; ++k) cam_T_part.linear()(r, k) = pc.R_m2c(r, k);
+      cam_T_part.translation()(r) = pc.t_m2c_mm[r];
+    }
+    const auto pose = transform.pick_pose(cam_T_part, base_T_flange ? std::optional(*base_T_flange) : std::nullopt);
+    c.base_valid = pose.has_value();
+    if (pose) c.base = *pose;
+    // Grasp visibility: the pipeline's estimate for the recipes' grasp features (1 without any).
+    c.grasp_visibility = static_cast<float>(pc.grasp_visibility);
+    c.ambiguous = pc.ambiguous;
+    c.box = pc.box;
+    choice[static_cast<std::size_t>(i)] = {c.score,
+                                           static_cast<float>(config_.pick.bin_floor_distance_mm - pc.t_m2c_mm[2]),
+                                           c.grasp_visibility, c.ambiguous};
+    const auto u = motion::pick_utility(choice[static_cast<std::size_t>(i)], config_.pick.choice);
+    c.utility = u ? *u : -1.0f;
+  }
+  return n;
 }
 
 void Cell::rankPicks(std::span<const motion::PickCandidate> choice, CycleResult& out) const {

@@ -83,6 +83,15 @@ class Cell {
   void runCycle(FrameSlot& slot, CycleResult& out);
   void handOverCalibrationImage(const FrameSlot& slot, CycleResult& out);
   static bool startResult(const FrameSlot& slot, CycleResult::Kind kind, CycleResult& out);
+  // pipelineResult_'s candidates into out (robot-base picks with the camera on base_T_flange when
+  // given) and the pick choice's view of them into `choice`; returns their number.
+  int fillCandidates(const Eigen::Isometry3d* base_T_flange,
+                     std::array<motion::PickCandidate, CycleResult::kMaxCandidates>& choice, CycleResult& out) const;
+  // After a first look (cell_look.cpp): asks for a second when config second_look says so, and
+  // keeps the first look's result for it (no pick is published then).
+  void planLook(const CycleRequest& request, CycleResult& out);
+  // A second look: the frames in `in` fused with the first look kept by planLook, into pipelineResult_.
+  void fuseLook(const VisionInput& in, const CycleRequest& request);
   // The eligible candidates in pick order into out.ranked; out.chosen the first.
   void rankPicks(std::span<const motion::PickCandidate> choice, CycleResult& out) const;
   void serveSnapshotRequests();
@@ -120,6 +129,8 @@ class Cell {
 
   std::atomic<std::uint64_t> acqBeat_{0}, visionBeat_{0}, framesDropped_{0};
   vision::PipelineResult pipelineResult_;      // vision thread; capacity reserved once
+  vision::PipelineResult firstLook_;           // vision thread: the first look a second look fuses with
+  std::uint64_t firstLookCycle_ = 0;           // its cycle (0: none kept)
   RetainedJob retained_;                       // vision thread; allocated before the threads report ready
   std::unique_ptr<SnapshotWriter> snapshots_;  // vision thread; made with the stage
   LatestFrame webFrames_;                      // allocated before the threads report ready

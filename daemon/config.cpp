@@ -386,6 +386,10 @@ DaemonConfig parseConfig(const std::string& yamlText, const std::string& source,
       e2f.finish();
       p.finish();
     }
+    if (s.has("eye_in_hand_view")) {
+      Section v = s.section("eye_in_hand_view");
+      c.simulation.eye_in_hand_view = readPose(v);
+    }
     s.finish();
   }
   {
@@ -539,6 +543,21 @@ DaemonConfig parseConfig(const std::string& yamlText, const std::string& source,
     Section grasp = s.section("part_T_grasp");
     c.hand_eye.part_T_grasp = readPose(grasp);
     if (std::string e = c.hand_eye.validate(); !e.empty()) s.fail(s.key(""), s.line(), e);
+    s.finish();
+    if (c.simulation.eye_in_hand_view && !inHand)
+      top.fail("simulation.eye_in_hand_view", lineOf(root["simulation"]["eye_in_hand_view"]),
+               "moves the simulated camera with the robot: needs hand_eye.setup eye_in_hand");
+  }
+  {
+    Section s = top.section("second_look");
+    c.second_look.when = s.choice(
+        "when", SecondLookWhen::Off,
+        {{"off", SecondLookWhen::Off}, {"unsure", SecondLookWhen::Unsure}, {"always", SecondLookWhen::Always}});
+    c.second_look.tilt_deg = s.number("tilt_deg", 25, 5, 60);
+    // The second camera pose is reached by the robot carrying the camera.
+    if (c.second_look.when != SecondLookWhen::Off && c.hand_eye.setup != motion::HandEyeSetup::EyeInHand)
+      s.fail(s.key("when"), lineOf(s.child("when")),
+             "a second look moves the camera with the robot: needs hand_eye.setup eye_in_hand");
     s.finish();
   }
   {

@@ -111,6 +111,23 @@ struct SimulationSettings {
   double floor_distance_mm = 330;  // camera to bin floor along the optical axis
   bool noise = true;
   SimPlateSettings plate;
+  // Eye-in-hand (simulation.eye_in_hand_view): the flange pose, robot base frame, from which the
+  // camera on the flange sees the bin as laid out; the bin then stays put in the base frame and
+  // every capture sees it from the flange pose of its job (a second look moves the camera). Unset:
+  // every capture sees the bin as laid out, wherever the PLC says the robot is.
+  std::optional<Eigen::Isometry3d> eye_in_hand_view;
+};
+
+// second_look: when an eye-in-hand cell takes a second frame set from another camera pose and
+// fuses it with the first (docs/pose.md "Second look", docs/register-map.md).
+enum class SecondLookWhen : std::uint8_t {
+  Off,     // one look per job
+  Unsure,  // when the first look would withhold its pick (ambiguous or below pick.min_score)
+  Always,  // after every first look that found a part
+};
+struct SecondLookSettings {
+  SecondLookWhen when = SecondLookWhen::Off;
+  double tilt_deg = 25;  // out-of-plane turn of the second camera about the part's centre, 5..60
 };
 
 // mfcd-ctl calibrate: the checkerboard the operator shows and the lens model to fit. The
@@ -170,6 +187,7 @@ struct DaemonConfig {
   motion::ModbusServerConfig modbus;
   bool can_enabled = false;
   motion::CanConfig can;
+  SecondLookSettings second_look;
   SnapshotSettings snapshots;
   WebSettings web;
   fs::path web_root;  // the page's folder (index.html, app.js, style.css)

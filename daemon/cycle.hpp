@@ -62,12 +62,20 @@ struct CycleRequest {
   bool snapshot = false;
   Clock::time_point trigger{};
   Clock::time_point deadline{};
-  cv::Vec3d picked_t_cam_mm{0, 0, 0};  // RemovePicked: where the robot took a part (camera frame)
-  PlateRequest plate;                  // CalibrationCapture, simulated cell
+  // RemovePicked: where the robot took a part, in the frame of the camera that saw it (on the
+  // flange at base_T_flange when flange_valid).
+  cv::Vec3d picked_t_cam_mm{0, 0, 0};
+  PlateRequest plate;  // CalibrationCapture, simulated cell
   // Eye-in-hand: the flange pose in the robot base frame at the capture (the PLC's robot pose
   // block when the job started); picks are base_T_flange * flange_T_camera * cam_T_part.
   bool flange_valid = false;
   Eigen::Isometry3d base_T_flange = Eigen::Isometry3d::Identity();
+  // A second look (COMMAND LOOK): this capture, from base_T_flange, is fused with the first look
+  // taken by cycle `first_cycle` from first_base_T_flange; the result is in the first camera's
+  // frame and its picks are transformed with first_base_T_flange.
+  bool second_look = false;
+  std::uint64_t first_cycle = 0;
+  Eigen::Isometry3d first_base_T_flange = Eigen::Isometry3d::Identity();
   // Refill: the simulated bin looked empty to vision (nothing found): the operator refills it.
 };
 
@@ -149,6 +157,12 @@ struct CycleResult {
   int edge_pixels = 0;
   int search_rounds = 0;   // search rounds the pipeline ran (vision.search_rounds; fewer near the deadline)
   bool escalated = false;  // the pipeline's wide search ran (vision.escalate_below)
+  // The first look asks for a second (config second_look; no pick is published then): the
+  // flange pose to take it from, robot base frame, and why (motion::LookReason's codes).
+  bool look_wanted = false;
+  std::uint16_t look_reason = 0;
+  int look_candidate = -1;  // the candidate the second camera is centred on
+  motion::PickPose look_pose;
   SimTruth truth;
   bool leds_off = true;
   char snapshot_dir[256] = {};

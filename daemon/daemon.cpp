@@ -281,7 +281,7 @@ void Daemon::onPlcCommands() {
   while (auto cmd = link_.next_command()) {
     if (!stopping_)
       onPlcCommand(*cmd);
-    else if (cmd->kind == motion::PlcCommand::Kind::Trigger || cmd->kind == motion::PlcCommand::Kind::SaveScene)
+    else if (startsJob(cmd->kind))
       answerJob(cmd->job_id, cmd->recipe_id, CycleError::Abandoned, "mfcd is stopping");
   }
 }
@@ -383,8 +383,7 @@ void Daemon::mainLoop() {
 // Clean stop: no more triggers, every waiting job answered, cell stopped (LEDs off), robot link
 // drained and closed.
 void Daemon::shutdown() {
-  if (pendingPlc_ && (pendingPlc_->kind == motion::PlcCommand::Kind::Trigger ||
-                      pendingPlc_->kind == motion::PlcCommand::Kind::SaveScene))
+  if (pendingPlc_ && startsJob(pendingPlc_->kind))
     answerJob(pendingPlc_->job_id, pendingPlc_->recipe_id, CycleError::Abandoned, "mfcd is stopping");
   pendingPlc_.reset();
   report_.ready = 0;

@@ -5,6 +5,7 @@
 #include "daemon/daemon_impl.hpp"
 #include "daemon/journal_log.hpp"
 #include "daemon/log.hpp"
+#include "daemon/look_planner.hpp"
 #include "daemon/report.hpp"
 #include "motion/pick_transform.hpp"
 #include "motion/register_map.hpp"
@@ -28,7 +29,7 @@ void Daemon::updateReady() {
 }
 
 std::optional<std::uint64_t> Daemon::startCycle(CycleOrigin origin, std::uint16_t job, std::uint16_t recipe,
-                                                std::uint16_t mode, bool snapshot) {
+                                                std::uint16_t mode, bool snapshot, const FirstLook* first) {
   if (!cell_ || inFlight_) return std::nullopt;
   CycleRequest r;
   r.origin = origin;
@@ -65,6 +66,11 @@ std::optional<std::uint64_t> Daemon::startCycle(CycleOrigin origin, std::uint16_
     r.flange_valid = true;
     r.base_T_flange = motion::pose_to_isometry({{p.x_mm, p.y_mm, p.z_mm}, {p.rx_deg, p.ry_deg, p.rz_deg}});
   }
+  if (first) {
+    r.second_look = true;
+    r.first_cycle = first->cycle;
+    r.first_base_T_flange = first->base_T_flange;
+  }
   if (!submit(r)) return std::nullopt;
   inFlight_ = r;
   updateReady();
@@ -88,9 +94,13 @@ void Daemon::onPlcCommand(const motion::PlcCommand& cmd) {
       return;
     case Kind::Trigger:
     case Kind::SaveScene:
+    case Kind::Look:
       break;
   }
-  logf(LogLevel::Debug, "PLC: %s job %u recipe %u mode %u", cmd.kind == Kind::SaveScene ? "SAVE_SCENE" : "TRIGGER",
+  logf(LogLevel::Debug, "PLC: %s job %u recipe %u mode %u",
+       cmd.kind == Kind::SaveScene ? "SAVE_SCENE"
+       : cmd.kind == Kind::Look    ? "LOOK"
+                                   : "TRIGGER",
        cmd.job_id, cmd.recipe_id, cmd.mode);
   if (calibrating()) {
     // READY is clear during a session, so only a trigger racing the session's start gets here:
@@ -100,6 +110,7 @@ void Daemon::onPlcCommand(const motion::PlcCommand& cmd) {
     report_.recipe_id = cmd.recipe_id;
     report_.error_code = static_cast<std::uint16_t>(CycleError::Calibrating);
     report_.pick_valid = 0;
+    clearLook();
     publish();
     return;
   }
@@ -145,7 +156,16 @@ void Daemon::onPickResult(const motion::PlcCommand& cmd) {
 
 void Daemon::startPlcJob(const motion::PlcCommand& cmd) {
   const bool snapshot = cmd.kind == motion::PlcCommand::Kind::SaveScene;
-  if (!startCycle(CycleOrigin::Plc, cmd.job_id, cmd.recipe_id, cmd.mode, snapshot))
+  const FirstLook* first = nullptr;
+  if (cmd.kind == motion::PlcCommand::Kind::Look) {
+    // The server took LOOK on a result that asked for it; a control-socket cycle since then has
+    // replaced the first look's images in the vision backend.
+    if (!firstLook_ || firstLook_->job != cmd.look_of_job)
+      return answerJob(cmd.job_id, cmd.recipe_id, CycleError::Unavailable,
+                       "LOOK: the first look it continues is no longer kept");
+    first = &*firstLook_;
+  }
+  if (!startCycle(CycleOrigin::Plc, cmd.job_id, cmd.recipe_id, cmd.mode, snapshot, first))
     answerJob(cmd.job_id, cmd.recipe_id, CycleError::Unavailable,
               cell_ ? "the cell's request queue is full" : "no cell is running");
 }
@@ -162,7 +182,15 @@ void Daemon::answerJob(std::uint16_t job, std::uint16_t recipe, CycleError error
   report_.objects_remaining = 0;
   report_.pick = motion::PickPose{};
   report_.score = 0.0f;
+  clearLook();
   publish();
+}
+
+void Daemon::clearLook() {
+  report_.look_wanted = 0;
+  report_.look_reason = 0;
+  report_.look_pose = motion::PickPose{};
+  firstLook_.reset();
 }
 
 bool Daemon::submit(const CycleRequest& r) {
@@ -234,6 +262,8 @@ void Daemon::onResult(const CycleResult& r) {
     CycleRequest take;
     take.kind = CycleRequest::Kind::RemovePicked;
     take.picked_t_cam_mm = r.candidates[static_cast<std::size_t>(r.chosen)].t_cam_mm;
+    take.flange_valid = r.request.flange_valid;
+    take.base_T_flange = r.request.second_look ? r.request.first_base_T_flange : r.request.base_T_flange;
     submit(take);
   } else if (r.error == CycleError::None && r.candidate_count == 0 && r.truth.count > 0 && cell_) {
     // Simulated cell: vision sees nothing in a bin that still holds parts (all unrecognised); like
@@ -273,6 +303,15 @@ void Daemon::reportJob(const CycleResult& r) {
     const std::uint16_t index = r.ranked[static_cast<std::size_t>(k)];
     const CandidateOut& c = r.candidates[index];
     report_.ranked[report_.pick_count++] = {c.base, c.score, index, 0};
+  }
+  clearLook();
+  if (r.look_wanted) {
+    report_.look_wanted = 1;
+    report_.look_reason = r.look_reason;
+    report_.look_pose = r.look_pose;
+    firstLook_ = FirstLook{r.request.job_id, r.request.cycle_id, r.request.base_T_flange};
+    logf(LogLevel::Info, "job %u asks for a second look (%s) from flange (%.1f, %.1f, %.1f) mm", r.request.job_id,
+         toString(static_cast<LookReason>(r.look_reason)), r.look_pose.x_mm, r.look_pose.y_mm, r.look_pose.z_mm);
   }
   lastJobCycle_ = r.request.cycle_id;
 }

@@ -33,6 +33,12 @@ namespace mfcd::daemon {
 using ClientId = ControlServer::ClientId;
 
 // A control client waiting for the cycle it started.
+// Robot-link commands that start a job (each ends with a result or an error code).
+inline bool startsJob(motion::PlcCommand::Kind k) {
+  using Kind = motion::PlcCommand::Kind;
+  return k == Kind::Trigger || k == Kind::SaveScene || k == Kind::Look;
+}
+
 struct Waiter {
   ClientId client;
   std::uint64_t cycle;
@@ -72,8 +78,15 @@ class Daemon {
   void onCalibrationDone();
 
   // daemon_cycles.cpp
+  // A first look whose result asked for a second (the robot link's LOOK continues it).
+  struct FirstLook {
+    std::uint16_t job = 0;
+    std::uint64_t cycle = 0;
+    Eigen::Isometry3d base_T_flange = Eigen::Isometry3d::Identity();
+  };
+  // `first`: the cycle is a second look fused with that first look.
   std::optional<std::uint64_t> startCycle(CycleOrigin origin, std::uint16_t job, std::uint16_t recipe,
-                                          std::uint16_t mode, bool snapshot);
+                                          std::uint16_t mode, bool snapshot, const FirstLook* first = nullptr);
   void onPlcCommand(const motion::PlcCommand& cmd);
   // NEXT (already published by the Modbus server): the report follows with that pick.
   void onNextPick(const motion::PlcCommand& cmd);
@@ -85,6 +98,8 @@ class Daemon {
   void startPlcJob(const motion::PlcCommand& cmd);
   // Ends a PLC job that will not run: JOB_ID_ECHO = job, PICK_VALID 0, ERROR_CODE = error.
   void answerJob(std::uint16_t job, std::uint16_t recipe, CycleError error, const char* why);
+  // No second look wanted in the report, and none kept.
+  void clearLook();
   // Hands a request to the cell and extends the time its threads may be busy with it.
   bool submit(const CycleRequest& r);
   void onResult(const CycleResult& r);
@@ -121,7 +136,8 @@ class Daemon {
   std::vector<std::pair<ClientId, nlohmann::json>> reloadWaiters_;  // client, and what to add to the reload's answer
   std::uint64_t nextCycle_ = 1;
   std::uint16_t nextContinuousJob_ = 1;
-  std::uint64_t lastJobCycle_ = 0;  // cycle of the job in the robot link's report (0: none)
+  std::uint64_t lastJobCycle_ = 0;      // cycle of the job in the robot link's report (0: none)
+  std::optional<FirstLook> firstLook_;  // the report's job asks for a second look
   int selectedRecipe_ = 0;
   bool reloadPending_ = false, stopping_ = false, cellOk_ = false;
   Clock::time_point stopRequested_{};

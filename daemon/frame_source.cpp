@@ -110,7 +110,8 @@ class HardwareFrameSource final : public FrameSource {
 // recipe mesh it serves the HAL's deterministic test pattern instead (no OpenGL needed).
 class SimulatedCellSource final : public FrameSource, public SimulatedWorld {
  public:
-  explicit SimulatedCellSource(const DaemonConfig& c) : sim_(c.simulation), rng_(c.simulation.seed) {
+  explicit SimulatedCellSource(const DaemonConfig& c)
+      : sim_(c.simulation), rng_(c.simulation.seed), flange_T_camera_(c.hand_eye.camera) {
     model_ = vision::load_camera_config(c.camera.model);
     const hal::ImageFormat format{model_.camera.image_size.width, model_.camera.image_size.height, 8};
     for (const auto& r : c.recipes) {
@@ -164,11 +165,26 @@ class SimulatedCellSource final : public FrameSource, public SimulatedWorld {
     out.count = 0;
     for (const auto& p : bin_) {
       if (out.count == SimTruth::kMaxParts) break;
-      out.parts[static_cast<std::size_t>(out.count++)] = {meshes_[p.mesh].obj_id, p.scene.R, p.scene.t_mm};
+      const vision::ScenePart seen = inCamera(p.scene, camera_T_laid_);
+      out.parts[static_cast<std::size_t>(out.count++)] = {meshes_[p.mesh].obj_id, seen.R, seen.t_mm};
     }
   }
-  void removePicked(const cv::Vec3d& t) override {
+  void moveCamera(const Eigen::Isometry3d* base_T_flange) override {
+    if (!sim_.eye_in_hand_view || !base_T_flange) return;
+    const Eigen::Isometry3d T = cameraFromLaid(*base_T_flange);
+    if (T.isApprox(camera_T_laid_, 1e-12)) return;
+    camera_T_laid_ = T;
+    if (cell_ && !plateShown_) updateScene();
+  }
+  void removePicked(const cv::Vec3d& seen, const Eigen::Isometry3d* base_T_flange) override {
     if (!cell_) return;
+    // Into the frame the bin was laid out in.
+    cv::Vec3d t = seen;
+    if (sim_.eye_in_hand_view && base_T_flange) {
+      const Eigen::Vector3d laid =
+          cameraFromLaid(*base_T_flange).inverse() * Eigen::Vector3d(seen[0], seen[1], seen[2]);
+      t = {laid.x(), laid.y(), laid.z()};
+    }
     std::size_t best = bin_.size();
     double bestDist = 30.0;  // mm: a pick further than this from every part took nothing
     for (std::size_t i = 0; i < bin_.size(); ++i) {
@@ -285,13 +301,32 @@ class SimulatedCellSource final : public FrameSource, public SimulatedWorld {
   }
   void updateScene() {
     std::vector<vision::ScenePart> scene{
-        {floorMesh_, cv::Matx33d::eye(), {0, 0, sim_.floor_distance_mm}, vision::Material::matte(0.45f)}};
-    for (const auto& p : bin_) scene.push_back(p.scene);
+        inCamera({floorMesh_, cv::Matx33d::eye(), {0, 0, sim_.floor_distance_mm}, vision::Material::matte(0.45f)},
+                 camera_T_laid_)};
+    for (const auto& p : bin_) scene.push_back(inCamera(p.scene, camera_T_laid_));
     cell_->setParts(std::move(scene));
+  }
+  // The camera on a flange at base_T_flange, from the camera the bin was laid out for (the one on
+  // the flange at simulation.eye_in_hand_view).
+  Eigen::Isometry3d cameraFromLaid(const Eigen::Isometry3d& base_T_flange) const {
+    return (base_T_flange * flange_T_camera_).inverse() * (*sim_.eye_in_hand_view * flange_T_camera_);
+  }
+  static vision::ScenePart inCamera(vision::ScenePart p, const Eigen::Isometry3d& camera_T_laid) {
+    cv::Matx33d R;
+    cv::Vec3d t;
+    for (int r = 0; r < 3; ++r) {
+      for (int k = 0; k < 3; ++k) R(r, k) = camera_T_laid.linear()(r, k);
+      t[r] = camera_T_laid.translation()(r);
+    }
+    p.R = R * p.R;
+    p.t_mm = R * p.t_mm + t;
+    return p;
   }
 
   SimulationSettings sim_;
   std::mt19937_64 rng_;
+  Eigen::Isometry3d flange_T_camera_;                                // hand_eye.camera (eye-in-hand)
+  Eigen::Isometry3d camera_T_laid_ = Eigen::Isometry3d::Identity();  // see moveCamera
   vision::CameraConfig model_;
   std::vector<PartType> meshes_;
   std::unique_ptr<vision::MfcRenderer> renderer_;

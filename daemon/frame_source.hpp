@@ -20,8 +20,13 @@ class SimulatedWorld {
   virtual ~SimulatedWorld() = default;
   // The bin's ground truth for the frame set just captured.
   virtual void truth(SimTruth& out) const = 0;
-  // The robot takes the part nearest `t_cam_mm` (mm, camera frame). May allocate.
-  virtual void removePicked(const cv::Vec3d& t_cam_mm) = 0;
+  // The robot takes the part nearest `t_cam_mm` (mm, in the frame of the camera that saw it: on a
+  // flange at `base_T_flange` when the cell moves the camera, see moveCamera). May allocate.
+  virtual void removePicked(const cv::Vec3d& t_cam_mm, const Eigen::Isometry3d* base_T_flange) = 0;
+  // The camera of the next capture is on a flange at `base_T_flange` (nullptr: not known). Moves
+  // the simulated camera when simulation.eye_in_hand_view is set, otherwise does nothing. May
+  // allocate (it re-stages the scene).
+  virtual void moveCamera(const Eigen::Isometry3d* base_T_flange) = 0;
   virtual void refill() = 0;
   // Shows the calibration plate as asked for the next capture(s); Kind::None brings the bin back.
   // Throws std::runtime_error when the cell cannot show it.

@@ -6,6 +6,7 @@
 #include <fstream>
 #include <stdexcept>
 
+#include "daemon/look_planner.hpp"
 #include "motion/pick_transform.hpp"
 #include "tools/common/build_version.hpp"
 
@@ -78,6 +79,23 @@ json resultJson(const CycleResult& r, const DaemonConfig& config) {
     j["robot_pose"] = {{"x", f.position_mm.x()},  {"y", f.position_mm.y()},  {"z", f.position_mm.z()},
                        {"rx", f.rotation.rx_deg}, {"ry", f.rotation.ry_deg}, {"rz", f.rotation.rz_deg}};
   }
+  // A second look: its candidates are in the first look's camera frame, its picks transformed with
+  // that look's flange pose.
+  if (r.request.second_look) {
+    const motion::PoseXYZ f = motion::isometry_to_pose(r.request.first_base_T_flange);
+    j["second_look"] = {{"first_cycle", r.request.first_cycle},
+                        {"first_robot_pose",
+                         {{"x", f.position_mm.x()},
+                          {"y", f.position_mm.y()},
+                          {"z", f.position_mm.z()},
+                          {"rx", f.rotation.rx_deg},
+                          {"ry", f.rotation.ry_deg},
+                          {"rz", f.rotation.rz_deg}}}};
+  }
+  if (r.look_wanted)
+    j["look_wanted"] = {{"reason", toString(static_cast<LookReason>(r.look_reason))},
+                        {"candidate", r.look_candidate},
+                        {"flange", poseJson(r.look_pose)}};
   j["degraded"] = r.degraded;
   j["overrun"] = r.total_ms > config.cycle_budget_ms;
   j["leds_off_after_capture"] = r.leds_off;

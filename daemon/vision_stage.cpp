@@ -4,8 +4,20 @@
 #include <stdexcept>
 
 #include "vision/camera/camera.hpp"
+#ifdef MFCD_HAVE_PIPELINE
+#include "vision/pipeline/second_look.hpp"
+#endif
 
 namespace mfcd::daemon {
+
+std::optional<vision::RigidTransform> VisionStage::suggestLook(const vision::PoseCandidate&) const {
+  return std::nullopt;
+}
+
+void VisionStage::fuse(const vision::PipelineResult&, const VisionInput&, const vision::RigidTransform&,
+                       vision::PipelineResult&) {
+  throw std::logic_error(describe() + " cannot look twice");
+}
 
 vision::PipelineConfig pipelineConfig(const DaemonConfig& config) {
   vision::PipelineConfig pc = config.vision.pipeline;
@@ -40,23 +52,57 @@ vision::PipelineConfig pipelineConfig(const DaemonConfig& config) {
 
 namespace {
 
+// One BinPickingPipeline; with second_look a vision::SecondLook, whose first pipeline serves
+// every single look (the second's templates are loaded too).
 class PipelineVisionStage final : public VisionStage {
  public:
-  PipelineVisionStage(const vision::CameraConfig& camera, vision::PipelineConfig config, std::string files)
-      : pipeline_(camera, std::move(config)), files_(std::move(files)) {}
+  PipelineVisionStage(const vision::CameraConfig& camera, vision::PipelineConfig config, std::string files,
+                      const SecondLookSettings& look)
+      : files_(std::move(files)) {
+    if (look.when == SecondLookWhen::Off) {
+      single_ = std::make_unique<vision::BinPickingPipeline>(camera, std::move(config));
+    } else {
+      vision::SecondLookParams params;
+      params.tilt_deg = look.tilt_deg;
+      look_ = std::make_unique<vision::SecondLook>(camera, config, params);
+    }
+  }
   void process(const VisionInput& in, vision::PipelineResult& out) override {
-    pipeline_.process(in.frames, in.obj_id, in.deadline, out);
+    pipeline().process(in.frames, in.obj_id, in.deadline, out);
     haveEdges_ = true;
   }
-  std::vector<std::pair<int, std::string>> parts() const override { return pipeline_.parts(); }
-  const vision::DepthEdges* lastEdges() const override { return haveEdges_ ? &pipeline_.last_edges() : nullptr; }
+  std::vector<std::pair<int, std::string>> parts() const override { return pipeline().parts(); }
+  const vision::DepthEdges* lastEdges() const override { return haveEdges_ ? &pipeline().last_edges() : nullptr; }
   cv::Mat3b overlay(const cv::Mat1b& image, const vision::PipelineResult& result) const override {
-    return vision::draw_candidates(image, result, pipeline_.camera());
+    return vision::draw_candidates(image, result, pipeline().camera());
   }
-  std::string describe() const override { return "BinPickingPipeline (" + files_ + ")"; }
+  std::string describe() const override {
+    return std::string(look_ ? "BinPickingPipeline with second look (" : "BinPickingPipeline (") + files_ + ")";
+  }
+  std::optional<vision::RigidTransform> suggestLook(const vision::PoseCandidate& candidate) const override {
+    if (!look_) return std::nullopt;
+    return look_->suggest_motion(candidate);
+  }
+  void fuse(const vision::PipelineResult& first, const VisionInput& second, const vision::RigidTransform& motion,
+            vision::PipelineResult& out) override {
+    if (!look_) VisionStage::fuse(first, second, motion, out);
+    look_->fuse(first, second.frames, motion, second.obj_id, second.deadline, fused_);
+    look_->to_pipeline_result(fused_, out);
+    out.times = fused_.second.times;
+    out.degraded = fused_.second.degraded;
+    out.edge_pixels = fused_.second.edge_pixels;
+    out.rounds = fused_.second.rounds;
+    out.escalated = fused_.second.escalated;
+    // The edges kept for snapshots are the first image's; the frames of this cycle are the second.
+    haveEdges_ = false;
+  }
 
  private:
-  vision::BinPickingPipeline pipeline_;
+  vision::BinPickingPipeline& pipeline() const { return look_ ? look_->first() : *single_; }
+
+  std::unique_ptr<vision::BinPickingPipeline> single_;
+  std::unique_ptr<vision::SecondLook> look_;
+  vision::SecondLookResult fused_;
   std::string files_;
   bool haveEdges_ = false;
 };
@@ -70,7 +116,7 @@ std::unique_ptr<VisionStage> makePipelineStage(const DaemonConfig& config) {
   vision::PipelineConfig pc = pipelineConfig(config);
   std::string files;
   for (const auto& f : pc.template_files) files += (files.empty() ? "" : ", ") + f.filename().string();
-  auto stage = std::make_unique<PipelineVisionStage>(camera, std::move(pc), files);
+  auto stage = std::make_unique<PipelineVisionStage>(camera, std::move(pc), files, config.second_look);
   // Every recipe's obj_id must be one the templates define.
   const auto loaded = stage->parts();
   for (const auto& r : config.recipes) {

@@ -6,6 +6,7 @@
 #include <chrono>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -13,6 +14,7 @@
 #include "daemon/config.hpp"
 #include "daemon/cycle.hpp"
 #include "vision/pipeline/bin_picking_pipeline.hpp"
+#include "vision/pose/rigid_transform.hpp"
 
 namespace mfcd::daemon {
 
@@ -36,6 +38,17 @@ class VisionStage {
   virtual const vision::DepthEdges* lastEdges() const = 0;
   virtual cv::Mat3b overlay(const cv::Mat1b& image, const vision::PipelineResult& result) const = 0;
   virtual std::string describe() const = 0;
+
+  // A second look (config second_look). The camera motion (first camera's frame -> second's) that
+  // would best separate `candidate` of the last process() from the poses it is confused with;
+  // nullopt when this backend cannot look twice.
+  virtual std::optional<vision::RigidTransform> suggestLook(const vision::PoseCandidate& candidate) const;
+  // The second frame set (`second`, taken after the camera moved by `motion` since the last
+  // process()) fused with that process()'s result `first`: candidates in the first camera's frame
+  // into `out`. Allocates (a second look is not on the single-look frame path). Throws
+  // std::logic_error when this backend cannot look twice.
+  virtual void fuse(const vision::PipelineResult& first, const VisionInput& second,
+                    const vision::RigidTransform& motion, vision::PipelineResult& out);
 };
 
 using VisionStageFactory = std::function<std::unique_ptr<VisionStage>(const DaemonConfig&)>;

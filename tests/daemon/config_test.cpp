@@ -297,6 +297,31 @@ TEST(Config, HandEyeIsValidatedAndEachSetupTakesItsOwnCameraKey) {
   EXPECT_EQ(e.key(), "hand_eye.base_T_camera.yy_mm");
 }
 
+TEST(Config, SecondLookMovesTheCameraSoItNeedsTheCameraOnTheFlange) {
+  const std::string inHand = "hand_eye:\n  setup: eye_in_hand\n  flange_T_camera: {z_mm: 150}\n";
+  DaemonConfig c = parseConfig(minimal(inHand + "second_look:\n  when: unsure\n  tilt_deg: 30\n"), "t", kPath);
+  EXPECT_EQ(c.second_look.when, SecondLookWhen::Unsure);
+  EXPECT_DOUBLE_EQ(c.second_look.tilt_deg, 30);
+  EXPECT_EQ(parseConfig(minimal(), "t", kPath).second_look.when, SecondLookWhen::Off);
+  // Lines: camera 1-2, recipes 3-4, then the extra text.
+  ConfigError e = errorOf(minimal("second_look:\n  when: always\n"));
+  EXPECT_EQ(e.key(), "second_look.when");
+  EXPECT_EQ(e.line(), 6);
+  EXPECT_NE(std::string(e.what()).find("eye_in_hand"), std::string::npos) << e.what();
+  e = errorOf(minimal(inHand + "second_look:\n  when: twice\n"));
+  EXPECT_EQ(e.key(), "second_look.when");
+  e = errorOf(minimal(inHand + "second_look:\n  tilt_deg: 75\n"));
+  EXPECT_EQ(e.key(), "second_look.tilt_deg");
+  // The simulated camera follows the robot only with the camera on the flange.
+  const std::string view = "simulation:\n  eye_in_hand_view: {x_mm: 400, z_mm: 600, rx_deg: 180}\n";
+  c = parseConfig(minimal(view + inHand), "t", kPath);
+  ASSERT_TRUE(c.simulation.eye_in_hand_view.has_value());
+  EXPECT_DOUBLE_EQ(c.simulation.eye_in_hand_view->translation().x(), 400);
+  e = errorOf(minimal(view));
+  EXPECT_EQ(e.key(), "simulation.eye_in_hand_view");
+  EXPECT_EQ(e.line(), 6);
+}
+
 TEST(Config, RelativePathsResolveInSearchPathOrder) {
   const fs::path dir = fs::temp_directory_path() / ("mfcd-config-test-" + std::to_string(::getpid()));
   fs::create_directories(dir / "first");

@@ -20,28 +20,6 @@ using namespace mfcd::motion;
 
 namespace {
 
-// x, y, z mm and rx, ry, rz degrees with R = Rz * Ry * Rx (docs/register-map.md "Orientation").
-Eigen::Isometry3d poseOf(double x, double y, double z, double rx, double ry, double rz) {
-  const double d = M_PI / 180;
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear() =
-      (Eigen::AngleAxisd(rz * d, Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(ry * d, Eigen::Vector3d::UnitY()) *
-       Eigen::AngleAxisd(rx * d, Eigen::Vector3d::UnitX()))
-          .toRotationMatrix();
-  T.translation() = Eigen::Vector3d(x, y, z);
-  return T;
-}
-
-int writeRobotPose(modbus_t* mb, const double (&v)[6], std::uint16_t valid, std::uint16_t seq) {
-  std::uint16_t block[14];
-  for (int i = 0; i < 6; ++i) {
-    const auto w = encode_float(static_cast<float>(v[i]), WordOrder::ABCD);
-    block[2 * i] = w[0], block[2 * i + 1] = w[1];
-  }
-  block[12] = valid, block[13] = seq;
-  return modbus_write_registers(mb, reg::kRobotPoseX, 14, block);
-}
-
 constexpr double kFlangeToCamera[6] = {10, -20, 150, 0, 0, 90};  // flange_T_camera of the configuration
 
 std::string eyeInHandConfig(const fs::path& dir) {

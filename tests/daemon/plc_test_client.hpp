@@ -3,8 +3,10 @@
 // writing TRIGGER / RESET, polling the way a PLC program does.
 #include <modbus/modbus.h>
 
+#include <Eigen/Geometry>
 #include <cerrno>
 #include <chrono>
+#include <cmath>
 #include <cstdint>
 #include <thread>
 
@@ -56,5 +58,28 @@ struct Client {
   modbus_t* ctx = nullptr;
   bool connected = false;
 };
+
+// x, y, z mm and rx, ry, rz degrees with R = Rz * Ry * Rx (docs/register-map.md "Orientation").
+inline Eigen::Isometry3d poseOf(double x, double y, double z, double rx, double ry, double rz) {
+  const double d = M_PI / 180;
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() =
+      (Eigen::AngleAxisd(rz * d, Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(ry * d, Eigen::Vector3d::UnitY()) *
+       Eigen::AngleAxisd(rx * d, Eigen::Vector3d::UnitX()))
+          .toRotationMatrix();
+  T.translation() = Eigen::Vector3d(x, y, z);
+  return T;
+}
+
+// The robot pose block (36..49) in one FC 0x10, ABCD; returns what modbus_write_registers does.
+inline int writeRobotPose(modbus_t* mb, const double (&v)[6], std::uint16_t valid, std::uint16_t seq) {
+  std::uint16_t block[14];
+  for (int i = 0; i < 6; ++i) {
+    const auto w = motion::encode_float(static_cast<float>(v[i]), motion::WordOrder::ABCD);
+    block[2 * i] = w[0], block[2 * i + 1] = w[1];
+  }
+  block[12] = valid, block[13] = seq;
+  return modbus_write_registers(mb, motion::reg::kRobotPoseX, 14, block);
+}
 
 }  // namespace mfcd::daemon::test
