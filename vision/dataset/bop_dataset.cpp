@@ -558,6 +558,14 @@ BopSceneCamera BopDataset::camera(int scene_id, int image_id) const {
                "camera file whose flashes took its images (--camera)");
   }
   if (e.contains("working_distance_mm")) c.working_distance_mm = r.number(e["working_distance_mm"], w + ".working_distance_mm");
+  if (e.contains("cam_R_w2c") || e.contains("cam_t_w2c")) {
+    c.has_world_pose = true;
+    c.R_w2c = to_matx(r.numbers(r.key(e, "cam_R_w2c", w), 9, w + ".cam_R_w2c"));
+    c.t_w2c_mm = to_vec(r.numbers(r.key(e, "cam_t_w2c", w), 3, w + ".cam_t_w2c"));
+    // A rotation: orthonormal rows, determinant +1 (to the precision of a JSON file's decimals).
+    if (cv::norm(c.R_w2c * c.R_w2c.t() - cv::Matx33d::eye()) > 1e-5 || cv::determinant(c.R_w2c) < 0)
+      fail(file, "'" + w + ".cam_R_w2c' is not a rotation");
+  }
   return c;
 }
 

@@ -50,6 +50,11 @@ struct BopSceneCamera {
   double depth_scale = kBopDepthScale;
   std::vector<cv::Vec3d> flash_positions_mm;  // camera frame, firing order
   double working_distance_mm = 0;             // 0 when the dataset does not give it
+  // BOP's cam_R_w2c / cam_t_w2c: world -> this image's camera (p_cam = R p_world + t, mm), when the
+  // scene gives them (several views of one scene: the motion between two views follows).
+  bool has_world_pose = false;
+  cv::Matx33d R_w2c = cv::Matx33d::eye();
+  cv::Vec3d t_w2c_mm{0, 0, 0};
   // A camera configuration for the depth-edge extractor and detector (no distortion).
   CameraConfig config() const;
 };

@@ -325,6 +325,32 @@ TEST_F(BopTiny, RefusesMissingOrIllTypedKeys) {
   expect_refused([&] { ds.camera(1, 1); }, scene() / "scene_camera.json", "flash_positions_mm' must be an array of 3");
 }
 
+// Several views of one scene: BOP's cam_R_w2c / cam_t_w2c give each camera in the scene's world.
+TEST_F(BopTiny, ReadsEachViewsWorldPoseAndRefusesANonRotation) {
+  const double c = std::cos(0.4), s = std::sin(0.4);
+  edit_json(scene() / "scene_camera.json", [&](auto& j) {
+    j["1"]["cam_R_w2c"] = {1, 0, 0, 0, c, -s, 0, s, c};
+    j["1"]["cam_t_w2c"] = {0, 12.5, -3};
+  });
+  {
+    const BopDataset ds(root);
+    EXPECT_FALSE(ds.camera(1, 0).has_world_pose);
+    const BopSceneCamera cam = ds.camera(1, 1);
+    ASSERT_TRUE(cam.has_world_pose);
+    EXPECT_DOUBLE_EQ(cam.R_w2c(1, 2), -s);
+    EXPECT_DOUBLE_EQ(cam.R_w2c(2, 1), s);
+    EXPECT_DOUBLE_EQ(cam.t_w2c_mm[1], 12.5);
+  }
+  edit_json(scene() / "scene_camera.json", [](auto& j) { j["1"]["cam_R_w2c"] = {1, 0, 0, 0, 2, 0, 0, 0, 1}; });
+  {
+    const BopDataset ds(root);
+    expect_refused([&] { ds.camera(1, 1); }, scene() / "scene_camera.json", "'1.cam_R_w2c' is not a rotation");
+  }
+  edit_json(scene() / "scene_camera.json", [](auto& j) { j["1"].erase("cam_t_w2c"); });
+  const BopDataset ds(root);
+  expect_refused([&] { ds.camera(1, 1); }, scene() / "scene_camera.json", "missing key '1.cam_t_w2c'");
+}
+
 // Numbers JSON can hold but the reader's types cannot: each is refused naming the file and the key
 // (before: std::out_of_range from std::stoi, an undefined double-to-int conversion, a width
 // wrapped by get<int>, nlohmann's out_of_range exception for 1e999).
