@@ -30,8 +30,6 @@
 
 namespace mfcd::daemon {
 
-using FrameSourceFactory = std::function<std::unique_ptr<FrameSource>(const DaemonConfig&)>;
-
 class Cell {
  public:
   static constexpr std::size_t kFrameSlots = 4;

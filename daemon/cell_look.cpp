@@ -36,7 +36,8 @@ void Cell::fuseLook(const VisionInput& in, const CycleRequest& request) {
     throw std::runtime_error("second look: cycle " + std::to_string(request.first_cycle) +
                              "'s first look is no longer kept (a later cycle ran in between)");
   firstLookCycle_ = 0;  // one second look per first
-  stage_->fuse(firstLook_, in, cameraMotion(request.first_base_T_flange, request.base_T_flange, config_.hand_eye.camera),
+  stage_->fuse(firstLook_, in,
+               cameraMotion(request.first_base_T_flange, request.base_T_flange, config_.hand_eye.camera),
                pipelineResult_);
 }
 

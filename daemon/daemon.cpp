@@ -35,7 +35,7 @@ DaemonConfig Daemon::load() const {
 }
 
 void Daemon::startCell(const DaemonConfig& config) {
-  auto cell = std::make_unique<Cell>(config, vision_);
+  auto cell = std::make_unique<Cell>(config, vision_, source_);
   cell->start();
   cell_ = std::move(cell);
   watchCell();
@@ -461,16 +461,16 @@ int Daemon::run() {
   return 0;
 }
 
-int runDaemon(const DaemonOptions& options, const VisionStageFactory& vision) {
-  Daemon d(options, vision);
+int runDaemon(const DaemonOptions& options, const VisionStageFactory& vision, const FrameSourceFactory& source) {
+  Daemon d(options, vision, source);
   return d.run();
 }
 
-int daemonMain(int argc, char** argv, const VisionStageFactory& vision) {
+int daemonMain(int argc, char** argv, const VisionStageFactory& vision, const FrameSourceFactory& source) {
   int code = 0;
   const auto options = parseCommandLine(argc, argv, code);
   if (!options) return code;
-  return runDaemon(*options, vision);
+  return runDaemon(*options, vision, source);
 }
 
 }  // namespace mfcd::daemon

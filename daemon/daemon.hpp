@@ -8,6 +8,7 @@
 #include <optional>
 #include <string>
 
+#include "daemon/frame_source.hpp"
 #include "daemon/vision_stage.hpp"
 
 namespace mfcd::daemon {
@@ -29,9 +30,13 @@ std::optional<DaemonOptions> parseCommandLine(int argc, char** argv, int& exitCo
 // Runs mfcd with `vision` as the vision backend factory (the real mfcd passes
 // makePipelineStage). Returns the process exit code: 0 clean stop, 1 runtime failure,
 // 2 configuration error.
-int runDaemon(const DaemonOptions& options, const VisionStageFactory& vision);
+// `source` builds the frame source (makeFrameSource: the configuration's devices or the simulated
+// cell; test daemons wrap it to inject faults below the HAL's interfaces).
+int runDaemon(const DaemonOptions& options, const VisionStageFactory& vision,
+              const FrameSourceFactory& source = makeFrameSource);
 
 // main() of mfcd and of test daemons that put another vision backend below VisionStage.
-int daemonMain(int argc, char** argv, const VisionStageFactory& vision);
+int daemonMain(int argc, char** argv, const VisionStageFactory& vision,
+               const FrameSourceFactory& source = makeFrameSource);
 
 }  // namespace mfcd::daemon

@@ -47,7 +47,8 @@ struct Waiter {
 
 class Daemon {
  public:
-  Daemon(DaemonOptions options, VisionStageFactory vision) : options_(std::move(options)), vision_(std::move(vision)) {}
+  Daemon(DaemonOptions options, VisionStageFactory vision, FrameSourceFactory source)
+      : options_(std::move(options)), vision_(std::move(vision)), source_(std::move(source)) {}
   int run();
 
  private:
@@ -118,6 +119,7 @@ class Daemon {
 
   DaemonOptions options_;
   VisionStageFactory vision_;
+  FrameSourceFactory source_;
   DaemonConfig config_;
   EventLoop loop_;
   ControlServer control_{loop_};

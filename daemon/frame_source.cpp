@@ -161,6 +161,8 @@ class SimulatedCellSource final : public FrameSource, public SimulatedWorld {
                  : "simulated camera (test pattern)";
   }
   SimulatedWorld* simulation() noexcept override { return this; }
+  hal::SimulatedCamera& simulatedCamera() override { return *camera_; }
+  hal::SimulatedLightRing& simulatedLights() override { return lights_; }
   void truth(SimTruth& out) const override {
     out.count = 0;
     for (const auto& p : bin_) {

@@ -2,6 +2,7 @@
 // Where FrameSets come from: the HAL sequencer over real devices (V4L2 + libgpiod) or over the
 // simulated cell (SimulatedCamera + SimulatedLightRing rendering a bin of CAD parts). Created and
 // used only by the acquisition thread (the simulated cell's EGL context is bound to it).
+#include <functional>
 #include <memory>
 #include <random>
 #include <string>
@@ -10,6 +11,7 @@
 #include "daemon/config.hpp"
 #include "daemon/cycle.hpp"
 #include "mfcd/hal/sequencer.hpp"
+#include "mfcd/hal/simulated.hpp"
 
 namespace mfcd::daemon {
 
@@ -31,6 +33,9 @@ class SimulatedWorld {
   // Shows the calibration plate as asked for the next capture(s); Kind::None brings the bin back.
   // Throws std::runtime_error when the cell cannot show it.
   virtual void showPlate(const PlateRequest& plate) = 0;
+  // The simulated devices, for fault injection below the HAL's interfaces (the fault tests).
+  virtual hal::SimulatedCamera& simulatedCamera() = 0;
+  virtual hal::SimulatedLightRing& simulatedLights() = 0;
 };
 
 class FrameSource {
@@ -46,6 +51,8 @@ class FrameSource {
   // The simulated world behind this source, or nullptr for real devices.
   virtual SimulatedWorld* simulation() noexcept { return nullptr; }
 };
+
+using FrameSourceFactory = std::function<std::unique_ptr<FrameSource>(const DaemonConfig&)>;
 
 // Builds the source the configuration asks for. Throws (HalError, std::runtime_error) naming the
 // device or file.

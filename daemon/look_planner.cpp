@@ -30,8 +30,7 @@ const char* toString(LookReason r) {
 }
 
 LookDecision decideLook(SecondLookWhen when, const CycleResult& out, const motion::PickChoiceConfig& pick) {
-  if (when == SecondLookWhen::Off || out.error != CycleError::None || out.request.mode != 0 ||
-      out.candidate_count == 0)
+  if (when == SecondLookWhen::Off || out.error != CycleError::None || out.request.mode != 0 || out.candidate_count == 0)
     return {};
   int best = 0;
   for (int i = 1; i < out.candidate_count; ++i)

@@ -126,8 +126,8 @@ TEST(SecondLookE2E, RobotTakesTheCameraWhereMfcdAsksAndGetsTheFusedPick) {
     ASSERT_EQ(first["sim_truth"].size(), fused["sim_truth"].size());
     for (std::size_t i = 0; i < first["sim_truth"].size(); ++i)
       for (const char* axis : {"x", "y", "z"})
-        EXPECT_NEAR(first["sim_truth"][i]["base"][axis].get<double>(), fused["sim_truth"][i]["base"][axis].get<double>(),
-                    1e-3);
+        EXPECT_NEAR(first["sim_truth"][i]["base"][axis].get<double>(),
+                    fused["sim_truth"][i]["base"][axis].get<double>(), 1e-3);
     if (!(m[reg::kStatus] & reg::kPickValid)) {
       ADD_FAILURE() << "job " << look_job << ": no pick after the second look: " << fused.dump();
       continue;

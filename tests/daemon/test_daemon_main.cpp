@@ -3,10 +3,14 @@
 // MFCD_TEST_VISION_HANG=1 makes it ignore the cycle's deadline (a hung vision stage);
 // MFCD_TEST_VISION_FAIL_FIRST=N makes its first N cycles throw; MFCD_TEST_VISION_PATTERN=1 is for a
 // cell whose camera serves the HAL test pattern (no meshes): every frame's tag is checked and one
-// stand-in candidate is reported per cycle (test_vision_stage.hpp, "Pattern mode").
+// stand-in candidate is reported per cycle (test_vision_stage.hpp, "Pattern mode");
+// MFCD_TEST_FAULTS=SEED,PERCENT injects camera and LED faults below the HAL before PERCENT % of the
+// captures, drawn from SEED (fault_source.hpp).
+#include <cstdio>
 #include <cstdlib>
 
 #include "daemon/daemon.hpp"
+#include "fault_source.hpp"
 #include "test_vision_stage.hpp"
 
 int main(int argc, char** argv) {
@@ -18,7 +22,14 @@ int main(int argc, char** argv) {
   const int failFirst = fail ? std::atoi(fail) : 0;
   const char* pattern = std::getenv("MFCD_TEST_VISION_PATTERN");
   const bool check_pattern = pattern && std::atoi(pattern) != 0;
-  return mfcd::daemon::daemonMain(argc, argv, [=](const mfcd::daemon::DaemonConfig&) {
+  unsigned long long seed = 0;
+  int percent = 0;
+  if (const char* faults = std::getenv("MFCD_TEST_FAULTS")) std::sscanf(faults, "%llu,%d", &seed, &percent);
+  const auto vision = [=](const mfcd::daemon::DaemonConfig&) {
     return std::make_unique<mfcd::daemon::test::TruthVisionStage>(work, honourDeadline, failFirst, check_pattern);
+  };
+  if (percent <= 0) return mfcd::daemon::daemonMain(argc, argv, vision);
+  return mfcd::daemon::daemonMain(argc, argv, vision, [=](const mfcd::daemon::DaemonConfig& config) {
+    return std::make_unique<mfcd::daemon::test::FaultySource>(mfcd::daemon::makeFrameSource(config), seed, percent);
   });
 }
