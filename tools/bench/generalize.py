@@ -161,6 +161,9 @@ def prepare_dataset(args, cache, parts_dir, parts, split):
     cam = CAMERAS[split]
     key = digest(parts["generator_version"], renderer_digest(), json.dumps(cam, sort_keys=True), args.samples)
     root = cache / f"scenes-{split}-{key}"
+    if args.second_view_deg:  # two-view scenes: their own folder, never a one-view one
+        key = digest(key, f"second_view_deg={args.second_view_deg!r}")
+        root = cache / f"scenes-{split}-2view{args.second_view_deg:g}-{key}"
     models_src = parts_dir / ("dev" if split == "smoke" else split) / "models"
     mine = split_parts(parts, split)
     if split == "smoke":
@@ -223,6 +226,8 @@ def render_scenes(args, root, cam_render, plan, split):
                "--samples", args.samples]
         if split == "smoke":
             cmd += ["--parts", "2,3"]
+        if args.second_view_deg:
+            cmd += ["--second-view-deg", args.second_view_deg]
         t0 = time.time()
         run(cmd)
         say(f"{split}: scene {s['scene_id']}/{n_scenes} rendered in {time.time() - t0:.0f} s (types {s['obj_ids']})")
@@ -311,6 +316,9 @@ def main():
                     help="what to run of teach,render,eval (default all; eval also teaches what is missing)")
     ap.add_argument("--smoke", action="store_true",
                     help="one generated part, one small scene at few samples, detect, score (ctest)")
+    ap.add_argument("--second-view-deg", type=float, default=0.0,
+                    help="render two-view scenes (render_bin.py --second-view-deg) into their own cache folder, "
+                         "for mfc-second-look --views dataset; needs --stages without eval (default 0: one view)")
     args = ap.parse_args()
     build = args.build.resolve()
     out_dir = (args.out or build.parent / "bench").resolve()
@@ -330,6 +338,9 @@ def main():
     unknown = stages - {"teach", "render", "eval"}
     if unknown:
         ap.error(f"--stages: unknown stage(s) {', '.join(sorted(unknown))} (known: teach, render, eval)")
+    if args.second_view_deg and "eval" in stages:
+        ap.error("--second-view-deg: the one-view evaluation and report do not take two-view scenes; "
+                 "give --stages render (or teach,render)")
     if "eval" in stages:
         stages.add("teach")  # the evaluation needs the templates (cached ones cost nothing)
     for split in splits:
@@ -338,6 +349,8 @@ def main():
             templates, teach_s = teach(args, cache, build, root, cam_yaml, ids)
         if "render" in stages:
             render_scenes(args, root, cam_render, plan, split)
+            if args.second_view_deg:
+                say(f"{split}: two-view scenes ({args.second_view_deg:g} deg) in {root}")
         if "eval" in stages:
             result, command = evaluate(args, build, root, templates, ids, split, out_dir)
             runs.append({"split": split, "dataset": str(root), "templates": str(templates), "result": str(result),

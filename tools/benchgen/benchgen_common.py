@@ -36,6 +36,19 @@ def shrunk_hull(v, hull):
     return margin, pts[inner.vertices], np.searchsorted(inner.vertices, inner.simplices)
 
 
+def second_view_pose(deg, floor_mm):
+    """Camera 1 of a scene rendered with --second-view-deg: camera 0 turned by deg about the axis
+    parallel to camera 0's x axis through the pivot c = (0, 0, floor_mm) (OpenCV camera-0 frame).
+    Returns (R, t) with p1 = R p0 + t (OpenCV camera frames, mm): R = Rx(deg), t = c - R c, so the
+    pivot stays at (0, 0, floor_mm) in camera 1. Camera 1's centre is at (0, -floor sin deg,
+    floor (1 - cos deg)) in camera 0's frame: deg > 0 moves it towards the top edge of image 0
+    (OpenCV -y) and tilts its optical axis (0, sin deg, cos deg) back onto the pivot."""
+    a = np.radians(deg)
+    R = np.array([[1.0, 0.0, 0.0], [0.0, np.cos(a), -np.sin(a)], [0.0, np.sin(a), np.cos(a)]])
+    c = np.array([0.0, 0.0, float(floor_mm)])
+    return R, c - R @ c
+
+
 def cycles_seed(args, k):
     return (args.seed * 1000003 + args.scene_id * 7919 + k * 104729) % (2 ** 31 - 1)
 

@@ -70,8 +70,10 @@ def setup_render(cam, samples):
     return camera_error(cam, obj)
 
 
-def camera_error(cam, obj):
-    """Max |Blender projection - K projection| in px over a grid of points in front of the camera."""
+def camera_error(cam, obj, to_world=None):
+    """Max |Blender projection - K projection| in px over a grid of points in front of the camera.
+    to_world: (R, t) from the camera's Blender frame to the world, when the camera is not at the
+    world origin (None: it is)."""
     from bpy_extras.object_utils import world_to_camera_view
     import mathutils
     bpy.context.view_layer.update()
@@ -81,11 +83,23 @@ def camera_error(cam, obj):
         for v in np.linspace(-0.2 * H, 1.2 * H, 5):
             for z in (100.0, 300.0):
                 p = np.array([(u - cam['cx']) / cam['fx'] * z, -(v - cam['cy']) / cam['fy'] * z, -z])
+                if to_world is not None:
+                    p = to_world[0] @ p + to_world[1]
                 q = world_to_camera_view(bpy.context.scene, obj, mathutils.Vector(p.tolist()))
                 err = max(err, abs(q.x * W - 0.5 - u), abs((1.0 - q.y) * H - 0.5 - v))
     if err > 1e-3:
         raise SystemExit('Blender camera does not reproduce K: %.4f px' % err)
     return err
+
+
+def move_camera(cam, lights, R_wc, t_wc):
+    """The camera and its LED ring (flash_positions_mm, camera frame) to the pose (R_wc, t_wc):
+    camera's Blender frame -> world. The room light stays. Returns camera_error at the new pose."""
+    obj = bpy.context.scene.camera
+    obj.matrix_world = matrix4(R_wc, t_wc)
+    for (led, _power), p in zip(lights['all'], cam['flash_positions_mm']):
+        led.location = (R_wc @ (FLIP @ np.asarray(p, float)) + t_wc).tolist()
+    return camera_error(cam, obj, (R_wc, t_wc))
 
 
 def principled(name):

@@ -24,6 +24,13 @@ Rules (camera frame OpenCV, mm; pixel centre of (0, 0) at (0, 0)):
   over every scene of a split pooled (--split-alignment; judged with >= 2000 contours of each
   kind), where that scatter averages out and a camera off by half a pixel does not. One scene's axis is judged only with >= 250 contours of
   each kind (a small image with few parts has fewer: its offset is printed, not judged).
+- views: every image of the scene is checked by the rules above. A scene of several images (one
+  settled bin seen from several cameras: render_bin.py --second-view-deg) must give every image's
+  camera pose, cam_R_w2c (a rotation within 1e-6) and cam_t_w2c (mm); an image with one gives
+  them all. Every image lists the same instances (obj_id, in order) and each instance's pose in
+  image k is image 0's carried over by the cameras' motion: cam_R_m2c_k = A cam_R_m2c_0 and
+  cam_t_m2c_k = A cam_t_m2c_0 + b with A = R_w2c_k R_w2c_0^T, b = t_w2c_k - A t_w2c_0 (within
+  1e-6 per rotation entry and 1e-3 mm).
 
 Run with --split-alignment instead of --scene: the pooled alignment of every scene of the split.
 """
@@ -44,6 +51,8 @@ ALIGN_TOL_PX = 0.4          # one scene: its content scatters the measure (see t
 ALIGN_SPLIT_TOL_PX = 0.1     # every scene of a split pooled
 ALIGN_SPLIT_MIN_CONTOURS = 2000  # of each kind, pooled; fewer (a smoke run's one scene): printed, not judged
 ALIGN_MIN_CONTOURS = 250  # of each kind; fewer (tiny images, few parts): the offset is printed, not judged
+VIEW_R_TOL = 1e-6   # cam_R_w2c orthonormality, and image k's cam_R_m2c against image 0's carried over
+VIEW_T_TOL_MM = 1e-3  # image k's cam_t_m2c against image 0's carried over
 
 
 class Checker:
@@ -369,6 +378,72 @@ def check_image(chk, root, sdir, iid, cam, gts, infos, models, indexes, overlay)
     return stats
 
 
+def world_pose(chk, tag, cam):
+    """(R_w2c, t_w2c) of an image's scene_camera entry, or None (after a failure line) when malformed."""
+    try:
+        R = np.array(cam['cam_R_w2c'], float).reshape(3, 3)
+        t = np.array(cam['cam_t_w2c'], float).reshape(3)
+    except (KeyError, TypeError, ValueError):
+        chk.fail('%s: cam_R_w2c needs 9 numbers and cam_t_w2c 3' % tag)
+        return None
+    if not (np.all(np.isfinite(R)) and np.all(np.isfinite(t))):
+        chk.fail('%s: cam_R_w2c / cam_t_w2c are not finite' % tag)
+        return None
+    if np.abs(R @ R.T - np.eye(3)).max() > VIEW_R_TOL or np.linalg.det(R) < 0:
+        chk.fail('%s: cam_R_w2c is not a rotation' % tag)
+        return None
+    return R, t
+
+
+def check_views(chk, cams, gts):
+    """The views rule (module docstring). Returns (max rotation entry error, max translation error mm)
+    over the images after the first, or None when the scene has one image."""
+    keys = sorted(cams, key=int)
+    given = [k for k in keys if 'cam_R_w2c' in cams[k] or 'cam_t_w2c' in cams[k]]
+    if len(keys) < 2 and not given:
+        return None
+    if not given:
+        chk.fail('scene has %d images but no cam_R_w2c / cam_t_w2c: their cameras are not known' % len(keys))
+        return None
+    for k in keys:
+        if k not in given:
+            chk.fail('%06d: no cam_R_w2c / cam_t_w2c while image(s) %s give them' % (int(k), ', '.join(given)))
+    poses = {k: world_pose(chk, '%06d' % int(k), cams[k]) for k in given}
+    k0 = keys[0]
+    if poses.get(k0) is None:
+        return None
+    R0, t0 = poses[k0]
+    err_r, err_t = 0.0, 0.0
+    for k in keys[1:]:
+        if poses.get(k) is None:
+            continue
+        A = poses[k][0] @ R0.T
+        b = poses[k][1] - A @ t0
+        first, other = gts.get(k0, []), gts.get(k, [])
+        if [e['obj_id'] for e in first] != [e['obj_id'] for e in other]:
+            chk.fail('%06d: scene_gt lists other instances (obj_id %s) than image %s (%s)'
+                     % (int(k), [e['obj_id'] for e in other], k0, [e['obj_id'] for e in first]))
+            continue
+        for g, (e0, e1) in enumerate(zip(first, other)):
+            R = A @ np.array(e0['cam_R_m2c'], float).reshape(3, 3)
+            t = A @ np.array(e0['cam_t_m2c'], float) + b
+            dr = float(np.abs(np.array(e1['cam_R_m2c'], float).reshape(3, 3) - R).max())
+            dt = float(np.abs(np.array(e1['cam_t_m2c'], float) - t).max())
+            err_r, err_t = max(err_r, dr), max(err_t, dt)
+            if dr > VIEW_R_TOL or dt > VIEW_T_TOL_MM:
+                chk.fail('%06d instance %d (obj %d): pose differs from image %s\'s carried over by the cameras '
+                         '(rotation %.2g, translation %.3g mm)' % (int(k), g, e1['obj_id'], k0, dr, dt))
+    return err_r, err_t
+
+
+def overlay_path(path, iid, first):
+    """--overlay's file for the first image; PATH-IIIIII.ext for the others."""
+    if path is None or iid == first:
+        return path
+    stem, ext = os.path.splitext(path)
+    return '%s-%06d%s' % (stem, iid, ext)
+
+
 def write_overlay(path, ambient, outlines):
     a = ambient.astype(float)
     a = np.clip(a * 255.0 / max(np.percentile(a, 99.5), 1.0), 0, 255).astype(np.uint8)
@@ -442,21 +517,32 @@ def main():
             models[oid] = plymesh.read_ply(path)
             indexes[oid] = SurfaceIndex(models[oid]['vertices'], models[oid]['faces'])
     total = {'n': 0, 'dist': [], 'sil': 0.0, 'xor': 0, 'align': []}
-    for key in sorted(cams, key=int):
+    keys = sorted(cams, key=int)
+    for key in keys:
         s = check_image(chk, a.dataset, sdir, int(key), cams[key], gts.get(key, []), infos.get(key, []),
-                        models, indexes, a.overlay if key == sorted(cams, key=int)[0] else None)
+                        models, indexes, overlay_path(a.overlay, int(key), int(keys[0])))
         if s:
             total['n'] += s['n']
             total['dist'] += s['dist']
             total['sil'] = max(total['sil'], s['sil_max'])
             total['xor'] += s['xor_px']
             total['align'].append(s.get('align'))
+        else:
+            total['align'].append(None)
+    views = check_views(chk, cams, gts)
     d = np.concatenate(total['dist']) if total['dist'] else np.zeros(1)
     al = total['align'][0] if total['align'] and total['align'][0] else [(0.0, 0), (0.0, 0)]
+    more = ''  # a scene of several images: the others' edge offsets and the views rule's largest errors
+    for key, other in zip(keys[1:], total['align'][1:]):
+        other = other or [(0.0, 0), (0.0, 0)]
+        more += '; image %s edge offset x %+.3f px (%d), y %+.3f px (%d)' % (key, other[0][0], other[0][1],
+                                                                             other[1][0], other[1][1])
+    if views is not None:
+        more += '; %d views: poses carried over within %.1g (rotation), %.1g mm' % (len(keys), views[0], views[1])
     print('check_scene: scene %d: %d instances, %d visible pixels: surface distance max %.4f mm, p99 %.4f mm; '
-          'silhouette max disagreement %.1f px (%d XOR px); edge offset x %+.3f px (%d), y %+.3f px (%d); %s'
+          'silhouette max disagreement %.1f px (%d XOR px); edge offset x %+.3f px (%d), y %+.3f px (%d)%s; %s'
           % (a.scene, total['n'], d.size, d.max(), np.percentile(d, 99), total['sil'], total['xor'],
-             al[0][0], al[0][1], al[1][0], al[1][1], 'FAIL (%d)' % len(chk.failures) if chk.failures else 'PASS'))
+             al[0][0], al[0][1], al[1][0], al[1][1], more, 'FAIL (%d)' % len(chk.failures) if chk.failures else 'PASS'))
     return 1 if chk.failures else 0
 
 
