@@ -116,7 +116,8 @@ TEST_F(DaemonFaultMatrix, EveryAcceptedJobEndsWithAResultOrAnErrorCode) {
     if (plc.trigger(job, 0) != 0) continue;  // refused (busy: a control cycle or a reload): not accepted
     ++accepted;
     ASSERT_TRUE(plc.waitFor(job, r, kBudgetMs + 2000)) << "job " << job << " accepted but not answered\n" << proc.log();
-    slowestMs = std::max(slowestMs, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+    slowestMs =
+        std::max(slowestMs, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
     const std::uint16_t error = r.at(reg::kErrorCode);
     const bool pick = r.at(reg::kStatus) & reg::kPickValid;
     EXPECT_FALSE(pick && error != 0) << "job " << job;

@@ -20,8 +20,7 @@ class FaultySource final : public FrameSource {
   void activate() override { inner_->activate(); }
   void deactivate() noexcept override { inner_->deactivate(); }
   const hal::FrameSet& capture() override {
-    if (SimulatedWorld* sim = inner_->simulation();
-        sim && std::uniform_int_distribution<int>(0, 99)(rng_) < percent_) {
+    if (SimulatedWorld* sim = inner_->simulation(); sim && std::uniform_int_distribution<int>(0, 99)(rng_) < percent_) {
       switch (std::uniform_int_distribution<int>(0, 4)(rng_)) {
         case 0:
           sim->simulatedCamera().injectTimeouts(1);

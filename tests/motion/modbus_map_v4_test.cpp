@@ -7,7 +7,9 @@
 #include "sim_daemon.hpp"
 
 #include <gtest/gtest.h>
+
 #include <modbus/modbus.h>
+#include <poll.h>
 
 #include <cerrno>
 #include <chrono>
@@ -272,6 +274,9 @@ TEST(ModbusMapV4, LookOnTheWireAsTheDocShowsIt) {
   auto rsp = raw.receive(12);
   ASSERT_TRUE(rsp);
   EXPECT_EQ(*rsp, (std::vector<std::uint8_t>{0x00, 0x04, 0x00, 0x00, 0x00, 0x06, 0xFF, 0x10, 0x00, 0x00, 0x00, 0x04}));
+  // The server queues the command right after its answer leaves: wait for the daemon's wake-up.
+  pollfd wake{server.command_fd(), POLLIN, 0};
+  ASSERT_EQ(::poll(&wake, 1, 2000), 1);
   const auto cmd = server.next_command();
   ASSERT_TRUE(cmd);
   EXPECT_EQ(cmd->kind, PlcCommand::Kind::Look);
