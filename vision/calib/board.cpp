@@ -65,8 +65,10 @@ BoardDetection detect_board(const cv::Mat& image, const CheckerBoard& board) {
     return d;
   }
   cv::Mat1b gray;
-  if (image.type() == CV_8UC1) gray = image;
-  else if (image.type() == CV_8UC3) cv::cvtColor(image, gray, cv::COLOR_BGR2GRAY);
+  if (image.type() == CV_8UC1)
+    gray = image;
+  else if (image.type() == CV_8UC3)
+    cv::cvtColor(image, gray, cv::COLOR_BGR2GRAY);
   else {
     d.reason = "unsupported image type (expected 8-bit grey or BGR)";
     return d;

@@ -197,9 +197,9 @@ cv::Matx33d read_camera_matrix(const YAML::Node& root, const Reader& rd, bool op
 std::vector<double> read_coefficients(const YAML::Node& n, const std::string& key, const Reader& rd) {
   const Matrix m = rd.matrix(n, key);
   if (m.rows != 1 && m.cols != 1 && !m.data.empty())
-    rd.fail_at(n, key,
-               "a " + std::to_string(m.rows) + "x" + std::to_string(m.cols) +
-                   " matrix, expected one row or one column");
+    rd.fail_at(
+        n, key,
+        "a " + std::to_string(m.rows) + "x" + std::to_string(m.cols) + " matrix, expected one row or one column");
   for (size_t i = 0; i < m.data.size(); ++i)
     if (!std::isfinite(m.data[i]))
       rd.fail_at(n, key, "coefficient " + std::to_string(i) + " is not finite (" + m.text[i] + ")");
@@ -273,9 +273,9 @@ void read_ros(const YAML::Node& root, const Reader& rd, ForeignCalibration& f, s
   const YAML::Node dn = rd.required(root, {"distortion_coefficients"}, key);
   const std::vector<double> d = read_coefficients(dn, key, rd);
   if (d.size() != count)
-    rd.fail_at(dn, key,
-               name + " has " + std::to_string(count) + " coefficients (" + order + "), got " +
-                   std::to_string(d.size()));
+    rd.fail_at(
+        dn, key,
+        name + " has " + std::to_string(count) + " coefficients (" + order + "), got " + std::to_string(d.size()));
   f.camera.distortion = d;
   f.distortion_model = name;
   read.insert(key);
@@ -331,8 +331,7 @@ ForeignCalibration read_foreign_calibration(const fs::path& file) {
     throw CalibrationError(src + (e.mark.line >= 0 ? ":" + std::to_string(e.mark.line + 1) : std::string()) +
                            ": not valid YAML: " + e.msg);
   }
-  if (!root.IsMap())
-    throw CalibrationError(src + ": not a calibration file (the top level is not a mapping of keys)");
+  if (!root.IsMap()) throw CalibrationError(src + ": not a calibration file (the top level is not a mapping of keys)");
 
   const Reader rd(src);
   for (const char* key : {"working_distance_mm", "flashes"})

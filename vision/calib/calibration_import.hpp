@@ -28,11 +28,11 @@ const char* to_string(ForeignFormat format);
 // project (the centre of pixel (0, 0) is at (0, 0)), so K and the coefficients are taken as they are.
 struct ForeignCalibration {
   ForeignFormat format = ForeignFormat::opencv;
-  PinholeCamera camera;          // image size, K, distortion in OpenCV order (k1 k2 p1 p2 [k3 ...])
-  std::string distortion_model;  // "plumb_bob", "rational_polynomial", or "OpenCV, N coefficients"
-  std::vector<std::string> keys_read;     // top-level keys the intrinsics came from, in file order
-  std::vector<std::string> keys_unused;   // the other top-level keys (board, extrinsics, R, P, ...)
-  std::vector<std::string> notes;         // what the file said besides (its RMS error, camera name, ...)
+  PinholeCamera camera;                  // image size, K, distortion in OpenCV order (k1 k2 p1 p2 [k3 ...])
+  std::string distortion_model;          // "plumb_bob", "rational_polynomial", or "OpenCV, N coefficients"
+  std::vector<std::string> keys_read;    // top-level keys the intrinsics came from, in file order
+  std::vector<std::string> keys_unused;  // the other top-level keys (board, extrinsics, R, P, ...)
+  std::vector<std::string> notes;        // what the file said besides (its RMS error, camera name, ...)
 };
 
 // Reads and checks `file`; the format is detected from its keys (a ROS file has distortion_model,

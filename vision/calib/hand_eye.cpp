@@ -26,7 +26,8 @@ struct CornerCost {
     ceres::AngleAxisRotatePoint(y, p, q);
     for (int k = 0; k < 3; ++k) q[k] += y[3 + k];
     T d[3];
-    for (int k = 0; k < 3; ++k) d[k] = G[4 * k] * q[0] + G[4 * k + 1] * q[1] + G[4 * k + 2] * q[2] + G[4 * k + 3] - x[3 + k];
+    for (int k = 0; k < 3; ++k)
+      d[k] = G[4 * k] * q[0] + G[4 * k + 1] * q[1] + G[4 * k + 2] * q[2] + G[4 * k + 3] - x[3 + k];
     const T neg[3] = {-x[0], -x[1], -x[2]};
     T c[3];
     ceres::AngleAxisRotatePoint(neg, d, c);
@@ -155,7 +156,8 @@ double HandEyeCalibration::check_motion_spread() const {
   std::vector<std::pair<double, cv::Vec3d>> axes;  // (angle deg, unit axis)
   for (size_t i = 0; i < views_.size(); ++i)
     for (size_t j = i + 1; j < views_.size(); ++j) {
-      const cv::Vec3d w = rotation_vector(rotation_of(inverse_transform(views_[i].T_base_flange) * views_[j].T_base_flange));
+      const cv::Vec3d w =
+          rotation_vector(rotation_of(inverse_transform(views_[i].T_base_flange) * views_[j].T_base_flange));
       const double a = cv::norm(w) * 180 / CV_PI;
       if (a >= options_.min_rotation_deg) axes.emplace_back(a, w / cv::norm(w));
     }
@@ -183,7 +185,8 @@ double HandEyeCalibration::check_motion_spread() const {
 }
 
 cv::Matx44d HandEyeCalibration::camera_board(const cv::Matx44d& X, const cv::Matx44d& Y, const cv::Matx44d& F) const {
-  return mode_ == HandEyeMode::eye_in_hand ? inverse_transform(X) * inverse_transform(F) * Y : inverse_transform(X) * F * Y;
+  return mode_ == HandEyeMode::eye_in_hand ? inverse_transform(X) * inverse_transform(F) * Y
+                                           : inverse_transform(X) * F * Y;
 }
 
 cv::Matx44d HandEyeCalibration::average_board(const cv::Matx44d& X) const {
@@ -249,8 +252,10 @@ HandEyeResult HandEyeCalibration::compute() const {
     tc.emplace_back(cv::Mat(translation_of(v.T_camera_board), true));
   }
   const std::pair<cv::HandEyeCalibrationMethod, const char*> methods[] = {
-      {cv::CALIB_HAND_EYE_TSAI, "Tsai"},     {cv::CALIB_HAND_EYE_PARK, "Park"},
-      {cv::CALIB_HAND_EYE_HORAUD, "Horaud"}, {cv::CALIB_HAND_EYE_ANDREFF, "Andreff"},
+      {cv::CALIB_HAND_EYE_TSAI, "Tsai"},
+      {cv::CALIB_HAND_EYE_PARK, "Park"},
+      {cv::CALIB_HAND_EYE_HORAUD, "Horaud"},
+      {cv::CALIB_HAND_EYE_ANDREFF, "Andreff"},
       {cv::CALIB_HAND_EYE_DANIILIDIS, "Daniilidis"}};
   cv::Matx44d bestX, bestY;
   double best = INFINITY;
@@ -356,8 +361,8 @@ HandEyeCheck HandEyeCalibration::check(const HandEyeResult& result, const cv::Ma
   c.position_error_mm = r.position_mm;
   c.rotation_error_deg = r.rotation_deg;
   c.reprojection_rms_px = r.rms_px;
-  c.origin_error_mm = cv::norm(translation_of(camera_board(result.hand_eye, result.board, F)) -
-                               translation_of(v.T_camera_board));
+  c.origin_error_mm =
+      cv::norm(translation_of(camera_board(result.hand_eye, result.board, F)) - translation_of(v.T_camera_board));
   return c;
 }
 
@@ -370,8 +375,10 @@ std::string HandEyeResult::summary() const {
     << axis_spread_deg << " deg\n  cv::calibrateHandEye:";
   for (const auto& m : methods) {
     o << ' ' << m.method << ' ';
-    if (m.ok) o << m.rms_px << " px";
-    else o << "failed";
+    if (m.ok)
+      o << m.rms_px << " px";
+    else
+      o << "failed";
   }
   o << "\n  best " << initial_method << ": " << initial_rms_px << " px; after joint refinement: " << rms_px << " px, "
     << position_rms_mm << " mm, " << rotation_rms_deg << " deg RMS\n"

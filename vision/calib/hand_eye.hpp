@@ -43,9 +43,9 @@ struct HandEyeOptions {
 
 struct HandEyeViewResidual {
   std::string label;
-  double rms_px = 0;          // corner reprojection error through X, Y and the robot pose
-  double position_mm = 0;     // RMS 3-D distance predicted vs observed (PnP) corners, camera frame
-  double rotation_deg = 0;    // predicted vs observed board orientation
+  double rms_px = 0;        // corner reprojection error through X, Y and the robot pose
+  double position_mm = 0;   // RMS 3-D distance predicted vs observed (PnP) corners, camera frame
+  double rotation_deg = 0;  // predicted vs observed board orientation
 };
 
 struct HandEyeMethodScore {
@@ -60,12 +60,12 @@ struct HandEyeResult {
   cv::Matx44d board = cv::Matx44d::eye();     // Y: T_base_board or T_flange_board
   std::vector<HandEyeMethodScore> methods;
   std::string initial_method;
-  double initial_rms_px = 0;                  // best cv::calibrateHandEye solution
-  double rms_px = 0;                          // final (after refinement when enabled)
+  double initial_rms_px = 0;  // best cv::calibrateHandEye solution
+  double rms_px = 0;          // final (after refinement when enabled)
   double position_rms_mm = 0;
   double rotation_rms_deg = 0;
   std::vector<HandEyeViewResidual> views;
-  double axis_spread_deg = 0;                 // of the relative robot rotations
+  double axis_spread_deg = 0;  // of the relative robot rotations
   std::string summary() const;
 };
 
@@ -108,9 +108,9 @@ class HandEyeCalibration {
  private:
   struct View {
     std::string label;
-    std::vector<cv::Point2f> corners;      // undistorted pixel coordinates (ideal pinhole)
+    std::vector<cv::Point2f> corners;  // undistorted pixel coordinates (ideal pinhole)
     cv::Matx44d T_base_flange;
-    cv::Matx44d T_camera_board;            // from PnP
+    cv::Matx44d T_camera_board;  // from PnP
   };
   bool solve_pnp(const std::vector<cv::Point2f>& undistorted, cv::Matx44d& T_camera_board) const;
   std::vector<cv::Point2f> undistort(const std::vector<cv::Point2f>& corners) const;

@@ -58,9 +58,15 @@ IntrinsicsResult IntrinsicsCalibration::compute() const {
     case IntrinsicsOptions::Distortion::none:
       flags = cv::CALIB_FIX_K1 | cv::CALIB_FIX_K2 | cv::CALIB_FIX_K3 | cv::CALIB_ZERO_TANGENT_DIST;
       break;
-    case IntrinsicsOptions::Distortion::radial: flags = cv::CALIB_FIX_K3 | cv::CALIB_ZERO_TANGENT_DIST; break;
-    case IntrinsicsOptions::Distortion::radial_tangential: flags = cv::CALIB_FIX_K3; break;
-    case IntrinsicsOptions::Distortion::full: flags = 0; break;
+    case IntrinsicsOptions::Distortion::radial:
+      flags = cv::CALIB_FIX_K3 | cv::CALIB_ZERO_TANGENT_DIST;
+      break;
+    case IntrinsicsOptions::Distortion::radial_tangential:
+      flags = cv::CALIB_FIX_K3;
+      break;
+    case IntrinsicsOptions::Distortion::full:
+      flags = 0;
+      break;
   }
   const std::vector<cv::Point3f> object = board_.object_points();
 
@@ -91,7 +97,8 @@ IntrinsicsResult IntrinsicsCalibration::compute() const {
     }
     if (!std::isfinite(rms) || !cv::checkRange(K) || !cv::checkRange(dist))
       throw CalibrationError("intrinsics: calibration did not converge (non-finite result); add more tilted views");
-    for (size_t k = 0; k < used.size(); ++k) view_rms[static_cast<size_t>(used[k])] = per_view.at<double>(static_cast<int>(k));
+    for (size_t k = 0; k < used.size(); ++k)
+      view_rms[static_cast<size_t>(used[k])] = per_view.at<double>(static_cast<int>(k));
 
     std::vector<double> errs(view_rms.size());
     for (size_t k = 0; k < used.size(); ++k) errs[k] = view_rms[static_cast<size_t>(used[k])];
@@ -101,7 +108,8 @@ IntrinsicsResult IntrinsicsCalibration::compute() const {
     // Drop the worst offender only, then recalibrate: one bad view inflates the others' errors.
     int worst = -1;
     for (int i : used)
-      if (view_rms[static_cast<size_t>(i)] > limit && (worst < 0 || view_rms[static_cast<size_t>(i)] > view_rms[static_cast<size_t>(worst)]))
+      if (view_rms[static_cast<size_t>(i)] > limit &&
+          (worst < 0 || view_rms[static_cast<size_t>(i)] > view_rms[static_cast<size_t>(worst)]))
         worst = i;
     if (worst >= 0) {
       rejected[static_cast<size_t>(worst)] = true;
@@ -117,7 +125,8 @@ IntrinsicsResult IntrinsicsCalibration::compute() const {
     break;
   }
   for (int i = 0; i < n; ++i)
-    result.views.push_back({labels_[static_cast<size_t>(i)], view_rms[static_cast<size_t>(i)], rejected[static_cast<size_t>(i)]});
+    result.views.push_back(
+        {labels_[static_cast<size_t>(i)], view_rms[static_cast<size_t>(i)], rejected[static_cast<size_t>(i)]});
   return result;
 }
 
@@ -133,7 +142,8 @@ std::string IntrinsicsResult::summary() const {
   o << '\n';
   o.precision(3);
   for (const auto& v : views)
-    o << "  " << v.label << ": " << v.rms_px << " px" << (v.rejected ? "  REJECTED (does not fit the others)" : "") << '\n';
+    o << "  " << v.label << ": " << v.rms_px << " px" << (v.rejected ? "  REJECTED (does not fit the others)" : "")
+      << '\n';
   return o.str();
 }
 

@@ -18,10 +18,10 @@ namespace mfcd::vision::calib {
 
 // What add_view did with one image.
 struct ViewReport {
-  int index = -1;        // index among the accepted views, -1 when rejected
+  int index = -1;  // index among the accepted views, -1 when rejected
   bool accepted = false;
-  std::string label;     // the caller's name for the view (file name, "view 3", ...)
-  std::string reason;    // why it was rejected
+  std::string label;   // the caller's name for the view (file name, "view 3", ...)
+  std::string reason;  // why it was rejected
   std::vector<cv::Point2f> corners;
 };
 
@@ -50,7 +50,7 @@ struct IntrinsicsResult {
   double rms_px = 0;                       // over the views used
   std::vector<IntrinsicsViewError> views;  // every accepted view, in order
   int used_views = 0;
-  cv::Vec4d std_dev{0, 0, 0, 0};           // 1-sigma of fx, fy, cx, cy (px)
+  cv::Vec4d std_dev{0, 0, 0, 0};  // 1-sigma of fx, fy, cx, cy (px)
   std::string summary() const;
 };
 

@@ -64,6 +64,8 @@ void CalibrationSession::apply() {
   base_ = *pending_;
 }
 
-void CalibrationSession::rollback(const std::filesystem::path& camera_file) { CalibrationStore(camera_file).rollback(); }
+void CalibrationSession::rollback(const std::filesystem::path& camera_file) {
+  CalibrationStore(camera_file).rollback();
+}
 
 }  // namespace mfcd::vision::calib

@@ -145,8 +145,8 @@ void CalibrationStore::apply(const CameraConfig& config) { write_atomically(conf
 
 void CalibrationStore::rollback() {
   if (!fs::exists(previous_file()))
-    throw std::runtime_error(file_.string() + ": no previous calibration to roll back to (" +
-                             previous_file().string() + " missing)");
+    throw std::runtime_error(file_.string() + ": no previous calibration to roll back to (" + previous_file().string() +
+                             " missing)");
   // Restored byte for byte (the operator's comments and number formatting included), after
   // checking that it still loads.
   load_camera_config(previous_file());

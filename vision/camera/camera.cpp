@@ -113,8 +113,8 @@ CameraConfig read_camera_config(const YAML::Node& root, const Reader& rd) {
   c.camera.image_size.height = rd.integer(root, "image_height", "image_height");
   c.camera.K = cv::Matx33d(rd.matrix(root, "camera_matrix", "camera_matrix", {3, 3, 3, 3, "3x3"}));
 
-  const cv::Mat d = rd.matrix(root, "distortion_coefficients", "distortion_coefficients",
-                              {1, 14, 1, 14, "1xN or Nx1, N = 4..14"});
+  const cv::Mat d =
+      rd.matrix(root, "distortion_coefficients", "distortion_coefficients", {1, 14, 1, 14, "1xN or Nx1, N = 4..14"});
   if ((d.rows != 1 && d.cols != 1) || d.total() < 4)
     rd.fail_at(Reader::child(root, "distortion_coefficients"), "distortion_coefficients",
                "expected 4 to 14 coefficients in a row or a column");
@@ -131,7 +131,8 @@ CameraConfig read_camera_config(const YAML::Node& root, const Reader& rd) {
     // The ring keys are ignored beside measured positions, but a count that disagrees with them
     // is a contradiction in the file.
     if (Reader::present(count) && rd.integer(count, "flashes.count") != p.rows)
-      rd.fail_at(count, "flashes.count", "disagrees with the " + std::to_string(p.rows) + " rows of flashes.positions_mm");
+      rd.fail_at(count, "flashes.count",
+                 "disagrees with the " + std::to_string(p.rows) + " rows of flashes.positions_mm");
     c.flashes = FlashRing{};
     for (int i = 0; i < p.rows; ++i)
       c.flashes.positions_mm.emplace_back(p.at<double>(i, 0), p.at<double>(i, 1), p.at<double>(i, 2));
@@ -154,9 +155,12 @@ CameraConfig read_camera_config(const YAML::Node& root, const Reader& rd) {
     HandEye h;
     const YAML::Node mode = rd.required(he, "mode", "hand_eye.mode");
     const std::string m = mode.IsScalar() ? mode.Scalar() : std::string();
-    if (m == "eye_in_hand") h.mode = HandEye::Mode::eye_in_hand;
-    else if (m == "eye_to_hand") h.mode = HandEye::Mode::eye_to_hand;
-    else rd.fail_at(mode, "hand_eye.mode", "expected eye_in_hand or eye_to_hand");
+    if (m == "eye_in_hand")
+      h.mode = HandEye::Mode::eye_in_hand;
+    else if (m == "eye_to_hand")
+      h.mode = HandEye::Mode::eye_to_hand;
+    else
+      rd.fail_at(mode, "hand_eye.mode", "expected eye_in_hand or eye_to_hand");
     h.camera_pose = cv::Matx44d(rd.matrix(he, "camera_pose", "hand_eye.camera_pose", {4, 4, 4, 4, "4x4"}));
     h.reprojection_rms_px = rd.number(he, "reprojection_rms_px", "hand_eye.reprojection_rms_px");
     h.residual_rms_mm = rd.number(he, "residual_rms_mm", "hand_eye.residual_rms_mm");
@@ -271,7 +275,8 @@ void save_camera_config(const CameraConfig& c, const std::filesystem::path& file
   fs << "camera_matrix" << cv::Mat(c.camera.K);
   fs << "distortion_coefficients" << cv::Mat(c.camera.distortion).t();
   fs << "working_distance_mm" << c.working_distance_mm;
-  fs << "flashes" << "{";
+  fs << "flashes"
+     << "{";
   if (c.flashes.ring) {
     fs << "ring_radius_mm" << c.flashes.ring->radius_mm;
     fs << "first_angle_deg" << c.flashes.ring->first_angle_deg;
@@ -286,7 +291,8 @@ void save_camera_config(const CameraConfig& c, const std::filesystem::path& file
   }
   fs << "}";
   if (c.hand_eye) {
-    fs << "hand_eye" << "{";
+    fs << "hand_eye"
+       << "{";
     fs << "mode" << (c.hand_eye->mode == HandEye::Mode::eye_in_hand ? "eye_in_hand" : "eye_to_hand");
     fs << "camera_pose" << cv::Mat(c.hand_eye->camera_pose);
     fs << "reprojection_rms_px" << c.hand_eye->reprojection_rms_px;

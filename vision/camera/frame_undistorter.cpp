@@ -11,7 +11,8 @@
 namespace mfcd::vision {
 
 FrameUndistorter::FrameUndistorter(const PinholeCamera& camera) : size_(camera.image_size) {
-  const bool distorted = std::any_of(camera.distortion.begin(), camera.distortion.end(), [](double d) { return d != 0.0; });
+  const bool distorted =
+      std::any_of(camera.distortion.begin(), camera.distortion.end(), [](double d) { return d != 0.0; });
   if (!distorted) return;
   // New camera matrix = K: the undistorted image is the ideal pinhole of the same K (templates
   // stay valid). Float maps first, then the fixed-point pair (integer pixel + 5-bit fractions)
@@ -31,13 +32,15 @@ namespace {
 // must not allocate. T: uchar or ushort.
 template <typename T>
 void remap_bilinear(const cv::Mat& src, cv::Mat& dst, const cv::Mat& map1, const cv::Mat& map2) {
-  constexpr int kBits = 5;                 // cv::INTER_BITS
-  constexpr int kTab = 1 << kBits;         // cv::INTER_TAB_SIZE
-  constexpr int kOne = kTab * kTab;        // the weights' sum
+  constexpr int kBits = 5;           // cv::INTER_BITS
+  constexpr int kTab = 1 << kBits;   // cv::INTER_TAB_SIZE
+  constexpr int kOne = kTab * kTab;  // the weights' sum
   const int w = src.cols, h = src.rows;
   const std::uint8_t* const base = src.data;
   const std::size_t step = src.step[0];
-  const auto row = [base, step](int v) { return reinterpret_cast<const T*>(base + static_cast<std::size_t>(v) * step); };
+  const auto row = [base, step](int v) {
+    return reinterpret_cast<const T*>(base + static_cast<std::size_t>(v) * step);
+  };
   for (int y = 0; y < dst.rows; ++y) {
     const cv::Vec2s* xy = map1.ptr<cv::Vec2s>(y);
     const std::uint16_t* frac = map2.ptr<std::uint16_t>(y);
@@ -47,7 +50,8 @@ void remap_bilinear(const cv::Mat& src, cv::Mat& dst, const cv::Mat& map1, const
       const int fx = frac[x] & (kTab - 1), fy = frac[x] >> kBits;
       const int w00 = (kTab - fx) * (kTab - fy), w01 = fx * (kTab - fy), w10 = (kTab - fx) * fy, w11 = fx * fy;
       int sum;
-      if (static_cast<unsigned>(sx) < static_cast<unsigned>(w - 1) && static_cast<unsigned>(sy) < static_cast<unsigned>(h - 1)) {
+      if (static_cast<unsigned>(sx) < static_cast<unsigned>(w - 1) &&
+          static_cast<unsigned>(sy) < static_cast<unsigned>(h - 1)) {
         const T* r0 = row(sy) + sx;
         const T* r1 = row(sy + 1) + sx;
         sum = r0[0] * w00 + r0[1] * w01 + r1[0] * w10 + r1[1] * w11;
@@ -65,7 +69,8 @@ void remap_bilinear(const cv::Mat& src, cv::Mat& dst, const cv::Mat& map1, const
 void FrameUndistorter::apply(const cv::Mat& src, cv::Mat& dst) const {
   if (src.size() != size_)
     throw std::logic_error("FrameUndistorter: a " + std::to_string(src.cols) + "x" + std::to_string(src.rows) +
-                           " image for a " + std::to_string(size_.width) + "x" + std::to_string(size_.height) + " camera");
+                           " image for a " + std::to_string(size_.width) + "x" + std::to_string(size_.height) +
+                           " camera");
   if (!active()) {
     src.copyTo(dst);
     return;

@@ -12,7 +12,8 @@ namespace mfcd::vision {
 class ConvexRegion {
  public:
   // The hull of `points` (Andrew's monotone chain), its vertices in order around it without
-  // repeated or collinear ones; and the pixels whose unit square meets it, row by row. No allocation once the buffers have grown. Empty input gives an empty region.
+  // repeated or collinear ones; and the pixels whose unit square meets it, row by row. No allocation once the buffers
+  // have grown. Empty input gives an empty region.
   void build(std::span<const cv::Point> points);
   // Grows the buffers for up to `points` points spanning up to `rows` rows: build() then
   // allocates nothing for such sets, not even the first time.

@@ -21,7 +21,7 @@
 namespace mfcd::vision {
 
 class DigitalLineTable {
-public:
+ public:
   DigitalLineTable() = default;
   // Tables cover major coordinates 0 .. extent-1 (callers add their own guard offsets).
   DigitalLineTable(const OrientationChannels& channels, int width, int height);
@@ -31,7 +31,7 @@ public:
   const int16_t* minor(int channel) const { return minor_[channel].data(); }
   int q() const { return static_cast<int>(minor_.size()); }
 
-private:
+ private:
   std::vector<std::vector<int16_t>> minor_;
   std::vector<uint8_t> xMajor_;
 };

@@ -42,8 +42,10 @@ void squaredEuclideanDistance(const cv::Mat1b& sites, cv::Mat1i& d2, cv::Mat1i* 
         const int p = v[k];
         const double fp = static_cast<double>(gr[p]) * gr[p] + static_cast<double>(p) * p;
         s = (fx - fp) / (2.0 * (x - p));
-        if (s <= z[k]) --k;
-        else break;
+        if (s <= z[k])
+          --k;
+        else
+          break;
       }
       ++k;
       v[k] = x;

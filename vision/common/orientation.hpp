@@ -51,14 +51,14 @@ inline constexpr int kMaxChannels = 180;  // channel ids must fit a byte next to
 inline constexpr unsigned char kNoChannel = 255;
 
 class OrientationChannels {
-public:
+ public:
   // `oriented`: the q channels span a full turn [0, 2 pi) instead of [0, pi): an oriented edge
   // also says which of its sides is the occluder (edge polarity, oriented_tangent in
   // vision/edges), and channel c + q/2 is channel c's direction reversed. q must then be even.
   explicit OrientationChannels(int q, bool oriented = false) : q_(q), oriented_(oriented) {
     if (q <= 0 || q > kMaxChannels)
-      throw std::invalid_argument("orientation channels: q must be in 1.." + std::to_string(kMaxChannels) +
-                                  ", got " + std::to_string(q));
+      throw std::invalid_argument("orientation channels: q must be in 1.." + std::to_string(kMaxChannels) + ", got " +
+                                  std::to_string(q));
     if (oriented && q % 2 != 0)
       throw std::invalid_argument("orientation channels: oriented channels need an even q, got " + std::to_string(q));
   }
@@ -102,7 +102,7 @@ public:
     return xMajor(channel) ? std::tan(phi) : std::cos(phi) / std::sin(phi);
   }
 
-private:
+ private:
   int q_;
   bool oriented_;
 };

@@ -103,7 +103,8 @@ LineSet parseLineText(const std::string& text, const std::string& source) {
     if (!sawMagic) {
       if (key != "mfcd-lines") fail(source, lineNo, "not an mfcd line file (expected 'mfcd-lines 1' first)");
       const auto v = numbers(rest, 1, source, lineNo, "version");
-      if (v[0] != 1) fail(source, lineNo, "unsupported line file version " + std::to_string(v[0]) + " (this build reads 1)");
+      if (v[0] != 1)
+        fail(source, lineNo, "unsupported line file version " + std::to_string(v[0]) + " (this build reads 1)");
       sawMagic = true;
     } else if (key == "q") {
       const auto v = numbers(rest, 1, source, lineNo, "q");

@@ -22,7 +22,9 @@ void append(Mesh& into, const Mesh& part, const cv::Vec3f& offset) {
   for (const auto& t : part.triangles) into.triangles.push_back({t[0] + base, t[1] + base, t[2] + base});
 }
 
-cv::Rect bbox_of(const cv::Mat1b& mask) { return cv::countNonZero(mask) ? cv::boundingRect(mask) : cv::Rect(-1, -1, -1, -1); }
+cv::Rect bbox_of(const cv::Mat1b& mask) {
+  return cv::countNonZero(mask) ? cv::boundingRect(mask) : cv::Rect(-1, -1, -1, -1);
+}
 
 }  // namespace
 
@@ -69,7 +71,8 @@ BinSimulator::BinSimulator(const CameraConfig& camera, std::vector<PartModel> mo
   bin_ = make_bin_mesh(b);
   // Five rod lengths spread over the range: the renderer keeps one mesh per length.
   for (int k = 0; k < 5; ++k) {
-    const double len = options_.clutter.min_length_mm + (options_.clutter.max_length_mm - options_.clutter.min_length_mm) * k / 4.0;
+    const double len =
+        options_.clutter.min_length_mm + (options_.clutter.max_length_mm - options_.clutter.min_length_mm) * k / 4.0;
     rods_.push_back(make_box(len, options_.clutter.width_mm, options_.clutter.width_mm));
   }
   renderer_ = std::make_unique<MfcRenderer>(camera_, options_.render);
@@ -85,10 +88,11 @@ BinSimulator::~BinSimulator() = default;
 std::vector<ScenePart> BinSimulator::scene_parts(const BinLayout& layout) const {
   const double floor_z = camera_.working_distance_mm;
   std::vector<ScenePart> parts;
-  parts.push_back({table_id_, cv::Matx33d::eye(), {0, 0, floor_z + options_.bin.floor_thickness_mm},
-                   Material::matte(0.35f)});
+  parts.push_back(
+      {table_id_, cv::Matx33d::eye(), {0, 0, floor_z + options_.bin.floor_thickness_mm}, Material::matte(0.35f)});
   parts.push_back({bin_id_, cv::Matx33d::eye(), {0, 0, floor_z}, Material::matte(0.5f)});
-  for (const auto& p : layout.parts) parts.push_back({model_ids_[static_cast<size_t>(p.model)], p.R, p.t_mm, p.material});
+  for (const auto& p : layout.parts)
+    parts.push_back({model_ids_[static_cast<size_t>(p.model)], p.R, p.t_mm, p.material});
   for (const auto& c : layout.clutter) parts.push_back({rod_ids_[static_cast<size_t>(c.rod)], c.R, c.t_mm, c.material});
   return parts;
 }
@@ -204,7 +208,7 @@ bool BinSimulator::drop(BinLayout& layout, bool is_part, HeightMap& top, std::ve
     // Start with the lowest point on the floor (height 0) ...
     cv::Vec3d t(x_min + (x_max - x_min) * unit(rng), y_min + (y_max - y_min) * unit(rng), floor_z - hi[2]);
     HeightMap bottom(-b.inner_x_mm / 2, -b.inner_y_mm / 2, top_h.cols, top_h.rows, top.cell_mm(), floor_z,
-                       std::numeric_limits<float>::infinity());
+                     std::numeric_limits<float>::infinity());
     bottom.lower_to_bottom(mesh, R, t);
     // ... then lift it until its lower surface clears everything below in every cell.
     float lift = 0;
@@ -266,8 +270,9 @@ BinLayout BinSimulator::layout(uint64_t seed) {
   std::vector<int> px_alone;
   for (int k = 0; k < options_.parts_per_image; ++k) drop(layout, true, top, px_alone, rng);
   if (options_.clutter.enabled) {
-    const int rods = options_.clutter.min_rods +
-                     static_cast<int>(rng() % static_cast<uint64_t>(options_.clutter.max_rods - options_.clutter.min_rods + 1));
+    const int rods =
+        options_.clutter.min_rods +
+        static_cast<int>(rng() % static_cast<uint64_t>(options_.clutter.max_rods - options_.clutter.min_rods + 1));
     for (int k = 0; k < rods; ++k) drop(layout, false, top, px_alone, rng);
   }
   return layout;
@@ -387,8 +392,8 @@ void BinSimulator::corrupt(SimulatedImage& im, uint64_t seed) {
     while (next < candidates.size() && covered < goal) {
       const cv::Point p = candidates[next++];
       if (stretches(p)) continue;
-      const cv::Rect roi = cv::Rect(p.x - radius, p.y - radius, 2 * radius + 1, 2 * radius + 1) &
-                           cv::Rect(0, 0, truth.cols, truth.rows);
+      const cv::Rect roi =
+          cv::Rect(p.x - radius, p.y - radius, 2 * radius + 1, 2 * radius + 1) & cv::Rect(0, 0, truth.cols, truth.rows);
       const int before = cv::countNonZero(found(roi) & stretches(roi));
       cv::circle(stretches, p, radius, 255, cv::FILLED);
       sweep_shadows(p);

@@ -15,8 +15,8 @@
 #include <opencv2/core.hpp>
 
 #include <cstdint>
-#include <random>
 #include <memory>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -114,11 +114,11 @@ struct BinLayout {
 };
 
 struct CorruptionReport {
-  int true_edge_px = 0;          // depth discontinuities (> edge_min_jump_mm) of the depth image
-  double recall_clean = 0;       // share of them DepthEdgeExtractor finds in the clean images
-  double recall_corrupted = 0;   // ... in the stored (corrupted) images
-  double removed_fraction = 0;   // 1 - recall_corrupted / recall_clean (measured)
-  int stretches = 0;             // equalised stretches
+  int true_edge_px = 0;         // depth discontinuities (> edge_min_jump_mm) of the depth image
+  double recall_clean = 0;      // share of them DepthEdgeExtractor finds in the clean images
+  double recall_corrupted = 0;  // ... in the stored (corrupted) images
+  double removed_fraction = 0;  // 1 - recall_corrupted / recall_clean (measured)
+  int stretches = 0;            // equalised stretches
   // Edge pixels of the stored images farther than edge_tolerance_px from every edge pixel the
   // extractor finds in the clean images, per clean edge pixel: edges the removal itself drew
   // (a stretch that lifts a wide cast shadow only partly moves the edge instead of removing it).

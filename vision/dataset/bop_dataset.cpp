@@ -116,7 +116,8 @@ std::vector<int> scene_ids_in(const fs::path& split_dir) {
   std::vector<int> ids;
   for (const auto& e : fs::directory_iterator(split_dir)) {
     const std::string n = e.path().filename().string();
-    if (e.is_directory() && n.size() == 6 && std::all_of(n.begin(), n.end(), [](char c) { return c >= '0' && c <= '9'; }))
+    if (e.is_directory() && n.size() == 6 &&
+        std::all_of(n.begin(), n.end(), [](char c) { return c >= '0' && c <= '9'; }))
       ids.push_back(std::stoi(n));
   }
   std::sort(ids.begin(), ids.end());
@@ -278,7 +279,7 @@ void BopWriter::write_models(const std::vector<PartModel>& models) {
     write_ply(m.mesh, dir / name);
     copy_into(dir / name, eval_dir / name);
     const BopModelInfo mi = compute_model_info(m);
-    json j = {{"diameter", mi.diameter}, {"min_x", mi.min[0]}, {"min_y", mi.min[1]}, {"min_z", mi.min[2]},
+    json j = {{"diameter", mi.diameter}, {"min_x", mi.min[0]},   {"min_y", mi.min[1]},  {"min_z", mi.min[2]},
               {"size_x", mi.size[0]},    {"size_y", mi.size[1]}, {"size_z", mi.size[2]}};
     if (!mi.symmetries_discrete.empty()) {
       json list = json::array();
@@ -298,8 +299,13 @@ void BopWriter::write_models(const std::vector<PartModel>& models) {
 
 void BopWriter::write_camera(const CameraConfig& c) {
   const PinholeCamera& cam = c.camera;
-  write_json({{"cx", cam.cx()}, {"cy", cam.cy()}, {"fx", cam.fx()}, {"fy", cam.fy()},
-              {"width", cam.image_size.width}, {"height", cam.image_size.height}, {"depth_scale", kBopDepthScale}},
+  write_json({{"cx", cam.cx()},
+              {"cy", cam.cy()},
+              {"fx", cam.fx()},
+              {"fy", cam.fy()},
+              {"width", cam.image_size.width},
+              {"height", cam.image_size.height},
+              {"depth_scale", kBopDepthScale}},
              root_ / "camera.json");
 }
 
@@ -319,7 +325,8 @@ void BopWriter::write_capture(int scene_id, const CameraConfig& camera, const Mf
               {"flash_positions_mm", flashes}};
   if (camera.working_distance_mm > 0) cam["working_distance_mm"] = camera.working_distance_mm;
   json gt = json::array();
-  for (const BopGtPose& p : truth) gt.push_back({{"obj_id", p.obj_id}, {"cam_R_m2c", matx(p.R)}, {"cam_t_m2c", vec(p.t_mm)}});
+  for (const BopGtPose& p : truth)
+    gt.push_back({{"obj_id", p.obj_id}, {"cam_R_m2c", matx(p.R)}, {"cam_t_m2c", vec(p.t_mm)}});
   const std::string iid = id6(0);
   for (size_t k = 0; k < frames.flash.size(); ++k)
     write_png(frames.flash[k], dir / "flash" / (iid + "_" + std::to_string(k) + ".png"));
@@ -338,12 +345,9 @@ void BopWriter::write_scene(int scene_id, const CameraConfig& camera, const std:
   for (size_t i = 0; i < images.size(); ++i) {
     const SimulatedImage& im = images[i];
     const std::string key = std::to_string(i), iid = id6(static_cast<int>(i));
-    cams[key] = {{"cam_K", matx(camera.camera.K)},
-                 {"depth_scale", kBopDepthScale},
-                 {"width", camera.camera.image_size.width},
-                 {"height", camera.camera.image_size.height},
-                 {"flash_positions_mm", flashes},
-                 {"working_distance_mm", camera.working_distance_mm}};
+    cams[key] = {{"cam_K", matx(camera.camera.K)},          {"depth_scale", kBopDepthScale},
+                 {"width", camera.camera.image_size.width}, {"height", camera.camera.image_size.height},
+                 {"flash_positions_mm", flashes},           {"working_distance_mm", camera.working_distance_mm}};
     json gt = json::array(), info = json::array();
     for (size_t g = 0; g < im.instances.size(); ++g) {
       const PartInstance& p = im.instances[g];
@@ -361,9 +365,12 @@ void BopWriter::write_scene(int scene_id, const CameraConfig& camera, const std:
     gts[key] = gt;
     infos[key] = info;
     const CorruptionReport& c = im.corruption;
-    corr[key] = {{"true_edge_px", c.true_edge_px},         {"recall_clean", c.recall_clean},
-                 {"recall_corrupted", c.recall_corrupted}, {"removed_fraction", c.removed_fraction},
-                 {"stretches", c.stretches},               {"added_fraction", c.added_fraction},
+    corr[key] = {{"true_edge_px", c.true_edge_px},
+                 {"recall_clean", c.recall_clean},
+                 {"recall_corrupted", c.recall_corrupted},
+                 {"removed_fraction", c.removed_fraction},
+                 {"stretches", c.stretches},
+                 {"added_fraction", c.added_fraction},
                  {"clutter_rods", c.clutter_rods}};
     if (im.frames.flash.size() != camera.flashes.positions_mm.size())
       fail(dir, "image " + key + " has " + std::to_string(im.frames.flash.size()) + " flash images for " +
@@ -417,8 +424,10 @@ std::vector<BopTestTarget> bop_test_targets(const fs::path& root, const std::str
         if (!(infos[g].visib_fract >= kBopTargetMinVisibFract)) continue;
         auto it = std::find_if(targets.begin() + static_cast<long>(first), targets.end(),
                                [&](const BopTestTarget& t) { return t.obj_id == poses[g].obj_id; });
-        if (it == targets.end()) targets.push_back({scene, im, poses[g].obj_id, 1});
-        else ++it->inst_count;
+        if (it == targets.end())
+          targets.push_back({scene, im, poses[g].obj_id, 1});
+        else
+          ++it->inst_count;
       }
     }
   }
@@ -492,8 +501,8 @@ void BopDataset::read_dataset_camera() {
   if (!j.is_object()) fail(file, "top level is not a JSON object");
   dataset_camera_.present = true;
   if (j.contains("width") || j.contains("height"))
-    dataset_camera_.image_size = cv::Size(r.integer(r.key(j, "width", "camera"), "width"),
-                                          r.integer(r.key(j, "height", "camera"), "height"));
+    dataset_camera_.image_size =
+        cv::Size(r.integer(r.key(j, "width", "camera"), "width"), r.integer(r.key(j, "height", "camera"), "height"));
   if (j.contains("depth_scale")) dataset_camera_.depth_scale = r.number(j["depth_scale"], "depth_scale");
 }
 
@@ -533,18 +542,24 @@ BopSceneCamera BopDataset::camera(int scene_id, int image_id) const {
   };
   BopSceneCamera c;
   c.K = to_matx(r.numbers(r.key(e, "cam_K", w), 9, w + ".cam_K"));
-  if (e.contains("depth_scale")) c.depth_scale = r.number(e["depth_scale"], w + ".depth_scale");
-  else if (d.depth_scale) c.depth_scale = *d.depth_scale;
-  else missing("depth_scale", "depth_scale");
+  if (e.contains("depth_scale"))
+    c.depth_scale = r.number(e["depth_scale"], w + ".depth_scale");
+  else if (d.depth_scale)
+    c.depth_scale = *d.depth_scale;
+  else
+    missing("depth_scale", "depth_scale");
   if (e.contains("width") || e.contains("height"))
     c.image_size = {r.integer(r.key(e, "width", w), w + ".width"), r.integer(r.key(e, "height", w), w + ".height")};
-  else if (d.image_size) c.image_size = *d.image_size;
-  else missing("width", "width and height");
+  else if (d.image_size)
+    c.image_size = *d.image_size;
+  else
+    missing("width", "width and height");
   if (c.image_size.width <= 0 || c.image_size.height <= 0) fail(file, "'" + w + "' image size must be positive");
   if (c.depth_scale <= 0) fail(file, "'" + w + ".depth_scale' must be positive");
   if (c.K(0, 0) <= 0 || c.K(1, 1) <= 0 || c.K(2, 2) != 1 || c.K(2, 0) != 0 || c.K(2, 1) != 0)
     fail(file, "'" + w + ".cam_K' is not a pinhole matrix (fx, fy > 0, last row 0 0 1)");
-  if (c.K(0, 2) < -0.5 || c.K(0, 2) > c.image_size.width - 0.5 || c.K(1, 2) < -0.5 || c.K(1, 2) > c.image_size.height - 0.5)
+  if (c.K(0, 2) < -0.5 || c.K(0, 2) > c.image_size.width - 0.5 || c.K(1, 2) < -0.5 ||
+      c.K(1, 2) > c.image_size.height - 0.5)
     fail(file, "'" + w + ".cam_K' principal point lies outside the " + std::to_string(c.image_size.width) + "x" +
                    std::to_string(c.image_size.height) + " image");
   if (e.contains("flash_positions_mm")) {
@@ -554,10 +569,12 @@ BopSceneCamera BopDataset::camera(int scene_id, int image_id) const {
   } else if (!defaults_.flash_positions_mm.empty()) {
     c.flash_positions_mm = defaults_.flash_positions_mm;
   } else {
-    fail(file, "missing key '" + w + ".flash_positions_mm': the dataset does not say where the LEDs are; give the "
-               "camera file whose flashes took its images (--camera)");
+    fail(file, "missing key '" + w +
+                   ".flash_positions_mm': the dataset does not say where the LEDs are; give the "
+                   "camera file whose flashes took its images (--camera)");
   }
-  if (e.contains("working_distance_mm")) c.working_distance_mm = r.number(e["working_distance_mm"], w + ".working_distance_mm");
+  if (e.contains("working_distance_mm"))
+    c.working_distance_mm = r.number(e["working_distance_mm"], w + ".working_distance_mm");
   if (e.contains("cam_R_w2c") || e.contains("cam_t_w2c")) {
     c.has_world_pose = true;
     c.R_w2c = to_matx(r.numbers(r.key(e, "cam_R_w2c", w), 9, w + ".cam_R_w2c"));

@@ -100,7 +100,8 @@ class BopWriter {
   // <split>/SSSSSS/ with one captured frame set as image 0: scene_camera.json, scene_gt.json
   // (`truth`, empty when unknown), flash/, ambient/ and gray/; no depth, masks or gt_info (a
   // capture has no rendering to take them from). Enough for BopDataset::frames and mfc-detect.
-  void write_capture(int scene_id, const CameraConfig& camera, const MfcFrames& frames, const std::vector<BopGtPose>& truth);
+  void write_capture(int scene_id, const CameraConfig& camera, const MfcFrames& frames,
+                     const std::vector<BopGtPose>& truth);
   // <root>/<bop_test_targets_filename(split)> from the scene_gt.json and scene_gt_info.json of
   // every scene folder of the split on disk (also scenes an earlier run left there), as
   // bop_test_targets computes them; call after the last write_scene. Returns the targets.
@@ -158,7 +159,7 @@ class BopDataset {
 
   const std::filesystem::path& root() const { return root_; }
   std::filesystem::path scene_dir(int scene_id) const;
-  std::vector<int> scenes() const;             // sorted scene ids (folders named by 6 digits)
+  std::vector<int> scenes() const;              // sorted scene ids (folders named by 6 digits)
   std::vector<int> images(int scene_id) const;  // sorted image ids of scene_camera.json
 
   const std::map<int, BopModelInfo>& models_info() const { return models_info_; }

@@ -19,7 +19,7 @@ inline constexpr const char* kBopResultsHeader = "scene_id,im_id,obj_id,score,R,
 
 struct BopResult {
   int scene_id = 0, im_id = 0, obj_id = 0;
-  double score = 0;  // higher is better
+  double score = 0;                    // higher is better
   cv::Matx33d R = cv::Matx33d::eye();  // model to camera
   cv::Vec3d t_mm{0, 0, 0};             // model to camera, mm
   double time_s = -1;                  // the image's run time, seconds

@@ -15,7 +15,9 @@ float HeightMap::at(double x_mm, double y_mm, float outside) const {
   return h_(r, c);
 }
 
-void HeightMap::raise_to_top(const Mesh& mesh, const cv::Matx33d& R, const cv::Vec3d& t) { rasterise(mesh, R, t, true); }
+void HeightMap::raise_to_top(const Mesh& mesh, const cv::Matx33d& R, const cv::Vec3d& t) {
+  rasterise(mesh, R, t, true);
+}
 void HeightMap::lower_to_bottom(const Mesh& mesh, const cv::Matx33d& R, const cv::Vec3d& t) {
   rasterise(mesh, R, t, false);
 }

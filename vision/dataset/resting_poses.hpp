@@ -18,9 +18,9 @@ struct RestingPose {
   // Rotates the part's frame so that the support face's outward normal points along +z
   // (the camera's z, i.e. down into the bin: the camera looks down at the floor).
   cv::Matx33d R = cv::Matx33d::eye();
-  cv::Vec3d face_normal;           // outward normal of the support face, part frame
-  double support_area_mm2 = 0;     // area of the support polygon
-  double com_margin_mm = 0;        // distance of the projected centre of mass inside the polygon
+  cv::Vec3d face_normal;        // outward normal of the support face, part frame
+  double support_area_mm2 = 0;  // area of the support polygon
+  double com_margin_mm = 0;     // distance of the projected centre of mass inside the polygon
   // Solid angle the support polygon subtends at the centre of mass: the directions of gravity,
   // in the part's frame, under which it lands on this face (the quasi-static landing model).
   double solid_angle_sr = 0;

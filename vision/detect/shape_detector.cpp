@@ -21,9 +21,12 @@ double msSince(Clock::time_point t) { return std::chrono::duration<double, std::
 
 const char* toString(MatchMethod m) {
   switch (m) {
-    case MatchMethod::Fdcm: return "fdcm";
-    case MatchMethod::OrientedChamfer: return "ocm";
-    case MatchMethod::Chamfer: return "cm";
+    case MatchMethod::Fdcm:
+      return "fdcm";
+    case MatchMethod::OrientedChamfer:
+      return "ocm";
+    case MatchMethod::Chamfer:
+      return "cm";
   }
   return "?";
 }
@@ -51,9 +54,12 @@ void DetectorParams::validate() const {
 cv::Mat1b edgesOf(const cv::Mat& image, double cannyLow, double cannyHigh) {
   if (image.empty()) throw std::invalid_argument("empty image");
   cv::Mat grey;
-  if (image.channels() == 3) cv::cvtColor(image, grey, cv::COLOR_BGR2GRAY);
-  else if (image.channels() == 4) cv::cvtColor(image, grey, cv::COLOR_BGRA2GRAY);
-  else grey = image;
+  if (image.channels() == 3)
+    cv::cvtColor(image, grey, cv::COLOR_BGR2GRAY);
+  else if (image.channels() == 4)
+    cv::cvtColor(image, grey, cv::COLOR_BGRA2GRAY);
+  else
+    grey = image;
   if (grey.depth() != CV_8U) {
     double lo, hi;
     cv::minMaxLoc(grey, &lo, &hi);
@@ -224,11 +230,14 @@ DetectionReport ShapeDetector::run(const cv::Mat& image, SearchMode mode, int on
 
 cv::Mat3b drawDetections(const cv::Mat& image, const std::vector<Detection>& detections) {
   cv::Mat3b out;
-  if (image.channels() == 3) out = image.clone();
+  if (image.channels() == 3)
+    out = image.clone();
   else {
     cv::Mat grey;
-    if (image.depth() != CV_8U) image.convertTo(grey, CV_8U);
-    else grey = image;
+    if (image.depth() != CV_8U)
+      image.convertTo(grey, CV_8U);
+    else
+      grey = image;
     cv::cvtColor(grey, out, cv::COLOR_GRAY2BGR);
   }
   out = out * 0.6;

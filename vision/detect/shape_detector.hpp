@@ -39,7 +39,7 @@ struct DetectorParams {
   WarpGrid warps;
   MatchMethod method = MatchMethod::Fdcm;
   SearchStrategy strategy = SearchStrategy::Exhaustive;
-  double threshold = 3.0;      // px: detections have mean DCM cost <= threshold
+  double threshold = 3.0;  // px: detections have mean DCM cost <= threshold
   bool hypothesisBound = true;
   bool spatialBound = true;
   double spatialReach = 4.0;
@@ -58,7 +58,7 @@ struct Detection {
   std::string name;
   cv::Point2d position;  // where the template origin lands in the query
   double angleDeg = 0, scale = 1, aspect = 1;
-  double cost = 0;       // mean DCM (or CM/OCM) cost, px
+  double cost = 0;  // mean DCM (or CM/OCM) cost, px
   cv::Rect2d box;
   std::vector<LineSegment> lines;  // template lines placed in the query
 };
@@ -75,7 +75,7 @@ struct DetectionReport {
 cv::Mat1b edgesOf(const cv::Mat& image, double cannyLow, double cannyHigh);
 
 class ShapeDetector {
-public:
+ public:
   explicit ShapeDetector(DetectorParams params);
   void addTemplate(ShapeTemplate t);
   const std::vector<ShapeTemplate>& templates() const { return templates_; }
@@ -85,7 +85,7 @@ public:
   // Gallery retrieval (Sec. 5.3): the best placement of every template, cheapest first.
   std::vector<Detection> rank(const cv::Mat& image) const;
 
-private:
+ private:
   DetectionReport run(const cv::Mat& image, SearchMode mode, int onlyTemplate) const;
   DetectorParams params_;
   std::vector<ShapeTemplate> templates_;

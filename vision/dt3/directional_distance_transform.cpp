@@ -49,7 +49,8 @@ void DirectionalDistanceTransform::compute(const cv::Mat1b& channelMap, const Dt
   // more pixels than any before it.
   channelStart_.assign(static_cast<size_t>(q_) + 1, 0);
   channelPixels_.resize(static_cast<size_t>(width_) * height_);
-  if (scratch_.size() < static_cast<size_t>(omp_get_max_threads())) scratch_.resize(static_cast<size_t>(omp_get_max_threads()));
+  if (scratch_.size() < static_cast<size_t>(omp_get_max_threads()))
+    scratch_.resize(static_cast<size_t>(omp_get_max_threads()));
   // Every thread's scratch at its full size now: which thread meets which channel is decided at
   // run time, so growing them on first use would allocate in any later cycle.
   for (Scratch& s : scratch_) {
@@ -61,8 +62,9 @@ void DirectionalDistanceTransform::compute(const cv::Mat1b& channelMap, const Dt
     const uint8_t* r = channelMap.ptr<uint8_t>(y);
     for (int x = 0; x < width_; ++x) {
       if (r[x] == kNoChannel) continue;
-      if (r[x] >= q_) throw std::invalid_argument("DT3: channel map holds channel " + std::to_string(r[x]) +
-                                                  " but q = " + std::to_string(q_));
+      if (r[x] >= q_)
+        throw std::invalid_argument("DT3: channel map holds channel " + std::to_string(r[x]) +
+                                    " but q = " + std::to_string(q_));
       ++channelStart_[r[x] + 1u];
     }
   }
@@ -83,8 +85,9 @@ void DirectionalDistanceTransform::compute(const cv::Mat1b& channelMap, const Dt
     Scratch& scratch = scratch_[static_cast<size_t>(omp_get_thread_num())];
 #pragma omp for schedule(dynamic, 1)
     for (int c = 0; c < q_; ++c)
-      channelDistance(c, std::span<const int>(channelPixels_.data() + channelStart_[static_cast<size_t>(c)],
-                                              channelStart_[c + 1u] - channelStart_[static_cast<size_t>(c)]),
+      channelDistance(c,
+                      std::span<const int>(channelPixels_.data() + channelStart_[static_cast<size_t>(c)],
+                                           channelStart_[c + 1u] - channelStart_[static_cast<size_t>(c)]),
                       scratch);
 #pragma omp for schedule(static)
     for (int y = 0; y < height_; ++y) orientationRecursion(y);
@@ -142,8 +145,10 @@ void DirectionalDistanceTransform::channelDistance(int channel, std::span<const 
       while (k >= 0) {
         const int p = v[k];
         s = (fx - float(gr[p] * gr[p] + p * p)) / float(2 * (x - p));
-        if (s <= z[k]) --k;
-        else break;
+        if (s <= z[k])
+          --k;
+        else
+          break;
       }
       ++k;
       v[k] = x;

@@ -39,7 +39,7 @@ struct Dt3Params {
 };
 
 class DirectionalDistanceTransform {
-public:
+ public:
   // `channelMap`: per pixel the orientation channel of the query edge there, or kNoChannel
   // (the line fitter's channelMap). Buffers are reused between calls of the same size.
   void compute(const cv::Mat1b& channelMap, const Dt3Params& params);
@@ -53,7 +53,7 @@ public:
   uint8_t at(int channel, int x, int y) const { return plane(channel)[static_cast<size_t>(y) * width_ + x]; }
   size_t bytes() const { return data_.size(); }
 
-private:
+ private:
   // One thread's buffers of the per-channel distance, kept between computes.
   struct Scratch {
     std::vector<uint8_t> g;  // vertical distances
@@ -68,9 +68,9 @@ private:
   std::vector<uint8_t> data_;
   std::vector<uint8_t> sqrtTable_;  // squared distance -> fixed-point distance, capped
   // Kept between computes so that a compute of the same size allocates nothing once grown.
-  std::vector<int> channelPixels_;           // edge pixels (y * width + x), grouped by channel
-  std::vector<size_t> channelStart_;         // channel c's are [start[c], start[c + 1])
-  std::vector<Scratch> scratch_;             // per thread
+  std::vector<int> channelPixels_;    // edge pixels (y * width + x), grouped by channel
+  std::vector<size_t> channelStart_;  // channel c's are [start[c], start[c + 1])
+  std::vector<Scratch> scratch_;      // per thread
 };
 
 }  // namespace mfcd::vision

@@ -66,8 +66,8 @@ class DepthEdgeExtractor {
   cv::Mat1f max_image_;
   std::vector<cv::Mat1f> ratio_;
   cv::Mat1f response_, normal_x_, normal_y_, inv_max_;
-  cv::Mat1b state_;                 // 0 none, 1 weak, 2 edge
-  std::vector<int> stack_;          // hysteresis work list, reserved to the image size
+  cv::Mat1b state_;         // 0 none, 1 weak, 2 edge
+  std::vector<int> stack_;  // hysteresis work list, reserved to the image size
 };
 
 // Canny intensity edges for the gripper camera (no flashes there); direction is the

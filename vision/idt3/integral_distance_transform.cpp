@@ -7,8 +7,8 @@
 namespace mfcd::vision {
 
 void IntegralDistanceTransform::compute(const DirectionalDistanceTransform& dt3) {
-  const bool resized = width_ != dt3.width() || height_ != dt3.height() || q_ != dt3.q() ||
-                       oriented_ != dt3.params().oriented;
+  const bool resized =
+      width_ != dt3.width() || height_ != dt3.height() || q_ != dt3.q() || oriented_ != dt3.params().oriented;
   width_ = dt3.width();
   height_ = dt3.height();
   q_ = dt3.q();

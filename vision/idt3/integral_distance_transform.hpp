@@ -18,10 +18,10 @@
 namespace mfcd::vision {
 
 class IntegralDistanceTransform {
-public:
+ public:
   void compute(const DirectionalDistanceTransform& dt3);
 
-  int width() const { return width_; }    // image size (without guard)
+  int width() const { return width_; }  // image size (without guard)
   int height() const { return height_; }
   int q() const { return q_; }
   int stride() const { return width_ + 2; }
@@ -54,7 +54,7 @@ public:
     return static_cast<uint16_t>(p[e.end] - p[e.before]);
   }
 
-private:
+ private:
   int width_ = 0, height_ = 0, q_ = 0;
   bool oriented_ = false;
   std::vector<uint16_t> data_;

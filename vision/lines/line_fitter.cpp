@@ -26,7 +26,7 @@ void LineFitParams::validate() const {
 namespace {
 
 class Tracer {
-public:
+ public:
   Tracer(const cv::Mat1b& alive, const LineFitParams& p) : alive_(alive), p_(p) {}
 
   // Walks the line of direction `phi` through `origin` in both directions and collects alive pixels
@@ -70,7 +70,7 @@ public:
     return count;
   }
 
-private:
+ private:
   const cv::Mat1b& alive_;
   const LineFitParams& p_;
 };
@@ -87,7 +87,11 @@ std::vector<float> localDirections(const std::vector<cv::Point>& pts, const cv::
       for (int dx = -r; dx <= r; ++dx) {
         const int x = pts[i].x + dx;
         if (x < 0 || x >= edges.cols || !edges(y, x)) continue;
-        sx += dx; sy += dy; sxx += dx * dx; syy += dy * dy; sxy += dx * dy;
+        sx += dx;
+        sy += dy;
+        sxx += dx * dx;
+        syy += dy * dy;
+        sxy += dx * dy;
         ++n;
       }
     }
@@ -218,7 +222,9 @@ void LineFitter::fit(const cv::Mat1b& edges, const cv::Mat1f* direction, LineFit
       double cxx = 0, cyy = 0, cxy = 0;
       for (const auto& sp : support) {
         const cv::Point2d d = cv::Point2d(sp) - mean;
-        cxx += d.x * d.x; cyy += d.y * d.y; cxy += d.x * d.y;
+        cxx += d.x * d.x;
+        cyy += d.y * d.y;
+        cxy += d.x * d.y;
       }
       const double fitted = 0.5 * std::atan2(2 * cxy, cxx - cyy);
       // Keep the hypothesis direction if the support is too short to define one.
@@ -340,7 +346,8 @@ void reduceQuery(const LineSet& lines, const cv::Mat1b& channelMap, int factor, 
                  cv::Mat1b& reducedMap) {
   if (factor < 1) throw std::invalid_argument("reduceQuery: factor must be >= 1");
   const cv::Size small(channelMap.cols / factor, channelMap.rows / factor);
-  if (small.width < 1 || small.height < 1) throw std::invalid_argument("reduceQuery: channel map smaller than the factor");
+  if (small.width < 1 || small.height < 1)
+    throw std::invalid_argument("reduceQuery: channel map smaller than the factor");
   reducedMap.create(small);
   for (int y = 0; y < small.height; ++y)
     for (int x = 0; x < small.width; ++x) {

@@ -50,8 +50,8 @@ struct LineFitResult {
 // neighbourhood's principal axis. `shadow` (params.oriented only, same size): per pixel the
 // angle of the normal into the shadow side (DepthEdges::shadow). Throws std::invalid_argument on
 // an empty image, a map of another size, or an oriented fit without a shadow map.
-LineFitResult fitLines(const cv::Mat1b& edges, const LineFitParams& params = {},
-                       const cv::Mat1f* direction = nullptr, const cv::Mat1f* shadow = nullptr);
+LineFitResult fitLines(const cv::Mat1b& edges, const LineFitParams& params = {}, const cv::Mat1f* direction = nullptr,
+                       const cv::Mat1f* shadow = nullptr);
 
 // How a trace walks a direction: along its major image axis, the minor coordinate moving by
 // `slope` per step, collecting a band of +-`band` around it. Depends on the direction only, so
@@ -117,10 +117,10 @@ class HypothesisQueue {
   void link(int score, const Key& key);
   void collect_top();  // moves the top score's list into `order_`, sorted
   std::vector<Node> pool_;
-  std::vector<int> free_;    // pool slots of entries popped (their list nodes were collected)
-  std::vector<int> heads_;   // per score, the first node of its list, -1 when empty
-  std::vector<Key> order_;   // the top score's entries, sorted; popped from the back
-  int top_ = -1;             // highest score with an entry, -1 when empty
+  std::vector<int> free_;   // pool slots of entries popped (their list nodes were collected)
+  std::vector<int> heads_;  // per score, the first node of its list, -1 when empty
+  std::vector<Key> order_;  // the top score's entries, sorted; popped from the back
+  int top_ = -1;            // highest score with an entry, -1 when empty
 };
 
 // fitLines with its buffers kept between calls, for the pick cycle: once they (and `out`'s)
@@ -130,8 +130,7 @@ class HypothesisQueue {
 class LineFitter {
  public:
   explicit LineFitter(const LineFitParams& params = {});  // throws std::invalid_argument (validate)
-  void fit(const cv::Mat1b& edges, const cv::Mat1f* direction, LineFitResult& out,
-           const cv::Mat1f* shadow = nullptr);
+  void fit(const cv::Mat1b& edges, const cv::Mat1f* direction, LineFitResult& out, const cv::Mat1f* shadow = nullptr);
   const LineFitParams& params() const { return params_; }
 
   using Hypothesis = LineHypothesis;
@@ -141,7 +140,7 @@ class LineFitter {
   std::vector<cv::Point> pts_;
   cv::Mat1b alive_;
   std::vector<float> dir_;
-  std::vector<int> seed_scores_;  // per edge pixel, its 2 * channelSpread + 1 hypotheses' support
+  std::vector<int> seed_scores_;       // per edge pixel, its 2 * channelSpread + 1 hypotheses' support
   std::vector<TraceDirection> walks_;  // per channel, how a trace walks it (from the params)
   HypothesisQueue queue_;
   std::vector<cv::Point> support_, next_;

@@ -30,7 +30,8 @@ namespace {
 
 std::string lower_extension(const std::filesystem::path& file) {
   std::string ext = file.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   return ext;
 }
 
@@ -70,11 +71,16 @@ class CaptureMessages {
 
 const char* status_text(IFSelect_ReturnStatus s) {
   switch (s) {
-    case IFSelect_RetVoid: return "nothing in it";
-    case IFSelect_RetDone: return "read";
-    case IFSelect_RetError: return "not a file of this format, or its header is malformed";
-    case IFSelect_RetFail: return "the reader failed on its content";
-    case IFSelect_RetStop: return "the reader stopped";
+    case IFSelect_RetVoid:
+      return "nothing in it";
+    case IFSelect_RetDone:
+      return "read";
+    case IFSelect_RetError:
+      return "not a file of this format, or its header is malformed";
+    case IFSelect_RetFail:
+      return "the reader failed on its content";
+    case IFSelect_RetStop:
+      return "the reader stopped";
   }
   return "unknown reader status";
 }
@@ -86,9 +92,11 @@ TopoDS_Shape read_shape(const std::filesystem::path& file, const char* format, c
   Reader reader;
   const IFSelect_ReturnStatus status = reader.ReadFile(file.c_str());
   if (status != IFSelect_RetDone)
-    throw std::runtime_error(file.string() + ": cannot read as " + format + ": " + status_text(status) + messages.said());
+    throw std::runtime_error(file.string() + ": cannot read as " + format + ": " + status_text(status) +
+                             messages.said());
   if (reader.TransferRoots() == 0)
-    throw std::runtime_error(file.string() + ": the " + std::string(format) + " file holds no shape that can be transferred");
+    throw std::runtime_error(file.string() + ": the " + std::string(format) +
+                             " file holds no shape that can be transferred");
   TopoDS_Shape shape = reader.OneShape();
   if (shape.IsNull()) throw std::runtime_error(file.string() + ": the " + std::string(format) + " file holds no shape");
   return shape;
@@ -131,7 +139,8 @@ bool is_cad_file(const std::filesystem::path& file) {
 Mesh read_cad(const std::filesystem::path& file, const CadTessellation& t) {
   if (!(t.chordal_tolerance_mm > 0) || !std::isfinite(t.chordal_tolerance_mm) || !(t.angular_tolerance_deg > 0) ||
       !(t.angular_tolerance_deg <= 90))
-    throw std::runtime_error(file.string() + ": the chordal tolerance must be > 0 mm and the angular one in (0, 90] degrees");
+    throw std::runtime_error(file.string() +
+                             ": the chordal tolerance must be > 0 mm and the angular one in (0, 90] degrees");
   const std::string ext = lower_extension(file);
   Mesh mesh;
   mesh.name = file.stem().string();
@@ -142,7 +151,8 @@ Mesh read_cad(const std::filesystem::path& file, const CadTessellation& t) {
     const TopoDS_Shape shape = ext == ".step" || ext == ".stp" ? read_shape<STEPControl_Reader>(file, "STEP", messages)
                                                                : read_shape<IGESControl_Reader>(file, "IGES", messages);
     // Absolute chordal deflection in mm; the angular one in radians.
-    BRepMesh_IncrementalMesh mesher(shape, t.chordal_tolerance_mm, false, t.angular_tolerance_deg * M_PI / 180.0, false);
+    BRepMesh_IncrementalMesh mesher(shape, t.chordal_tolerance_mm, false, t.angular_tolerance_deg * M_PI / 180.0,
+                                    false);
     if (!mesher.IsDone()) throw std::runtime_error(file.string() + ": OCCT could not tessellate the shape");
     append_faces(shape, mesh);
   } catch (const Standard_Failure& f) {

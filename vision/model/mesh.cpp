@@ -1,10 +1,10 @@
 #include "vision/model/mesh.hpp"
 #include "vision/model/ply_reader.hpp"
 
-#include <assimp/Importer.hpp>
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 #include <syslog.h>
+#include <assimp/Importer.hpp>
 
 #include <algorithm>
 #include <cctype>
@@ -24,7 +24,8 @@ cv::Vec3f Mesh::bbox_min() const {
 }
 
 cv::Vec3f Mesh::bbox_max() const {
-  cv::Vec3f m(std::numeric_limits<float>::lowest(), std::numeric_limits<float>::lowest(), std::numeric_limits<float>::lowest());
+  cv::Vec3f m(std::numeric_limits<float>::lowest(), std::numeric_limits<float>::lowest(),
+              std::numeric_limits<float>::lowest());
   for (const auto& v : vertices)
     for (int k = 0; k < 3; ++k) m[k] = std::max(m[k], v[k]);
   return m;
@@ -67,8 +68,7 @@ void weld_identical_vertices(Mesh& mesh) {
 // a vertex, and every vertex is finite (a NaN would break the weld's ordering and vanish into
 // a neighbour). Checked before anything reads vertices through a triangle.
 void check_indices_and_coordinates(const Mesh& mesh, const std::string& source) {
-  if (mesh.vertices.empty() || mesh.triangles.empty())
-    throw std::runtime_error(source + ": empty mesh (no triangles)");
+  if (mesh.vertices.empty() || mesh.triangles.empty()) throw std::runtime_error(source + ": empty mesh (no triangles)");
   for (const auto& v : mesh.vertices)
     if (!std::isfinite(v[0]) || !std::isfinite(v[1]) || !std::isfinite(v[2]))
       throw std::runtime_error(source + ": non-finite vertex coordinate");
@@ -104,8 +104,7 @@ MeshReport validate_mesh(const Mesh& mesh, const MeshLoadOptions& options, const
     throw std::runtime_error(source + ": part size " + std::to_string(largest) + " mm is outside [" +
                              std::to_string(options.min_size_mm) + ", " + std::to_string(options.max_size_mm) +
                              "] mm; wrong unit? (unit_mm = " + std::to_string(options.unit_mm) + ")");
-  if (r.open_edges)
-    r.warnings.push_back(source + ": not closed: " + std::to_string(r.open_edges) + " open edges");
+  if (r.open_edges) r.warnings.push_back(source + ": not closed: " + std::to_string(r.open_edges) + " open edges");
   if (r.non_manifold_edges)
     r.warnings.push_back(source + ": non-manifold: " + std::to_string(r.non_manifold_edges) +
                          " edges shared by more than two triangles");
@@ -132,16 +131,19 @@ Mesh load_mesh(const std::filesystem::path& file, const MeshLoadOptions& options
     throw std::runtime_error(src + ": unit_mm must be a positive number");
   if (!std::filesystem::exists(file)) throw std::runtime_error(src + ": no such file");
   std::string ext = file.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   if (ext == ".ply") return finish_loading(read_ply(file, static_cast<float>(options.unit_mm)), options, report, src);
   if (ext == ".step" || ext == ".stp" || ext == ".iges" || ext == ".igs")
-    throw std::runtime_error(src + ": STEP and IGES parts are read by load_part (vision/model/cad_reader.hpp, OCCT), "
-                                   "as mfc-teach does");
+    throw std::runtime_error(src +
+                             ": STEP and IGES parts are read by load_part (vision/model/cad_reader.hpp, OCCT), "
+                             "as mfc-teach does");
   // assimp reads some 40 formats, most of them never meant for a part model; only its STL and
   // OBJ importers are used, chosen by the extension (assimp sniffs the content only for an
   // extension no importer claims, and refuses a file its extension's importer cannot read).
   if (ext != ".stl" && ext != ".obj")
-    throw std::runtime_error(src + ": unsupported mesh format '" + ext + "'; accepted: .stl, .obj, .ply, .step, .stp, .iges, .igs");
+    throw std::runtime_error(src + ": unsupported mesh format '" + ext +
+                             "'; accepted: .stl, .obj, .ply, .step, .stp, .iges, .igs");
   Assimp::Importer importer;
   // ValidateDataStructure refuses a scene whose indices (faces into vertices, nodes into
   // meshes) point outside their arrays; the walk below checks them again where it uses them.

@@ -13,8 +13,8 @@
 namespace mfcd::vision {
 
 struct Mesh {
-  std::vector<cv::Vec3f> vertices;               // mm, in the part's own frame
-  std::vector<std::array<uint32_t, 3>> triangles; // indices into vertices, counter-clockwise seen from outside
+  std::vector<cv::Vec3f> vertices;                 // mm, in the part's own frame
+  std::vector<std::array<uint32_t, 3>> triangles;  // indices into vertices, counter-clockwise seen from outside
   std::string name;
 
   cv::Vec3f bbox_min() const;
@@ -58,8 +58,8 @@ struct MeshReport {
 // (vision/model/ply_reader.hpp), merges all its meshes into one, scales to mm, welds identical
 // vertices and validates. The extension (.stl, .obj, .ply, any case) picks the reader; any other is
 // refused (STEP and IGES with a pointer to load_part, vision/model/cad_reader.hpp: OCCT is a
-// library of its own, linked only by what reads a user's CAD). Throws std::runtime_error naming the file on an unsupported extension, an
-// unreadable, empty or absurdly sized mesh, a face index outside the vertices or a non-finite
+// library of its own, linked only by what reads a user's CAD). Throws std::runtime_error naming the file on an
+// unsupported extension, an unreadable, empty or absurdly sized mesh, a face index outside the vertices or a non-finite
 // vertex; non-manifold geometry only adds warnings to *report (and to syslog when report is null).
 Mesh load_mesh(const std::filesystem::path& file, const MeshLoadOptions& options = {}, MeshReport* report = nullptr);
 

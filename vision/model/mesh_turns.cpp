@@ -134,9 +134,9 @@ std::vector<cv::Vec3d> sample_surface(const Mesh& mesh, int count) {
   const double g1 = 0.7548776662466927, g2 = 0.5698402909980532;  // plastic-number lattice
   for (int i = 0; i < count; ++i) {
     const double at = (i + 0.5) / count * total;
-    const size_t k = std::min(mesh.triangles.size() - 1,
-                              static_cast<size_t>(std::upper_bound(cumulative.begin(), cumulative.end(), at) -
-                                                  cumulative.begin()));
+    const size_t k =
+        std::min(mesh.triangles.size() - 1,
+                 static_cast<size_t>(std::upper_bound(cumulative.begin(), cumulative.end(), at) - cumulative.begin()));
     const auto& t = mesh.triangles[k];
     double r1 = std::fmod(0.5 + g1 * i, 1.0), r2 = std::fmod(0.5 + g2 * i, 1.0);
     if (r1 + r2 > 1) r1 = 1 - r1, r2 = 1 - r2;
@@ -211,7 +211,8 @@ std::vector<Axis> group_by_axis(const std::vector<Candidate>& found, const std::
                                 const SurfaceGrid& fine, const MeshTurnParams& params) {
   std::vector<Axis> lines;
   for (const Candidate& f : found) {
-    auto it = std::find_if(lines.begin(), lines.end(), [&](const Axis& a) { return axis_angle_deg(a.axis, f.axis) < 10; });
+    auto it =
+        std::find_if(lines.begin(), lines.end(), [&](const Axis& a) { return axis_angle_deg(a.axis, f.axis) < 10; });
     if (it == lines.end()) {
       lines.push_back({f.axis, f.pivot, f.order, {}});
       it = lines.end() - 1;
@@ -238,7 +239,8 @@ std::vector<Axis> group_by_axis(const std::vector<Candidate>& found, const std::
 
 // The symmetry of one axis (into out.symmetries, its discrete turns into `symmetric`), its
 // near-symmetric turns and its phase turns (into out.alternatives).
-void classify_axis(const Axis& line, const MeshTurnParams& params, MeshTurns& out, std::vector<cv::Matx33d>& symmetric) {
+void classify_axis(const Axis& line, const MeshTurnParams& params, MeshTurns& out,
+                   std::vector<cv::Matx33d>& symmetric) {
   int exact = 1, near = 1, exact_orders = 0;
   double near_share = 0;
   for (const auto& [n, s] : line.orders)
@@ -262,8 +264,8 @@ void classify_axis(const Axis& line, const MeshTurnParams& params, MeshTurns& ou
   // Every turn by a multiple of the near period that is not a symmetry is its own twin.
   for (int k = 1; k < near; ++k)
     if ((k * exact) % near != 0)
-      out.alternatives.push_back(make_turn(MeshTurn::Kind::near_symmetry, line.axis, line.pivot, near,
-                                           2 * kPi * k / near, near_share));
+      out.alternatives.push_back(
+          make_turn(MeshTurn::Kind::near_symmetry, line.axis, line.pivot, near, 2 * kPi * k / near, near_share));
   // Phase turns by the period of the repeated features: the symmetry's, else the near one's.
   const int period = exact >= 3 ? exact : near;
   if (!continuous && period >= 3)

@@ -33,15 +33,15 @@
 namespace mfcd::vision {
 
 struct MeshTurnParams {
-  int surface_points = 1500;     // area-weighted surface samples for the fine score
-  int coarse_points = 256;       // ... and for the coarse scan over axes
-  int axis_samples = 1000;       // axis directions over a hemisphere in the coarse scan
-  int max_order = 24;            // rotations by 360/N for N = 2..max_order
-  double symmetry_share = 0.998; // a turn mapping at least this share onto the surface is a symmetry
-  double near_share = 0.6;       // ... at least this (and less than symmetry_share): a near-symmetry
-  double phase_share = 0.4;      // phase turns: this share of the period
-  int refine_per_order = 3;      // best coarse axes per order refined on the fine grid
-  void validate() const;         // throws std::invalid_argument naming the field
+  int surface_points = 1500;      // area-weighted surface samples for the fine score
+  int coarse_points = 256;        // ... and for the coarse scan over axes
+  int axis_samples = 1000;        // axis directions over a hemisphere in the coarse scan
+  int max_order = 24;             // rotations by 360/N for N = 2..max_order
+  double symmetry_share = 0.998;  // a turn mapping at least this share onto the surface is a symmetry
+  double near_share = 0.6;        // ... at least this (and less than symmetry_share): a near-symmetry
+  double phase_share = 0.4;       // phase turns: this share of the period
+  int refine_per_order = 3;       // best coarse axes per order refined on the fine grid
+  void validate() const;          // throws std::invalid_argument naming the field
 };
 
 struct MeshTurn {
@@ -49,13 +49,13 @@ struct MeshTurn {
   Kind kind = Kind::turn_over;
   cv::Matx33d R = cv::Matx33d::eye();  // the rotation, model frame: x -> R (x - pivot) + pivot
   cv::Vec3d pivot_mm{0, 0, 0};
-  cv::Vec3d axis{0, 0, 1};             // unit rotation axis
-  int order = 2;                       // rotations: 360/order degrees (phase: the period's order)
-  double on_surface = 0;               // share of the surface samples mapped onto the surface (fine)
+  cv::Vec3d axis{0, 0, 1};  // unit rotation axis
+  int order = 2;            // rotations: 360/order degrees (phase: the period's order)
+  double on_surface = 0;    // share of the surface samples mapped onto the surface (fine)
 };
 
 struct MeshTurns {
-  cv::Vec3d centroid_mm{0, 0, 0};      // area-weighted surface centroid
+  cv::Vec3d centroid_mm{0, 0, 0};                   // area-weighted surface centroid
   cv::Matx33d principal_axes = cv::Matx33d::eye();  // rows: unit axes, largest variance first; a rotation
   // Rotational symmetries: per axis the highest order found (kind symmetry); an axis about which
   // every order up to max_order is a symmetry is continuous (order 0).

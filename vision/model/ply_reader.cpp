@@ -36,10 +36,18 @@ std::optional<Type> type_named(const std::string& s) {
 
 size_t size_of(Type t) {
   switch (t) {
-    case Type::i8: case Type::u8: return 1;
-    case Type::i16: case Type::u16: return 2;
-    case Type::i32: case Type::u32: case Type::f32: return 4;
-    case Type::f64: return 8;
+    case Type::i8:
+    case Type::u8:
+      return 1;
+    case Type::i16:
+    case Type::u16:
+      return 2;
+    case Type::i32:
+    case Type::u32:
+    case Type::f32:
+      return 4;
+    case Type::f64:
+      return 8;
   }
   return 1;
 }
@@ -78,14 +86,22 @@ class Body {
     const bool file_little = format_ == Format::binary_little_endian;
     if (file_little != (std::endian::native == std::endian::little)) std::reverse(b, b + n);
     switch (t) {
-      case Type::i8: return static_cast<int8_t>(b[0]);
-      case Type::u8: return b[0];
-      case Type::i16: return scalar<int16_t>(b);
-      case Type::u16: return scalar<uint16_t>(b);
-      case Type::i32: return scalar<int32_t>(b);
-      case Type::u32: return scalar<uint32_t>(b);
-      case Type::f32: return scalar<float>(b);
-      case Type::f64: return scalar<double>(b);
+      case Type::i8:
+        return static_cast<int8_t>(b[0]);
+      case Type::u8:
+        return b[0];
+      case Type::i16:
+        return scalar<int16_t>(b);
+      case Type::u16:
+        return scalar<uint16_t>(b);
+      case Type::i32:
+        return scalar<int32_t>(b);
+      case Type::u32:
+        return scalar<uint32_t>(b);
+      case Type::f32:
+        return scalar<float>(b);
+      case Type::f64:
+        return scalar<double>(b);
     }
     return 0;
   }
@@ -105,8 +121,10 @@ class Body {
     char* end = nullptr;
     const double v = std::strtod(begin, &end);
     if (end == begin) {
-      const size_t line = 1 + static_cast<size_t>(std::count(data_.begin(), data_.begin() + static_cast<long>(pos_), '\n'));
-      const bool at_end = std::all_of(begin, data_.c_str() + data_.size(), [](char c) { return std::isspace(static_cast<unsigned char>(c)); });
+      const size_t line =
+          1 + static_cast<size_t>(std::count(data_.begin(), data_.begin() + static_cast<long>(pos_), '\n'));
+      const bool at_end = std::all_of(begin, data_.c_str() + data_.size(),
+                                      [](char c) { return std::isspace(static_cast<unsigned char>(c)); });
       fail(file_, at_end ? "truncated: the body ends before all elements are read (line " + std::to_string(line) + ")"
                          : "line " + std::to_string(line) + ": expected a number");
     }
@@ -148,10 +166,14 @@ Header parse_header(const std::string& data, const fs::path& file) {
     if (key == "format") {
       std::string f, version;
       w >> f >> version;
-      if (f == "ascii") h.format = Format::ascii;
-      else if (f == "binary_little_endian") h.format = Format::binary_little_endian;
-      else if (f == "binary_big_endian") h.format = Format::binary_big_endian;
-      else fail(file, where + "unknown format '" + f + "'");
+      if (f == "ascii")
+        h.format = Format::ascii;
+      else if (f == "binary_little_endian")
+        h.format = Format::binary_little_endian;
+      else if (f == "binary_big_endian")
+        h.format = Format::binary_big_endian;
+      else
+        fail(file, where + "unknown format '" + f + "'");
       have_format = true;
     } else if (key == "element") {
       Element e;

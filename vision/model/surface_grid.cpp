@@ -37,7 +37,8 @@ cv::Vec3d closest_on_triangle(const cv::Vec3d& p, const cv::Vec3d& a, const cv::
 double distance_to_surface(const Mesh& mesh, const cv::Vec3d& p) {
   double best = std::numeric_limits<double>::infinity();
   for (const auto& t : mesh.triangles) {
-    const cv::Vec3d q = closest_on_triangle(p, vec(mesh.vertices[t[0]]), vec(mesh.vertices[t[1]]), vec(mesh.vertices[t[2]]));
+    const cv::Vec3d q =
+        closest_on_triangle(p, vec(mesh.vertices[t[0]]), vec(mesh.vertices[t[1]]), vec(mesh.vertices[t[2]]));
     best = std::min(best, cv::norm(p - q));
   }
   return best;

@@ -29,7 +29,7 @@ class SurfaceGrid {
 
  private:
   double voxel_ = 0, tolerance_ = 0;
-  cv::Vec3d origin_;   // corner of voxel (0, 0, 0)
+  cv::Vec3d origin_;  // corner of voxel (0, 0, 0)
   int nx_ = 0, ny_ = 0, nz_ = 0;
   std::vector<uint8_t> marked_;  // x fastest
 };

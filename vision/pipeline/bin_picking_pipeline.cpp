@@ -60,10 +60,12 @@ BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfi
   for (const auto& [obj_id, feature] : m.config.grasp_features) {
     bool loaded = false;
     for (const auto& p : m.parts) loaded = loaded || p.db.obj_id == obj_id;
-    if (!loaded) throw std::runtime_error("pipeline: a grasp feature names obj_id " + std::to_string(obj_id) +
-                                          ", which no template file defines");
+    if (!loaded)
+      throw std::runtime_error("pipeline: a grasp feature names obj_id " + std::to_string(obj_id) +
+                               ", which no template file defines");
     const std::string why = feature.validate();
-    if (!why.empty()) throw std::runtime_error("pipeline: grasp feature of obj_id " + std::to_string(obj_id) + ": " + why);
+    if (!why.empty())
+      throw std::runtime_error("pipeline: grasp feature of obj_id " + std::to_string(obj_id) + ": " + why);
   }
   m.dt3_params.polarityPenalty = m.config.search_polarity_penalty_px;
   m.search_dt3 = m.dt3_params;
@@ -76,11 +78,12 @@ BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfi
   for (auto& h : m.thread_hits) h.reserve(4096);
   m.thread_best.resize(static_cast<size_t>(threads));
   for (auto& h : m.thread_best)
-    h.reserve(std::max<size_t>({static_cast<size_t>(std::max(m.config.fit_candidates, m.config.round_hypotheses) *
-                                                    m.config.keep_per_view),
-                                static_cast<size_t>(m.config.escalate_hypotheses * m.config.escalate_placements_per_view),
-                                m.config.coarse_seeds * m.parts.size()}) +
-              1);
+    h.reserve(
+        std::max<size_t>(
+            {static_cast<size_t>(std::max(m.config.fit_candidates, m.config.round_hypotheses) * m.config.keep_per_view),
+             static_cast<size_t>(m.config.escalate_hypotheses * m.config.escalate_placements_per_view),
+             m.config.coarse_seeds * m.parts.size()}) +
+        1);
   m.hits.reserve(4096);
   m.verified.reserve(static_cast<size_t>(m.config.fit_candidates) +
                      static_cast<size_t>(m.config.search_rounds - 1) * static_cast<size_t>(m.config.round_hypotheses) +
@@ -107,9 +110,9 @@ BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfi
   m.budget.emplace(m.config.fit_candidates, threads);
   m.erased = cv::Mat1b::zeros(camera.camera.image_size);
   // The pick cycle, stage by stage (stage.hpp).
-  for (auto make : {make_edges_stage, make_lines_stage, make_distance_stage, make_search_stage, make_fit_stage,
-                    make_ranking_stage, make_escalation_stage, make_rounds_stage, make_candidates_stage,
-                    make_refinement_stage, make_grasp_stage})
+  for (auto make :
+       {make_edges_stage, make_lines_stage, make_distance_stage, make_search_stage, make_fit_stage, make_ranking_stage,
+        make_escalation_stage, make_rounds_stage, make_candidates_stage, make_refinement_stage, make_grasp_stage})
     m.stages.push_back(make());
 }
 
@@ -123,8 +126,7 @@ std::vector<std::pair<int, std::string>> BinPickingPipeline::parts() const {
 const CameraConfig& BinPickingPipeline::camera() const { return impl_->camera; }
 const DepthEdges& BinPickingPipeline::last_edges() const { return impl_->edges; }
 
-void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::time_point deadline,
-                                 PipelineResult& out) {
+void BinPickingPipeline::process(const MfcFrames& frames, int obj_id, Clock::time_point deadline, PipelineResult& out) {
   Impl& m = *impl_;
   const auto t0 = Clock::now();
   const OmpThreadsInScope team(m.config.threads);
@@ -161,7 +163,8 @@ void BinPickingPipeline::set_floor(const BinFloor& floor) {
 
 PoseScore BinPickingPipeline::score_pose(int obj_id, const cv::Matx33d& R_m2c, const cv::Vec3d& t_m2c_mm) {
   Impl& m = *impl_;
-  if (m.config.cost != PipelineConfig::Cost::fdcm) throw std::invalid_argument("pipeline: score_pose needs the FDCM cost");
+  if (m.config.cost != PipelineConfig::Cost::fdcm)
+    throw std::invalid_argument("pipeline: score_pose needs the FDCM cost");
   const PartModel& part = m.part_of(obj_id);
   // The nearest view over the part's symmetric copies of the pose (the views cover one wedge),
   // as the hypothesis fit chooses it.
@@ -184,8 +187,8 @@ PoseScore BinPickingPipeline::score_pose(int obj_id, const cv::Matx33d& R_m2c, c
   const TemplateFitResult f =
       m.scored_like(0, part.db, m.fitter.fit(part.db, out.view, start, m.camera.camera, m.fit_workspaces[0]));
   out.fit_score = fitted_rank(f, part.db, m.config);
-  const TemplateFitResult exact = m.fitter.evaluate(part.db, out.view, pose, m.camera.camera, m.fit_workspaces[0],
-                                                    TemplatePoseFit::kAllPoints);
+  const TemplateFitResult exact =
+      m.fitter.evaluate(part.db, out.view, pose, m.camera.camera, m.fit_workspaces[0], TemplatePoseFit::kAllPoints);
   out.exact_score = fitted_rank(exact, part.db, m.config);
   return out;
 }

@@ -37,8 +37,8 @@ struct PipelineConfig {
   enum class Cost { fdcm, ocm, cm };
   Cost cost = Cost::fdcm;
   std::vector<std::filesystem::path> template_files;  // *.tdb, one per part type (mfc-teach)
-  std::vector<double> distances_mm;  // hypothesised part distances, mm; empty = the templates' own
-  DepthEdgeParams depth_edges;       // edges_* parameters
+  std::vector<double> distances_mm;                   // hypothesised part distances, mm; empty = the templates' own
+  DepthEdgeParams depth_edges;                        // edges_* parameters
   // The bin floor's plane (distance 0: not known, no check); floor.tolerance_mm is the parameter
   // floor_tolerance_mm.
   BinFloor floor;
@@ -47,9 +47,9 @@ struct PipelineConfig {
   std::vector<std::pair<int, GraspFeature>> grasp_features;
 
   // FDCM search (paper Sec. 3.6, 4.3): 1-D line search over coarse then fine views.
-  double max_cost_px = 10.0;      // px, mean directional chamfer cost of a hit
-  int search_downsample = 3;      // image reduction of the search (1..4)
-  bool search_polarity = true;    // FDCM only: 2q oriented channels over 2 pi
+  double max_cost_px = 10.0;                // px, mean directional chamfer cost of a hit
+  int search_downsample = 3;                // image reduction of the search (1..4)
+  bool search_polarity = true;              // FDCM only: 2q oriented channels over 2 pi
   double search_polarity_penalty_px = 6.0;  // px; infinity: such an edge is as good as none
   int template_guides = 3;
   int query_guides = 60;
@@ -66,11 +66,11 @@ struct PipelineConfig {
   static constexpr int kMaxSearchRounds = 4;
   int search_rounds = 1;
   int round_hypotheses = 16;
-  int round_erase_px = 2;           // px around the best candidates' points taken out of a later round
+  int round_erase_px = 2;  // px around the best candidates' points taken out of a later round
   // Escalation (FDCM with the fit only): the wide search searches every view with
   // escalate_query_guides guides and two placements per view at least 40 px apart; like a round it
   // starts only when the deadline leaves it the time the last escalation took.
-  double escalate_below = 0.08;     // fitted rank; 0 = off
+  double escalate_below = 0.08;  // fitted rank; 0 = off
   int escalate_query_guides = 120;
   int escalate_hypotheses = 150;
   int escalate_placements_per_view = 2;
@@ -91,15 +91,15 @@ struct PipelineConfig {
   // turned-over comparison (TemplatePoseFit::compare), floor starts (with a known floor).
   int rescore_hypotheses = 12;
   int depth_starts = 6;
-  double depth_start_mm = 2;        // mm along the line of sight
+  double depth_start_mm = 2;  // mm along the line of sight
   int flip_checks = 6;
   int floor_starts = 6;
-  double floor_start_height_mm = 30;       // mm above the floor a hypothesis may hover and start again from it
+  double floor_start_height_mm = 30;         // mm above the floor a hypothesis may hover and start again from it
   double floor_start_min_score_ratio = 0.8;  // of the free fit's score, for the floor start's fit to be kept
 
   // Candidates and refinement (Sec. 4.5, one view).
-  int max_candidates = 8;           // best first
-  double candidate_overlap = 0.3;   // search boxes overlapping more (IoU) are one part
+  int max_candidates = 8;                // best first
+  double candidate_overlap = 0.3;        // search boxes overlapping more (IoU) are one part
   double alternative_min_differ = 0.25;  // PoseCandidate::alternative_*
   // A candidate whose edges favour it over its alternative's by less than this share of the
   // points where the two differ is ambiguous (PoseCandidate::ambiguous).
@@ -108,8 +108,8 @@ struct PipelineConfig {
   ConfidenceModel confidence = kFittedConfidence;
   // The candidates' poses polished with the templates' edge offset profiles; ranking is without it.
   bool edge_offset_correction = true;
-  int refine_candidates = 0;        // render-based PoseRefiner on the best n; 0 = fitted pose kept
-  int refine_iterations = 10;       // outer ICP iterations per refined candidate; 0 = no refinement
+  int refine_candidates = 0;   // render-based PoseRefiner on the best n; 0 = fitted pose kept
+  int refine_iterations = 10;  // outer ICP iterations per refined candidate; 0 = no refinement
 
   // Threads of every stage of a cycle; 0 = the calling thread's OpenMP setting.
   int threads = 0;
@@ -119,26 +119,26 @@ struct PipelineConfig {
 };
 
 struct PoseCandidate {
-  int obj_id = 0;               // BOP object id of the part type (from its .tdb)
-  std::string part;             // part name from the .tdb
-  int view = -1;                // template view (out-of-plane rotation) that matched
+  int obj_id = 0;                          // BOP object id of the part type (from its .tdb)
+  std::string part;                        // part name from the .tdb
+  int view = -1;                           // template view (out-of-plane rotation) that matched
   cv::Matx33d R_m2c = cv::Matx33d::eye();  // model -> camera rotation
-  cv::Vec3d t_m2c_mm{0, 0, 0};  // model origin in the camera frame, mm
+  cv::Vec3d t_m2c_mm{0, 0, 0};             // model origin in the camera frame, mm
   // 0..1: the estimated probability that the pose is right (within 5 mm and 10 degrees of a true
   // pose; PipelineConfig::confidence of evidence()); without the fit (the paper's baselines)
   // 1 / (1 + c / 2 px) of the search cost c with the unexplained-edge penalty, a rank only.
   double score = 0;
-  double cost_px = 0;           // mean directional chamfer cost at the final pose
-  double coverage = 0;          // fraction of image edges inside the part's outline it explains
-  double rank_px = 0;           // the search's ranking measure: cost_px + the unexplained-edge penalty
-  double fit_rank = 0;          // the rank after TemplatePoseFit (fit score less unexplained edges)
-  double inlier_fraction = 0;   // the fit's share of view points within its inlier cost
-  double fit_cost_px = 0;       // the fit's mean directional cost, px
-  bool refined = false;         // false: coarse pose only (refinement skipped or failed)
+  double cost_px = 0;          // mean directional chamfer cost at the final pose
+  double coverage = 0;         // fraction of image edges inside the part's outline it explains
+  double rank_px = 0;          // the search's ranking measure: cost_px + the unexplained-edge penalty
+  double fit_rank = 0;         // the rank after TemplatePoseFit (fit score less unexplained edges)
+  double inlier_fraction = 0;  // the fit's share of view points within its inlier cost
+  double fit_cost_px = 0;      // the fit's mean directional cost, px
+  bool refined = false;        // false: coarse pose only (refinement skipped or failed)
   // 0..1: how clearly its best grasp feature is on top and facing the camera at the final pose
   // (vision/pose/grasp_visibility.hpp); 1 when its part type has no grasp feature configured.
   double grasp_visibility = 1;
-  cv::Rect2d box;               // image bounding box of the matched template
+  cv::Rect2d box;  // image bounding box of the matched template
   // What the edges had to tell this pose from: the best-ranked other fitted hypothesis of the
   // part at its place (search boxes overlapping as in the candidates' suppression) whose image
   // differs from this pose's, i.e. at least alternative_min_differ of the two poses' edge points
@@ -158,36 +158,35 @@ struct PoseCandidate {
 };
 
 struct StageTimes {
-  double edges_ms = 0, lines_ms = 0, distance_ms = 0, search_ms = 0, pose_ms = 0, refine_ms = 0,
-         total_ms = 0;
+  double edges_ms = 0, lines_ms = 0, distance_ms = 0, search_ms = 0, pose_ms = 0, refine_ms = 0, total_ms = 0;
 };
 
 // One hypothesis of the cycle as the search found it and as the fit left it (PipelineConfig::trace).
 struct HypothesisTrace {
   int obj_id = 0;
-  int round = 1;              // the search round that found it (PipelineConfig::search_rounds); 0: the
-                              // escalation's wide search (PipelineConfig::escalate_below)
+  int round = 1;  // the search round that found it (PipelineConfig::search_rounds); 0: the
+                  // escalation's wide search (PipelineConfig::escalate_below)
   int search_view = -1, fitted_view = -1;
   double search_cost_px = 0;  // mean directional chamfer cost of the search hit
   double coverage = 0;        // explained-edge fraction at the search hit
   cv::Matx33d R_coarse = cv::Matx33d::eye(), R_fitted = cv::Matx33d::eye();  // model -> camera
   cv::Vec3d t_coarse_mm{0, 0, 0}, t_fitted_mm{0, 0, 0};
-  double fit_rank = -1;       // as PoseCandidate::fit_rank; -1 = fit refused
+  double fit_rank = -1;  // as PoseCandidate::fit_rank; -1 = fit refused
   // The fit's measures at the fitted pose (TemplateFitResult), what fit_rank is made of.
   double fit_score = 0, fit_coverage = 0, inlier_fraction = 0, mean_cost_px = 0;
-  double view_points = 0;     // the fitted view's edge points at the fitted distance
+  double view_points = 0;  // the fitted view's edge points at the fitted distance
 };
 
 struct PipelineResult {
   std::vector<PoseCandidate> candidates;  // best first; capacity reserved once
   StageTimes times;
-  bool degraded = false;      // the deadline cut a stage short: best-so-far result
+  bool degraded = false;  // the deadline cut a stage short: best-so-far result
   int edge_pixels = 0;
   int query_lines = 0;
-  uint64_t hypotheses = 0;    // FDCM hypotheses evaluated by the search, all rounds
-  int views_searched = 0;     // template views searched, all rounds (fewer than loaded when degraded)
-  int rounds = 1;             // search rounds run (PipelineConfig::search_rounds; fewer near the deadline)
-  bool escalated = false;     // the wide search ran (PipelineConfig::escalate_below)
+  uint64_t hypotheses = 0;             // FDCM hypotheses evaluated by the search, all rounds
+  int views_searched = 0;              // template views searched, all rounds (fewer than loaded when degraded)
+  int rounds = 1;                      // search rounds run (PipelineConfig::search_rounds; fewer near the deadline)
+  bool escalated = false;              // the wide search ran (PipelineConfig::escalate_below)
   std::vector<HypothesisTrace> trace;  // PipelineConfig::trace only: every fitted hypothesis, search order,
                                        // before the turned-over check
 };
@@ -195,13 +194,13 @@ struct PipelineResult {
 // How the last processed image scores a given pose of a part, measured the way the search
 // scores its own hypotheses (for the evaluation: was a miss the search's or the cost's?).
 struct PoseScore {
-  int view = -1;           // nearest template view (symmetry-aware)
+  int view = -1;              // nearest template view (symmetry-aware)
   double view_angle_deg = 0;  // rotation between the given pose and that view's coarse pose
-  double cost_px = 0;      // mean directional chamfer cost after the local fit (fit_distance)
-  double coverage = 0;     // fraction of image edges inside the outline the view explains
-  double rank_px = 0;      // cost_px + unexplained-edge penalty: compare with PoseCandidate::rank_px
-  double fit_score = 0;    // TemplatePoseFit score from the view's coarse pose: compare with PoseCandidate::score
-  double exact_score = 0;  // the same rank at the given pose itself, unfitted (do the edges prefer it?)
+  double cost_px = 0;         // mean directional chamfer cost after the local fit (fit_distance)
+  double coverage = 0;        // fraction of image edges inside the outline the view explains
+  double rank_px = 0;         // cost_px + unexplained-edge penalty: compare with PoseCandidate::rank_px
+  double fit_score = 0;       // TemplatePoseFit score from the view's coarse pose: compare with PoseCandidate::score
+  double exact_score = 0;     // the same rank at the given pose itself, unfitted (do the edges prefer it?)
 };
 
 class BinPickingPipeline {

@@ -27,7 +27,7 @@ struct ConfidenceModel {
   double fit_rank = 0;
   double coverage = 0;
   double inlier_fraction = 0;
-  double fit_cost_px = 0;          // per px
+  double fit_cost_px = 0;  // per px
   double has_alternative = 0;
   double alternative_margin = 0;
   double alternative_support = 0;
@@ -38,10 +38,10 @@ struct ConfidenceModel {
 
 // What a second look measured of one fused candidate (SecondLookCandidate's fields).
 struct FusedEvidence {
-  double rank_first = 0;           // fitted rank in the first image, about 0..1
-  double rank_second = 0;          // fitted rank in the second image
-  bool has_alternative = false;    // a distinct other pose of the part was fitted at its place
-  double alternative_margin = 0;   // rank sum less the alternative's; 0 without one
+  double rank_first = 0;          // fitted rank in the first image, about 0..1
+  double rank_second = 0;         // fitted rank in the second image
+  bool has_alternative = false;   // a distinct other pose of the part was fitted at its place
+  double alternative_margin = 0;  // rank sum less the alternative's; 0 without one
 };
 
 // The fused candidates' confidence: the same logistic form over FusedEvidence. A model of its

@@ -78,9 +78,8 @@ double fit_distance(const LineSet& lines, const IntegralDistanceTransform& idt, 
         for (int dx = -3; dx <= 3; ++dx) {
           const int tx = static_cast<int>(pl.origin_px.x) + dx, ty = static_cast<int>(pl.origin_px.y) + dy;
           if (tx < t.txMin() || tx > t.txMax(idt.width()) || ty < t.tyMin() || ty > t.tyMax(idt.height())) continue;
-          const uint32_t stop = std::isfinite(best_cost)
-                                    ? static_cast<uint32_t>(best_cost * kCostScale * t.pixels) + 1
-                                    : std::numeric_limits<uint32_t>::max();
+          const uint32_t stop = std::isfinite(best_cost) ? static_cast<uint32_t>(best_cost * kCostScale * t.pixels) + 1
+                                                         : std::numeric_limits<uint32_t>::max();
           const uint32_t sum = matcher.evaluateAt(t, tx, ty, stop, segments);
           const double cost = double(sum) / (double(kCostScale) * t.pixels);
           if (cost < best_cost) {
@@ -211,8 +210,7 @@ class FitStage final : public Stage {
     m.verify(static_cast<size_t>(m.config.fit_candidates));
     m.fit(c.cycle, 0, c.cycle.fdcm ? &m.idt : nullptr);
     c.out->degraded = c.out->degraded || c.cycle.fit_late;
-    m.budget->record_fit(ms_between(start, Clock::now()), static_cast<int>(m.verified.size()),
-                         m.config.fit_candidates);
+    m.budget->record_fit(ms_between(start, Clock::now()), static_cast<int>(m.verified.size()), m.config.fit_candidates);
     if (m.config.trace) m.trace(0, 1, *c.out);
   }
 };

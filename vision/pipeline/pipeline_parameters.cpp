@@ -15,10 +15,10 @@ using Type = PipelineParameter::Type;
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
 // Accessors of one field; FIELD(x) for PipelineConfig::x, FIELD(a.b) for a nested one.
-#define MFC_FIELD(expr)                                                                \
-  [](const PipelineConfig& c) { return static_cast<double>(c.expr); },                \
+#define MFC_FIELD(expr)                                                \
+  [](const PipelineConfig& c) { return static_cast<double>(c.expr); }, \
       [](PipelineConfig& c, double v) { c.expr = static_cast<decltype(c.expr)>(v); }
-#define MFC_SWITCH(expr)                                                               \
+#define MFC_SWITCH(expr) \
   [](const PipelineConfig& c) { return c.expr ? 1.0 : 0.0; }, [](PipelineConfig& c, double v) { c.expr = v != 0; }
 
 // In the order of the pick cycle's stages.
@@ -33,12 +33,11 @@ const PipelineParameter kParameters[] = {
     {"edges_high_threshold", Type::number, 0, 8, "",
      "hysteresis: summed directional shadow response that starts an edge (a clean edge gives about 2)", true,
      MFC_FIELD(depth_edges.high_threshold)},
-    {"edges_low_threshold", Type::number, 0, 8, "",
-     "hysteresis: summed response that continues an edge", true, MFC_FIELD(depth_edges.low_threshold)},
+    {"edges_low_threshold", Type::number, 0, 8, "", "hysteresis: summed response that continues an edge", true,
+     MFC_FIELD(depth_edges.low_threshold)},
     // FDCM search (Sec. 3.6, 4.3)
     {"max_cost_px", Type::number, 0.1, 100, "px",
-     "search threshold: mean directional chamfer cost under which a placement is a hit", true,
-     MFC_FIELD(max_cost_px)},
+     "search threshold: mean directional chamfer cost under which a placement is a hit", true, MFC_FIELD(max_cost_px)},
     {"search_downsample", Type::integer, 1, 4, "",
      "the search runs on the image reduced by this factor; hypotheses are fitted at full resolution", true,
      MFC_FIELD(search_downsample)},
@@ -49,14 +48,13 @@ const PipelineParameter kParameters[] = {
      "cost of an image edge of the other polarity beyond its orientation difference", true,
      MFC_FIELD(search_polarity_penalty_px)},
     {"template_guides", Type::integer, 1, 8, "",
-     "longest template lines slid along the query's lines (the 1-D line search)", true,
-     MFC_FIELD(template_guides)},
+     "longest template lines slid along the query's lines (the 1-D line search)", true, MFC_FIELD(template_guides)},
     {"query_guides", Type::integer, 1, 1000, "", "longest query lines the template guides slide along", true,
      MFC_FIELD(query_guides)},
     {"min_guide_overlap", Type::number, 0, 1, "", "least overlap of a guide pair, of the shorter line", true,
      MFC_FIELD(min_guide_overlap)},
-    {"slide_step", Type::integer, 1, 16, "px", "search step along a guide; the best position is then refined",
-     true, MFC_FIELD(slide_step)},
+    {"slide_step", Type::integer, 1, 16, "px", "search step along a guide; the best position is then refined", true,
+     MFC_FIELD(slide_step)},
     {"view_stride", Type::integer, 1, 64, "",
      "coarse stage searches every n-th template view, the fine stage the views near its best hits", true,
      MFC_FIELD(view_stride)},
@@ -65,8 +63,8 @@ const PipelineParameter kParameters[] = {
      MFC_FIELD(coarse_seeds)},
     {"keep_per_view", Type::integer, 1, 16, "", "best placements kept per template view", true,
      MFC_FIELD(keep_per_view)},
-    {"keep_separation_px", Type::integer, 0, 1000, "px", "least distance between placements kept of one view",
-     true, MFC_FIELD(keep_separation_px)},
+    {"keep_separation_px", Type::integer, 0, 1000, "px", "least distance between placements kept of one view", true,
+     MFC_FIELD(keep_separation_px)},
     {"share_search_bound", Type::boolean, 0, 1, "",
      "search threads abandon a placement that cannot be among the cycle's best hits so far", true,
      MFC_SWITCH(share_search_bound)},
@@ -79,8 +77,7 @@ const PipelineParameter kParameters[] = {
      "a later round takes out the image edges within this of the best candidates' points", true,
      MFC_FIELD(round_erase_px)},
     {"escalate_below", Type::number, 0, 2, "",
-     "a cycle whose best fitted candidate ranks below this searches again over every view; 0 = never, 2 = always",
-     true,
+     "a cycle whose best fitted candidate ranks below this searches again over every view; 0 = never, 2 = always", true,
      MFC_FIELD(escalate_below)},
     {"escalate_query_guides", Type::integer, 1, 1000, "", "query guides of the escalation's wide search", true,
      MFC_FIELD(escalate_query_guides)},
@@ -90,8 +87,8 @@ const PipelineParameter kParameters[] = {
      MFC_FIELD(escalate_placements_per_view)},
     {"escalate_separation_px", Type::integer, 0, 1000, "px",
      "least distance between the wide search's placements of one view", true, MFC_FIELD(escalate_separation_px)},
-    {"escalate_max_cost_px", Type::number, 0, 100, "px",
-     "search threshold of the wide search; 0 = max_cost_px", true, MFC_FIELD(escalate_max_cost_px)},
+    {"escalate_max_cost_px", Type::number, 0, 100, "px", "search threshold of the wide search; 0 = max_cost_px", true,
+     MFC_FIELD(escalate_max_cost_px)},
     // 3-D pose from the hypotheses (Sec. 4.4)
     {"fit_hypotheses", Type::boolean, 0, 1, "",
      "hypotheses are fitted in 6-DoF and ranked by the fitted score; 0 = ranked by the search cost", true,
@@ -114,12 +111,11 @@ const PipelineParameter kParameters[] = {
      "best fitted hypotheses scored again with every point of their view; 0 = off", true,
      MFC_FIELD(rescore_hypotheses)},
     {"depth_starts", Type::integer, 0, 1000, "",
-     "best hypotheses fitted again from depth_start_mm further and nearer; 0 = off", true,
-     MFC_FIELD(depth_starts)},
+     "best hypotheses fitted again from depth_start_mm further and nearer; 0 = off", true, MFC_FIELD(depth_starts)},
     {"depth_start_mm", Type::number, 0.1, 100, "mm", "depth offset of the depth starts", true,
      MFC_FIELD(depth_start_mm)},
-    {"flip_checks", Type::integer, 0, 1000, "",
-     "best hypotheses compared with their turned-over poses; 0 = off", true, MFC_FIELD(flip_checks)},
+    {"flip_checks", Type::integer, 0, 1000, "", "best hypotheses compared with their turned-over poses; 0 = off", true,
+     MFC_FIELD(flip_checks)},
     {"floor_starts", Type::integer, 0, 1000, "",
      "with a known floor, best hypotheses hovering above it fitted again from it; 0 = off", true,
      MFC_FIELD(floor_starts)},
@@ -130,19 +126,19 @@ const PipelineParameter kParameters[] = {
      "share of the free fit's score the floor start's fit needs to be kept", true,
      MFC_FIELD(floor_start_min_score_ratio)},
     {"floor_tolerance_mm", Type::number, 0, 100, "mm",
-     "how far a model may reach below the bin floor and still count as on it", true,
-     MFC_FIELD(floor.tolerance_mm)},
+     "how far a model may reach below the bin floor and still count as on it", true, MFC_FIELD(floor.tolerance_mm)},
     // candidates and refinement (Sec. 4.5)
     {"max_candidates", Type::integer, 1, 16, "", "pick candidates kept per cycle, best first", true,
      MFC_FIELD(max_candidates)},
     {"candidate_overlap", Type::number, 0, 1, "",
-     "search boxes overlapping by more than this (IoU) are one part: one candidate, one alternative place",
-     true, MFC_FIELD(candidate_overlap)},
+     "search boxes overlapping by more than this (IoU) are one part: one candidate, one alternative place", true,
+     MFC_FIELD(candidate_overlap)},
     {"alternative_min_differ", Type::number, 0, 1, "",
      "share of edge points two poses must differ in for one to be the other's alternative", true,
      MFC_FIELD(alternative_min_differ)},
     {"ambiguous_support", Type::number, -1, 1, "",
-     "a candidate whose edges favour it over its alternative by less than this share of their differing points is ambiguous",
+     "a candidate whose edges favour it over its alternative by less than this share of their differing points is "
+     "ambiguous",
      true, MFC_FIELD(ambiguous_support)},
     // confidence (PoseCandidate::score = 1 / (1 + exp(-logit)), logit = bias + sum of weight x measure)
     {"confidence_bias", Type::number, -100, 100, "", "the confidence model's logit at all measures 0", true,
@@ -153,8 +149,8 @@ const PipelineParameter kParameters[] = {
      MFC_FIELD(confidence.coverage)},
     {"confidence_inlier_fraction", Type::number, -100, 100, "", "logit weight of the fit's inlier share", true,
      MFC_FIELD(confidence.inlier_fraction)},
-    {"confidence_fit_cost_px", Type::number, -100, 100, "1/px", "logit weight of the fit's mean directional cost",
-     true, MFC_FIELD(confidence.fit_cost_px)},
+    {"confidence_fit_cost_px", Type::number, -100, 100, "1/px", "logit weight of the fit's mean directional cost", true,
+     MFC_FIELD(confidence.fit_cost_px)},
     {"confidence_has_alternative", Type::number, -100, 100, "", "logit added when a distinct alternative was fitted",
      true, MFC_FIELD(confidence.has_alternative)},
     {"confidence_alternative_margin", Type::number, -100, 100, "",
@@ -175,8 +171,8 @@ const PipelineParameter kParameters[] = {
     {"threads", Type::integer, 0, 256, "",
      "threads of every stage of a cycle; 0 = OpenMP's default (OMP_NUM_THREADS, else every core)", true,
      MFC_FIELD(threads)},
-    {"trace", Type::boolean, 0, 1, "",
-     "every fitted hypothesis reported in the result (mfc-eval; allocates per cycle)", false, MFC_SWITCH(trace)},
+    {"trace", Type::boolean, 0, 1, "", "every fitted hypothesis reported in the result (mfc-eval; allocates per cycle)",
+     false, MFC_SWITCH(trace)},
 };
 
 #undef MFC_FIELD
@@ -209,9 +205,12 @@ bool PipelineParameter::in_range(double v) const {
 
 std::string PipelineParameter::range_text() const {
   switch (type) {
-    case Type::boolean: return "bool";
-    case Type::integer: return "int " + number_text(min) + ".." + number_text(max);
-    case Type::number: break;
+    case Type::boolean:
+      return "bool";
+    case Type::integer:
+      return "int " + number_text(min) + ".." + number_text(max);
+    case Type::number:
+      break;
   }
   return "number " + number_text(min) + ".." + number_text(max);
 }
@@ -248,7 +247,9 @@ void apply_pipeline_setting(PipelineConfig& config, std::string_view setting) {
     } catch (const std::exception&) {
       used = 0;
     }
-    const char* kind = p->type == Type::integer ? "an integer" : p->type == Type::boolean ? "0, 1, true or false" : "a number";
+    const char* kind = p->type == Type::integer   ? "an integer"
+                       : p->type == Type::boolean ? "0, 1, true or false"
+                                                  : "a number";
     if (text != "inf" && (text.empty() || used != text.size()))
       throw std::invalid_argument(key + " '" + text + "' is not " + kind);
   }

@@ -15,7 +15,7 @@ struct PipelineConfig;
 
 struct PipelineParameter {
   enum class Type { integer, number, boolean };
-  const char* key;      // the PipelineConfig field's name (nested fields: with the struct's prefix)
+  const char* key;  // the PipelineConfig field's name (nested fields: with the struct's prefix)
   Type type;
   double min, max;      // inclusive; booleans 0..1
   const char* unit;     // "px", "mm", "DN" (grey levels), "1/px"; "" for counts, ratios and switches
@@ -26,8 +26,8 @@ struct PipelineParameter {
   double (*get)(const PipelineConfig&);
   void (*set)(PipelineConfig&, double);
 
-  double default_value() const;  // get(PipelineConfig{})
-  bool in_range(double v) const;  // also: an integer or boolean holds a whole value
+  double default_value() const;    // get(PipelineConfig{})
+  bool in_range(double v) const;   // also: an integer or boolean holds a whole value
   std::string range_text() const;  // "int 1..16", "number 0..100", "bool"
 };
 

@@ -93,7 +93,6 @@ inline bool moved_too_far_in_depth(const TemplateDatabase& db, const RigidPose& 
   return std::abs(z1 - z0) > kMaxFitDepthChange * z0;
 }
 
-
 // The calling thread's OpenMP team size set for a scope and restored after. The stages that open
 // their own parallel regions (depth edges, line fitting, DT3 / IDT3) take it from the calling
 // thread, so a cycle under this runs every stage on PipelineConfig::threads threads, as the
@@ -137,10 +136,6 @@ void for_each_projected_point(const TemplateView& view, const RigidPose& pose, c
   }
 }
 
-
-
-
-
 // The fit's measures of a hypothesis (hypothesis_fit.cpp).
 // The fraction of image edge pixels inside the placed template's outline (convex hull of its
 // edge points) that lie within 2 px of a template edge point; scratch: the fit's workspace.
@@ -162,7 +157,7 @@ struct BinPickingPipeline::Impl {
   CameraConfig camera;
   PipelineConfig config;
   LineFitter line_fitter;  // default LineFitParams, oriented as the templates' lines
-  LineFitResult lines;  // this cycle's query lines (buffers reused)
+  LineFitResult lines;     // this cycle's query lines (buffers reused)
   Dt3Params dt3_params;
   std::vector<PartModel> parts;
   // The loaded part type `obj_id`; std::invalid_argument when none is.
@@ -173,10 +168,10 @@ struct BinPickingPipeline::Impl {
   }
   DepthEdgeExtractor extractor;
   DepthEdges edges;
-  cv::Mat1b own_edges;  // grasp visibility: the pixels a candidate's own points explain (kept zero between uses)
-  Dt3Params search_dt3;      // dt3_params in reduced pixels
+  cv::Mat1b own_edges;        // grasp visibility: the pixels a candidate's own points explain (kept zero between uses)
+  Dt3Params search_dt3;       // dt3_params in reduced pixels
   cv::Mat1b search_channels;  // the line fitter's channel map, reduced
-  LineSet search_lines;      // the query lines, reduced
+  LineSet search_lines;       // the query lines, reduced
   DirectionalDistanceTransform dt3;
   IntegralDistanceTransform idt;
   ChamferCosts chamfer;  // baselines only
@@ -184,8 +179,8 @@ struct BinPickingPipeline::Impl {
   // process(): made there on the first call.
   std::unique_ptr<MfcRenderer> renderer;
   std::unique_ptr<PoseRefiner> refiner;
-  std::vector<int> mesh_ids;  // per part
-  std::vector<std::pair<int, int>> jobs;           // (part, view) searched this cycle
+  std::vector<int> mesh_ids;              // per part
+  std::vector<std::pair<int, int>> jobs;  // (part, view) searched this cycle
   std::vector<std::vector<Hit>> thread_hits;
   std::vector<uint64_t> thread_hypotheses;
   std::vector<int> thread_views;
@@ -200,8 +195,8 @@ struct BinPickingPipeline::Impl {
     RigidPose coarse, fitted;
     int view = 0;
     double fit_score = -1, fit_rank = -1;
-    TemplateFitResult fit;  // the fit's measures at `fitted` (trace)
-    bool skipped = false;  // not fitted: the deadline had passed
+    TemplateFitResult fit;     // the fit's measures at `fitted` (trace)
+    bool skipped = false;      // not fitted: the deadline had passed
     bool below_floor = false;  // fitted reaching below the bin floor: dropped
     // The hypothesis becomes fit `f`, ranked `rank`.
     void take(const TemplateFitResult& f, double rank) {
@@ -244,10 +239,10 @@ struct BinPickingPipeline::Impl {
     fitter_prepared = true;
   }
   std::vector<TemplatePoseFit::Workspace> fit_workspaces;  // per search thread
-  std::vector<DistanceFitWorkspace> distance_workspaces;  // per search thread
-  std::vector<LineSearchWorkspace> search_workspaces;     // per search thread
-  std::vector<SearchResult> thread_results;               // per search thread, the last view's
-  std::optional<CycleBudget> budget;  // made once the thread count is known
+  std::vector<DistanceFitWorkspace> distance_workspaces;   // per search thread
+  std::vector<LineSearchWorkspace> search_workspaces;      // per search thread
+  std::vector<SearchResult> thread_results;                // per search thread, the last view's
+  std::optional<CycleBudget> budget;                       // made once the thread count is known
   std::vector<Verified> verified;
   // Later search rounds (PipelineConfig::search_rounds): the query without the best candidates'
   // edges and its integral distance transform; `idt` stays the whole image's (score_pose uses it).
@@ -291,12 +286,12 @@ struct BinPickingPipeline::Impl {
   void sort_verified(size_t first);
   void rank(const Cycle& cycle, size_t first);
   void check_spins(const Cycle& cycle, size_t first, int pool);  // rank()'s spin check
-  void query_without_best(int best);  // into round_query
+  void query_without_best(int best);                             // into round_query
   // The cycle's stages in order (stage.hpp), made by the constructor.
   std::vector<std::unique_ptr<Stage>> stages;
   GraspVisibility grasp_visibility(int obj_id, const RigidPose& pose, const GraspFeature& feature) {
-    return grasp_feature_visibility(edges, part_of(obj_id).db, camera.camera, pose, feature,
-                                    config.fit_inlier_cost_px, own_edges);
+    return grasp_feature_visibility(edges, part_of(obj_id).db, camera.camera, pose, feature, config.fit_inlier_cost_px,
+                                    own_edges);
   }
   // The pick candidates from `verified`, best first, at most max_candidates (candidates_stage.cpp).
   // The best-ranked other fitted hypothesis at the place of verified[index] whose image differs
@@ -315,8 +310,11 @@ struct BinPickingPipeline::Impl {
   std::pair<const LineSet*, const cv::Mat1b*> search_query(const LineFitResult& q);
 
   Impl(const CameraConfig& cam, PipelineConfig cfg)
-      : camera(cam), config(std::move(cfg)), extractor(cam.camera, cam.flashes, config.depth_edges),
-        fitter(ranking_fit_params(config)), final_fitter(final_fit_params(config)) {}
+      : camera(cam),
+        config(std::move(cfg)),
+        extractor(cam.camera, cam.flashes, config.depth_edges),
+        fitter(ranking_fit_params(config)),
+        final_fitter(final_fit_params(config)) {}
   static TemplateFitParams ranking_fit_params(const PipelineConfig& c) {
     TemplateFitParams p;
     p.edge_offset_correction = false;

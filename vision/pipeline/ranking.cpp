@@ -17,9 +17,11 @@ namespace mfcd::vision {
 // only) by the search's combined cost.
 void BinPickingPipeline::Impl::sort_verified(size_t first) {
   if (config.cost == PipelineConfig::Cost::fdcm && config.fit_hypotheses)
-    stable_sort_in_place(verified, [](const Verified& a, const Verified& b) { return a.fit_rank > b.fit_rank; }, first);
+    stable_sort_in_place(
+        verified, [](const Verified& a, const Verified& b) { return a.fit_rank > b.fit_rank; }, first);
   else
-    stable_sort_in_place(verified, [](const Verified& a, const Verified& b) { return a.combined < b.combined; }, first);
+    stable_sort_in_place(
+        verified, [](const Verified& a, const Verified& b) { return a.combined < b.combined; }, first);
 }
 
 // Ranks the hypotheses from `first` on, and checks the best few of them against the floor and
@@ -62,16 +64,16 @@ void BinPickingPipeline::Impl::rank(const Cycle& cycle, size_t first) {
   // depth nearest its start. Parts low in the bin mostly rest on its floor, so the best few
   // hypotheses whose lowest point hovers above the floor are fitted again from the pose slid
   // down onto it (the fit stays free to leave it).
-  check_leaders(floor.known() ? std::min(m.config.floor_starts, count) : 0,
-                [&](int i, Verified& v, const PartModel& part) {
-    const double height = -floor.reach_below(part.db.mesh, v.fitted);
-    if (height <= floor.tolerance_mm || height > m.config.floor_start_height_mm) return;
-    const TemplateFitResult f = fit_from(i, part.db, floor.onto(part.db.mesh, v.fitted, part.db.center_mm));
-    if (f.score < m.config.floor_start_min_score_ratio * v.fit_score || floor.below(part.db.mesh, f.pose) ||
-        moved_too_far_in_depth(part.db, v.coarse, f.pose))
-      return;
-    v.take(f, fitted_rank(f, part.db, m.config));
-  });
+  check_leaders(
+      floor.known() ? std::min(m.config.floor_starts, count) : 0, [&](int i, Verified& v, const PartModel& part) {
+        const double height = -floor.reach_below(part.db.mesh, v.fitted);
+        if (height <= floor.tolerance_mm || height > m.config.floor_start_height_mm) return;
+        const TemplateFitResult f = fit_from(i, part.db, floor.onto(part.db.mesh, v.fitted, part.db.center_mm));
+        if (f.score < m.config.floor_start_min_score_ratio * v.fit_score || floor.below(part.db.mesh, f.pose) ||
+            moved_too_far_in_depth(part.db, v.coarse, f.pose))
+          return;
+        v.take(f, fitted_rank(f, part.db, m.config));
+      });
   // Depth starts (PipelineConfig::depth_starts): the fit settles on the depth nearest its start,
   // so the best few are fitted again from a little further and a little nearer; a fit that ranks
   // higher replaces theirs unless it reaches below the floor or has left its search hit's depth.
@@ -114,9 +116,8 @@ void BinPickingPipeline::Impl::rank(const Cycle& cycle, size_t first) {
       if (turn.by_rank) {
         if (v.fit_rank < kPlateTurnMinRank || fitted_rank(f, part.db, m.config) <= v.fit_rank) continue;
       } else {
-        const TemplatePoseFit::Difference d = m.fitter.compare(part.db, current, f, m.camera.camera, ws,
-                                                               turn.flags_of_pose(current.view),
-                                                               turn.flags_of_turned(f.view));
+        const TemplatePoseFit::Difference d = m.fitter.compare(
+            part.db, current, f, m.camera.camera, ws, turn.flags_of_pose(current.view), turn.flags_of_turned(f.view));
         if (!turn_is_better(d)) continue;
       }
       current = f;

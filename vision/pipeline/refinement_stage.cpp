@@ -34,7 +34,7 @@ void BinPickingPipeline::Impl::refine(Clock::time_point deadline, PipelineResult
       int part = 0;
       while (parts[part].db.obj_id != c.obj_id) ++part;
       const RefinementResult r = refiner->refine(pose_model(mesh_ids[part], parts[part].db.mesh),
-                                                  RigidTransform{c.R_m2c, c.t_m2c_mm}, deadline);
+                                                 RigidTransform{c.R_m2c, c.t_m2c_mm}, deadline);
       out.degraded = out.degraded || r.deadline_hit;
       if (r.failed) continue;
       // One view constrains depth and tilt weakly; a refinement that ends worse than it started
@@ -42,9 +42,8 @@ void BinPickingPipeline::Impl::refine(Clock::time_point deadline, PipelineResult
       const RefinementResult start =
           refiner->evaluate(pose_model(mesh_ids[part], parts[part].db.mesh), RigidTransform{c.R_m2c, c.t_m2c_mm});
       // Depth is where one view is weakest: a flat part can trade distance for tilt. The coarse
-      // distance was measured from the image scale (fit_distance, 1 % steps, then the hypothesis fit), so a refinement that
-      // moves the part centre along the line of sight by more than 4 % of its distance is not
-      // trusted either.
+      // distance was measured from the image scale (fit_distance, 1 % steps, then the hypothesis fit), so a refinement
+      // that moves the part centre along the line of sight by more than 4 % of its distance is not trusted either.
       const cv::Vec3d c0 = c.R_m2c * parts[part].db.center_mm + c.t_m2c_mm;
       const cv::Vec3d c1 = r.pose.R * parts[part].db.center_mm + r.pose.t;
       const bool depth_jump = std::abs(cv::norm(c1) - cv::norm(c0)) > 0.04 * cv::norm(c0);

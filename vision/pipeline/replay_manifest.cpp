@@ -128,8 +128,8 @@ PipelineConfig replay_config(const ReplayManifest& m, PipelineConfig config, std
     const std::uint32_t crc = bytes == t.bytes ? file_crc32(t.path) : 0;
     if (bytes != t.bytes || crc != t.crc32) {
       char what[128];
-      std::snprintf(what, sizeof what, "%ju bytes, CRC-32 %08x; the cycle used %ju bytes, CRC-32 %08x", bytes, crc, t.bytes,
-                    t.crc32);
+      std::snprintf(what, sizeof what, "%ju bytes, CRC-32 %08x; the cycle used %ju bytes, CRC-32 %08x", bytes, crc,
+                    t.bytes, t.crc32);
       throw std::runtime_error(t.path.string() + ": not the template file the cycle used (now " + what +
                                "); give the cycle's file with --templates");
     }

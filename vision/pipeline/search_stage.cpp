@@ -91,7 +91,8 @@ void BinPickingPipeline::Impl::search(Cycle& cycle, const LineSet& query, const 
       auto& best = m.thread_best[me];
       for (const Candidate& c : r.candidates) {
         const cv::Rect2d box = placedBox(list[c.oriented], c);
-        mine.push_back({p, v, c.oriented, c, cv::Rect2d(box.x * down, box.y * down, box.width * down, box.height * down)});
+        mine.push_back(
+            {p, v, c.oriented, c, cv::Rect2d(box.x * down, box.y * down, box.width * down, box.height * down)});
         best.push_back(c);
         std::push_heap(best.begin(), best.end(), better);  // worst on top
         if (best.size() > useful) {
@@ -142,8 +143,8 @@ void BinPickingPipeline::Impl::verify(size_t count) {
   for (const Hit& h : m.hits) {
     if (m.verified.size() - first >= count) break;
     bool duplicate = false;
-    for (const auto& k : m.verified) duplicate = duplicate || (k.hit.part == h.part && iou(k.hit.box, h.box) > 0.8 &&
-                                                               k.hit.view == h.view);
+    for (const auto& k : m.verified)
+      duplicate = duplicate || (k.hit.part == h.part && iou(k.hit.box, h.box) > 0.8 && k.hit.view == h.view);
     if (duplicate) continue;
     Verified v;
     v.hit = h;
@@ -190,13 +191,14 @@ void BinPickingPipeline::Impl::query_without_best(int best) {
   for (const Verified& v : m.verified) {
     if (n >= best) break;
     bool overlaps = false;
-    for (int k = 0; k < n; ++k) overlaps = overlaps || iou(taken[static_cast<size_t>(k)], v.hit.box) > m.config.candidate_overlap;
+    for (int k = 0; k < n; ++k)
+      overlaps = overlaps || iou(taken[static_cast<size_t>(k)], v.hit.box) > m.config.candidate_overlap;
     if (overlaps) continue;
     taken[static_cast<size_t>(n++)] = v.hit.box;
     const TemplateView& view = m.parts[v.hit.part].db.views[static_cast<size_t>(v.view)];
     for_each_projected_point(view, v.fitted, m.camera.camera, [&](const cv::Point2d& q) {
-      const cv::Rect around(cvRound(q.x) - m.config.round_erase_px, cvRound(q.y) - m.config.round_erase_px, 2 * m.config.round_erase_px + 1,
-                            2 * m.config.round_erase_px + 1);
+      const cv::Rect around(cvRound(q.x) - m.config.round_erase_px, cvRound(q.y) - m.config.round_erase_px,
+                            2 * m.config.round_erase_px + 1, 2 * m.config.round_erase_px + 1);
       const cv::Rect inside = around & cv::Rect(cv::Point(0, 0), erased.size());
       for (int y = inside.y; y < inside.y + inside.height; ++y)
         std::fill_n(erased.ptr<uchar>(y) + inside.x, inside.width, uchar{255});
@@ -266,8 +268,8 @@ class EscalationStage final : public Stage {
         (m.verified.empty() || m.verified.front().fit_rank < m.config.escalate_below) &&
         m.budget->leaves_time_for(CycleBudget::Optional::escalation)) {
       const auto start = Clock::now();
-      m.add_search(c.cycle, *c.query, m.idt, static_cast<size_t>(m.config.escalate_hypotheses),
-                   m.escalation_search(), 0, *c.out);
+      m.add_search(c.cycle, *c.query, m.idt, static_cast<size_t>(m.config.escalate_hypotheses), m.escalation_search(),
+                   0, *c.out);
       m.budget->record(CycleBudget::Optional::escalation, ms_between(start, Clock::now()));
       c.out->escalated = true;
     }

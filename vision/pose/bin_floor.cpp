@@ -11,7 +11,8 @@ void BinFloor::validate() const {
   if (!(distance_mm >= 0)) throw std::invalid_argument("bin floor: distance_mm must be >= 0 (0 = not known)");
   if (!(tolerance_mm >= 0)) throw std::invalid_argument("bin floor: tolerance_mm must be >= 0");
   if (!known()) return;
-  if (!(std::abs(cv::norm(normal) - 1.0) <= 1e-6)) throw std::invalid_argument("bin floor: normal must be a unit vector");
+  if (!(std::abs(cv::norm(normal) - 1.0) <= 1e-6))
+    throw std::invalid_argument("bin floor: normal must be a unit vector");
   if (!(normal[2] > 0)) throw std::invalid_argument("bin floor: normal must point away from the camera (z > 0)");
 }
 

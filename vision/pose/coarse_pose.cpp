@@ -35,7 +35,8 @@ RigidPose coarse_pose(const TemplateDatabase& db, const TemplatePlacement& place
   return pose;
 }
 
-TemplatePlacement placement_of(const TemplateDatabase& db, int view, const RigidPose& pose, const PinholeCamera& camera) {
+TemplatePlacement placement_of(const TemplateDatabase& db, int view, const RigidPose& pose,
+                               const PinholeCamera& camera) {
   TemplatePlacement p;
   p.view = view;
   const cv::Vec3d centre = pose.R * db.center_mm + pose.t_mm;

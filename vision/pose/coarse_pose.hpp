@@ -19,10 +19,10 @@ struct RigidPose {
 };
 
 struct TemplatePlacement {
-  int view = 0;              // index into TemplateDatabase::views
-  double angle_rad = 0;      // in-plane rotation of the template (image axes: x turns towards y)
-  double scale = 1;          // image scale relative to the template (distance ratio view / actual)
-  cv::Point2d origin_px;     // where the template origin (image of the part centre) lands
+  int view = 0;           // index into TemplateDatabase::views
+  double angle_rad = 0;   // in-plane rotation of the template (image axes: x turns towards y)
+  double scale = 1;       // image scale relative to the template (distance ratio view / actual)
+  cv::Point2d origin_px;  // where the template origin (image of the part centre) lands
 };
 
 // The rotation taking the optical axis (0, 0, 1) onto the unit ray through `pixel`, about the
@@ -33,6 +33,7 @@ RigidPose coarse_pose(const TemplateDatabase& db, const TemplatePlacement& place
 
 // The inverse for a given view: the placement whose coarse pose is closest to `pose`
 // (exact when the pose was made by coarse_pose with that view).
-TemplatePlacement placement_of(const TemplateDatabase& db, int view, const RigidPose& pose, const PinholeCamera& camera);
+TemplatePlacement placement_of(const TemplateDatabase& db, int view, const RigidPose& pose,
+                               const PinholeCamera& camera);
 
 }  // namespace mfcd::vision

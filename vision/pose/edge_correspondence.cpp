@@ -20,9 +20,7 @@ float modulo(float angle, double period) {
 
 // The bin of the angle bins (`bins` equal parts of [0, period)) that angle a, in [0, period), falls
 // in: one formula for the cells' masks and the queries.
-int angle_bin(double a, double period, int bins) {
-  return std::min(bins - 1, static_cast<int>(a * (bins / period)));
-}
+int angle_bin(double a, double period, int bins) { return std::min(bins - 1, static_cast<int>(a * (bins / period))); }
 }  // namespace
 
 DirectionalEdgeIndex::DirectionalEdgeIndex(int cell_px) : cell_(cell_px) {
@@ -147,8 +145,8 @@ EdgeMatch DirectionalEdgeIndex::nearest(cv::Point2d u, double angle, double lamb
   return best;
 }
 
-EdgeMatch nearest_edge_brute_force(const DepthEdges& edges, cv::Point2d u, double angle, double lambda,
-                                   double max_cost, bool oriented) {
+EdgeMatch nearest_edge_brute_force(const DepthEdges& edges, cv::Point2d u, double angle, double lambda, double max_cost,
+                                   bool oriented) {
   EdgeMatch best;
   for (int y = 0; y < edges.edges.rows; ++y)
     for (int x = 0; x < edges.edges.cols; ++x) {

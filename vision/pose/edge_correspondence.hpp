@@ -29,9 +29,9 @@ inline constexpr double kDefaultLambdaPxPerRad = 30.0 / std::numbers::pi;
 
 struct EdgeMatch {
   bool found = false;
-  float x = 0, y = 0;   // the matched edge pixel (integer coordinates)
-  float angle = 0;      // its tangent angle, [0, pi) ([0, 2 pi) from an oriented index)
-  double cost = 0;      // Eq. 21 cost in px
+  float x = 0, y = 0;  // the matched edge pixel (integer coordinates)
+  float angle = 0;     // its tangent angle, [0, pi) ([0, 2 pi) from an oriented index)
+  double cost = 0;     // Eq. 21 cost in px
 };
 
 class DirectionalEdgeIndex {

@@ -47,7 +47,10 @@ Vote cast_ray(const DepthEdges& edges, const cv::Mat1b& own, const cv::Point2d& 
       t = t_max_y, y += step_y, t_max_y += t_delta_y;
     }
     if (t > params.max_ray_px || x < 0 || y < 0 || x >= e.cols || y >= e.rows) return Vote::none;
-    if (skip > 0 && e(y, x)) { --skip; continue; }
+    if (skip > 0 && e(y, x)) {
+      --skip;
+      continue;
+    }
     skip = 0;
     if (!e(y, x)) continue;
     // The shadow normal points away from the occluding surface: along the ray, the ray steps
@@ -92,9 +95,14 @@ GraspVisibility grasp_visibility(const DepthEdges& edges, const cv::Mat1b& own, 
     for (int r = 0; r < params.rays; ++r) {
       const double a = 2 * std::numbers::pi * (r + 0.5) / params.rays;
       switch (cast_ray(edges, own, p, std::cos(a), std::sin(a), params)) {
-        case Vote::own: ++own_edge; break;
-        case Vote::covered: ++covered; break;
-        case Vote::none: break;
+        case Vote::own:
+          ++own_edge;
+          break;
+        case Vote::covered:
+          ++covered;
+          break;
+        case Vote::none:
+          break;
       }
     }
     out.covered_votes += covered;
@@ -124,9 +132,10 @@ bool grasp_faces_camera(const GraspFeature& feature, const RigidPose& pose) {
   return cos_tilt >= std::cos(feature.max_tilt_deg * std::numbers::pi / 180.0);
 }
 
-GraspVisibility grasp_feature_visibility(const DepthEdges& edges, const TemplateDatabase& db, const PinholeCamera& camera,
-                                         const RigidPose& pose, const GraspFeature& feature, double own_tolerance_px,
-                                         cv::Mat1b& own, const GraspVisibilityParams& params) {
+GraspVisibility grasp_feature_visibility(const DepthEdges& edges, const TemplateDatabase& db,
+                                         const PinholeCamera& camera, const RigidPose& pose,
+                                         const GraspFeature& feature, double own_tolerance_px, cv::Mat1b& own,
+                                         const GraspVisibilityParams& params) {
   GraspVisibility out;
   if (!grasp_faces_camera(feature, pose)) {
     out.visible = 0;

@@ -40,9 +40,9 @@ struct GraspFeature {
 };
 
 struct GraspVisibilityParams {
-  int rays = 16;             // directions cast from every sample point
-  double max_ray_px = 160;   // how far a ray looks for an edge (about a part's projected size)
-  int ring_points = 6;       // sample points on the rim of the grasp disc, besides its centre
+  int rays = 16;            // directions cast from every sample point
+  double max_ray_px = 160;  // how far a ray looks for an edge (about a part's projected size)
+  int ring_points = 6;      // sample points on the rim of the grasp disc, besides its centre
   // A foreign edge met at a grazing angle (|cos| between the ray and the edge normal below
   // this) says nothing about which side the spot is on: the ray goes on past it.
   double min_cos = 0.25;
@@ -60,11 +60,11 @@ inline unsigned char encode_own_direction(double angle) {
 inline double decode_own_direction(unsigned char v) { return (v - 1) * 6.283185307179586 / 254.0; }
 
 struct GraspVisibility {
-  double visible = 1;     // 0..1: mean over the sample points of own / (own + covered) of their
-                          // rays; a sample point no ray told anything about counts 1
-  int own_votes = 0;      // rays whose surface ended at the part's own edge
-  int covered_votes = 0;  // rays whose surface stepped down onto something not the part's outline
-  int samples_outside = 0;  // sample points outside the image (count as covered)
+  double visible = 1;        // 0..1: mean over the sample points of own / (own + covered) of their
+                             // rays; a sample point no ray told anything about counts 1
+  int own_votes = 0;         // rays whose surface ended at the part's own edge
+  int covered_votes = 0;     // rays whose surface stepped down onto something not the part's outline
+  int samples_outside = 0;   // sample points outside the image (count as covered)
   bool faces_camera = true;  // the approach direction is within the feature's max_tilt_deg
 };
 
@@ -84,8 +84,9 @@ bool grasp_faces_camera(const GraspFeature& feature, const RigidPose& pose);
 // The whole test for part `db` at `pose`: facing the camera, then grasp_visibility with the
 // part's own edges taken from its nearest template view at the pose (within `own_tolerance_px`
 // of its projected points). `own` is a workspace: resized to the image on first use, left zero.
-GraspVisibility grasp_feature_visibility(const DepthEdges& edges, const TemplateDatabase& db, const PinholeCamera& camera,
-                                         const RigidPose& pose, const GraspFeature& feature, double own_tolerance_px,
-                                         cv::Mat1b& own, const GraspVisibilityParams& params = {});
+GraspVisibility grasp_feature_visibility(const DepthEdges& edges, const TemplateDatabase& db,
+                                         const PinholeCamera& camera, const RigidPose& pose,
+                                         const GraspFeature& feature, double own_tolerance_px, cv::Mat1b& own,
+                                         const GraspVisibilityParams& params = {});
 
 }  // namespace mfcd::vision

@@ -15,15 +15,19 @@ void GripperCheckParams::validate() const {
   if (min_edge_pixels < 0) fail("min_edge_pixels", "must be >= 0");
   if (!(max_cost_px > 0)) fail("max_cost_px", "must be > 0");
   if (!(min_inlier_fraction >= 0 && min_inlier_fraction <= 1)) fail("min_inlier_fraction", "must be in [0, 1]");
-  if (!(max_translation_mm >= 0) || !(max_rotation_deg >= 0)) fail("max_translation_mm/max_rotation_deg", "must be >= 0");
+  if (!(max_translation_mm >= 0) || !(max_rotation_deg >= 0))
+    fail("max_translation_mm/max_rotation_deg", "must be >= 0");
   refiner.validate();
 }
 
 const char* to_string(GraspState state) {
   switch (state) {
-    case GraspState::expected: return "expected";
-    case GraspState::pose_error: return "pose_error";
-    case GraspState::not_grasped: return "not_grasped";
+    case GraspState::expected:
+      return "expected";
+    case GraspState::pose_error:
+      return "pose_error";
+    case GraspState::not_grasped:
+      return "not_grasped";
   }
   return "?";
 }
@@ -44,8 +48,9 @@ GripperCheckResult GripperCheck::check(const PoseModel& model, const RigidTransf
     const std::string name = "gripper check: view " + std::to_string(k);
     if (v.image.empty()) throw std::invalid_argument(name + ": the image is empty");
     if (v.image.size() != v.camera.image_size)
-      throw std::invalid_argument(name + ": image is " + std::to_string(v.image.cols) + "x" + std::to_string(v.image.rows) +
-                                  " but its camera is " + std::to_string(v.camera.image_size.width) + "x" +
+      throw std::invalid_argument(name + ": image is " + std::to_string(v.image.cols) + "x" +
+                                  std::to_string(v.image.rows) + " but its camera is " +
+                                  std::to_string(v.camera.image_size.width) + "x" +
                                   std::to_string(v.camera.image_size.height));
     canny_.detect(v.image, edges_[k]);
     any_edges |= cv::countNonZero(edges_[k].edges) >= params_.min_edge_pixels;
@@ -70,16 +75,18 @@ GripperCheckResult GripperCheck::check(const PoseModel& model, const RigidTransf
   r.rotation_error_deg = degrees(rotation_difference(ideal, f.pose));
   char buf[256];
   if (f.failed || f.mean_cost_px > params_.max_cost_px || f.inlier_fraction < params_.min_inlier_fraction) {
-    std::snprintf(buf, sizeof buf, "part not found: cost %.2f px (max %.2f), inliers %.2f (min %.2f)%s",
-                  f.mean_cost_px, params_.max_cost_px, f.inlier_fraction, params_.min_inlier_fraction,
+    std::snprintf(buf, sizeof buf, "part not found: cost %.2f px (max %.2f), inliers %.2f (min %.2f)%s", f.mean_cost_px,
+                  params_.max_cost_px, f.inlier_fraction, params_.min_inlier_fraction,
                   f.failed ? ", refinement found too few correspondences" : "");
     r.reason = buf;
     return r;
   }
   r.pose = f.pose;
-  const bool off = r.translation_error_mm > params_.max_translation_mm || r.rotation_error_deg > params_.max_rotation_deg;
+  const bool off =
+      r.translation_error_mm > params_.max_translation_mm || r.rotation_error_deg > params_.max_rotation_deg;
   r.state = off ? GraspState::pose_error : GraspState::expected;
-  std::snprintf(buf, sizeof buf, "found: cost %.2f px, inliers %.2f, off ideal by %.2f mm, %.2f deg (limits %.2f mm, %.2f deg)",
+  std::snprintf(buf, sizeof buf,
+                "found: cost %.2f px, inliers %.2f, off ideal by %.2f mm, %.2f deg (limits %.2f mm, %.2f deg)",
                 f.mean_cost_px, f.inlier_fraction, r.translation_error_mm, r.rotation_error_deg,
                 params_.max_translation_mm, params_.max_rotation_deg);
   r.reason = buf;

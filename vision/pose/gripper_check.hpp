@@ -29,7 +29,7 @@ struct GripperView {
 
 struct GripperCheckParams {
   double canny_low = 30, canny_high = 90;
-  int min_edge_pixels = 30;            // fewer in every view: nothing in the gripper
+  int min_edge_pixels = 30;  // fewer in every view: nothing in the gripper
   double max_cost_px = 2.0;
   double min_inlier_fraction = 0.6;
   double max_translation_mm = 1.5;
@@ -55,11 +55,11 @@ const char* to_string(GraspState state);
 
 struct GripperCheckResult {
   GraspState state = GraspState::not_grasped;
-  RigidTransform pose;                 // refined (corrected) pose; the ideal one when not grasped
-  double translation_error_mm = 0;     // refined vs ideal: distance of the model origins
-  double rotation_error_deg = 0;       // refined vs ideal: angle of the relative rotation
+  RigidTransform pose;              // refined (corrected) pose; the ideal one when not grasped
+  double translation_error_mm = 0;  // refined vs ideal: distance of the model origins
+  double rotation_error_deg = 0;    // refined vs ideal: angle of the relative rotation
   RefinementResult refinement;
-  std::string reason;                  // why this state, with the figures
+  std::string reason;  // why this state, with the figures
 };
 
 class GripperCheck {

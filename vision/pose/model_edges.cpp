@@ -59,7 +59,8 @@ void ModelEdgeSampler::sample(const PoseModel& model, const RigidTransform& m2c,
   // Window: the projected bounding box plus a margin, limited to the image plus the margin.
   double x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300;
   for (int c = 0; c < 8; ++c) {
-    const cv::Vec3d corner((c & 1) ? model.bbox_max[0] : model.bbox_min[0], (c & 2) ? model.bbox_max[1] : model.bbox_min[1],
+    const cv::Vec3d corner((c & 1) ? model.bbox_max[0] : model.bbox_min[0],
+                           (c & 2) ? model.bbox_max[1] : model.bbox_min[1],
                            (c & 4) ? model.bbox_max[2] : model.bbox_min[2]);
     const cv::Vec3d p = m2c.apply(corner);
     if (!(p[2] > 1.0))
@@ -113,7 +114,8 @@ void ModelEdgeSampler::sample(const PoseModel& model, const RigidTransform& m2c,
     const cv::Point px = pixels_[k * n / keep];
     const double z = depth_(px.y, px.x);
     const cv::Vec3d p_cam((px.x - crop.cx()) * z / crop.fx(), (px.y - crop.cy()) * z / crop.fy(), z);
-    out.push_back({Rt * (p_cam - m2c.t), cv::Point2d(px.x + window_.x, px.y + window_.y), edge_tangent_at(mask_, px.x, px.y)});
+    out.push_back(
+        {Rt * (p_cam - m2c.t), cv::Point2d(px.x + window_.x, px.y + window_.y), edge_tangent_at(mask_, px.x, px.y)});
   }
 }
 

@@ -26,7 +26,7 @@ namespace mfcd::vision {
 // A part as the pose code sees it: its mesh in the renderer and its bounding box (to place
 // the render window).
 struct PoseModel {
-  int mesh_id = -1;  // from MfcRenderer::add_mesh
+  int mesh_id = -1;                                // from MfcRenderer::add_mesh
   cv::Vec3d bbox_min{0, 0, 0}, bbox_max{0, 0, 0};  // mm, model frame
 };
 inline PoseModel pose_model(int mesh_id, const Mesh& mesh) {
@@ -41,14 +41,14 @@ struct ModelEdgePoint {
 };
 
 struct ModelEdgeParams {
-  int max_points = 400;           // per view; evenly subsampled along the edge pixel list
-  float min_depth_jump_mm = 2.0f; // a neighbour farther by more than this makes a depth edge ...
-  float min_jump_ratio = 1.0f;    // ... than the near surface continued (its step times this)
-  bool creases = false;           // also use creases (visible folds of the surface)
+  int max_points = 400;            // per view; evenly subsampled along the edge pixel list
+  float min_depth_jump_mm = 2.0f;  // a neighbour farther by more than this makes a depth edge ...
+  float min_jump_ratio = 1.0f;     // ... than the near surface continued (its step times this)
+  bool creases = false;            // also use creases (visible folds of the surface)
   float crease_angle_deg = 30.0f;
   float crease_max_step_mm = 3.0f;
-  int margin_px = 6;              // window margin around the projected bounding box
-  int border_px = 2;              // points closer than this to the image border are dropped
+  int margin_px = 6;  // window margin around the projected bounding box
+  int border_px = 2;  // points closer than this to the image border are dropped
 };
 
 // Occluding edges of a depth image (0 = no surface): a surface pixel whose 4-neighbour shows no
@@ -59,7 +59,6 @@ struct ModelEdgeParams {
 // always an occluding edge, whatever the near surface's slope: the flashes cast a shadow there.
 void occluding_edges(const cv::Mat1f& depth_mm, float min_jump_mm, float min_jump_ratio, cv::Mat1b& edges,
                      const cv::Mat1b* part_index = nullptr);
-
 
 class ModelEdgeSampler {
  public:

@@ -36,7 +36,7 @@ namespace {
 
 // One 3-D-to-2-D correspondence of Eq. 22, with the normal of the matched detected edge.
 struct Correspondence {
-  double X[3];   // R0 * (X_model - centre): the model point rotated by the current estimate
+  double X[3];  // R0 * (X_model - centre): the model point rotated by the current estimate
   int view;
   double vx, vy;  // matched edge pixel
   double nx, ny;  // unit normal of the matched edge (tangent rotated by 90 degrees)
@@ -117,13 +117,13 @@ struct PoseRefiner::Impl {
   void ensure_slots(size_t n) {
     if (correspondences.size() < n) correspondences.resize(n);
     while (residuals.size() < n)
-      residuals.emplace_back(new ceres::AutoDiffCostFunction<PointToLine, 1, 3, 3>(new PointToLine{this, residuals.size()}));
+      residuals.emplace_back(
+          new ceres::AutoDiffCostFunction<PointToLine, 1, 3, 3>(new PointToLine{this, residuals.size()}));
   }
 };
 
 PoseRefiner::PoseRefiner(MfcRenderer& renderer, const RefinerParams& params)
-    : renderer_(renderer), params_(params), sampler_(renderer, params.model_edges),
-      impl_() {
+    : renderer_(renderer), params_(params), sampler_(renderer, params.model_edges), impl_() {
   sampler_.set_params(params_.model_edges);
   params_.validate();
   impl_ = std::make_unique<Impl>(params_);
@@ -177,7 +177,8 @@ double PoseRefiner::gate_at(int iteration) const {
   return params_.initial_gate_px * std::pow(params_.final_gate_px / params_.initial_gate_px, f);
 }
 
-RefinementResult PoseRefiner::refine(const PoseModel& model, const RigidTransform& initial, Clock::time_point deadline) {
+RefinementResult PoseRefiner::refine(const PoseModel& model, const RigidTransform& initial,
+                                     Clock::time_point deadline) {
   Impl& im = *impl_;
   if (im.views.empty()) throw std::logic_error("pose refiner: refine() called before prepare()");
   RefinementResult result;
@@ -234,7 +235,8 @@ RefinementResult PoseRefiner::refine(const PoseModel& model, const RigidTransfor
     // alike) to fit.
     double scale = 1;
     const double step_mm = cv::norm(cv::Vec3d(t[0], t[1], t[2]) - tc), step_rad = cv::norm(cv::Vec3d(w[0], w[1], w[2]));
-    const double max_mm = joint ? 0 : params_.first_view_max_step_mm, max_rad = joint ? 0 : radians(params_.first_view_max_step_deg);
+    const double max_mm = joint ? 0 : params_.first_view_max_step_mm,
+                 max_rad = joint ? 0 : radians(params_.first_view_max_step_deg);
     if (max_mm > 0 && step_mm > max_mm) scale = std::min(scale, max_mm / step_mm);
     if (max_rad > 0 && step_rad > max_rad) scale = std::min(scale, max_rad / step_rad);
     for (int i = 0; i < 3; ++i) {
@@ -246,7 +248,8 @@ RefinementResult PoseRefiner::refine(const PoseModel& model, const RigidTransfor
     next.t = cv::Vec3d(t[0], t[1], t[2]) - next.R * centre;
     double moved_px = 0;
     for (size_t k = 0; k < active; ++k)
-      if (!im.views[k].points.empty()) moved_px = std::max(moved_px, Impl::mean_displacement_px(im.views[k], pose, next));
+      if (!im.views[k].points.empty())
+        moved_px = std::max(moved_px, Impl::mean_displacement_px(im.views[k], pose, next));
     pose = next;
     result.iterations = it + 1;
     refresh = false;
@@ -291,8 +294,9 @@ void PoseRefiner::evaluate_into(const PoseModel& model, RefinementResult& result
     }
     for (const ModelEdgePoint& mp : v.points) {
       const cv::Vec3d pc = m2c.apply(mp.point_model);
-      const EdgeMatch m = pc[2] > 1e-6 ? v.index.nearest(v.input.camera.project(pc), mp.angle, params_.lambda_px_per_rad, gate)
-                                       : EdgeMatch{};
+      const EdgeMatch m = pc[2] > 1e-6
+                              ? v.index.nearest(v.input.camera.project(pc), mp.angle, params_.lambda_px_per_rad, gate)
+                              : EdgeMatch{};
       const double cost = m.found ? m.cost : gate;
       sum += cost;
       inliers += cost <= params_.inlier_cost_px;

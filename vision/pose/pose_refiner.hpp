@@ -30,27 +30,27 @@
 namespace mfcd::vision {
 
 struct RefinementView {
-  const DepthEdges* edges = nullptr;  // borrowed; must outlive the refine() calls
-  PinholeCamera camera;               // edges.size() must equal camera.image_size
-  RigidTransform reference_to_camera; // identity when the reference frame is this camera's
+  const DepthEdges* edges = nullptr;   // borrowed; must outlive the refine() calls
+  PinholeCamera camera;                // edges.size() must equal camera.image_size
+  RigidTransform reference_to_camera;  // identity when the reference frame is this camera's
 };
 
 struct RefinerParams {
-  int max_iterations = 20;          // outer (correspondence) iterations; the paper: ~20 suffice
-  int first_view_iterations = 2;    // view 0 alone for these, then all views
-  int solver_iterations = 4;        // Ceres (Levenberg-Marquardt) iterations per outer iteration
+  int max_iterations = 20;                            // outer (correspondence) iterations; the paper: ~20 suffice
+  int first_view_iterations = 2;                      // view 0 alone for these, then all views
+  int solver_iterations = 4;                          // Ceres (Levenberg-Marquardt) iterations per outer iteration
   double lambda_px_per_rad = kDefaultLambdaPxPerRad;  // Eq. 21 orientation weight (6 deg = 1 px)
   // Re-estimate the detected edges' directions from their pixel chains (edge_tangents, the
   // estimator used for the model's edges) instead of using DepthEdges::direction: the
   // extractors' per-pixel gradient directions scatter by 10-20 degrees on depth edges, which
   // Eq. 21 charges 2-3 px for.
   bool edge_directions_from_chains = true;
-  double initial_gate_px = 24;      // correspondence gate (max Eq. 21 cost) at iteration 0 ...
-  double final_gate_px = 4;         // ... shrinking geometrically to this
-  int gate_shrink_iterations = 8;   // iterations over which the gate shrinks
+  double initial_gate_px = 24;     // correspondence gate (max Eq. 21 cost) at iteration 0 ...
+  double final_gate_px = 4;        // ... shrinking geometrically to this
+  int gate_shrink_iterations = 8;  // iterations over which the gate shrinks
   enum class Loss { huber, cauchy };
-  Loss loss = Loss::huber;          // robust loss on the point-to-line residuals ...
-  double loss_scale_px = 1.0;       // ... and its scale
+  Loss loss = Loss::huber;     // robust loss on the point-to-line residuals ...
+  double loss_scale_px = 1.0;  // ... and its scale
   // Largest pose change one iteration of the view-0-only phase may make (the update is scaled
   // down to fit). A single view leaves some directions weak (depth, tilt of flat parts), and
   // a long step on view 0's correspondences alone can walk into a false minimum of the
@@ -70,7 +70,7 @@ struct RefinerParams {
   // are rendered again and the iterations go on (stale points bias the pose by a few 0.01 mm).
   double converged_px = 0.02;
   double fresh_px = 0.1;
-  int min_correspondences = 12;     // fewer in an iteration: refinement fails
+  int min_correspondences = 12;  // fewer in an iteration: refinement fails
   // Final evaluation: a model point is an inlier when its Eq. 21 cost is <= inlier_cost_px;
   // costs are truncated at final_gate_px for the mean.
   double inlier_cost_px = 2.0;
@@ -80,16 +80,16 @@ struct RefinerParams {
 };
 
 struct RefinementResult {
-  RigidTransform pose;           // refined model -> reference
-  double mean_cost_px = 0;       // mean Eq. 21 cost (truncated) of the model edges at `pose`
-  double inlier_fraction = 0;    // model edge points with cost <= inlier_cost_px
-  double score = 0;              // [0, 1]: inlier_fraction * (1 - mean_cost_px / final_gate_px)
-  int iterations = 0;            // outer iterations run
-  int model_points = 0;          // model edge points evaluated at the final pose (all views)
-  int renders = 0;               // model renders, including the final evaluation
-  bool converged = false;        // the pose stopped moving before max_iterations
-  bool deadline_hit = false;     // cut short by the deadline: best-so-far pose
-  bool failed = false;           // too few correspondences (pose = last good estimate)
+  RigidTransform pose;         // refined model -> reference
+  double mean_cost_px = 0;     // mean Eq. 21 cost (truncated) of the model edges at `pose`
+  double inlier_fraction = 0;  // model edge points with cost <= inlier_cost_px
+  double score = 0;            // [0, 1]: inlier_fraction * (1 - mean_cost_px / final_gate_px)
+  int iterations = 0;          // outer iterations run
+  int model_points = 0;        // model edge points evaluated at the final pose (all views)
+  int renders = 0;             // model renders, including the final evaluation
+  bool converged = false;      // the pose stopped moving before max_iterations
+  bool deadline_hit = false;   // cut short by the deadline: best-so-far pose
+  bool failed = false;         // too few correspondences (pose = last good estimate)
 };
 
 class PoseRefiner {

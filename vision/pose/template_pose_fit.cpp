@@ -93,7 +93,13 @@ class PointPlacer {
   // the views' own profile out of the offsets), else null.
   PointPlacer(const TemplatePoseFit::Workspace& ws, const RigidPose& pose, const PinholeCamera& camera, double turn,
               double period, const EdgeOffsetProfile* query_offset)
-      : ws_(ws), pose_(pose), camera_(camera), turn_(turn), period_(period), ct_(std::cos(turn)), st_(std::sin(turn)),
+      : ws_(ws),
+        pose_(pose),
+        camera_(camera),
+        turn_(turn),
+        period_(period),
+        ct_(std::cos(turn)),
+        st_(std::sin(turn)),
         query_offset_(query_offset) {}
   // Point i's image position `at`, its offset there `shift` (at = projection + shift) and its
   // tangent angle in [0, period); false when it lies behind the camera.
@@ -231,9 +237,9 @@ double point_to_line_residual(const RigidPose& pose, const cv::Vec3d& centre_cam
     // d(u, v)/dp, then dp/dw = -[p - c]x (rotation about the centre), dp/dtau = I.
     const double gx = normal[0] * camera.fx() * iz, gy = normal[1] * camera.fy() * iz;
     const double gz = -(normal[0] * camera.fx() * p[0] + normal[1] * camera.fy() * p[1]) * iz * iz;
-    const cv::Vec3d g(gx, gy, gz);           // dr/dp
+    const cv::Vec3d g(gx, gy, gz);  // dr/dp
     const cv::Vec3d a = p - centre_cam;
-    const cv::Vec3d gw = a.cross(g);         // dr/dw = g^T (-[a]x) = (a x g)^T
+    const cv::Vec3d gw = a.cross(g);  // dr/dw = g^T (-[a]x) = (a x g)^T
     *jacobian = cv::Matx16d(gw[0], gw[1], gw[2], g[0], g[1], g[2]);
   }
   return r;
@@ -410,9 +416,10 @@ TemplateFitResult TemplatePoseFit::fit(const TemplateDatabase& db, int view, con
   return r;
 }
 
-int TemplatePoseFit::accumulate(const TemplateDatabase& db, int view, const RigidPose& pose, const cv::Vec3d& centre_cam,
-                                const PinholeCamera& camera, double gate, const Workspace& ws,
-                                const cv::Matx33d* update_to_camera, cv::Matx66d& H, cv::Vec6d& g) const {
+int TemplatePoseFit::accumulate(const TemplateDatabase& db, int view, const RigidPose& pose,
+                                const cv::Vec3d& centre_cam, const PinholeCamera& camera, double gate,
+                                const Workspace& ws, const cv::Matx33d* update_to_camera, cv::Matx66d& H,
+                                cv::Vec6d& g) const {
   const PointPlacer placer(ws, pose, camera, in_plane_angle(db, view, pose, camera), period(), query_offset(db));
   int n = 0;
   for (size_t i = 0; i < ws.model.size(); ++i) {
@@ -509,8 +516,7 @@ TemplatePoseFit::Difference TemplatePoseFit::compare(const TemplateDatabase& db,
 SurfaceGrid part_surface(const TemplateDatabase& db) { return SurfaceGrid(db.mesh, 0.25, 0.5); }
 
 std::vector<std::vector<uint8_t>> asymmetric_points(const TemplateDatabase& db, const SurfaceGrid& surface,
-                                                    const cv::Matx33d& turn, double* share,
-                                                    const cv::Vec3d* pivot_mm) {
+                                                    const cv::Matx33d& turn, double* share, const cv::Vec3d* pivot_mm) {
   const cv::Vec3d c = pivot_mm ? *pivot_mm : db.center_mm;
   std::vector<std::vector<uint8_t>> out;
   out.reserve(db.views.size());

@@ -33,14 +33,14 @@
 namespace mfcd::vision {
 
 struct TemplateFitParams {
-  int max_points = 160;          // template points used per view (evenly subsampled)
-  int iterations = 8;            // Gauss-Newton steps
-  double initial_gate_px = 10;   // correspondence gate (Eq. 21 cost) at the first step ...
-  double final_gate_px = 3;      // ... shrinking geometrically to this at the last
-  double huber_px = 1.0;         // Huber weight scale of the point-to-line residuals
-  double damping = 1e-3;         // Levenberg-Marquardt damping, relative to the diagonal
-  double score_gate_px = 4;      // evaluation: costs truncated here ...
-  double inlier_cost_px = 2;     // ... and a point is an inlier at or below this
+  int max_points = 160;         // template points used per view (evenly subsampled)
+  int iterations = 8;           // Gauss-Newton steps
+  double initial_gate_px = 10;  // correspondence gate (Eq. 21 cost) at the first step ...
+  double final_gate_px = 3;     // ... shrinking geometrically to this at the last
+  double huber_px = 1.0;        // Huber weight scale of the point-to-line residuals
+  double damping = 1e-3;        // Levenberg-Marquardt damping, relative to the diagonal
+  double score_gate_px = 4;     // evaluation: costs truncated here ...
+  double inlier_cost_px = 2;    // ... and a point is an inlier at or below this
   double lambda_px_per_rad = kDefaultLambdaPxPerRad;
   int min_correspondences = 12;  // fewer: the step is skipped and the fit ends
   // Move each placed point by the difference between the query's and the views' edge offset
@@ -51,22 +51,22 @@ struct TemplateFitParams {
   // fit() scores its result (mean cost, inliers, coverage); false leaves those at 0, for a refit
   // whose pose alone is wanted.
   bool score_result = true;
-  void validate() const;         // throws std::invalid_argument naming the field
+  void validate() const;  // throws std::invalid_argument naming the field
 };
 
 struct TemplateFitResult {
-  RigidPose pose;               // model -> camera
-  int view = -1;                // template view whose points were used last
-  double mean_cost_px = 0;      // mean Eq. 21 cost, truncated at score_gate_px
-  double inlier_fraction = 0;   // points with cost <= inlier_cost_px
-  double score = 0;             // inlier_fraction * (1 - mean_cost_px / score_gate_px), [0, 1]
+  RigidPose pose;              // model -> camera
+  int view = -1;               // template view whose points were used last
+  double mean_cost_px = 0;     // mean Eq. 21 cost, truncated at score_gate_px
+  double inlier_fraction = 0;  // points with cost <= inlier_cost_px
+  double score = 0;            // inlier_fraction * (1 - mean_cost_px / score_gate_px), [0, 1]
   // The converse check: the fraction of the image's edge pixels inside the part's outline at
   // the pose that lie within 2 px of one of the view's points. Chamfer costs only ask whether
   // the template's edges are in the image; a flat part seen from the back (fewer inner edges)
   // scores as well as its front there, but leaves the front's inner edges unexplained.
   double coverage = 0;
-  int points = 0;               // template points evaluated
-  int iterations = 0;           // steps taken
+  int points = 0;      // template points evaluated
+  int iterations = 0;  // steps taken
 };
 
 class TemplatePoseFit {
@@ -74,14 +74,14 @@ class TemplatePoseFit {
   // Per-thread buffers, reused between fits (no allocation once they have grown). Cache-line
   // aligned: the threads' workspaces lie side by side, and their vectors' ends change per point.
   struct alignas(64) Workspace {
-    std::vector<cv::Vec3d> model;  // the view's points in use, model frame
-    std::vector<float> angle;      // their template tangent angles
-    std::vector<cv::Vec2d> offset; // detected edge pixel minus the model point's projection, template view
-    std::vector<cv::Point> placed;        // coverage: all the view's points at the pose
-    ConvexRegion region;                  // ... their hull and the pixels inside it
+    std::vector<cv::Vec3d> model;             // the view's points in use, model frame
+    std::vector<float> angle;                 // their template tangent angles
+    std::vector<cv::Vec2d> offset;            // detected edge pixel minus the model point's projection, template view
+    std::vector<cv::Point> placed;            // coverage: all the view's points at the pose
+    ConvexRegion region;                      // ... their hull and the pixels inside it
     std::vector<cv::Point2d> seen_a, seen_b;  // compare(): the two poses' points in the image
     std::vector<double> angle_a, angle_b;     // ... and their image tangent angles
-    cv::Mat1b explained;                  // coverage mask, image size, kept zero outside use
+    cv::Mat1b explained;                      // coverage mask, image size, kept zero outside use
   };
 
   explicit TemplatePoseFit(const TemplateFitParams& params = {});
@@ -137,8 +137,8 @@ class TemplatePoseFit {
   // each side further to its flagged points.
   static constexpr double kCompareGatePx = 10;
   struct Difference {
-    int only_a = 0, only_b = 0;         // points of each with no counterpart in the other
-    double found_a = 0, found_b = 0;    // share of those on image edges
+    int only_a = 0, only_b = 0;       // points of each with no counterpart in the other
+    double found_a = 0, found_b = 0;  // share of those on image edges
     // Their mean Eq. 21 cost, truncated at kCompareGatePx (kCompareGatePx when there are none):
     // how near edges they lie, also when few lie on one. A small feature fitted from a template
     // view a few degrees off its pose lands 2-5 px beside its edges, where the share found says

@@ -24,17 +24,28 @@ constexpr int kFlashes = 8;
 
 const char* egl_error_name(EGLint e) {
   switch (e) {
-    case EGL_SUCCESS: return "EGL_SUCCESS";
-    case EGL_NOT_INITIALIZED: return "EGL_NOT_INITIALIZED";
-    case EGL_BAD_ACCESS: return "EGL_BAD_ACCESS";
-    case EGL_BAD_ALLOC: return "EGL_BAD_ALLOC";
-    case EGL_BAD_ATTRIBUTE: return "EGL_BAD_ATTRIBUTE";
-    case EGL_BAD_CONFIG: return "EGL_BAD_CONFIG";
-    case EGL_BAD_CONTEXT: return "EGL_BAD_CONTEXT";
-    case EGL_BAD_DISPLAY: return "EGL_BAD_DISPLAY";
-    case EGL_BAD_MATCH: return "EGL_BAD_MATCH";
-    case EGL_BAD_PARAMETER: return "EGL_BAD_PARAMETER";
-    default: return "EGL error";
+    case EGL_SUCCESS:
+      return "EGL_SUCCESS";
+    case EGL_NOT_INITIALIZED:
+      return "EGL_NOT_INITIALIZED";
+    case EGL_BAD_ACCESS:
+      return "EGL_BAD_ACCESS";
+    case EGL_BAD_ALLOC:
+      return "EGL_BAD_ALLOC";
+    case EGL_BAD_ATTRIBUTE:
+      return "EGL_BAD_ATTRIBUTE";
+    case EGL_BAD_CONFIG:
+      return "EGL_BAD_CONFIG";
+    case EGL_BAD_CONTEXT:
+      return "EGL_BAD_CONTEXT";
+    case EGL_BAD_DISPLAY:
+      return "EGL_BAD_DISPLAY";
+    case EGL_BAD_MATCH:
+      return "EGL_BAD_MATCH";
+    case EGL_BAD_PARAMETER:
+      return "EGL_BAD_PARAMETER";
+    default:
+      return "EGL error";
   }
 }
 
@@ -53,15 +64,27 @@ Mat4 to_gl(const cv::Matx44d& m) {
 // first row is image row 0. Depth is mapped to [near, far] in the usual OpenGL way.
 cv::Matx44d clip_from_camera(const cv::Matx33d& K, cv::Size size, double n, double f) {
   const double W = size.width, H = size.height;
-  return {2 * K(0, 0) / W, 2 * K(0, 1) / W, 2 * (K(0, 2) + 0.5) / W - 1, 0,
-          0, 2 * K(1, 1) / H, 2 * (K(1, 2) + 0.5) / H - 1, 0,
-          0, 0, (f + n) / (f - n), -2 * f * n / (f - n),
-          0, 0, 1, 0};
+  return {2 * K(0, 0) / W,
+          2 * K(0, 1) / W,
+          2 * (K(0, 2) + 0.5) / W - 1,
+          0,
+          0,
+          2 * K(1, 1) / H,
+          2 * (K(1, 2) + 0.5) / H - 1,
+          0,
+          0,
+          0,
+          (f + n) / (f - n),
+          -2 * f * n / (f - n),
+          0,
+          0,
+          1,
+          0};
 }
 
 cv::Matx44d model_matrix(const cv::Matx33d& R, const cv::Vec3d& t) {
   return {R(0, 0), R(0, 1), R(0, 2), t[0], R(1, 0), R(1, 1), R(1, 2), t[1],
-          R(2, 0), R(2, 1), R(2, 2), t[2], 0, 0, 0, 1};
+          R(2, 0), R(2, 1), R(2, 2), t[2], 0,       0,       0,       1};
 }
 
 constexpr const char* kSceneVs = R"(#version 330 core
@@ -229,8 +252,9 @@ MfcRenderer::MfcRenderer(const CameraConfig& config, const RenderOptions& option
   EGLConfig egl_config = nullptr;
   EGLint n = 0;
   if (!eglChooseConfig(gl_->display, config_attribs, &egl_config, 1, &n) || n < 1) egl_config = nullptr;
-  const EGLint ctx_attribs[] = {EGL_CONTEXT_MAJOR_VERSION, 3, EGL_CONTEXT_MINOR_VERSION, 3,
-                                EGL_CONTEXT_OPENGL_PROFILE_MASK, EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT, EGL_NONE};
+  const EGLint ctx_attribs[] = {
+      EGL_CONTEXT_MAJOR_VERSION,           3,       EGL_CONTEXT_MINOR_VERSION, 3, EGL_CONTEXT_OPENGL_PROFILE_MASK,
+      EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT, EGL_NONE};
   gl_->context = eglCreateContext(gl_->display, egl_config, EGL_NO_CONTEXT, ctx_attribs);
   if (gl_->context == EGL_NO_CONTEXT)
     gl_fail(std::string("cannot create an OpenGL 3.3 core context (") + egl_error_name(eglGetError()) + ")");
@@ -242,8 +266,7 @@ MfcRenderer::MfcRenderer(const CameraConfig& config, const RenderOptions& option
   const int S = options_.shadow_map_size;
   glGenTextures(1, &gl_->shadow_tex);
   glBindTexture(GL_TEXTURE_2D_ARRAY, gl_->shadow_tex);
-  glTexImage3D(GL_TEXTURE_2D_ARRAY, 0, GL_DEPTH_COMPONENT32F, S, S, kFlashes, 0, GL_DEPTH_COMPONENT, GL_FLOAT,
-               nullptr);
+  glTexImage3D(GL_TEXTURE_2D_ARRAY, 0, GL_DEPTH_COMPONENT32F, S, S, kFlashes, 0, GL_DEPTH_COMPONENT, GL_FLOAT, nullptr);
   glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
   glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
   glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
@@ -364,7 +387,8 @@ void MfcRenderer::draw_scene(std::span<const ScenePart> parts, bool shading) {
     glRenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT32F, size.width, size.height);
     glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, g.depth_rb);
     if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
-      gl_fail("float render target incomplete (" + std::to_string(size.width) + "x" + std::to_string(size.height) + ")");
+      gl_fail("float render target incomplete (" + std::to_string(size.width) + "x" + std::to_string(size.height) +
+              ")");
     g.fbo_size = size;
   }
   for (const auto& p : parts)

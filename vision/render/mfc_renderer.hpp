@@ -77,9 +77,9 @@ struct RenderOptions {
 };
 
 struct MfcRender {
-  MfcFrames frames;          // 8 flash images (each includes the ambient light) + ambient
-  cv::Mat1f depth_mm;        // z of the visible surface in the camera frame; 0 where no part
-  cv::Mat1b part_index;      // 0 where no part, k where parts[k - 1] is visible
+  MfcFrames frames;                     // 8 flash images (each includes the ambient light) + ambient
+  cv::Mat1f depth_mm;                   // z of the visible surface in the camera frame; 0 where no part
+  cv::Mat1b part_index;                 // 0 where no part, k where parts[k - 1] is visible
   std::vector<cv::Mat1f> flash_linear;  // noise-free, unquantised flash images (DN), same order
   cv::Mat1f ambient_linear;
 };

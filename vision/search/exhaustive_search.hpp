@@ -40,16 +40,16 @@ struct SearchParams {
   double threshold = std::numeric_limits<double>::infinity();  // tau, px (mean cost per pixel)
   bool hypothesisBound = true;
   bool spatialBound = true;
-  double spatialReach = 4.0;    // px followed past tau so that the spatial bound can skip (docs/benchmarks.md)
+  double spatialReach = 4.0;  // px followed past tau so that the spatial bound can skip (docs/benchmarks.md)
   size_t maxCandidates = 200000;
-  int threads = 0;              // 0: OpenMP default
+  int threads = 0;  // 0: OpenMP default
 };
 
 struct Candidate {
   int oriented = -1;  // index into the oriented template list
   int tx = 0, ty = 0;
-  uint32_t sum = 0;   // cost sum, 1/kCostScale px units
-  int pixels = 1;     // template pixels (normaliser)
+  uint32_t sum = 0;  // cost sum, 1/kCostScale px units
+  int pixels = 1;    // template pixels (normaliser)
   double cost() const { return double(sum) / (double(kCostScale) * pixels); }
 };
 
@@ -68,7 +68,10 @@ struct SearchStats {
   uint64_t skipped = 0;     // hypotheses skipped by the spatial bound
   uint64_t segments = 0;    // segment evaluations (lines read)
   SearchStats& operator+=(const SearchStats& o) {
-    hypotheses += o.hypotheses; evaluated += o.evaluated; skipped += o.skipped; segments += o.segments;
+    hypotheses += o.hypotheses;
+    evaluated += o.evaluated;
+    skipped += o.skipped;
+    segments += o.segments;
     return *this;
   }
 };
@@ -76,7 +79,7 @@ struct SearchStats {
 struct SearchResult {
   std::vector<Candidate> candidates;  // Best: at most one; Detect: sorted by `better`
   SearchStats stats;
-  bool truncated = false;             // Detect: more than maxCandidates passed the threshold
+  bool truncated = false;  // Detect: more than maxCandidates passed the threshold
 };
 
 namespace detail {

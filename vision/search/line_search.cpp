@@ -68,8 +68,8 @@ bool keepBest(std::vector<Candidate>& kept, size_t keep, int sep, const Candidat
 
 template <class Matcher, class At>
 void lineSearchWith(const Matcher& matcher, At at, const std::vector<OrientedTemplate>& templates,
-                    const std::vector<LineSegment>& queryLines, const LineSearchParams& params,
-                    LineSearchWorkspace& ws, SearchResult& result) {
+                    const std::vector<LineSegment>& queryLines, const LineSearchParams& params, LineSearchWorkspace& ws,
+                    SearchResult& result) {
   const int W = matcher.width(), H = matcher.height();
   const bool detect = params.mode == SearchMode::Detect;
   result.candidates.clear();

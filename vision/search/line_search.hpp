@@ -16,8 +16,8 @@
 namespace mfcd::vision {
 
 struct LineSearchParams {
-  int templateLines = 5;   // longest template segments used as guides
-  int queryLines = 40;     // longest query segments used as guides
+  int templateLines = 5;  // longest template segments used as guides
+  int queryLines = 40;    // longest query segments used as guides
   // Only slide positions where the guide and the query segment overlap by at least this
   // fraction of the shorter of the two: under the right alignment one contains most of the
   // other (a fragment of an occluded edge lies inside the template line; a query line that

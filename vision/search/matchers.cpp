@@ -75,7 +75,9 @@ void ChamferCosts::compute(const cv::Mat1b& channelMap, const Dt3Params& params)
 }
 
 ChamferMatcher::ChamferMatcher(const ChamferCosts& costs, Kind kind)
-    : costs_(costs), kind_(kind), pattern_(OrientationChannels(costs.q, costs.oriented), kMaxSegmentSpan + 1, kMaxSegmentSpan + 1) {
+    : costs_(costs),
+      kind_(kind),
+      pattern_(OrientationChannels(costs.q, costs.oriented), kMaxSegmentSpan + 1, kMaxSegmentSpan + 1) {
   const int q = costs.q;
   const OrientationChannels ch(q, costs.oriented);
   orientationCost_.assign(static_cast<size_t>(q) * 256, 0);

@@ -28,7 +28,7 @@
 namespace mfcd::vision {
 
 class FdcmMatcher {
-public:
+ public:
   explicit FdcmMatcher(const IntegralDistanceTransform& idt) : idt_(idt) {}
   static constexpr bool kLipschitz = true;  // the spatial bound is valid for this cost
   int width() const { return idt_.width(); }
@@ -76,8 +76,7 @@ public:
   // the caches); issued one slide position ahead, they load while the current one is summed.
   // `ends`, when given (room for `count`), receives the entries' addresses for evaluateFrom().
   // Returns how many segments it prefetched.
-  size_t prefetchAt(const OrientedTemplate& t, int tx, int ty, size_t count,
-                    const uint16_t** ends = nullptr) const {
+  size_t prefetchAt(const OrientedTemplate& t, int tx, int ty, size_t count, const uint16_t** ends = nullptr) const {
     count = std::min(count, t.segments.size());
     for (size_t k = 0; k < count; ++k) {
       const auto& seg = t.segments[k];
@@ -113,7 +112,7 @@ public:
     return sum;
   }
 
-private:
+ private:
   // GCC 12 drops __builtin_prefetch here (no instruction is emitted at -O1 and above, measured
   // with -S), so on x86-64 the instruction is written out.
   static void prefetch(const uint16_t* p) {
@@ -138,7 +137,7 @@ struct ChamferCosts {
 };
 
 class ChamferMatcher {
-public:
+ public:
   enum class Kind { Chamfer, OrientedChamfer };
   ChamferMatcher(const ChamferCosts& costs, Kind kind);
   int width() const { return costs_.distance.cols; }
@@ -160,15 +159,15 @@ public:
   void beginRow(State& s, int ty) const { s.row = ty * costs_.distance.cols; }
   uint32_t evaluate(const State& s, int tx, uint32_t stop, uint64_t& segments) const;
 
-private:
+ private:
   const ChamferCosts& costs_;
   Kind kind_;
-  DigitalLineTable pattern_;  // each segment's pixels follow its channel's pattern from k = 0
+  DigitalLineTable pattern_;              // each segment's pixels follow its channel's pattern from k = 0
   std::vector<uint8_t> orientationCost_;  // [templateChannel * q + nearestChannel]
 };
 
 class DirectDcmMatcher {
-public:
+ public:
   explicit DirectDcmMatcher(const DirectionalDistanceTransform& dt3);
   static constexpr bool kLipschitz = true;
   int width() const { return dt3_.width(); }
@@ -181,15 +180,17 @@ public:
   void beginRow(State& s, int ty) const { s.ty = ty; }
   uint32_t evaluate(const State& s, int tx, uint32_t stop, uint64_t& segments) const;
 
-private:
+ private:
   const DirectionalDistanceTransform& dt3_;
   DigitalLineTable lines_;
 };
 
 template <class M>
 inline bool matcherIsLipschitz(const M& m) {
-  if constexpr (requires { m.lipschitz(); }) return m.lipschitz();
-  else return M::kLipschitz;
+  if constexpr (requires { m.lipschitz(); })
+    return m.lipschitz();
+  else
+    return M::kLipschitz;
 }
 
 }  // namespace mfcd::vision

@@ -88,11 +88,16 @@ void orientTemplate(const LineSet& set, int templateIndex, const Warp& warp, Ori
         ax1 = seg.x + std::max(0, spanMinor) + 1;
       }
       if (first) {
-        t.x0 = ax0; t.x1 = ax1; t.y0 = ay0; t.y1 = ay1;
+        t.x0 = ax0;
+        t.x1 = ax1;
+        t.y0 = ay0;
+        t.y1 = ay1;
         first = false;
       } else {
-        t.x0 = std::min(t.x0, ax0); t.x1 = std::max(t.x1, ax1);
-        t.y0 = std::min(t.y0, ay0); t.y1 = std::max(t.y1, ay1);
+        t.x0 = std::min(t.x0, ax0);
+        t.x1 = std::max(t.x1, ax1);
+        t.y0 = std::min(t.y0, ay0);
+        t.y1 = std::max(t.y1, ay1);
       }
     }
   }

@@ -12,7 +12,7 @@
 namespace mfcd::vision {
 
 struct Warp {
-  double angle = 0;   // in-plane rotation, radians (image axes: positive turns x towards y)
+  double angle = 0;  // in-plane rotation, radians (image axes: positive turns x towards y)
   double scale = 1;
   double aspect = 1;  // x stretched by aspect before rotation
   cv::Matx22d matrix() const;
@@ -51,9 +51,9 @@ void reserveOrientedTemplate(const LineSet& set, double max_stretch, OrientedTem
 
 // The hypothesis grid of the search: rotations, scales, aspects.
 struct WarpGrid {
-  double angleMin = 0;                  // radians; full turn by default
+  double angleMin = 0;  // radians; full turn by default
   double angleMax = 2 * 3.14159265358979323846;
-  int angleStepChannels = 1;            // rotation step in channel steps (OrientationChannels::step); 1 keeps channels exact
+  int angleStepChannels = 1;  // rotation step in channel steps (OrientationChannels::step); 1 keeps channels exact
   std::vector<double> scales{1.0};
   std::vector<double> aspects{1.0};
 

@@ -43,9 +43,9 @@ struct EdgeOffsetProfile {
 
 // What a profile is measured under: the template renders' conditions or the query's.
 struct EdgeProfileConditions {
-  bool noise = true;           // the camera's sensor noise (RenderOptions::noise)
-  double floor_gap_mm = 7;     // floor this far below the plate's underside (shadow width)
-  int turns = 36;              // in-plane turns of the plate over 90 degrees (each shows 4 sides)
+  bool noise = true;        // the camera's sensor noise (RenderOptions::noise)
+  double floor_gap_mm = 7;  // floor this far below the plate's underside (shadow width)
+  int turns = 36;           // in-plane turns of the plate over 90 degrees (each shows 4 sides)
 };
 
 // Renders a 40 x 40 x 6 mm plate lying flat `distance_mm` from the camera (its top face) over a

@@ -263,9 +263,12 @@ PartSymmetry PartSymmetry::parse(const std::string& text) {
 
 std::string PartSymmetry::str() const {
   switch (kind) {
-    case Kind::none: return "none";
-    case Kind::discrete_z: return "z:" + std::to_string(order);
-    case Kind::continuous_z: return "z:inf";
+    case Kind::none:
+      return "none";
+    case Kind::discrete_z:
+      return "z:" + std::to_string(order);
+    case Kind::continuous_z:
+      return "z:inf";
   }
   return "none";
 }
@@ -375,14 +378,13 @@ TemplateDatabase load_template_database(const std::filesystem::path& file) {
     throw TemplateFileError(src + ": truncated: payload has " + std::to_string(have) + " of " +
                             std::to_string(payload_bytes) + " bytes");
   if (have > payload_bytes)
-    throw TemplateFileError(src + ": " + std::to_string(have - payload_bytes) +
-                            " unexpected bytes after the payload");
+    throw TemplateFileError(src + ": " + std::to_string(have - payload_bytes) + " unexpected bytes after the payload");
   const uint8_t* payload = bytes.data() + kHeaderBytes;
   const uint32_t actual = crc_of(payload, payload_bytes);
   if (actual != crc) {
     char msg[96];
-    std::snprintf(msg, sizeof msg, ": checksum mismatch (header CRC-32 %08x, payload %08x): the file is corrupt",
-                  crc, actual);
+    std::snprintf(msg, sizeof msg, ": checksum mismatch (header CRC-32 %08x, payload %08x): the file is corrupt", crc,
+                  actual);
     throw TemplateFileError(src + msg);
   }
 

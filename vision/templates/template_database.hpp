@@ -42,22 +42,22 @@ struct PartSymmetry {
 
 // One edge pixel of a template view and the model point it images.
 struct TemplateEdgePoint {
-  cv::Point2f pixel;     // relative to the view's origin (image of the part centre)
+  cv::Point2f pixel;  // relative to the view's origin (image of the part centre)
   // Edge tangent of the pixel chain (edge_tangents), radians, image axes, oriented: in [0, 2 pi),
   // turned so that its left normal (-sin, cos) points into the shadow, away from the part
   // (oriented_tangent). Modulo pi it is the undirected tangent.
   float direction = 0;
-  cv::Vec3f model_mm;    // the visible surface point on the near side of the depth edge, model frame
+  cv::Vec3f model_mm;  // the visible surface point on the near side of the depth edge, model frame
 };
 
 struct TemplateView {
   int index = 0;
-  cv::Vec3d view_direction;             // unit vector from the part centre towards the camera, model frame
+  cv::Vec3d view_direction;                // unit vector from the part centre towards the camera, model frame
   cv::Matx33d R_m2c = cv::Matx33d::eye();  // pose the view was rendered at: p_cam = R_m2c p_model + t_m2c
   cv::Vec3d t_m2c_mm{0, 0, 0};
-  LineSet lines;                        // origin = image of the part centre (the principal point)
+  LineSet lines;  // origin = image of the part centre (the principal point)
   std::vector<TemplateEdgePoint> points;
-  cv::Rect2f box;                       // bounding box of the edge pixels, relative to the origin
+  cv::Rect2f box;  // bounding box of the edge pixels, relative to the origin
 };
 
 struct TemplateDatabase {
@@ -67,7 +67,7 @@ struct TemplateDatabase {
   static constexpr uint32_t kOldestVersion = 6;
 
   std::string part_name;
-  int obj_id = 0;                  // BOP object id
+  int obj_id = 0;  // BOP object id
   // What counts as the same pose of the part: the turns a gripper and the evaluation do not tell
   // apart, and the pose checks' turns (phase turns for an N-fold part, N >= 3).
   PartSymmetry symmetry;
@@ -75,14 +75,14 @@ struct TemplateDatabase {
   // `symmetry` or a finer one its edges still show, as the knob's 2-fold pointer groove on its
   // 10-fold flutes (docs/template-database.md). Always included in `symmetry`.
   PartSymmetry views_symmetry;
-  CameraConfig camera;             // the camera and flash geometry the views were rendered with
-  double distance_mm = 0;          // distance of the part centre from the lens along the optical axis
-  cv::Vec3d center_mm{0, 0, 0};    // model-frame point placed on the optical axis (bounding-box centre)
-  double diameter_mm = 0;          // largest distance between two model vertices (BOP models_info)
-  int sphere_samples = 0;          // K: views over the whole sphere before the symmetry reduction
-  int q = 120;                     // orientation channels the lines were fitted with
-  bool oriented = true;            // lines carry edge polarity: q channels over 2 pi (LineSet::oriented)
-  Mesh mesh;                       // the part model (mm), for refinement and overlays
+  CameraConfig camera;           // the camera and flash geometry the views were rendered with
+  double distance_mm = 0;        // distance of the part centre from the lens along the optical axis
+  cv::Vec3d center_mm{0, 0, 0};  // model-frame point placed on the optical axis (bounding-box centre)
+  double diameter_mm = 0;        // largest distance between two model vertices (BOP models_info)
+  int sphere_samples = 0;        // K: views over the whole sphere before the symmetry reduction
+  int q = 120;                   // orientation channels the lines were fitted with
+  bool oriented = true;          // lines carry edge polarity: q channels over 2 pi (LineSet::oriented)
+  Mesh mesh;                     // the part model (mm), for refinement and overlays
   std::vector<TemplateView> views;
   // Where the extractor puts edge pixels relative to the true outline, by the outline's direction
   // (EdgeOffsetProfile): under the views' own rendering conditions (noise off, background plane)

@@ -64,8 +64,8 @@ double mesh_diameter(const Mesh& mesh) {
 namespace {
 
 struct ViewGeometry {
-  cv::Rect window;          // rendered part of the image
-  PinholeCamera cropped;    // camera of the window
+  cv::Rect window;        // rendered part of the image
+  PinholeCamera cropped;  // camera of the window
   double plane_z_mm = 0;
   double plane_size_mm = 0;
 };
@@ -147,8 +147,8 @@ void trace_points(const DepthEdges& edges, const MfcRender& render, const Pinhol
 
 }  // namespace
 
-TemplateDatabase teach_templates(const Mesh& mesh, const CameraConfig& camera, const std::string& part_name,
-                                 int obj_id, const TeachParams& params, const TeachProgress& progress) {
+TemplateDatabase teach_templates(const Mesh& mesh, const CameraConfig& camera, const std::string& part_name, int obj_id,
+                                 const TeachParams& params, const TeachProgress& progress) {
   validate_camera_config(camera, "teach camera");
   // Templates always carry edge polarity (the view's shadow side is known exactly); a pipeline
   // that searches without it drops it when it loads them (withoutPolarity).
@@ -173,8 +173,8 @@ TemplateDatabase teach_templates(const Mesh& mesh, const CameraConfig& camera, c
   db.symmetry = params.symmetry;
   db.views_symmetry = params.views_symmetry.value_or(params.symmetry);
   if (!db.symmetry.includes(db.views_symmetry))
-    throw std::invalid_argument("teach: views symmetry " + db.views_symmetry.str() + " is not a symmetry of the part (" +
-                                db.symmetry.str() + ")");
+    throw std::invalid_argument("teach: views symmetry " + db.views_symmetry.str() +
+                                " is not a symmetry of the part (" + db.symmetry.str() + ")");
   db.camera = camera;
   db.center_mm = part_center(mesh);
   db.diameter_mm = mesh_diameter(mesh);
@@ -185,8 +185,8 @@ TemplateDatabase teach_templates(const Mesh& mesh, const CameraConfig& camera, c
   const double radius = part_radius(mesh, db.center_mm);
   db.distance_mm = params.distance_mm > 0 ? params.distance_mm : camera.working_distance_mm;
   if (db.distance_mm < 2 * radius)
-    throw std::invalid_argument("teach: distance " + std::to_string(db.distance_mm) + " mm is too close for a part of radius " +
-                                std::to_string(radius) + " mm");
+    throw std::invalid_argument("teach: distance " + std::to_string(db.distance_mm) +
+                                " mm is too close for a part of radius " + std::to_string(radius) + " mm");
 
   const std::vector<cv::Vec3d> directions = template_view_directions(params.sphere_samples, db.views_symmetry);
   const ViewGeometry geo = view_geometry(camera, db.distance_mm, radius, params.background_gap_mm);

@@ -18,14 +18,14 @@
 namespace mfcd::vision {
 
 struct TeachParams {
-  int sphere_samples = 300;      // K, over the whole sphere (docs/template-database.md)
-  PartSymmetry symmetry;          // the part's: what counts as the same pose
+  int sphere_samples = 300;  // K, over the whole sphere (docs/template-database.md)
+  PartSymmetry symmetry;     // the part's: what counts as the same pose
   // The symmetry the views are folded by, when the part's edges break `symmetry` (a feature too
   // small to grip by, e.g. the knob's pointer groove): one of its subgroups. Unset: `symmetry`.
   std::optional<PartSymmetry> views_symmetry;
-  double distance_mm = 0;        // part centre to lens; 0 = the camera's working distance
-  double background_gap_mm = 15; // background plane this far behind the part's far side
-  int min_edge_pixels = 30;      // views with fewer depth-edge pixels are dropped (degenerate)
+  double distance_mm = 0;         // part centre to lens; 0 = the camera's working distance
+  double background_gap_mm = 15;  // background plane this far behind the part's far side
+  int min_edge_pixels = 30;       // views with fewer depth-edge pixels are dropped (degenerate)
   // Edges that depend on where the LEDs stand around the part. A fold between a face facing the
   // camera and one seen at a grazing angle is found for some turns of the part about the line of
   // sight relative to the LED ring and not for others, and the query's part lies at any turn.
@@ -37,8 +37,8 @@ struct TeachParams {
   int lighting_turns = 4;
   int lighting_min_turns = 4;
   int lighting_tolerance_px = 1;
-  int threads = 0;               // rendering threads, each with its own GL context; 0 = cores
-  LineFitParams lines;           // `oriented` is always set: templates carry edge polarity
+  int threads = 0;      // rendering threads, each with its own GL context; 0 = cores
+  LineFitParams lines;  // `oriented` is always set: templates carry edge polarity
   DepthEdgeParams edges;
   // Measure the extractor's edge offset profiles (EdgeOffsetProfile) for the views' rendering
   // conditions and for the query's, stored with the views; ~4 s more per part.
@@ -51,8 +51,8 @@ struct TeachParams {
 using TeachProgress = std::function<void(int done, int total)>;
 
 // Throws std::runtime_error (rendering unavailable) or std::invalid_argument (bad params).
-TemplateDatabase teach_templates(const Mesh& mesh, const CameraConfig& camera, const std::string& part_name,
-                                 int obj_id, const TeachParams& params, const TeachProgress& progress = {});
+TemplateDatabase teach_templates(const Mesh& mesh, const CameraConfig& camera, const std::string& part_name, int obj_id,
+                                 const TeachParams& params, const TeachProgress& progress = {});
 
 // The part centre used for the views (bounding-box centre) and the radius of the sphere
 // around it that holds the part.

@@ -107,15 +107,15 @@ TEST(CalibrationImport, OpenCvSampleFile) {
   // The file's decimal text, read exactly.
   EXPECT_EQ(c.K, cv::Matx33d(1.4088460733653735e+03, 0., 6.4911805288526580e+02, 0., 1.4126119044320831e+03,
                              4.7972258579418383e+02, 0., 0., 1.));
-  EXPECT_EQ(c.distortion, (std::vector<double>{-2.2821663204838516e-01, 3.0454966862063526e-01,
-                                               7.6327851382786463e-04, -5.3217688428079375e-04, 0.}));
+  EXPECT_EQ(c.distortion, (std::vector<double>{-2.2821663204838516e-01, 3.0454966862063526e-01, 7.6327851382786463e-04,
+                                               -5.3217688428079375e-04, 0.}));
   EXPECT_EQ(imp.source.distortion_model, "OpenCV, 5 coefficients");
   EXPECT_EQ(imp.source.keys_read,
             (std::vector<std::string>{"image_width", "image_height", "camera_matrix", "distortion_coefficients"}));
-  EXPECT_EQ(imp.source.keys_unused,
-            (std::vector<std::string>{"calibration_time", "nframes", "board_width", "board_height", "square_size",
-                                      "flags", "avg_reprojection_error", "per_view_reprojection_errors",
-                                      "extrinsic_parameters"}));
+  EXPECT_EQ(
+      imp.source.keys_unused,
+      (std::vector<std::string>{"calibration_time", "nframes", "board_width", "board_height", "square_size", "flags",
+                                "avg_reprojection_error", "per_view_reprojection_errors", "extrinsic_parameters"}));
   ASSERT_EQ(imp.source.notes.size(), 1u);
   EXPECT_EQ(imp.source.notes[0], "avg_reprojection_error 0.1332768878 px over 6 views (as the file states)");
   // No option, no base: every MFC key is the documented default.
@@ -156,8 +156,8 @@ TEST(CalibrationImport, OpenCvTutorialFiles) {
   EXPECT_EQ(old.config.camera.K, imp.config.camera.K);
   EXPECT_EQ(old.config.camera.distortion, imp.config.camera.distortion);
   EXPECT_EQ(old.config.camera.image_size, cv::Size(1280, 960));
-  EXPECT_EQ(old.source.keys_read, (std::vector<std::string>{"image_Width", "image_Height", "Camera_Matrix",
-                                                            "Distortion_Coefficients"}));
+  EXPECT_EQ(old.source.keys_read,
+            (std::vector<std::string>{"image_Width", "image_Height", "Camera_Matrix", "Distortion_Coefficients"}));
   EXPECT_EQ(old.source.notes.at(0), "Avg_Reprojection_Error 0.1558792797 px over 4 views (as the file states)");
 }
 
@@ -208,8 +208,8 @@ TEST(CalibrationImport, RosCameraInfoFiles) {
   EXPECT_NE(stereo.source.notes[1].find("rectification_matrix is not the identity"), std::string::npos);
 
   // No distortion_model: plumb_bob, as camera_calibration_parsers assumes.
-  const CalibrationImport old = import_calibration(
-      write(dir / "old.yaml", edited(text, "distortion_model: plumb_bob\n", "")));
+  const CalibrationImport old =
+      import_calibration(write(dir / "old.yaml", edited(text, "distortion_model: plumb_bob\n", "")));
   EXPECT_EQ(old.config.camera.distortion, plumb_bob);
   EXPECT_EQ(old.source.notes.at(0), "no distortion_model: plumb_bob assumed (as camera_calibration_parsers does)");
 }
@@ -227,8 +227,7 @@ TEST(CalibrationImport, MfcKeysFromOptionsAndBaseFile) {
   EXPECT_EQ(imp.config.working_distance_mm, 412.5);
   ASSERT_TRUE(imp.config.flashes.ring.has_value());
   EXPECT_EQ(imp.config.flashes.ring->radius_mm, 55);
-  EXPECT_EQ(imp.config.flashes.positions_mm,
-            FlashRing::regular({55, 22.5, -45, 6, 8}).positions_mm);
+  EXPECT_EQ(imp.config.flashes.positions_mm, FlashRing::regular({55, 22.5, -45, 6, 8}).positions_mm);
   EXPECT_NE(imp.summary("x.yaml").find("flashes.ring_radius_mm: 55 mm (given)"), std::string::npos);
   expect_round_trip(imp.config, dir);
 
@@ -292,15 +291,19 @@ TEST(CalibrationImport, Refusals) {
   const std::string opencv = slurp(kForeign / "opencv_sample.yml");
   const std::string ros = slurp(kForeign / "ros_plumb_bob.yaml");
   // The intrinsics as the two files write them.
-  const std::string cv_k = "   rows: 3\n   cols: 3\n   dt: d\n   data: [ 1.4088460733653735e+03, 0., "
-                           "6.4911805288526580e+02, 0.,\n       1.4126119044320831e+03, 4.7972258579418383e+02, "
-                           "0., 0., 1. ]\n";
-  const std::string cv_d = "   rows: 5\n   cols: 1\n   dt: d\n   data: [ -2.2821663204838516e-01, "
-                           "3.0454966862063526e-01,\n       7.6327851382786463e-04, -5.3217688428079375e-04, 0. ]\n";
-  const std::string ros_k = "  rows: 3\n  cols: 3\n  data: [1408.8460733653735, 0, 649.1180528852658, 0, "
-                            "1412.6119044320831, 479.72258579418383, 0, 0, 1]\n";
-  const std::string ros_d = "  rows: 1\n  cols: 5\n  data: [-0.22821663204838516, 0.30454966862063526, "
-                            "0.00076327851382786463, -0.00053217688428079375, 0]\n";
+  const std::string cv_k =
+      "   rows: 3\n   cols: 3\n   dt: d\n   data: [ 1.4088460733653735e+03, 0., "
+      "6.4911805288526580e+02, 0.,\n       1.4126119044320831e+03, 4.7972258579418383e+02, "
+      "0., 0., 1. ]\n";
+  const std::string cv_d =
+      "   rows: 5\n   cols: 1\n   dt: d\n   data: [ -2.2821663204838516e-01, "
+      "3.0454966862063526e-01,\n       7.6327851382786463e-04, -5.3217688428079375e-04, 0. ]\n";
+  const std::string ros_k =
+      "  rows: 3\n  cols: 3\n  data: [1408.8460733653735, 0, 649.1180528852658, 0, "
+      "1412.6119044320831, 479.72258579418383, 0, 0, 1]\n";
+  const std::string ros_d =
+      "  rows: 1\n  cols: 5\n  data: [-0.22821663204838516, 0.30454966862063526, "
+      "0.00076327851382786463, -0.00053217688428079375, 0]\n";
   int n = 0;
   const auto refused = [&](const std::string& text) {
     const fs::path f = write(dir / ("case-" + std::to_string(n++) + ".yaml"), text);
@@ -323,12 +326,14 @@ TEST(CalibrationImport, Refusals) {
 
   // camera_matrix missing, not 3x3, data of the wrong length, not [fx s cx; 0 fy cy; 0 0 1], dt.
   std::string msg = refused(edited(opencv, "camera_matrix: !!opencv-matrix\n" + cv_k, ""));
-  EXPECT_EQ(msg, at(3) + "key 'camera_matrix': missing (neither an OpenCV calibration nor a ROS camera_info file "
-                         "has been recognised)");
+  EXPECT_EQ(msg, at(3) +
+                     "key 'camera_matrix': missing (neither an OpenCV calibration nor a ROS camera_info file "
+                     "has been recognised)");
   msg = refused(edited(ros, "camera_matrix:\n" + ros_k, ""));
   EXPECT_EQ(msg, at(1) + "key 'camera_matrix': missing");
-  const std::string ros_k_3x4 = "  rows: 3\n  cols: 4\n  data: [1408.8460733653735, 0, 649.1180528852658, 0, 0, "
-                                "1412.6119044320831, 479.72258579418383, 0, 0, 0, 1, 0]\n";
+  const std::string ros_k_3x4 =
+      "  rows: 3\n  cols: 4\n  data: [1408.8460733653735, 0, 649.1180528852658, 0, 0, "
+      "1412.6119044320831, 479.72258579418383, 0, 0, 0, 1, 0]\n";
   msg = refused(edited(ros, ros_k, ros_k_3x4));
   EXPECT_EQ(msg, at(5) + "key 'camera_matrix': a 3x4 matrix, expected 3x3");
   msg = refused(edited(ros, ros_k, edited(ros_k_3x4, "cols: 4", "cols: 3")));
@@ -344,11 +349,13 @@ TEST(CalibrationImport, Refusals) {
 
   // Focal lengths: zero, negative, not finite (FileStorage writes .Nan and .Inf), not a number.
   msg = refused(edited(ros, "data: [1408.8460733653735,", "data: [0,"));
-  EXPECT_EQ(msg, at(5) + "key 'camera_matrix': the focal lengths must be positive, got fx = 0 (entry (0, 0)), "
-                         "fy = 1412.6119044320831 (entry (1, 1))");
+  EXPECT_EQ(msg, at(5) +
+                     "key 'camera_matrix': the focal lengths must be positive, got fx = 0 (entry (0, 0)), "
+                     "fy = 1412.6119044320831 (entry (1, 1))");
   msg = refused(edited(opencv, "1.4126119044320831e+03,", "-1.4126119044320831e+03,"));
-  EXPECT_EQ(msg, at(11) + "key 'camera_matrix': the focal lengths must be positive, got fx = 1.4088460733653735e+03 "
-                          "(entry (0, 0)), fy = -1.4126119044320831e+03 (entry (1, 1))");
+  EXPECT_EQ(msg, at(11) +
+                     "key 'camera_matrix': the focal lengths must be positive, got fx = 1.4088460733653735e+03 "
+                     "(entry (0, 0)), fy = -1.4126119044320831e+03 (entry (1, 1))");
   msg = refused(edited(opencv, "[ 1.4088460733653735e+03,", "[ .Nan,"));
   EXPECT_EQ(msg, at(11) + "key 'camera_matrix': entry (0, 0) is not finite (.Nan)");
   msg = refused(edited(ros, "1412.6119044320831, 479", "-.inf, 479"));
@@ -370,23 +377,26 @@ TEST(CalibrationImport, Refusals) {
 
   // Coefficients: counts the model does not have, shape, not finite, model, missing.
   msg = refused(edited(opencv, cv_d, edited(edited(cv_d, "rows: 5", "rows: 6"), "0. ]", "0., 0. ]")));
-  EXPECT_EQ(msg, at(17) + "key 'distortion_coefficients': 6 coefficients; OpenCV's pinhole models have 4, 5, 8, 12 "
-                          "or 14 (k1 k2 p1 p2 [k3 [k4 k5 k6 [s1 s2 s3 s4 [tx ty]]]])");
-  msg = refused(
-      edited(opencv, cv_d, edited(edited(cv_d, "rows: 5\n   cols: 1", "rows: 2\n   cols: 2"), ", 0. ]", " ]")));
+  EXPECT_EQ(msg, at(17) +
+                     "key 'distortion_coefficients': 6 coefficients; OpenCV's pinhole models have 4, 5, 8, 12 "
+                     "or 14 (k1 k2 p1 p2 [k3 [k4 k5 k6 [s1 s2 s3 s4 [tx ty]]]])");
+  msg =
+      refused(edited(opencv, cv_d, edited(edited(cv_d, "rows: 5\n   cols: 1", "rows: 2\n   cols: 2"), ", 0. ]", " ]")));
   EXPECT_EQ(msg, at(17) + "key 'distortion_coefficients': a 2x2 matrix, expected one row or one column");
   msg = refused(edited(ros, ros_d, edited(edited(ros_d, "cols: 5", "cols: 4"), ", 0]", "]")));
   EXPECT_EQ(msg, at(10) + "key 'distortion_coefficients': plumb_bob has 5 coefficients (k1 k2 t1 t2 k3), got 4");
   msg = refused(edited(ros, ros_d, "  rows: 1\n  cols: 0\n  data: []\n"));
   EXPECT_EQ(msg, at(10) + "key 'distortion_coefficients': plumb_bob has 5 coefficients (k1 k2 t1 t2 k3), got 0");
   msg = refused(edited(ros, "distortion_model: plumb_bob", "distortion_model: rational_polynomial"));
-  EXPECT_EQ(msg, at(10) + "key 'distortion_coefficients': rational_polynomial has 8 coefficients (k1 k2 t1 t2 k3 k4 "
-                          "k5 k6), got 5");
+  EXPECT_EQ(msg, at(10) +
+                     "key 'distortion_coefficients': rational_polynomial has 8 coefficients (k1 k2 t1 t2 k3 k4 "
+                     "k5 k6), got 5");
   msg = refused(edited(ros, "-0.00053217688428079375, 0]", "-0.00053217688428079375, .nan]"));
   EXPECT_EQ(msg, at(10) + "key 'distortion_coefficients': coefficient 4 is not finite (.nan)");
   msg = refused(edited(ros, "distortion_model: plumb_bob", "distortion_model: kannala_brandt"));
-  EXPECT_EQ(msg, at(8) + "key 'distortion_model': 'kannala_brandt' is not imported (plumb_bob and rational_polynomial "
-                         "are)");
+  EXPECT_EQ(msg, at(8) +
+                     "key 'distortion_model': 'kannala_brandt' is not imported (plumb_bob and rational_polynomial "
+                     "are)");
   msg = refused(edited(opencv, "distortion_coefficients: !!opencv-matrix", "distortion: !!opencv-matrix"));
   EXPECT_EQ(msg, at(3) + "key 'distortion_coefficients': missing");
 

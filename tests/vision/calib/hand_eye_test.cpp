@@ -31,9 +31,8 @@ double direct_rms(HandEyeMode mode, const PinholeCamera& cam, const CheckerBoard
   double sum2 = 0;
   size_t count = 0;
   for (size_t i = 0; i < flanges.size(); ++i) {
-    const cv::Matx44d Tcb = mode == HandEyeMode::eye_in_hand
-                                ? r.hand_eye.inv() * flanges[i].inv() * r.board
-                                : r.hand_eye.inv() * flanges[i] * r.board;
+    const cv::Matx44d Tcb = mode == HandEyeMode::eye_in_hand ? r.hand_eye.inv() * flanges[i].inv() * r.board
+                                                             : r.hand_eye.inv() * flanges[i] * r.board;
     cv::Mat rvec;
     cv::Rodrigues(cv::Mat(cv::Matx33d(Tcb.get_minor<3, 3>(0, 0))), rvec);
     const cv::Mat tvec = (cv::Mat_<double>(3, 1) << Tcb(0, 3), Tcb(1, 3), Tcb(2, 3));
@@ -138,7 +137,8 @@ TEST(HandEyeCalibration, ReprojectionResidualMatchesDirectProjectionForRandomTra
     std::vector<std::vector<cv::Point2f>> corners;
     for (const auto& v : cell.views) {
       corners.push_back(scene.project_corners(v.T_camera_board));
-      for (auto& c : corners.back()) c += cv::Point2f(static_cast<float>(0.3 * n(rng)), static_cast<float>(0.3 * n(rng)));
+      for (auto& c : corners.back())
+        c += cv::Point2f(static_cast<float>(0.3 * n(rng)), static_cast<float>(0.3 * n(rng)));
       flanges.push_back(v.flange.matrix());
       ASSERT_TRUE(cal.add_corners(corners.back(), flanges.back()).accepted);
     }
@@ -147,8 +147,9 @@ TEST(HandEyeCalibration, ReprojectionResidualMatchesDirectProjectionForRandomTra
       const double s = trial / 4.0;
       HandEyeResult r;
       r.mode = mode;
-      r.hand_eye = cell.hand_eye_true * make_transform(rotation_from_vector(cv::Vec3d(n(rng), n(rng), n(rng)) * 0.01 * s),
-                                                       cv::Vec3d(n(rng), n(rng), n(rng)) * s);
+      r.hand_eye =
+          cell.hand_eye_true * make_transform(rotation_from_vector(cv::Vec3d(n(rng), n(rng), n(rng)) * 0.01 * s),
+                                              cv::Vec3d(n(rng), n(rng), n(rng)) * s);
       r.board = cell.board_true * make_transform(rotation_from_vector(cv::Vec3d(n(rng), n(rng), n(rng)) * 0.01 * s),
                                                  cv::Vec3d(n(rng), n(rng), n(rng)) * s);
       const double fast = cal.reprojection_rms_px(r.hand_eye, r.board);

@@ -82,7 +82,8 @@ TEST(IntrinsicsCalibration, TooFewViewsAndMissingBoardAreClearErrors) {
   // Another board size than the one asked for is "not found" too.
   IntrinsicsCalibration seven_by_five(CheckerBoard{7, 5, 10});
   EXPECT_FALSE(seven_by_five.add_view(scene.render(random_board_views(scene, 1, 300, rng)[0])).accepted);
-  const ViewReport wrong = cal.add_corners(scene.project_corners(random_board_views(scene, 1, 300, rng)[0]), {800, 600});
+  const ViewReport wrong =
+      cal.add_corners(scene.project_corners(random_board_views(scene, 1, 300, rng)[0]), {800, 600});
   EXPECT_FALSE(wrong.accepted);
   EXPECT_NE(wrong.reason.find("differs"), std::string::npos) << wrong.reason;
   EXPECT_EQ(cal.view_count(), 3u);

@@ -38,7 +38,8 @@ TEST(CalibrationSession, HandEyeIsWrittenOnlyOnApplyAndRollsBack) {
 
   auto s = CalibrationSession::hand_eye(file, HandEyeMode::eye_in_hand, board);
   EXPECT_FALSE(s.add_view(scene.render(cell.views[0].T_camera_board, 1)).accepted) << "view without a pose";
-  for (size_t i = 0; i < 4; ++i) ASSERT_TRUE(s.add_view(scene.render(cell.views[i].T_camera_board, 10 + i), cell.views[i].flange).accepted);
+  for (size_t i = 0; i < 4; ++i)
+    ASSERT_TRUE(s.add_view(scene.render(cell.views[i].T_camera_board, 10 + i), cell.views[i].flange).accepted);
   EXPECT_THROW(s.compute(), CalibrationError);  // too few views
   EXPECT_FALSE(s.has_pending());
   EXPECT_THROW(s.apply(), CalibrationError);

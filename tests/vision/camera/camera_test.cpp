@@ -188,11 +188,13 @@ TEST(CameraConfig, MatrixSizesAreCheckedBeforeAllocating) {
       {"data: [ 0., 0., 0., 0., 0. ]", "data: [ 0., 0., 0. ]", "distortion_coefficients"},
       {"dt: d\n   data: [ 1100.", "dt: \"3d\"\n   data: [ 1100.", "camera_matrix"},
       {"   ring_radius_mm: 40.",
-       "   positions_mm: !!opencv-matrix\n      rows: 2000000000\n      cols: 3\n      dt: d\n      data: [ 1., 2., 3. ]\n"
+       "   positions_mm: !!opencv-matrix\n      rows: 2000000000\n      cols: 3\n      dt: d\n      data: [ 1., 2., 3. "
+       "]\n"
        "   ring_radius_mm: 40.",
        "flashes.positions_mm"},
       {"working_distance_mm: 300.",
-       "working_distance_mm: 300.\nhand_eye:\n   mode: eye_to_hand\n   camera_pose: !!opencv-matrix\n      rows: 100000\n"
+       "working_distance_mm: 300.\nhand_eye:\n   mode: eye_to_hand\n   camera_pose: !!opencv-matrix\n      rows: "
+       "100000\n"
        "      cols: 100000\n      dt: d\n      data: [ 1. ]\n   reprojection_rms_px: 0.\n   residual_rms_mm: 0.\n"
        "   views: 1",
        "hand_eye.camera_pose"},
@@ -217,7 +219,7 @@ TEST(CameraConfig, FlashCountIsCheckedBeforeTheRingIsBuilt) {
           const std::string err = load_error(p);
           std::fprintf(stderr, "%s\n", err.c_str());
           std::exit(err.find("'flashes.count'") != std::string::npos && err.find(p.string()) != std::string::npos ? 0
-                                                                                                                : 1);
+                                                                                                                  : 1);
         },
         ::testing::ExitedWithCode(0), "")
         << count;
@@ -254,7 +256,7 @@ TEST(CameraConfig, NotYamlOrMissingFileIsAnError) {
 // threw another exception than std::runtime_error while OpenCV's FileStorage read the files.
 TEST(CameraConfig, MalformedFilesFoundByFuzzingAreRefused) {
   const std::vector<std::pair<std::string, std::string>> cases = {
-      {"xml.yaml", std::string("<?xml n=\0", 9)},                   // OpenCV 4.6's XML parser: NULL dereference
+      {"xml.yaml", std::string("<?xml n=\0", 9)},                 // OpenCV 4.6's XML parser: NULL dereference
       {"sequence.yaml", "%YAML:1.0\n---\n- 640\n- 480\n"},        // cv::Exception: FileNode::operator[] on a non-map
       {"empty-key.yaml", "%YAML:1.0\n---\na:\n   b: 3\n   :\n"},  // std::length_error from OpenCV's YAML parser
       {"loop.yaml", "%YAML:1.\n t:d\no 0-\n"},                    // OpenCV 4.6's YAML parser never returns
@@ -313,14 +315,16 @@ TEST(PinholeCamera, CroppedCameraProjectsIntoTheWindow) {
 // OpenCV's calibration tutorial marks cv::fisheye coefficients with fisheye_model: 1; read as
 // pinhole k1 k2 p1 p2 they would undistort every frame wrongly, so the file is refused by name.
 TEST(CameraConfig, FisheyeFileIsRefusedWithTheReason) {
-  const fs::path fisheye = edited_sim_yaml("working_distance_mm", "fisheye_model: 1\nworking_distance_mm", "fisheye.yaml");
+  const fs::path fisheye =
+      edited_sim_yaml("working_distance_mm", "fisheye_model: 1\nworking_distance_mm", "fisheye.yaml");
   const std::string err = load_error(fisheye);
   EXPECT_NE(err.find("fisheye_model"), std::string::npos) << err;
   EXPECT_NE(err.find(fisheye.string()), std::string::npos) << err;
   EXPECT_NE(err.find("fisheye lenses are not supported: mfcd's camera model is the pinhole with polynomial distortion"),
             std::string::npos)
       << err;
-  const fs::path pinhole = edited_sim_yaml("working_distance_mm", "fisheye_model: 0\nworking_distance_mm", "pinhole.yaml");
+  const fs::path pinhole =
+      edited_sim_yaml("working_distance_mm", "fisheye_model: 0\nworking_distance_mm", "pinhole.yaml");
   EXPECT_EQ(load_error(pinhole), "") << "fisheye_model: 0 is the pinhole model";
   const fs::path junk = edited_sim_yaml("working_distance_mm", "fisheye_model: yes\nworking_distance_mm", "junk.yaml");
   EXPECT_NE(load_error(junk).find("fisheye_model"), std::string::npos);

@@ -76,11 +76,12 @@ TEST(FrameUndistorter, BarrelMovesACornerPointBackToItsIdealPlace) {
   const cv::Point2d ideal(600, 450);
   const cv::Vec3d ray((ideal.x - cam.cx()) / cam.fx(), (ideal.y - cam.cy()) / cam.fy(), 1.0);
   std::vector<cv::Point2d> seen;
-  cv::projectPoints(std::vector<cv::Vec3d>{ray}, cv::Vec3d(0, 0, 0), cv::Vec3d(0, 0, 0), cv::Mat(cam.K), cv::Mat(cam.distortion), seen);
+  cv::projectPoints(std::vector<cv::Vec3d>{ray}, cv::Vec3d(0, 0, 0), cv::Vec3d(0, 0, 0), cv::Mat(cam.K),
+                    cv::Mat(cam.distortion), seen);
   ASSERT_GT(cv::norm(seen[0] - ideal), 5.0) << "the lens moves the corner point by several pixels";
   cv::Mat1b distorted(480, 640, uchar(0));
-  cv::circle(distorted, cv::Point(cvRound(seen[0].x * 16), cvRound(seen[0].y * 16)), 3 * 16, cv::Scalar(255), cv::FILLED,
-             cv::LINE_AA, 4);
+  cv::circle(distorted, cv::Point(cvRound(seen[0].x * 16), cvRound(seen[0].y * 16)), 3 * 16, cv::Scalar(255),
+             cv::FILLED, cv::LINE_AA, 4);
   cv::Mat undistorted;
   FrameUndistorter(cam).apply(distorted, undistorted);
   const cv::Moments m = cv::moments(undistorted);
@@ -115,8 +116,10 @@ TEST(FrameUndistorter, IntoAPreallocatedImageNothingIsAllocated) {
   const auto t1 = std::chrono::steady_clock::now();
   for (int r = 0; r < kRounds; ++r)
     for (int k = 0; k < 9; ++k)
-      cv::remap(src[static_cast<size_t>(k)], dst[static_cast<size_t>(k)], map1, map2, cv::INTER_LINEAR, cv::BORDER_CONSTANT);
-  const double cv_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t1).count() / kRounds;
+      cv::remap(src[static_cast<size_t>(k)], dst[static_cast<size_t>(k)], map1, map2, cv::INTER_LINEAR,
+                cv::BORDER_CONSTANT);
+  const double cv_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t1).count() / kRounds;
   std::printf("cv::remap: %.2f ms per frame set, %.1f allocations per image\n", cv_ms,
               double(mfcd::hal::test::allocationCount() - cv_before) / (kRounds * 9));
 }

@@ -3,13 +3,13 @@
 // show them, undistorted with the camera's maps and picked by the pipeline within the same bounds
 // (5 mm, 10 degrees) as the undistorted render. Without the undistortion the edges near the
 // image corners are several pixels off and the pick is worse: the test can fail.
+#include "tests/vision/support/floor_scene.hpp"
+#include "tests/vision/support/pose_errors.hpp"
 #include "vision/camera/frame_undistorter.hpp"
 #include "vision/pipeline/bin_picking_pipeline.hpp"
 #include "vision/pose/coarse_pose.hpp"
 #include "vision/render/mfc_renderer.hpp"
 #include "vision/templates/template_database.hpp"
-#include "tests/vision/support/floor_scene.hpp"
-#include "tests/vision/support/pose_errors.hpp"
 
 #include <gtest/gtest.h>
 
@@ -41,7 +41,8 @@ class LensSimulator {
     std::vector<cv::Point2f> distorted;
     distorted.reserve(static_cast<size_t>(cam.image_size.area()));
     for (int y = 0; y < cam.image_size.height; ++y)
-      for (int x = 0; x < cam.image_size.width; ++x) distorted.emplace_back(static_cast<float>(x), static_cast<float>(y));
+      for (int x = 0; x < cam.image_size.width; ++x)
+        distorted.emplace_back(static_cast<float>(x), static_cast<float>(y));
     std::vector<cv::Point2f> ideal;
     cv::undistortPoints(distorted, ideal, cv::Mat(cam.K), cv::Mat(cam.distortion), cv::noArray(), cv::Mat(cam.K),
                         cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 100, 1e-10));
@@ -91,7 +92,8 @@ struct PickError {
 
 using mfcd::vision::testing::rotation_error_deg;
 
-PickError pick(BinPickingPipeline& pipeline, const MfcFrames& frames, const TemplateDatabase& db, const RigidPose& truth) {
+PickError pick(BinPickingPipeline& pipeline, const MfcFrames& frames, const TemplateDatabase& db,
+               const RigidPose& truth) {
   PipelineResult r;
   pipeline.process(frames, 0, std::chrono::steady_clock::now() + std::chrono::seconds(60), r);
   PickError e;
@@ -150,9 +152,10 @@ TEST(UndistortedPick, DistortedRenderUndistortedIsPickedAsTheIdealOne) {
   const PickError ideal = pick(pipeline, render.frames, db, truth);
   const PickError fixed = pick(pipeline, corrected, db, truth);
   const PickError raw = pick(pipeline, distorted, db, truth);
-  std::printf("pick error: ideal render %.2f mm %.2f deg; distorted + undistorted %.2f mm %.2f deg; "
-              "distorted as is %.2f mm %.2f deg\n",
-              ideal.centre_mm, ideal.rotation_deg, fixed.centre_mm, fixed.rotation_deg, raw.centre_mm, raw.rotation_deg);
+  std::printf(
+      "pick error: ideal render %.2f mm %.2f deg; distorted + undistorted %.2f mm %.2f deg; "
+      "distorted as is %.2f mm %.2f deg\n",
+      ideal.centre_mm, ideal.rotation_deg, fixed.centre_mm, fixed.rotation_deg, raw.centre_mm, raw.rotation_deg);
   ASSERT_TRUE(ideal.found);
   EXPECT_LE(ideal.centre_mm, 5.0);
   EXPECT_LE(ideal.rotation_deg, 10.0);

@@ -24,10 +24,14 @@ std::vector<cv::Point> random_points(std::mt19937& rng, int trial) {
   for (int i = 0; i < n; ++i) {
     const int s = static_cast<int>(rng() % (2 * spread + 1)) - spread;
     const int t = static_cast<int>(rng() % (2 * spread + 1)) - spread;
-    if (kind == 1) pts.emplace_back(c.x + s, c.y + 2 * s);             // one line
-    else if (kind == 2) pts.emplace_back(c.x + s, c.y);                 // one row
-    else if (kind == 3) pts.push_back(i % 3 ? c : cv::Point(c.x + s, c.y + t));  // repeats
-    else pts.emplace_back(c.x + s, c.y + t);
+    if (kind == 1)
+      pts.emplace_back(c.x + s, c.y + 2 * s);  // one line
+    else if (kind == 2)
+      pts.emplace_back(c.x + s, c.y);  // one row
+    else if (kind == 3)
+      pts.push_back(i % 3 ? c : cv::Point(c.x + s, c.y + t));  // repeats
+    else
+      pts.emplace_back(c.x + s, c.y + t);
   }
   return pts;
 }

@@ -1,9 +1,9 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <random>
-#include <algorithm>
 
 #include "vision/common/segment.hpp"
 
@@ -65,8 +65,7 @@ TEST(LineFile, OrientedSetRoundTripsWithItsPolarity) {
   EXPECT_EQ(undirected.lines[1].a, back.lines[1].a);
   std::filesystem::remove(path);
   EXPECT_NE(errorOf("mfcd-lines 1\nq 61\noriented 1\nsize 100 100\n1 1 9 9\n").find("even q"), std::string::npos);
-  EXPECT_NE(errorOf("mfcd-lines 1\nq 60\noriented 2\n").find("t.lines:3: oriented must be 0 or 1"),
-            std::string::npos);
+  EXPECT_NE(errorOf("mfcd-lines 1\nq 60\noriented 2\n").find("t.lines:3: oriented must be 0 or 1"), std::string::npos);
 }
 
 TEST(LineFile, MalformedInputNamesFileLineAndReason) {
@@ -106,7 +105,8 @@ TEST(SortLongestFirst, IsTheStableSortByLength) {
   for (int trial = 0; trial < 50; ++trial) {
     std::vector<LineSegment> lines(static_cast<size_t>(1 + rng() % (trial < 25 ? 60 : 8)));
     for (size_t i = 0; i < lines.size(); ++i) {
-      const float x = static_cast<float>(rng() % 100), y = static_cast<float>(rng() % 100), len = static_cast<float>(1 + rng() % 6);
+      const float x = static_cast<float>(rng() % 100), y = static_cast<float>(rng() % 100),
+                  len = static_cast<float>(1 + rng() % 6);
       lines[i].a = {x, y};
       lines[i].b = rng() % 2 ? cv::Point2f(x + len, y) : cv::Point2f(x, y + len);
       lines[i].support = static_cast<int>(i);  // identifies the original position

@@ -90,8 +90,10 @@ TEST(OrientationChannels, XMajorFollowsTheDirection) {
       for (int c = 0; c < q; ++c) {
         const double phi = ch.angleOf(c);
         const double ac = std::abs(std::cos(phi)), as = std::abs(std::sin(phi));
-        if (std::abs(ac - as) < 1e-9) EXPECT_TRUE(ch.xMajor(c)) << "q " << q << " c " << c;
-        else EXPECT_EQ(ch.xMajor(c), ac > as) << "q " << q << " oriented " << oriented << " c " << c;
+        if (std::abs(ac - as) < 1e-9)
+          EXPECT_TRUE(ch.xMajor(c)) << "q " << q << " c " << c;
+        else
+          EXPECT_EQ(ch.xMajor(c), ac > as) << "q " << q << " oriented " << oriented << " c " << c;
       }
     }
 }

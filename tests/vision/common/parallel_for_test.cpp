@@ -18,7 +18,8 @@ TEST(ParallelFor, EveryIterationRunsOnceLikeTheSerialLoop) {
   for (const int threads : {1, 2, 4}) {
     std::vector<std::atomic<int>> runs(1000);
     parallel_for(0, 1000, threads, 3, [&](int i) { runs[static_cast<size_t>(i)].fetch_add(1); });
-    for (size_t i = 0; i < runs.size(); ++i) ASSERT_EQ(runs[i].load(), 1) << "iteration " << i << ", threads " << threads;
+    for (size_t i = 0; i < runs.size(); ++i)
+      ASSERT_EQ(runs[i].load(), 1) << "iteration " << i << ", threads " << threads;
   }
   // An empty or reversed range runs nothing.
   int calls = 0;

@@ -9,10 +9,10 @@
 #include "vision/edges/edge_evaluation.hpp"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
-#include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
@@ -165,7 +165,8 @@ TEST_F(BinScenes, PartsRestInsideTheBinWithoutInterpenetrating) {
       cv::Vec3d lo, hi;
     };
     std::vector<Placed> objs;
-    for (const auto& p : layout.parts) objs.push_back({&sim().models()[static_cast<size_t>(p.model)].mesh, p.R, p.t_mm, {}, {}, {}});
+    for (const auto& p : layout.parts)
+      objs.push_back({&sim().models()[static_cast<size_t>(p.model)].mesh, p.R, p.t_mm, {}, {}, {}});
     for (const auto& c : layout.clutter) objs.push_back({&sim().rod_mesh(c.rod), c.R, c.t_mm, {}, {}, {}});
     for (auto& o : objs) {
       o.lo = cv::Vec3d(1e9, 1e9, 1e9);
@@ -191,7 +192,9 @@ TEST_F(BinScenes, PartsRestInsideTheBinWithoutInterpenetrating) {
       return std::tuple{static_cast<int64_t>(std::floor(w[0] / 2.5)), static_cast<int64_t>(std::floor(w[1] / 2.5)),
                         static_cast<int64_t>(std::floor(w[2] / 2.5))};
     };
-    auto key = [](int64_t x, int64_t y, int64_t z) { return (x + (1 << 20)) << 42 | (y + (1 << 20)) << 21 | (z + (1 << 20)); };
+    auto key = [](int64_t x, int64_t y, int64_t z) {
+      return (x + (1 << 20)) << 42 | (y + (1 << 20)) << 21 | (z + (1 << 20));
+    };
     std::unordered_map<int64_t, std::vector<std::pair<size_t, cv::Vec3d>>> grid;
     for (size_t b = 0; b < objs.size(); ++b)
       for (const auto& w : objs[b].world) {
@@ -218,7 +221,8 @@ TEST_F(BinScenes, PartsRestInsideTheBinWithoutInterpenetrating) {
       std::vector<cv::Point2f> hull;
       cv::convexHull(contacts, hull);
       const cv::Vec3d com = objs[a].R * centre_of_mass(*objs[a].mesh) + objs[a].t;
-      EXPECT_GE(cv::pointPolygonTest(hull, cv::Point2f(static_cast<float>(com[0]), static_cast<float>(com[1])), true), -1.0)
+      EXPECT_GE(cv::pointPolygonTest(hull, cv::Point2f(static_cast<float>(com[0]), static_cast<float>(com[1])), true),
+                -1.0)
           << "seed " << seed << " object " << a << " would tip over";
       for (size_t b = 0; b < objs.size(); ++b) {
         if (a == b) continue;
@@ -403,7 +407,8 @@ TEST_F(BinScenes, RestingFacesAreDrawnByTheChosenWeight) {
   opt.parts_per_image = 1;
   opt.clutter.enabled = false;
   const int drops = 300;
-  for (const auto weight : {BinSceneOptions::RestingWeight::support_area, BinSceneOptions::RestingWeight::solid_angle}) {
+  for (const auto weight :
+       {BinSceneOptions::RestingWeight::support_area, BinSceneOptions::RestingWeight::solid_angle}) {
     opt.resting_weight = weight;
     BinSimulator alone(sim().camera(), diamond, opt);
     int on_rim = 0, placed = 0;
@@ -414,7 +419,8 @@ TEST_F(BinScenes, RestingFacesAreDrawnByTheChosenWeight) {
       // The model's z axis (the plate normal) is horizontal when the plate stands on its rim.
       on_rim += std::abs(layout.parts[0].R(2, 2)) < 0.2;
     }
-    const double expected = weight == BinSceneOptions::RestingWeight::support_area ? area_rim / area : solid_rim / solid;
+    const double expected =
+        weight == BinSceneOptions::RestingWeight::support_area ? area_rim / area : solid_rim / solid;
     const double share = double(on_rim) / placed;
     std::printf("%s: %d of %d on the rim (%.3f, expected %.3f)\n",
                 weight == BinSceneOptions::RestingWeight::support_area ? "support area" : "solid angle", on_rim, placed,

@@ -8,14 +8,14 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include <nlohmann/json.hpp>
 #include <unistd.h>
+#include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
-#include <algorithm>
-#include <functional>
 #include <fstream>
+#include <functional>
 #include <iterator>
 #include <random>
 #include <sstream>
@@ -225,8 +225,10 @@ std::vector<BopTestTarget> targets_from_files(const fs::path& split_dir) {
         if (info[std::to_string(im)][g]["visib_fract"].get<double>() < 0.1) continue;
         const int obj = list[g]["obj_id"].get<int>();
         auto it = std::find_if(counts.begin(), counts.end(), [&](const auto& c) { return c.first == obj; });
-        if (it == counts.end()) counts.push_back({obj, 1});
-        else ++it->second;
+        if (it == counts.end())
+          counts.push_back({obj, 1});
+        else
+          ++it->second;
       }
       for (const auto& [obj, n] : counts) out.push_back({std::stoi(dir.filename().string()), im, obj, n});
     }
@@ -367,7 +369,8 @@ TEST_F(BopTiny, RefusesNumbersOutsideTheirType) {
   edit_json(scene() / "scene_gt_info.json", [](auto& j) { j["0"][0]["bbox_obj"][0] = 1e300; });
   const BopDataset ds(root);
   expect_refused([&] { ds.camera(1, 0); }, scene() / "scene_camera.json", "'0.width' = 4294967936 is out of range");
-  expect_refused([&] { ds.ground_truth_info(1, 0); }, scene() / "scene_gt_info.json", "'0[0].bbox_obj' = ...out of range");
+  expect_refused([&] { ds.ground_truth_info(1, 0); }, scene() / "scene_gt_info.json",
+                 "'0[0].bbox_obj' = ...out of range");
   edit_json(scene() / "scene_camera.json", [](auto& j) { j["1"]["cam_K"][0] = 12345.5; });
   {
     std::ifstream in(scene() / "scene_camera.json");
@@ -396,7 +399,8 @@ TEST_F(BopTiny, RefusesImagesOfTheWrongSize) {
 TEST_F(BopTiny, RefusesWrongNumberOfFlashImages) {
   fs::remove(scene() / "flash" / "000000_7.png");
   const BopDataset ds(root);
-  expect_refused([&] { ds.frames(1, 0); }, scene() / "flash" / "000000_7.png", "missing flash image...8 flash positions");
+  expect_refused([&] { ds.frames(1, 0); }, scene() / "flash" / "000000_7.png",
+                 "missing flash image...8 flash positions");
   // One position fewer than images: the 8th image is one too many.
   edit_json(scene() / "scene_camera.json", [](auto& j) { j["1"]["flash_positions_mm"].erase(7); });
   expect_refused([&] { ds.frames(1, 1); }, scene() / "flash" / "000001_7.png", "more flash images than the 7");
@@ -436,7 +440,10 @@ TEST_F(BopTiny, ReadsAStandardBopLayoutWithFlashesFromACameraFile) {
   expect_refused([&] { bare.frames(1, 0); }, scene() / "scene_camera.json",
                  "missing key '0.flash_positions_mm'...--camera");
   // No image size anywhere.
-  edit_json(root / "camera.json", [](auto& j) { j.erase("width"); j.erase("height"); });
+  edit_json(root / "camera.json", [](auto& j) {
+    j.erase("width");
+    j.erase("height");
+  });
   const BopDataset sizeless(root, "test", {cam.flashes.positions_mm, "tiny camera"});
   expect_refused([&] { sizeless.camera(1, 0); }, scene() / "scene_camera.json",
                  "missing key '0.width'...camera.json gives no width and height");
@@ -448,7 +455,8 @@ TEST_F(BopTiny, ReadsAStandardBopLayoutWithFlashesFromACameraFile) {
   std::ofstream(root / "camera.json") << R"({"cx": 15.5, "cy": 11.5, "fx": 55, "fy": 56, "width": 30, "height": 24,
                                             "depth_scale": 0.1})";
   const BopDataset narrow(root, "test", {cam.flashes.positions_mm, "tiny camera"});
-  expect_refused([&] { narrow.frames(1, 0); }, scene() / "flash" / "000000_0.png", "image size 32x24 differs from 30x24");
+  expect_refused([&] { narrow.frames(1, 0); }, scene() / "flash" / "000000_0.png",
+                 "image size 32x24 differs from 30x24");
   // A malformed camera.json is refused when the dataset is opened.
   std::ofstream(root / "camera.json") << R"({"width": "wide", "height": 24})";
   expect_refused([&] { BopDataset again(root); }, root / "camera.json", "'width' is not an integer");
@@ -607,7 +615,7 @@ TEST_F(BopTiny, GrayImagesAreTheAmbientImages) {
       EXPECT_EQ(file_bytes(dir / "gray" / name), file_bytes(dir / "ambient" / name));
       const cv::Mat gray = cv::imread((dir / "gray" / name).string(), cv::IMREAD_UNCHANGED);
       ASSERT_EQ(gray.type(), CV_8UC1);
-      EXPECT_EQ(cv::norm(gray, written[static_cast<size_t>(s - 1)][static_cast<size_t>(i)].frames.ambient,
-                         cv::NORM_INF), 0);
+      EXPECT_EQ(
+          cv::norm(gray, written[static_cast<size_t>(s - 1)][static_cast<size_t>(i)].frames.ambient, cv::NORM_INF), 0);
     }
 }

@@ -18,7 +18,8 @@ namespace {
 std::vector<std::string> split_on(const std::string& s, char sep) {
   std::vector<std::string> out;
   size_t from = 0;
-  for (size_t at; (at = s.find(sep, from)) != std::string::npos; from = at + 1) out.push_back(s.substr(from, at - from));
+  for (size_t at; (at = s.find(sep, from)) != std::string::npos; from = at + 1)
+    out.push_back(s.substr(from, at - from));
   out.push_back(s.substr(from));
   return out;
 }
@@ -76,7 +77,7 @@ TEST(BopResults, HeaderAndRowParseAsTheToolkitReadsThem) {
   const std::vector<double> t = py_split_floats(f[5]);
   ASSERT_EQ(t.size(), 3u) << f[5];
   for (int k = 0; k < 3; ++k) EXPECT_DOUBLE_EQ(t[static_cast<size_t>(k)], r.t_mm[k]);  // mm, as written
-  EXPECT_DOUBLE_EQ(py_float(f[6]), 0.4375);  // seconds
+  EXPECT_DOUBLE_EQ(py_float(f[6]), 0.4375);                                            // seconds
 }
 
 TEST(BopResults, NonFiniteNumbersAreRefused) {

@@ -11,7 +11,8 @@ using namespace mfcd::vision;
 
 namespace {
 // Outlines of two made-up parts (pixels, around the origin).
-const std::vector<cv::Point2d> kTNut{{-40, -30}, {40, -30}, {40, -10}, {15, -10}, {15, 30}, {-15, 30}, {-15, -10}, {-40, -10}};
+const std::vector<cv::Point2d> kTNut{{-40, -30}, {40, -30}, {40, -10},  {15, -10},
+                                     {15, 30},   {-15, 30}, {-15, -10}, {-40, -10}};
 const std::vector<cv::Point2d> kBracket{{-35, -35}, {35, -35}, {35, -20}, {-20, -20}, {-20, 35}, {-35, 35}};
 
 std::vector<cv::Point> place(const std::vector<cv::Point2d>& shape, cv::Point2d at, double angle, double scale,
@@ -60,7 +61,8 @@ TEST(ShapeDetector, FindsRotatedPartsInClutter) {
   ShapeDetector det(p);
   det.addTemplate(makeTemplate(kTNut, "tnut"));
   const double step = OrientationChannels(60).step();
-  const std::vector<Planted> parts{{{110, 100}, 7 * step, 1, 1}, {{330, 110}, 61 * step, 1, 1}, {{220, 260}, 100 * step, 1, 1}};
+  const std::vector<Planted> parts{
+      {{110, 100}, 7 * step, 1, 1}, {{330, 110}, 61 * step, 1, 1}, {{220, 260}, 100 * step, 1, 1}};
   const DetectionReport r = det.detect(scene(rng, kTNut, parts));
   ASSERT_GE(r.detections.size(), 3u);
   for (const auto& part : parts) {

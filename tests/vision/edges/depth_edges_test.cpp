@@ -1,5 +1,5 @@
-#include "vision/common/orientation.hpp"
 #include "vision/edges/depth_edges.hpp"
+#include "vision/common/orientation.hpp"
 #include "vision/edges/edge_evaluation.hpp"
 
 #include "scenes.hpp"
@@ -94,7 +94,6 @@ DepthEdges reference_depth_edges(const MfcFrames& frames, const PinholeCamera& c
   return out;
 }
 
-
 struct Rendered {
   MfcRender render;
   DepthEdges edges;
@@ -168,9 +167,10 @@ TEST(DepthEdges, FindTrueDepthDiscontinuitiesInSimulatedScenes) {
     const cv::Mat1b creases = depth_creases(out.depth_mm, cfg.camera.K, 30.f, 4.f);
     const EdgeScore s = score_edges(edges.edges, jumps, 1.0);
     const EdgeScore g = score_edges(edges.edges, jumps | creases, 1.0);
-    std::printf("scene %u: %d edge px, %d jump px; vs jumps: precision %.3f recall %.3f; "
-                "vs jumps+creases: precision %.3f\n",
-                seed, s.detected, s.truth, s.precision, s.recall, g.precision);
+    std::printf(
+        "scene %u: %d edge px, %d jump px; vs jumps: precision %.3f recall %.3f; "
+        "vs jumps+creases: precision %.3f\n",
+        seed, s.detected, s.truth, s.precision, s.recall, g.precision);
     EXPECT_GT(s.truth, 1000);
     // Depth edges also fire on creases next to faces seen at grazing angles (attached
     // shadows), so precision is judged against jumps and creases together.
@@ -196,7 +196,8 @@ TEST(DepthEdges, PaintedPatternsDoNotAppear) {
     // Part interiors: part pixels (not the floor) more than 3 px from any depth jump of 1 mm
     // or crease of 30 degrees.
     cv::Mat1b parts = out.part_index > 1, near_jump, interior;
-    const cv::Mat1b jumps = depth_discontinuities(out.depth_mm, 1.0f) | depth_creases(out.depth_mm, cfg.camera.K, 30.f, 4.f);
+    const cv::Mat1b jumps =
+        depth_discontinuities(out.depth_mm, 1.0f) | depth_creases(out.depth_mm, cfg.camera.K, 30.f, 4.f);
     cv::dilate(jumps, near_jump, cv::Mat(), {-1, -1}, 3);
     interior = parts & ~near_jump;
     const int depth_in = cv::countNonZero(edges.edges & interior);
@@ -250,7 +251,8 @@ TEST(DepthEdges, ShadowSideIsTheFartherSurface) {
       ASSERT_GE(a, 0.f);
       ASSERT_LT(a, 2 * std::numbers::pi_v<float>);
       const cv::Point2f n(std::cos(a), std::sin(a));
-      const cv::Point behind(cvRound(x + 3 * n.x), cvRound(y + 3 * n.y)), before(cvRound(x - 3 * n.x), cvRound(y - 3 * n.y));
+      const cv::Point behind(cvRound(x + 3 * n.x), cvRound(y + 3 * n.y)),
+          before(cvRound(x - 3 * n.x), cvRound(y - 3 * n.y));
       if (!image.contains(behind) || !image.contains(before)) continue;
       const float far = out.depth_mm(behind), near = out.depth_mm(before);
       if (!(far > 0) || !(near > 0) || std::abs(far - near) < 2.f) continue;  // only clear depth jumps

@@ -1,9 +1,9 @@
 // edge_tangents: the chain direction of every edge pixel against its obviously-right twin (the
 // principal axis of the window's pixels by an eigen decomposition of their covariance), on
 // straight chains of known direction, and oriented by a shadow map.
+#include "vision/edges/edge_tangents.hpp"
 #include "vision/common/orientation.hpp"
 #include "vision/edges/depth_edges.hpp"
-#include "vision/edges/edge_tangents.hpp"
 
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
@@ -66,8 +66,8 @@ TEST(EdgeTangents, MatchReferenceOnRandomEdgeMaps) {
           ASSERT_LT(d(y, x), std::numbers::pi_v<float>);
           ASSERT_FLOAT_EQ(d(y, x), edge_tangent_at(e, x, y, radius));
           // A window with (nearly) isotropic pixels has no principal axis: skip those.
-          cv::Mat1b window = e(cv::Rect(x - radius, y - radius, 2 * radius + 1, 2 * radius + 1) &
-                               cv::Rect(0, 0, e.cols, e.rows));
+          cv::Mat1b window =
+              e(cv::Rect(x - radius, y - radius, 2 * radius + 1, 2 * radius + 1) & cv::Rect(0, 0, e.cols, e.rows));
           if (cv::countNonZero(window) < 3) continue;
           cv::Moments m = cv::moments(window, true);
           const double a = m.mu20 / m.m00, b = m.mu02 / m.m00, c = m.mu11 / m.m00;

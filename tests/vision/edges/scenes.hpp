@@ -37,7 +37,8 @@ inline std::vector<ScenePart> random_scene(const SceneMeshes& m, uint32_t seed, 
   for (int k = 0; k < 4; ++k) {
     const double tilt = 0.35;
     const cv::Matx33d R = rotation({tilt * u(rng), tilt * u(rng), 3.1 * u(rng)});
-    const cv::Vec3d t(spots[k][0] + 8 * u(rng), spots[k][1] + 8 * u(rng), 345 - half_height[k] - 4 - 6 * std::abs(u(rng)));
+    const cv::Vec3d t(spots[k][0] + 8 * u(rng), spots[k][1] + 8 * u(rng),
+                      345 - half_height[k] - 4 - 6 * std::abs(u(rng)));
     Material mat = Material::matte(0.6f + 0.3f * static_cast<float>(std::abs(u(rng))));
     if (painted) {
       mat.paint = (k % 2) ? Material::Paint::checker : Material::Paint::stripes;

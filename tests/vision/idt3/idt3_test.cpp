@@ -46,8 +46,10 @@ TEST(Idt3, SegmentSumsEqualDirectSums) {
       bool inside = true;
       uint32_t direct = 0;
       forEachPixel(idt.lines(), c, sx, sy, span, 1, [&](int x, int y) {
-        if (x < 0 || y < 0 || x >= size.width || y >= size.height) inside = false;
-        else direct += dt3.at(c, x, y);
+        if (x < 0 || y < 0 || x >= size.width || y >= size.height)
+          inside = false;
+        else
+          direct += dt3.at(c, x, y);
       });
       if (!inside) continue;
       ASSERT_EQ(idt.segmentCost(c, sx, sy, span), direct)

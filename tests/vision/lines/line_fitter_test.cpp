@@ -241,7 +241,8 @@ TEST(ReduceQuery, EveryBlockKeepsItsFirstChannel) {
         for (int dy = 0; dy < factor; ++dy)
           for (int dx = 0; dx < factor; ++dx) block.push_back(map(y * factor + dy, x * factor + dx));
         const auto first = std::find_if(block.begin(), block.end(), [](uchar c) { return c != kNoChannel; });
-        ASSERT_EQ(small(y, x), first == block.end() ? kNoChannel : *first) << "factor " << factor << " at " << x << "," << y;
+        ASSERT_EQ(small(y, x), first == block.end() ? kNoChannel : *first)
+            << "factor " << factor << " at " << x << "," << y;
       }
   }
 }

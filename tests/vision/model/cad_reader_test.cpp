@@ -114,14 +114,17 @@ TEST(CadReader, CylinderWithAHoleKeepsTheChordalTolerance) {
     double worst = 0;
     for (const auto& t : m.triangles) {
       bool outer = true;
-      for (int k = 0; k < 3; ++k) outer = outer && std::abs(std::hypot(m.vertices[t[k]][0], m.vertices[t[k]][1]) - R) < 1e-3;
+      for (int k = 0; k < 3; ++k)
+        outer = outer && std::abs(std::hypot(m.vertices[t[k]][0], m.vertices[t[k]][1]) - R) < 1e-3;
       if (!outer) continue;
-      const cv::Vec3d c = (cv::Vec3d(m.vertices[t[0]]) + cv::Vec3d(m.vertices[t[1]]) + cv::Vec3d(m.vertices[t[2]])) / 3.0;
+      const cv::Vec3d c =
+          (cv::Vec3d(m.vertices[t[0]]) + cv::Vec3d(m.vertices[t[1]]) + cv::Vec3d(m.vertices[t[2]])) / 3.0;
       worst = std::max(worst, R - std::hypot(c[0], c[1]));
     }
     EXPECT_LE(worst, tol + 1e-4) << "tolerance " << tol;
-    std::printf("[ figures  ] chordal tolerance %.2f mm: %zu triangles, volume %.1f of %.1f mm^3, worst centroid %.4f mm\n",
-                tol, m.triangles.size(), volume(m), exact, worst);
+    std::printf(
+        "[ figures  ] chordal tolerance %.2f mm: %zu triangles, volume %.1f of %.1f mm^3, worst centroid %.4f mm\n",
+        tol, m.triangles.size(), volume(m), exact, worst);
   }
 }
 

@@ -31,7 +31,8 @@ void write_ascii_stl(const Mesh& m, const fs::path& p) {
   for (const auto& t : m.triangles) {
     const cv::Vec3f n = normal_of(m, t);
     o << " facet normal " << n[0] << ' ' << n[1] << ' ' << n[2] << "\n  outer loop\n";
-    for (uint32_t i : t) o << "   vertex " << m.vertices[i][0] << ' ' << m.vertices[i][1] << ' ' << m.vertices[i][2] << "\n";
+    for (uint32_t i : t)
+      o << "   vertex " << m.vertices[i][0] << ' ' << m.vertices[i][1] << ' ' << m.vertices[i][2] << "\n";
     o << "  endloop\n endfacet\n";
   }
   o << "endsolid test\n";
@@ -111,9 +112,10 @@ TEST(MeshShapes, GeneratedShapesAreClosedOutwardAndOfTheRightVolume) {
 TEST(MeshLoad, AllFormatsGiveTheSameBox) {
   const Mesh box = make_box(40, 30, 20);
   using Writer = void (*)(const Mesh&, const fs::path&);
-  const std::vector<std::pair<std::string, Writer>> formats = {
-      {"box_ascii.stl", write_ascii_stl}, {"box_binary.stl", write_binary_stl},
-      {"box.obj", write_obj}, {"box.ply", write_ply}};
+  const std::vector<std::pair<std::string, Writer>> formats = {{"box_ascii.stl", write_ascii_stl},
+                                                               {"box_binary.stl", write_binary_stl},
+                                                               {"box.obj", write_obj},
+                                                               {"box.ply", write_ply}};
   for (const auto& [name, write] : formats) {
     const fs::path p = temp_file(name);
     write(box, p);

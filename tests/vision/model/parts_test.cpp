@@ -12,7 +12,8 @@ using namespace mfcd::vision;
 class DevelopmentPart : public testing::TestWithParam<const char*> {};
 
 TEST_P(DevelopmentPart, LoadsClosedAndSized) {
-  const std::filesystem::path stl = std::filesystem::path(MFC_BINARY_DIR) / "parts" / (std::string(GetParam()) + ".stl");
+  const std::filesystem::path stl =
+      std::filesystem::path(MFC_BINARY_DIR) / "parts" / (std::string(GetParam()) + ".stl");
   ASSERT_TRUE(std::filesystem::exists(stl)) << stl << " (built by the vision_parts_build test)";
   MeshReport report;
   const Mesh m = load_mesh(stl, {}, &report);

@@ -5,12 +5,12 @@
 
 #include <gtest/gtest.h>
 
+#include <unistd.h>
 #include <bit>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <string>
-#include <unistd.h>
 
 using namespace mfcd::vision;
 namespace fs = std::filesystem;
@@ -31,7 +31,8 @@ std::string header(const std::string& format, int vertices = 8, int faces = 6) {
          std::to_string(vertices) +
          "\nproperty float x\nproperty float y\nproperty float z\nproperty float nx\nproperty float ny\n"
          "property float nz\nproperty uchar red\nproperty list uchar float texcoord\nelement face " +
-         std::to_string(faces) + "\nproperty list uchar int vertex_indices\nproperty uchar flags\n"
+         std::to_string(faces) +
+         "\nproperty list uchar int vertex_indices\nproperty uchar flags\n"
          "element material 1\nproperty double shininess\nend_header\n";
 }
 
@@ -131,8 +132,9 @@ TEST(PlyReader, DamagedFilesAreRefusedWithTheReason) {
   const int32_t huge = 99;
   std::memcpy(bad.data() + first_index, &huge, 4);
   expect(bad, "vertex index 99");
-  const std::string xyz = "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
-                          "property float z\nend_header\n";
+  const std::string xyz =
+      "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
+      "property float z\nend_header\n";
   expect(xyz + "1 2 3\n4 x 6\n", "line 9: expected a number");
   expect(xyz + "1 2 3\n4 5          \n", "truncated");
   expect("ply\nformat ascii 1.0\nelement face 0\nproperty list uchar int vertex_indices\nend_header\n", "no 'vertex'");

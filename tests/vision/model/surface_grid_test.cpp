@@ -48,7 +48,8 @@ TEST(SurfaceGrid, AgreesWithTheExactDistanceOutsideHalfAVoxelDiagonal) {
     for (int i = 0; i < 4000; ++i) {
       // A vertex (or the midpoint of two) moved by up to 2 mm in any direction.
       const cv::Vec3f a = mesh.vertices[vertex(rng)], b = mesh.vertices[vertex(rng)];
-      const cv::Vec3d base = i % 2 ? cv::Vec3d(a[0], a[1], a[2]) : 0.5 * cv::Vec3d(a[0] + b[0], a[1] + b[1], a[2] + b[2]);
+      const cv::Vec3d base =
+          i % 2 ? cv::Vec3d(a[0], a[1], a[2]) : 0.5 * cv::Vec3d(a[0] + b[0], a[1] + b[1], a[2] + b[2]);
       const cv::Vec3d p = base + 2.0 * cv::Vec3d(u(rng), u(rng), u(rng));
       const double d = distance_to_surface(mesh, p);
       if (d <= tolerance - slack) {

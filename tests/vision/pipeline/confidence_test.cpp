@@ -1,5 +1,5 @@
-#include "vision/pipeline/bin_picking_pipeline.hpp"
 #include "vision/pipeline/confidence.hpp"
+#include "vision/pipeline/bin_picking_pipeline.hpp"
 
 #include <gtest/gtest.h>
 

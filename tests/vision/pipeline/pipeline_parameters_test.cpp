@@ -23,7 +23,8 @@ TEST(PipelineParameters, EveryKeyOnceWithItsDefaultInRange) {
   std::set<std::string> keys;
   for (const PipelineParameter& p : pipeline_parameters()) {
     EXPECT_TRUE(keys.insert(p.key).second) << p.key << " is in the table twice";
-    EXPECT_TRUE(p.in_range(p.default_value())) << p.key << " default " << p.default_value() << " is not " << p.range_text();
+    EXPECT_TRUE(p.in_range(p.default_value()))
+        << p.key << " default " << p.default_value() << " is not " << p.range_text();
     EXPECT_LE(p.min, p.max) << p.key;
     EXPECT_GT(std::string(p.meaning).size(), 10u) << p.key;
     if (p.type == Type::boolean) {

@@ -2,19 +2,19 @@
 // each part, alone on a floor in a pose between template views (up to 4 degrees off any view),
 // is found with the right part type and a coarse pose within the paper's correctness bounds
 // (5 mm, 10 degrees, symmetry-aware).
-#include "vision/pipeline/bin_picking_pipeline.hpp"
-#include "vision/pose/coarse_pose.hpp"
-#include "vision/render/mfc_renderer.hpp"
-#include "vision/templates/template_database.hpp"
 #include "tests/hal/alloc_counter.hpp"
 #include "tests/vision/support/floor_scene.hpp"
 #include "tests/vision/support/pose_errors.hpp"
 #include "tests/vision/support/rim_diamonds.hpp"
+#include "vision/pipeline/bin_picking_pipeline.hpp"
+#include "vision/pose/coarse_pose.hpp"
+#include "vision/render/mfc_renderer.hpp"
+#include "vision/templates/template_database.hpp"
 
 #include <gtest/gtest.h>
 
-#include <array>
 #include <omp.h>
+#include <array>
 
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -56,7 +56,8 @@ struct RenderedPart {
   MfcRender render;
 };
 
-RenderedPart render_part(const fs::path& tdb, const CameraConfig& cam, double angle, cv::Point2d origin, uint64_t seed) {
+RenderedPart render_part(const fs::path& tdb, const CameraConfig& cam, double angle, cv::Point2d origin,
+                         uint64_t seed) {
   RenderedPart out;
   out.db = load_template_database(tdb);
   out.truth = upper_view_pose(out.db, cam, angle, origin);
@@ -152,16 +153,19 @@ TEST_P(PipelineOnRenderedPart, FindsThePartWithinFiveMillimetresAndTenDegrees) {
     if (const char* dir = std::getenv("MFC_TEST_DUMP"))
       cv::imwrite(std::string(dir) + "/" + part() + "-" + std::to_string(trial) + "-edges.png",
                   pipeline.last_edges().edges);
-    ASSERT_FALSE(result.candidates.empty()) << result.edge_pixels << " edge pixels, " << result.query_lines
-                                            << " query lines, " << result.hypotheses << " hypotheses; true view " << view;
+    ASSERT_FALSE(result.candidates.empty())
+        << result.edge_pixels << " edge pixels, " << result.query_lines << " query lines, " << result.hypotheses
+        << " hypotheses; true view " << view;
     const PoseCandidate& best = result.candidates.front();
     const cv::Vec3d found_centre = best.R_m2c * db.center_mm + best.t_m2c_mm;
     const double dt = cv::norm(found_centre - centre);
     const double dr = rotation_error_deg(best.R_m2c, truth.R, db.symmetry);
-    std::printf("%s trial %d: view %d -> %d, cost %.2f px, centre error %.2f mm, rotation error %.2f deg, %.1f ms "
-                "(edges %.1f lines %.1f dt %.1f search %.1f refine %.1f, %.2f M hypotheses)\n",
-                part(), trial, view, best.view, best.cost_px, dt, dr, result.times.total_ms,
-                result.times.edges_ms, result.times.lines_ms, result.times.distance_ms, result.times.search_ms, result.times.refine_ms, result.hypotheses * 1e-6);
+    std::printf(
+        "%s trial %d: view %d -> %d, cost %.2f px, centre error %.2f mm, rotation error %.2f deg, %.1f ms "
+        "(edges %.1f lines %.1f dt %.1f search %.1f refine %.1f, %.2f M hypotheses)\n",
+        part(), trial, view, best.view, best.cost_px, dt, dr, result.times.total_ms, result.times.edges_ms,
+        result.times.lines_ms, result.times.distance_ms, result.times.search_ms, result.times.refine_ms,
+        result.hypotheses * 1e-6);
     found += dt <= 5 && dr <= 10;
     // The truth scored where it is (PoseScore::exact_score, the fitted rank's measure unfitted)
     // beats the same pose moved 10 mm sideways, where its edges are not.
@@ -236,7 +240,7 @@ TEST(Pipeline, RefusesBadConfiguration) {
   // The ranking's settings.
   const double nan = std::numeric_limits<double>::quiet_NaN();
   refuses("fit_score_gate_px", &PipelineConfig::fit_score_gate_px, {0.0, -1.0, nan, 1.5});  // 1.5 < inlier cost 2
-  refuses("fit_inlier_cost_px", &PipelineConfig::fit_inlier_cost_px, {0.0, nan, 5.0});     // 5 > score gate 4
+  refuses("fit_inlier_cost_px", &PipelineConfig::fit_inlier_cost_px, {0.0, nan, 5.0});      // 5 > score gate 4
   refuses("unexplained_weight", &PipelineConfig::unexplained_weight, {-0.1, nan});
   refuses("escalate_max_cost_px", &PipelineConfig::escalate_max_cost_px, {-1.0, nan});
   refuses("escalate_below", &PipelineConfig::escalate_below, {-0.1, nan});
@@ -272,7 +276,8 @@ TEST(Pipeline, NoCandidateReachesBelowTheBinFloor) {
   EXPECT_TRUE(high.below(mesh, {unchecked.candidates.front().R_m2c, unchecked.candidates.front().t_m2c_mm}));
   const PipelineResult checked = run(high.distance_mm);
   for (const PoseCandidate& c : checked.candidates)
-    EXPECT_FALSE(high.below(mesh, {c.R_m2c, c.t_m2c_mm})) << "candidate reaches " << high.reach_below(mesh, {c.R_m2c, c.t_m2c_mm}) << " mm below";
+    EXPECT_FALSE(high.below(mesh, {c.R_m2c, c.t_m2c_mm}))
+        << "candidate reaches " << high.reach_below(mesh, {c.R_m2c, c.t_m2c_mm}) << " mm below";
 }
 
 // set_floor moves the floor of the next cycles, as if the pipeline had been configured with it; a
@@ -304,7 +309,8 @@ TEST(Pipeline, SetFloorActsAsTheConfiguredFloor) {
   EXPECT_THROW(pipeline.set_floor(bad), std::invalid_argument);
   run();
   for (const PoseCandidate& c : result.candidates)
-    EXPECT_FALSE(high.below(mesh, {c.R_m2c, c.t_m2c_mm})) << "candidate reaches " << high.reach_below(mesh, {c.R_m2c, c.t_m2c_mm}) << " mm below";
+    EXPECT_FALSE(high.below(mesh, {c.R_m2c, c.t_m2c_mm}))
+        << "candidate reaches " << high.reach_below(mesh, {c.R_m2c, c.t_m2c_mm}) << " mm below";
   pipeline.set_floor(BinFloor{});
   run();
   EXPECT_TRUE(best_below());
@@ -353,7 +359,8 @@ TEST(Pipeline, RefinesTheBestCandidateWhenAsked) {
 // already past leaves no time to search: degraded, and still no unfitted pose.
 TEST(Pipeline, DeadlineCutsTheSearchAndTheFitShort) {
   std::vector<fs::path> all;
-  for (const char* p : {"breaker", "diamond", "ellipse", "tnut", "knob", "wheel"}) all.push_back(kTemplates / (std::string(p) + ".tdb"));
+  for (const char* p : {"breaker", "diamond", "ellipse", "tnut", "knob", "wheel"})
+    all.push_back(kTemplates / (std::string(p) + ".tdb"));
   const CameraConfig cam = sim_camera();
   PipelineConfig pc;
   pc.template_files = all;
@@ -362,7 +369,8 @@ TEST(Pipeline, DeadlineCutsTheSearchAndTheFitShort) {
   MfcRenderer renderer(cam);
   const int part_id = renderer.add_mesh(db.mesh);
   const int floor_id = renderer.add_mesh(make_plane(600));
-  const MfcRender render = render_on_floor(renderer, part_id, floor_id, db, upper_view_pose(db, cam, 0.3, {330, 230}), 11);
+  const MfcRender render =
+      render_on_floor(renderer, part_id, floor_id, db, upper_view_pose(db, cam, 0.3, {330, 230}), 11);
   // The machine is shared, and the load on it changes within a test (ctest runs two at a time,
   // each with its own threads): a cut cycle is compared with a full cycle run just before it,
   // and the best of up to three such pairs counts. Each cut cycle must be cut short and give
@@ -650,8 +658,9 @@ TEST(Pipeline, FindsAPlateStandingOnItsRim) {
       const PoseCandidate& best = result.candidates.front();
       const double dt = cv::norm(best.R_m2c * db.center_mm + best.t_m2c_mm - centre);
       const double dr = rotation_error_deg(best.R_m2c, truth.R, db.symmetry);
-      std::printf("%s trial %d: view %d (z %.2f) -> %d, centre error %.2f mm, rotation error %.2f deg, rank %.3f\n", part,
-                  trial, view, db.views[static_cast<size_t>(view)].view_direction[2], best.view, dt, dr, best.fit_rank);
+      std::printf("%s trial %d: view %d (z %.2f) -> %d, centre error %.2f mm, rotation error %.2f deg, rank %.3f\n",
+                  part, trial, view, db.views[static_cast<size_t>(view)].view_direction[2], best.view, dt, dr,
+                  best.fit_rank);
       EXPECT_LE(dt, 5.0) << part << " trial " << trial;
       EXPECT_LE(dr, 10.0) << part << " trial " << trial;
     }
@@ -745,10 +754,12 @@ TEST(Pipeline, ReportsThePlateOnItsRimAtItsDepth) {
     plain.process(render.frames, 0, std::chrono::steady_clock::now() + std::chrono::seconds(30), b);
     ASSERT_FALSE(a.candidates.empty() || b.candidates.empty()) << "pose " << k;
     const PoseCandidate &ca = a.candidates.front(), &cb = b.candidates.front();
-    const cv::Vec3d da = ca.R_m2c * db.center_mm + ca.t_m2c_mm - centre, db_ = cb.R_m2c * db.center_mm + cb.t_m2c_mm - centre;
-    const double ra = rotation_error_deg(ca.R_m2c, truth.R, db.symmetry), rb = rotation_error_deg(cb.R_m2c, truth.R, db.symmetry);
-    std::printf("pose %d, noise seed %d: corrected depth error %+.2f mm (%.1f deg), without %+.2f mm (%.1f deg)\n", k % 2,
-                31 + k, da[2], ra, db_[2], rb);
+    const cv::Vec3d da = ca.R_m2c * db.center_mm + ca.t_m2c_mm - centre,
+                    db_ = cb.R_m2c * db.center_mm + cb.t_m2c_mm - centre;
+    const double ra = rotation_error_deg(ca.R_m2c, truth.R, db.symmetry),
+                 rb = rotation_error_deg(cb.R_m2c, truth.R, db.symmetry);
+    std::printf("pose %d, noise seed %d: corrected depth error %+.2f mm (%.1f deg), without %+.2f mm (%.1f deg)\n",
+                k % 2, 31 + k, da[2], ra, db_[2], rb);
     // Same instance, same ranking: the correction moves the pose in depth (up to 5 mm at a wrong
     // spin, whose strip ends leave the depth to the strip's width) and turns it by a few degrees.
     EXPECT_LT(cv::norm(da - db_), 8.0) << "pose " << k;

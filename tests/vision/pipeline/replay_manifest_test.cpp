@@ -5,9 +5,9 @@
 #include <gtest/gtest.h>
 #include <zlib.h>
 
+#include <unistd.h>
 #include <fstream>
 #include <string>
-#include <unistd.h>
 
 #include "vision/pipeline/bin_picking_pipeline.hpp"
 
@@ -32,7 +32,8 @@ TEST(ReplayManifest, Crc32IsZlibsOverTheWholeFile) {
   for (std::size_t i = 0; i < bytes.size(); ++i) bytes[i] = static_cast<char>((i * 7919) & 0xff);
   writeBytes(tmp.path / "a.bin", bytes);
   // The slow twin: one call over the whole buffer (file_crc32 reads in 64 KiB chunks).
-  const auto whole = static_cast<std::uint32_t>(crc32(0L, reinterpret_cast<const Bytef*>(bytes.data()), static_cast<uInt>(bytes.size())));
+  const auto whole = static_cast<std::uint32_t>(
+      crc32(0L, reinterpret_cast<const Bytef*>(bytes.data()), static_cast<uInt>(bytes.size())));
   EXPECT_EQ(file_crc32(tmp.path / "a.bin"), whole);
   writeBytes(tmp.path / "check.bin", "123456789");
   EXPECT_EQ(file_crc32(tmp.path / "check.bin"), 0xCBF43926u) << "the CRC-32 check value";

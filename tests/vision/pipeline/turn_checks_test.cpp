@@ -87,10 +87,9 @@ TEST(TurnChecks, PlateAxisIsTheTwoFoldAxisAlongThePartsLeastExtent) {
     EXPECT_LT(cv::norm(t.S * *axis - *axis), 1e-9);  // about the axis
   }
   // A part whose 2-fold axis is not its thinnest (the symmetry about x only) is no plate.
-  db.turns.symmetries.erase(
-      std::remove_if(db.turns.symmetries.begin(), db.turns.symmetries.end(),
-                     [](const MeshTurn& s) { return std::abs(s.axis[0]) < 0.9; }),
-      db.turns.symmetries.end());
+  db.turns.symmetries.erase(std::remove_if(db.turns.symmetries.begin(), db.turns.symmetries.end(),
+                                           [](const MeshTurn& s) { return std::abs(s.axis[0]) < 0.9; }),
+                            db.turns.symmetries.end());
   ASSERT_EQ(db.turns.symmetries.size(), 1u);
   EXPECT_FALSE(detail::plate_axis(db).has_value());
   EXPECT_TRUE(detail::plate_turns(db).empty());

@@ -65,8 +65,8 @@ TEST(EdgeCorrespondence, MatchesBruteForceOnRandomInputs) {
       DirectionalEdgeIndex index(cell);
       index.build(edges, "edge map", oriented);
       // Query angles beyond [0, pi) too: a projected model tangent is not reduced modulo pi.
-      std::uniform_real_distribution<double> ux(-20, size.width + 20), uy(-20, size.height + 20), ua(-2 * CV_PI, 3 * CV_PI),
-          ug(0, 40), ul(0, 20);
+      std::uniform_real_distribution<double> ux(-20, size.width + 20), uy(-20, size.height + 20),
+          ua(-2 * CV_PI, 3 * CV_PI), ug(0, 40), ul(0, 20);
       for (int q = 0; q < 300; ++q) {
         const cv::Point2d u(ux(rng), uy(rng));
         const double angle = ua(rng), gate = ug(rng), lambda = q % 5 == 0 ? 0.0 : ul(rng);
@@ -79,8 +79,9 @@ TEST(EdgeCorrespondence, MatchesBruteForceOnRandomInputs) {
         // Ties may pick another pixel; the pixel returned must attain the reported cost.
         ASSERT_TRUE(edges.edges(static_cast<int>(fast.y), static_cast<int>(fast.x)));
         const float d = edges.direction(static_cast<int>(fast.y), static_cast<int>(fast.x));
-        const double check = std::hypot(fast.x - u.x, fast.y - u.y) +
-                             lambda * (oriented ? oriented_angle_difference(angle, d) : undirected_angle_difference(angle, d));
+        const double check =
+            std::hypot(fast.x - u.x, fast.y - u.y) +
+            lambda * (oriented ? oriented_angle_difference(angle, d) : undirected_angle_difference(angle, d));
         ASSERT_NEAR(check, fast.cost, 1e-5);
       }
     }

@@ -102,9 +102,11 @@ void BM_RefineCandidate(benchmark::State& state) {
       sum_r[i] += std::abs(e.r[i]);
     }
     if (verbose())
-      std::fprintf(stderr, "%-8s views %d edges %d seed %u: t %+.3f %+.3f %+.3f mm r %+.3f %+.3f %+.3f deg cost %.2f px inl %.2f it %d renders %d%s\n",
-                   k.part.c_str(), views, mfc ? 1 : 0, seed - 1, e.t[0], e.t[1], e.t[2], e.r[0], e.r[1], e.r[2], r.mean_cost_px,
-                   r.inlier_fraction, r.iterations, r.renders, r.converged ? " converged" : "");
+      std::fprintf(stderr,
+                   "%-8s views %d edges %d seed %u: t %+.3f %+.3f %+.3f mm r %+.3f %+.3f %+.3f deg cost %.2f px inl "
+                   "%.2f it %d renders %d%s\n",
+                   k.part.c_str(), views, mfc ? 1 : 0, seed - 1, e.t[0], e.t[1], e.t[2], e.r[0], e.r[1], e.r[2],
+                   r.mean_cost_px, r.inlier_fraction, r.iterations, r.renders, r.converged ? " converged" : "");
     converged += r.converged;
     iterations += r.iterations;
     renders += r.renders;

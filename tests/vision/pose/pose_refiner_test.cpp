@@ -67,10 +67,11 @@ class PoseRefinerTest : public ::testing::Test {
     const RigidTransform start = perturb(truth, s.centre, rng, 3.0, 5.0);
     const RefinementResult r = refiner.refine(s.model, start);
     const AxisErrors e = axis_errors(r.pose, truth, s.centre);
-    std::printf("seed %u, %zu view(s): t %+.3f %+.3f %+.3f mm, r %+.3f %+.3f %+.3f deg, cost %.3f px, inliers %.2f, "
-                "%d iterations%s\n",
-                seed, refiner.view_count(), e.t[0], e.t[1], e.t[2], e.r[0], e.r[1], e.r[2], r.mean_cost_px,
-                r.inlier_fraction, r.iterations, r.converged ? ", converged" : "");
+    std::printf(
+        "seed %u, %zu view(s): t %+.3f %+.3f %+.3f mm, r %+.3f %+.3f %+.3f deg, cost %.3f px, inliers %.2f, "
+        "%d iterations%s\n",
+        seed, refiner.view_count(), e.t[0], e.t[1], e.t[2], e.r[0], e.r[1], e.r[2], r.mean_cost_px, r.inlier_fraction,
+        r.iterations, r.converged ? ", converged" : "");
     EXPECT_FALSE(r.failed);
     EXPECT_FALSE(r.deadline_hit);
     if (out) *out = r;
@@ -103,12 +104,13 @@ TEST_F(PoseRefinerTest, ModelEdgePointsLieOnTheRenderedDepthEdges) {
     EXPECT_NEAR(q.x, p.pixel.x, 1e-3);
     EXPECT_NEAR(q.y, p.pixel.y, 1e-3);
     // On the box surface: at least one coordinate on a face.
-    const double on_face = std::min({std::abs(std::abs(p.point_model[0]) - 20), std::abs(std::abs(p.point_model[1]) - 14),
-                                     std::abs(std::abs(p.point_model[2]) - 9)});
+    const double on_face =
+        std::min({std::abs(std::abs(p.point_model[0]) - 20), std::abs(std::abs(p.point_model[1]) - 14),
+                  std::abs(std::abs(p.point_model[2]) - 9)});
     EXPECT_LT(on_face, 0.05);
     // The tangent agrees with the observed edge's direction (same pixel chain).
-    EXPECT_LT(undirected_angle_difference(p.angle, s.edges[0].direction(cv::Point(static_cast<int>(p.pixel.x),
-                                                                                     static_cast<int>(p.pixel.y)))),
+    EXPECT_LT(undirected_angle_difference(
+                  p.angle, s.edges[0].direction(cv::Point(static_cast<int>(p.pixel.x), static_cast<int>(p.pixel.y)))),
               1e-4);
   }
 }
@@ -291,7 +293,6 @@ TEST_F(PoseRefinerTest, PartOutOfViewFailsWithoutThrowing) {
   EXPECT_EQ(r.score, 0.0);
 }
 
-
 TEST(OccludingEdges, GrazingFaceIsNoEdgeButItsBorderIs) {
   // A face rising 5 mm per pixel (seen at a grazing angle) on background: depth_discontinuities
   // marks every pixel of it, occluding_edges only its outline.
@@ -337,8 +338,8 @@ TEST(OccludingEdges, AnotherObjectBehindIsAlwaysAnEdge) {
   occluding_edges(depth, 2.0f, 1.0f, without);
   EXPECT_TRUE(with(10, 49));
   EXPECT_FALSE(without(10, 49));
-  EXPECT_TRUE(with(10, 10) && without(10, 10));    // near end: 200 mm in front of the floor
-  EXPECT_FALSE(with(10, 30) || without(10, 30));   // inside the face
+  EXPECT_TRUE(with(10, 10) && without(10, 10));   // near end: 200 mm in front of the floor
+  EXPECT_FALSE(with(10, 30) || without(10, 30));  // inside the face
   cv::Mat1b small(10, 10, uchar(0));
   EXPECT_THROW(occluding_edges(depth, 2.0f, 1.0f, with, &small), std::invalid_argument);
 }

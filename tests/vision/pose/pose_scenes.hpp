@@ -93,8 +93,8 @@ inline DepthEdges rendered_depth_edges(MfcRenderer& renderer, const PinholeCamer
 }
 
 // Depth edges the real way: a noisy MFC render through DepthEdgeExtractor.
-inline DepthEdges mfc_depth_edges(MfcRenderer& renderer, const CameraConfig& config, const std::vector<ScenePart>& parts,
-                                  uint64_t seed) {
+inline DepthEdges mfc_depth_edges(MfcRenderer& renderer, const CameraConfig& config,
+                                  const std::vector<ScenePart>& parts, uint64_t seed) {
   renderer.set_camera(config.camera);
   MfcRender render;
   renderer.render(parts, render, seed);

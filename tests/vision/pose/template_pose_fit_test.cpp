@@ -4,9 +4,9 @@
 // ~6 degrees off), the fitted pose is closer to the truth and scores better than the start.
 #include "vision/pose/template_pose_fit.hpp"
 
+#include "tests/vision/support/floor_scene.hpp"
 #include "vision/pose/rigid_transform.hpp"
 #include "vision/render/mfc_renderer.hpp"
-#include "tests/vision/support/floor_scene.hpp"
 
 #include <gtest/gtest.h>
 
@@ -108,11 +108,11 @@ TEST(TemplatePoseFit, JacobianMatchesFiniteDifferences) {
       const double h = k < 3 ? 1e-6 : 1e-5;
       cv::Vec6d d(0, 0, 0, 0, 0, 0);
       d[k] = h;
-      const double rp = point_to_line_residual(apply_pose_update(pose, centre_model, d), centre_cam, X, cam.camera,
-                                               edge, n, nullptr);
+      const double rp =
+          point_to_line_residual(apply_pose_update(pose, centre_model, d), centre_cam, X, cam.camera, edge, n, nullptr);
       d[k] = -h;
-      const double rm = point_to_line_residual(apply_pose_update(pose, centre_model, d), centre_cam, X, cam.camera,
-                                               edge, n, nullptr);
+      const double rm =
+          point_to_line_residual(apply_pose_update(pose, centre_model, d), centre_cam, X, cam.camera, edge, n, nullptr);
       const double numeric = (rp - rm) / (2 * h);
       EXPECT_NEAR(J(0, k), numeric, 1e-4 * std::max(1.0, std::abs(numeric))) << "trial " << trial << " k " << k;
     }
@@ -240,12 +240,12 @@ TEST_P(TemplatePoseFitOnRenders, MovesTheCoarsePoseTowardsTheTruth) {
     // there the score may only not fall (by more than its noise); elsewhere it must rise.
     const bool near_truth = centre_error(start) < 1 && symmetric_rotation_error_deg(start.R, truth.R, db.symmetry) < 2;
     better += near_truth ? after.score > before.score - 0.01 : after.score > before.score;
-    std::printf("%s trial %d: view %d->%d, score %.3f -> %.3f (cost %.2f -> %.2f px), centre %.2f -> %.2f mm, "
-                "rotation %.2f -> %.2f deg\n",
-                GetParam(), trial, view, after.view, before.score, after.score, before.mean_cost_px,
-                after.mean_cost_px, centre_error(start), centre_error(after.pose),
-                symmetric_rotation_error_deg(start.R, truth.R, db.symmetry),
-                symmetric_rotation_error_deg(after.pose.R, truth.R, db.symmetry));
+    std::printf(
+        "%s trial %d: view %d->%d, score %.3f -> %.3f (cost %.2f -> %.2f px), centre %.2f -> %.2f mm, "
+        "rotation %.2f -> %.2f deg\n",
+        GetParam(), trial, view, after.view, before.score, after.score, before.mean_cost_px, after.mean_cost_px,
+        centre_error(start), centre_error(after.pose), symmetric_rotation_error_deg(start.R, truth.R, db.symmetry),
+        symmetric_rotation_error_deg(after.pose.R, truth.R, db.symmetry));
   }
   EXPECT_EQ(better, trials);
   EXPECT_LT(end_r, 0.6 * start_r);
@@ -327,14 +327,16 @@ TEST_P(TemplatePoseFitOnRenders, PointsPairOnlyWithEdgesWhoseNearSideIsThePart) 
     for (int x = 0; x < swapped.shadow.cols; ++x)
       if (swapped.edges(y, x)) swapped.shadow(y, x) = std::fmod(swapped.shadow(y, x) + CV_PI, 2 * CV_PI);
   scene.fitter.prepare(swapped);
-  const TemplateFitResult wrong_side = scene.fitter.evaluate(scene.db, oriented.view, oriented.pose, cam.camera, scene.ws);
+  const TemplateFitResult wrong_side =
+      scene.fitter.evaluate(scene.db, oriented.view, oriented.pose, cam.camera, scene.ws);
 
   const DepthEdges undirected{scene.edges.edges, scene.edges.direction, {}};
   scene.fitter.prepare(undirected);
-  const TemplateFitResult either_side = scene.fitter.evaluate(scene.db, oriented.view, oriented.pose, cam.camera, scene.ws);
+  const TemplateFitResult either_side =
+      scene.fitter.evaluate(scene.db, oriented.view, oriented.pose, cam.camera, scene.ws);
   std::printf("%s: score %.3f (inliers %.2f), sides swapped %.3f (%.2f), undirected %.3f (%.2f)\n", GetParam(),
-              oriented.score, oriented.inlier_fraction, wrong_side.score, wrong_side.inlier_fraction,
-              either_side.score, either_side.inlier_fraction);
+              oriented.score, oriented.inlier_fraction, wrong_side.score, wrong_side.inlier_fraction, either_side.score,
+              either_side.inlier_fraction);
   EXPECT_GT(oriented.inlier_fraction, 0.6);
   EXPECT_LT(wrong_side.inlier_fraction, 0.25 * oriented.inlier_fraction);
   EXPECT_GE(either_side.inlier_fraction, oriented.inlier_fraction);
@@ -370,7 +372,9 @@ TEST(TemplatePoseFit, EdgeOffsetProfilesRemoveTheDepthBiasOfATurnedPlate) {
       scene.show(truth, 300 + n);
       plain.prepare(scene.edges);
       const cv::Vec3d centre = truth.R * db.center_mm + truth.t_mm;
-      auto depth_error = [&](const TemplateFitResult& r) { return (r.pose.R * db.center_mm + r.pose.t_mm - centre)[2]; };
+      auto depth_error = [&](const TemplateFitResult& r) {
+        return (r.pose.R * db.center_mm + r.pose.t_mm - centre)[2];
+      };
       const double with = depth_error(scene.fitter.fit(db, view.index, truth, scene.cam.camera, scene.ws));
       const double without = depth_error(plain.fit(db, view.index, truth, scene.cam.camera, scene.ws));
       std::printf("view %d, turn %d: depth error %+.2f mm corrected, %+.2f mm without\n", view.index, diagonal, with,
@@ -415,8 +419,8 @@ TEST(TemplatePoseFit, EvaluatesEveryPointWhenAsked) {
     const TemplateFitResult twin = whole_fitter.evaluate(db, view, pose, cam.camera, scene.ws);
     const TemplateFitResult sub = fitter.evaluate(db, view, pose, cam.camera, scene.ws);
     const TemplateFitResult few = fitter.evaluate(db, view, pose, cam.camera, scene.ws, 40);
-    std::printf("%d points: every point %.3f (inliers %.2f), subsample of %d %.3f (%.2f), of 40 %.3f\n", n,
-                all.score, all.inlier_fraction, sub.points, sub.score, sub.inlier_fraction, few.score);
+    std::printf("%d points: every point %.3f (inliers %.2f), subsample of %d %.3f (%.2f), of 40 %.3f\n", n, all.score,
+                all.inlier_fraction, sub.points, sub.score, sub.inlier_fraction, few.score);
     EXPECT_EQ(all.points, n);
     EXPECT_EQ(twin.points, n);
     EXPECT_EQ(all.score, twin.score);
@@ -474,8 +478,9 @@ TEST(TemplatePoseFit, CompareFavoursTheTruthOverItsTurnedOverTwin) {
     EXPECT_EQ(same.cost_a, TemplatePoseFit::kCompareGatePx);
     EXPECT_EQ(same.cost_b, TemplatePoseFit::kCompareGatePx);
     const auto d = fitter.compare(db, right, wrong, cam.camera, ws);
-    std::printf("trial %d: scores %.3f / %.3f, differing points %d / %d, on edges %.2f / %.2f, mean cost %.2f / %.2f px\n",
-                trial, right.score, wrong.score, d.only_a, d.only_b, d.found_a, d.found_b, d.cost_a, d.cost_b);
+    std::printf(
+        "trial %d: scores %.3f / %.3f, differing points %d / %d, on edges %.2f / %.2f, mean cost %.2f / %.2f px\n",
+        trial, right.score, wrong.score, d.only_a, d.only_b, d.found_a, d.found_b, d.cost_a, d.cost_b);
     EXPECT_GT(d.only_a, 5);
     EXPECT_GT(d.found_a, d.found_b) << "trial " << trial;
     EXPECT_LT(d.cost_a, d.cost_b) << "trial " << trial;
@@ -503,7 +508,8 @@ TEST(TemplatePoseFit, CompareFavoursTheTruthOverItsTurnedOverTwin) {
   EXPECT_GE(favoured_by_cost, trials - 1);
   EXPECT_GE(favoured_on_toggle_by_cost, trials - 1);
   // Flags that do not fit the views are refused.
-  const TemplateFitResult any = fitter.evaluate(db, 0, RigidPose{db.views[0].R_m2c, db.views[0].t_m2c_mm}, cam.camera, ws);
+  const TemplateFitResult any =
+      fitter.evaluate(db, 0, RigidPose{db.views[0].R_m2c, db.views[0].t_m2c_mm}, cam.camera, ws);
   const std::vector<uint8_t> short_flags(3, 1);
   EXPECT_THROW(fitter.compare(db, any, any, cam.camera, ws, &short_flags, nullptr), std::invalid_argument);
 }
@@ -539,11 +545,13 @@ TEST(TemplatePoseFit, CompareFindsNoEdgeNearAToggleThatIsNotThere) {
       if (toggle_points(truth) > 3 || toggle_points(twin) < 20) continue;
       scene.show(truth, 700 + cases);
       const TemplateFitResult right = scene.fit_from(truth), wrong = scene.fit_from(twin);
-      const auto d = scene.fitter.compare(db, right, wrong, scene.cam.camera, scene.ws,
-                                          &toggle[static_cast<size_t>(right.view)], &toggle[static_cast<size_t>(wrong.view)]);
-      std::printf("tilt %.0f, direction %d: scores %.3f / %.3f, toggle points differing %d / %d, on edges %.2f / %.2f, "
-                  "mean cost %.2f / %.2f px\n",
-                  tilt, dir, right.score, wrong.score, d.only_a, d.only_b, d.found_a, d.found_b, d.cost_a, d.cost_b);
+      const auto d =
+          scene.fitter.compare(db, right, wrong, scene.cam.camera, scene.ws, &toggle[static_cast<size_t>(right.view)],
+                               &toggle[static_cast<size_t>(wrong.view)]);
+      std::printf(
+          "tilt %.0f, direction %d: scores %.3f / %.3f, toggle points differing %d / %d, on edges %.2f / %.2f, "
+          "mean cost %.2f / %.2f px\n",
+          tilt, dir, right.score, wrong.score, d.only_a, d.only_b, d.found_a, d.found_b, d.cost_a, d.cost_b);
       EXPECT_LE(d.only_a, 1);
       EXPECT_GE(d.only_b, 6);
       EXPECT_GE(d.cost_b, 7.0);
@@ -580,13 +588,16 @@ TEST(TemplatePoseFit, CompareFavoursTheTruthOverItsPhaseTwin) {
     const TemplateFitResult right = scene.fit_from(truth);
     ASSERT_LT(std::abs(phase_deg(truth, right.pose)), 3.0) << "trial " << trial;
     for (const double sign : {1.0, -1.0}) {
-      const TemplateFitResult twin = scene.fit_from(RigidPose{truth.R * rotation_about_z(sign * 14.5 * CV_PI / 180), truth.t_mm});
+      const TemplateFitResult twin =
+          scene.fit_from(RigidPose{truth.R * rotation_about_z(sign * 14.5 * CV_PI / 180), truth.t_mm});
       const double phase = phase_deg(truth, twin.pose);
       if (std::abs(phase) < 5) continue;  // this start came back to the truth
       ++twins;
       const auto d = scene.fitter.compare(scene.db, twin, right, scene.cam.camera, scene.ws);
-      std::printf("trial %d: twin at %+.1f deg, scores %.3f (truth) / %.3f (twin), differing points %d / %d, on edges %.2f / %.2f\n",
-                  trial, phase, right.score, twin.score, d.only_b, d.only_a, d.found_b, d.found_a);
+      std::printf(
+          "trial %d: twin at %+.1f deg, scores %.3f (truth) / %.3f (twin), differing points %d / %d, on edges %.2f / "
+          "%.2f\n",
+          trial, phase, right.score, twin.score, d.only_b, d.only_a, d.found_b, d.found_a);
       EXPECT_GE(d.only_b, 6) << "trial " << trial;
       EXPECT_GE(d.found_b, d.found_a + 0.2) << "trial " << trial;  // the truth is taken from the twin
       const auto back = scene.fitter.compare(scene.db, right, twin, scene.cam.camera, scene.ws);

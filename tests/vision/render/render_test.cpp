@@ -288,7 +288,8 @@ TEST(MfcRenderer, CroppedCameraRendersTheSameWindow) {
   EXPECT_EQ(cv::norm(crop.part_index, full.part_index(win), cv::NORM_INF), 0.0);
   for (int i = 0; i < 8; ++i)
     EXPECT_LE(cv::norm(crop.flash_linear[static_cast<size_t>(i)], full.flash_linear[static_cast<size_t>(i)](win),
-                       cv::NORM_INF), 0.5);
+                       cv::NORM_INF),
+              0.5);
 }
 
 // Sensor noise of read sigma 2 DN and shot noise 0.1 DN per electron, and a floor facing the
@@ -313,7 +314,8 @@ TEST(MfcRenderer, NoiseIsSeededAndOfTheConfiguredSize) {
   r.render(std::span(&floor, 1), b, 42);
   r.render(std::span(&floor, 1), c, 43);
   for (int i = 0; i < 8; ++i) {
-    EXPECT_EQ(cv::norm(a.frames.flash[static_cast<size_t>(i)], b.frames.flash[static_cast<size_t>(i)], cv::NORM_INF), 0.0);
+    EXPECT_EQ(cv::norm(a.frames.flash[static_cast<size_t>(i)], b.frames.flash[static_cast<size_t>(i)], cv::NORM_INF),
+              0.0);
   }
   EXPECT_GT(cv::norm(a.frames.flash[0], c.frames.flash[0], cv::NORM_L1), 0.0);
   // Residual against the noise-free signal in the image centre: the flat floor is smooth

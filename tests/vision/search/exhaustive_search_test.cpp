@@ -88,7 +88,8 @@ TEST(ExhaustiveSearch, BoundedLocalisationEqualsUnbounded) {
     const double tau = reference.candidates[0].cost() + 0.01;
     const auto a = exhaustiveSearch(fdcm, s.templates, params(SearchMode::Best, tau, true, true, 2));
     expectSame(a, reference, "fdcm best under threshold");
-    const auto none = exhaustiveSearch(fdcm, s.templates, params(SearchMode::Best, reference.candidates[0].cost() - 0.01, true, true, 2));
+    const auto none = exhaustiveSearch(fdcm, s.templates,
+                                       params(SearchMode::Best, reference.candidates[0].cost() - 0.01, true, true, 2));
     EXPECT_TRUE(none.candidates.empty());
   }
   EXPECT_GT(skipped, 0u) << "the spatial bound must skip something on these scenes";
@@ -158,7 +159,10 @@ TEST(ExhaustiveSearch, FindsThePlantedTemplate) {
 
 TEST(NonMaximumSuppression, KeepsTheCheapestOfOverlappingDetections) {
   OrientedTemplate t;
-  t.x0 = -10; t.x1 = 10; t.y0 = -10; t.y1 = 10;
+  t.x0 = -10;
+  t.x1 = 10;
+  t.y0 = -10;
+  t.y1 = 10;
   t.pixels = 10;
   std::vector<OrientedTemplate> ts{t};
   std::vector<Candidate> cands{{0, 50, 50, 10, 10}, {0, 52, 51, 12, 10}, {0, 90, 50, 15, 10}, {0, 60, 50, 20, 10}};

@@ -59,7 +59,6 @@ PlantedScene plantedScene(std::mt19937& rng, bool oriented = false) {
   return scene;
 }
 
-
 // The 1-D search along major lines finds a planted, rotated template as well as the exhaustive
 // search does, while evaluating far fewer hypotheses: over 8 random scenes, the planted copy in at
 // least 7, and whenever the line search lands on it, its cost is within rounding of the
@@ -79,10 +78,9 @@ void expectLineSearchFindsPlanted(uint32_t seed, bool oriented) {
     EXPECT_LT(r.stats.hypotheses * 20, e.stats.hypotheses) << "1-D search evaluates a small fraction";
     if (r.candidates.empty()) continue;
     const auto& c = r.candidates[0];
-    const bool right =
-        std::abs(c.tx - 160) <= 2 && std::abs(c.ty - 120) <= 2 &&
-        std::abs(std::remainder(scene.templates[c.oriented].warp.angle - scene.rotation * ch.step(), 2 * CV_PI)) <
-            2.5 * ch.step();
+    const bool right = std::abs(c.tx - 160) <= 2 && std::abs(c.ty - 120) <= 2 &&
+                       std::abs(std::remainder(scene.templates[c.oriented].warp.angle - scene.rotation * ch.step(),
+                                               2 * CV_PI)) < 2.5 * ch.step();
     found += right;
     if (right) {
       EXPECT_LE(c.cost(), e.candidates[0].cost() + 0.35);

@@ -67,7 +67,8 @@ TEST(FdcmMatcher, EqualsDirectDcmSum) {
         // Stopped early, it stops where evaluateAt does.
         uint64_t at_segs = 0, from_segs = 0;
         const uint32_t stop = reference / 3;
-        ASSERT_EQ(fdcm.evaluateFrom(t, tx, ty, stop, from_segs, ends, known), fdcm.evaluateAt(t, tx, ty, stop, at_segs));
+        ASSERT_EQ(fdcm.evaluateFrom(t, tx, ty, stop, from_segs, ends, known),
+                  fdcm.evaluateAt(t, tx, ty, stop, at_segs));
         ASSERT_EQ(from_segs, at_segs);
       }
     }
@@ -139,7 +140,8 @@ TEST(ChamferMatcher, CmAndOcmEqualTheirDefinitions) {
         const int x = tx + (xm ? seg.x + k : seg.x + minor), y = ty + (xm ? seg.y + minor : seg.y + k);
         int bestD2 = 1 << 30;
         for (const auto& e : edges) bestD2 = std::min(bestD2, (e[0] - x) * (e[0] - x) + (e[1] - y) * (e[1] - y));
-        const int d = std::min<int>(p.capUnits(), static_cast<int>(std::lround(kCostScale * std::sqrt(double(bestD2)))));
+        const int d =
+            std::min<int>(p.capUnits(), static_cast<int>(std::lround(kCostScale * std::sqrt(double(bestD2)))));
         cmDef += d;
         // The nearest edge's channel (ties between equidistant edges: the matcher's pick).
         const int nc = q.costs.nearestChannel(y, x);

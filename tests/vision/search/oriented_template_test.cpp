@@ -84,7 +84,8 @@ TEST(OrientedTemplate, ReusedOutputEqualsAFreshOne) {
     ASSERT_EQ(out.segments.size(), fresh.segments.size()) << "trial " << trial;
     for (size_t i = 0; i < out.segments.size(); ++i) {
       const DigitalSegment &a = out.segments[i], &b = fresh.segments[i];
-      EXPECT_TRUE(a.x == b.x && a.y == b.y && a.channel == b.channel && a.span == b.span) << "trial " << trial << " segment " << i;
+      EXPECT_TRUE(a.x == b.x && a.y == b.y && a.channel == b.channel && a.span == b.span)
+          << "trial " << trial << " segment " << i;
       if (i > 0) {
         EXPECT_GE(out.segments[i - 1].span, a.span);
       }

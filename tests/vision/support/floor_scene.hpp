@@ -12,9 +12,9 @@ namespace mfcd::vision::testing {
 inline MfcRender render_on_floor(MfcRenderer& renderer, int part_id, int floor_id, const TemplateDatabase& db,
                                  const RigidPose& pose, uint64_t seed) {
   const cv::Vec3d centre = pose.R * db.center_mm + pose.t_mm;
-  const ScenePart parts[2] = {{part_id, pose.R, pose.t_mm, Material::matte(0.6f)},
-                              {floor_id, cv::Matx33d::eye(), {0, 0, centre[2] + db.diameter_mm / 2 + 10},
-                               Material::matte(0.5f)}};
+  const ScenePart parts[2] = {
+      {part_id, pose.R, pose.t_mm, Material::matte(0.6f)},
+      {floor_id, cv::Matx33d::eye(), {0, 0, centre[2] + db.diameter_mm / 2 + 10}, Material::matte(0.5f)}};
   MfcRender render;
   renderer.render(parts, render, seed);
   return render;

@@ -30,8 +30,7 @@ cv::Mat1b randomChannelMap(std::mt19937& rng, cv::Size size, int q, int segments
   return map;
 }
 
-LineSet randomLineSet(std::mt19937& rng, int q, int count, double minLen, double maxLen, double extent,
-                      bool oriented) {
+LineSet randomLineSet(std::mt19937& rng, int q, int count, double minLen, double maxLen, double extent, bool oriented) {
   LineSet set;
   set.q = q;
   set.oriented = oriented;

@@ -26,8 +26,8 @@ TEST(EdgeOffsetProfile, InterpolatesBetweenBinsAroundTheTurn) {
   p.offset_px.resize(EdgeOffsetProfile::kBins);
   for (int k = 0; k < EdgeOffsetProfile::kBins; ++k) p.offset_px[k] = 0.01f * k;
   EXPECT_NEAR(p.at(0), 0.0, 1e-6);
-  EXPECT_NEAR(p.at(deg(10)), 0.02, 1e-6);               // bin 2 is centred at 10 degrees
-  EXPECT_NEAR(p.at(deg(12.5)), 0.025, 1e-6);            // halfway to bin 3
+  EXPECT_NEAR(p.at(deg(10)), 0.02, 1e-6);                 // bin 2 is centred at 10 degrees
+  EXPECT_NEAR(p.at(deg(12.5)), 0.025, 1e-6);              // halfway to bin 3
   EXPECT_NEAR(p.at(deg(357.5)), (0.71 + 0.0) / 2, 1e-6);  // between the last bin and the first
   EXPECT_NEAR(p.at(deg(-5)), 0.71, 1e-6);
   EXPECT_NEAR(p.at(deg(365)), 0.01, 1e-6);
@@ -43,9 +43,9 @@ TEST(EdgeOffsetProfile, MeanNearTakesTheSameBandInAllFourQuarters) {
   for (int q = 0; q < 4; ++q)
     for (int k : {-2, -1, 0, 1, 2, 3}) p.offset_px[(18 * q + k + 72) % 72] = k == 3 ? 9.0f : 1.0f + q;
   EXPECT_NEAR(p.mean_near(0, 10), 2.5, 1e-6);
-  EXPECT_NEAR(p.mean_near(15, 0), 9.0, 1e-6);       // exactly the four bins at 15 + k x 90 degrees
+  EXPECT_NEAR(p.mean_near(15, 0), 9.0, 1e-6);  // exactly the four bins at 15 + k x 90 degrees
   EXPECT_NEAR(p.mean_near(45, 10), 0.0, 1e-6);
-  EXPECT_NEAR(p.mean_near(90, 10), 2.5, 1e-6);      // 90 is 0 a quarter round
+  EXPECT_NEAR(p.mean_near(90, 10), 2.5, 1e-6);  // 90 is 0 a quarter round
 }
 
 TEST(EdgeOffsetProfile, AxisAlignedEdgesLieInsideTheOutlineDiagonalOnesOnIt) {
