@@ -196,7 +196,6 @@ inline PoseSetting readPoseSetting(Section s, bool required) {
   return p;
 }
 
-
 void readDaemonSection(Section& top, DaemonConfig& c);
 void readCameraSection(Section& top, DaemonConfig& c);
 void readLightsSection(Section& top, DaemonConfig& c);

@@ -157,12 +157,11 @@ void readVisionSection(Section& top, DaemonConfig& c) {
     if (!p.cell || !s.has(p.key)) continue;
     using Type = vision::PipelineParameter::Type;
     const double d = p.default_value();
-    const double v =
-        p.type == Type::boolean ? (s.boolean(p.key, d != 0) ? 1.0 : 0.0)
-        : p.type == Type::integer
-            ? static_cast<double>(s.integer(p.key, static_cast<long long>(d), static_cast<long long>(p.min),
-                                            static_cast<long long>(p.max)))
-            : s.number(p.key, d, p.min, p.max);
+    const double v = p.type == Type::boolean ? (s.boolean(p.key, d != 0) ? 1.0 : 0.0)
+                     : p.type == Type::integer
+                         ? static_cast<double>(s.integer(p.key, static_cast<long long>(d),
+                                                         static_cast<long long>(p.min), static_cast<long long>(p.max)))
+                         : s.number(p.key, d, p.min, p.max);
     p.set(c.vision.pipeline, v);
   }
   try {  // the pairs that must agree (the ranges were checked key by key above)
@@ -185,8 +184,7 @@ void readRecipesSection(Section& top, DaemonConfig& c) {
   const Context& ctx = top.context();
   YAML::Node list = top.child("recipes");
   if (!list.IsDefined() || list.IsNull()) top.fail("recipes", top.line(), "missing (required): at least one recipe");
-  if (!list.IsSequence() || list.size() == 0)
-    top.fail("recipes", lineOf(list), "must be a non-empty list of recipes");
+  if (!list.IsSequence() || list.size() == 0) top.fail("recipes", lineOf(list), "must be a non-empty list of recipes");
   std::set<int> ids;
   for (std::size_t i = 0; i < list.size(); ++i) {
     Section s(list[i], "recipes[" + std::to_string(i) + "]", lineOf(list[i]), ctx);
@@ -209,8 +207,7 @@ void readRecipesSection(Section& top, DaemonConfig& c) {
                "must be a list of 1 to 8 grasp features {x_mm, y_mm, z_mm, radius_mm, approach, max_tilt_deg}");
       for (std::size_t k = 0; k < features.size(); ++k) {
         Section f(features[k], key + "[" + std::to_string(k) + "]", lineOf(features[k]), ctx);
-        if (!features[k].IsMap())
-          f.fail(key + "[" + std::to_string(k) + "]", lineOf(features[k]), "must be a mapping");
+        if (!features[k].IsMap()) f.fail(key + "[" + std::to_string(k) + "]", lineOf(features[k]), "must be a mapping");
         GraspFeatureSetting g;
         g.x_mm = f.number("x_mm", 0, -1e4, 1e4);
         g.y_mm = f.number("y_mm", 0, -1e4, 1e4);
@@ -232,8 +229,7 @@ void readRecipesSection(Section& top, DaemonConfig& c) {
     c.recipes.push_back(std::move(r));
   }
   if (!c.recipe(c.default_recipe))
-    top.fail("daemon.default_recipe", top.line(),
-             "recipe " + std::to_string(c.default_recipe) + " is not in recipes");
+    top.fail("daemon.default_recipe", top.line(), "recipe " + std::to_string(c.default_recipe) + " is not in recipes");
 }
 
 void readPickSection(Section& top, DaemonConfig& c) {
@@ -313,9 +309,9 @@ void readHandEyeSection(Section& top, DaemonConfig& c) {
 
 void readSecondLookSection(Section& top, DaemonConfig& c) {
   Section s = top.section("second_look");
-  c.second_look.when = s.choice(
-      "when", SecondLookWhen::Off,
-      {{"off", SecondLookWhen::Off}, {"unsure", SecondLookWhen::Unsure}, {"always", SecondLookWhen::Always}});
+  c.second_look.when =
+      s.choice("when", SecondLookWhen::Off,
+               {{"off", SecondLookWhen::Off}, {"unsure", SecondLookWhen::Unsure}, {"always", SecondLookWhen::Always}});
   c.second_look.tilt_deg = s.number("tilt_deg", 25, 5, 60);
   // The second camera pose is reached by the robot carrying the camera.
   if (c.second_look.when != SecondLookWhen::Off && c.hand_eye.setup != motion::HandEyeSetup::EyeInHand)
@@ -336,8 +332,7 @@ void readModbusSection(Section& top, DaemonConfig& c) {
   m.idle_timeout = std::chrono::milliseconds(s.integer("idle_timeout_ms", 60000, 100, 3600000));
   YAML::Node allow = s.child("allow_list");
   if (allow.IsDefined() && !allow.IsNull()) {
-    if (!allow.IsSequence())
-      s.fail(s.key("allow_list"), lineOf(allow), "must be a list of addresses or CIDR prefixes");
+    if (!allow.IsSequence()) s.fail(s.key("allow_list"), lineOf(allow), "must be a list of addresses or CIDR prefixes");
     for (std::size_t i = 0; i < allow.size(); ++i) m.allow_list.push_back(s.scalar("allow_list", allow[i]));
   }
   if (std::string e = m.validate(); !e.empty()) s.fail(s.key(""), s.line(), e);
@@ -353,8 +348,7 @@ void readWebSection(Section& top, DaemonConfig& c) {
   w.port = static_cast<std::uint16_t>(s.integer("port", w.port, 0, 65535));
   YAML::Node allow = s.child("allow_list");
   if (allow.IsDefined() && !allow.IsNull()) {
-    if (!allow.IsSequence())
-      s.fail(s.key("allow_list"), lineOf(allow), "must be a list of addresses or CIDR prefixes");
+    if (!allow.IsSequence()) s.fail(s.key("allow_list"), lineOf(allow), "must be a list of addresses or CIDR prefixes");
     for (std::size_t i = 0; i < allow.size(); ++i) w.allow_list.push_back(s.scalar("allow_list", allow[i]));
   }
   w.allow_control = s.boolean("allow_control", false);
