@@ -293,6 +293,18 @@ struct BinPickingPipeline::Impl {
     return grasp_feature_visibility(edges, part_of(obj_id).db, camera.camera, pose, feature, config.fit_inlier_cost_px,
                                     own_edges);
   }
+  // PoseCandidate::grasp_visibility at `pose`: the best of the part type's grasp features in the
+  // last edges, 1 when it has none.
+  double best_grasp_visibility(int obj_id, const RigidPose& pose) {
+    bool any = false;
+    double best = 0;
+    for (const auto& [feature_obj_id, feature] : config.grasp_features)
+      if (feature_obj_id == obj_id) {
+        any = true;
+        best = std::max(best, grasp_visibility(obj_id, pose, feature).visible);
+      }
+    return any ? best : 1.0;
+  }
   // The pick candidates from `verified`, best first, at most max_candidates (candidates_stage.cpp).
   // The best-ranked other fitted hypothesis at the place of verified[index] whose image differs
   // from it (PoseCandidate::alternative_*), into `c`.

@@ -78,16 +78,8 @@ class GraspStage final : public Stage {
  public:
   GraspStage() : Stage("grasp", &StageTimes::refine_ms) {}
   void run(BinPickingPipeline::Impl& m, CycleContext& c) override {
-    for (PoseCandidate& p : c.out->candidates) {
-      bool any = false;
-      double best = 0;
-      for (const auto& [feature_obj_id, feature] : m.config.grasp_features)
-        if (feature_obj_id == p.obj_id) {
-          any = true;
-          best = std::max(best, m.grasp_visibility(p.obj_id, RigidPose{p.R_m2c, p.t_m2c_mm}, feature).visible);
-        }
-      p.grasp_visibility = any ? best : 1.0;
-    }
+    for (PoseCandidate& p : c.out->candidates)
+      p.grasp_visibility = m.best_grasp_visibility(p.obj_id, RigidPose{p.R_m2c, p.t_m2c_mm});
   }
 };
 

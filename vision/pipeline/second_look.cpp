@@ -160,14 +160,7 @@ void SecondLook::to_pipeline_result(const SecondLookResult& fused, PipelineResul
     p.refined = true;
     p.has_alternative = f.has_alternative;
     p.alternative_rank = f.alternative_rank;
-    bool any = false;
-    double best = 0;
-    for (const auto& [feature_obj_id, feature] : a.config.grasp_features)
-      if (feature_obj_id == f.obj_id) {
-        any = true;
-        best = std::max(best, a.grasp_visibility(f.obj_id, RigidPose{f.R_m2c, f.t_m2c_mm}, feature).visible);
-      }
-    p.grasp_visibility = any ? best : 1.0;
+    p.grasp_visibility = a.best_grasp_visibility(f.obj_id, RigidPose{f.R_m2c, f.t_m2c_mm});
     // The part's sphere (centre, half its diameter) as the image sees it.
     const cv::Vec3d c = f.R_m2c * db.center_mm + f.t_m2c_mm;
     if (c[2] > 0) {
