@@ -20,13 +20,13 @@ namespace calib = vision::calib;
 
 namespace {
 
-json poseJson(const cv::Matx44d& T) {
+json pose_json(const cv::Matx44d& T) {
   const calib::RobotPose p = calib::RobotPose::from_matrix(T);
   return {{"x_mm", p.x_mm},     {"y_mm", p.y_mm},     {"z_mm", p.z_mm},
           {"rx_deg", p.rx_deg}, {"ry_deg", p.ry_deg}, {"rz_deg", p.rz_deg}};
 }
 
-json intrinsicsJson(const calib::IntrinsicsResult& r) {
+json intrinsics_json(const calib::IntrinsicsResult& r) {
   json views = json::array();
   for (const auto& v : r.views) views.push_back({{"label", v.label}, {"rms_px", v.rms_px}, {"rejected", v.rejected}});
   json dist = json::array();
@@ -42,15 +42,15 @@ json intrinsicsJson(const calib::IntrinsicsResult& r) {
           {"std_dev_px", {r.std_dev[0], r.std_dev[1], r.std_dev[2], r.std_dev[3]}}};
 }
 
-json handEyeJson(const calib::HandEyeResult& r) {
+json hand_eye_json(const calib::HandEyeResult& r) {
   json views = json::array();
   for (const auto& v : r.views)
     views.push_back(
         {{"label", v.label}, {"rms_px", v.rms_px}, {"position_mm", v.position_mm}, {"rotation_deg", v.rotation_deg}});
-  const bool inHand = r.mode == calib::HandEyeMode::eye_in_hand;
+  const bool in_hand = r.mode == calib::HandEyeMode::eye_in_hand;
   return {{"mode", calib::to_string(r.mode)},
-          {inHand ? "flange_T_camera" : "base_T_camera", poseJson(r.hand_eye)},
-          {inHand ? "base_T_board" : "flange_T_board", poseJson(r.board)},
+          {in_hand ? "flange_T_camera" : "base_T_camera", pose_json(r.hand_eye)},
+          {in_hand ? "base_T_board" : "flange_T_board", pose_json(r.board)},
           {"initial_method", r.initial_method},
           {"initial_rms_px", r.initial_rms_px},
           {"rms_px", r.rms_px},
@@ -64,7 +64,7 @@ json fail(const std::string& error) { return {{"ok", false}, {"error", error}}; 
 
 }  // namespace
 
-calib::RobotPose poseFromJson(const json& j, const std::string& what) {
+calib::RobotPose pose_from_json(const json& j, const std::string& what) {
   if (!j.is_array() || j.size() != 6)
     throw std::invalid_argument(what + ": expected six numbers x,y,z,rx,ry,rz (mm, degrees)");
   double v[6];
@@ -76,9 +76,9 @@ calib::RobotPose poseFromJson(const json& j, const std::string& what) {
   return {v[0], v[1], v[2], v[3], v[4], v[5]};
 }
 
-json invalidatedRecipes(const fs::path& cameraFile, const std::vector<RecipeConfig>& recipes) {
+json invalidated_recipes(const fs::path& camera_file, const std::vector<RecipeConfig>& recipes) {
   json out = json::array();
-  const vision::CameraConfig camera = vision::load_camera_config(cameraFile);
+  const vision::CameraConfig camera = vision::load_camera_config(camera_file);
   for (const auto& r : recipes) {
     if (!r.templates) continue;
     try {
@@ -92,9 +92,9 @@ json invalidatedRecipes(const fs::path& cameraFile, const std::vector<RecipeConf
 }
 
 CalibrationService::CalibrationService() {
-  doneFd_ = ::eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK);
-  if (doneFd_ < 0) throw std::system_error(errno, std::generic_category(), "eventfd");
-  worker_ = std::thread([this] { workerMain(); });
+  done_fd_ = ::eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK);
+  if (done_fd_ < 0) throw std::system_error(errno, std::generic_category(), "eventfd");
+  worker_ = std::thread([this] { worker_main(); });
 }
 
 CalibrationService::~CalibrationService() {
@@ -104,10 +104,10 @@ CalibrationService::~CalibrationService() {
   }
   wake_.notify_all();
   if (worker_.joinable()) worker_.join();
-  ::close(doneFd_);
+  ::close(done_fd_);
 }
 
-void CalibrationService::workerMain() {
+void CalibrationService::worker_main() {
   pthread_setname_np(pthread_self(), "mfcd-calib");
   for (;;) {
     std::function<void()> job;
@@ -135,21 +135,21 @@ void CalibrationService::post(ClientId client, std::string what, std::function<D
         d.reply = fail(e.what());
       }
       d.client = client;
-      json state = sessionState();
+      json state = session_state();
       {
-        std::lock_guard doneLock(mutex_);
+        std::lock_guard done_lock(mutex_);
         done_.emplace_back(std::move(d), std::move(state));
       }
       const std::uint64_t one = 1;
-      [[maybe_unused]] ssize_t n = ::write(doneFd_, &one, sizeof one);
+      [[maybe_unused]] ssize_t n = ::write(done_fd_, &one, sizeof one);
     });
   }
   wake_.notify_one();
 }
 
-std::vector<CalibrationService::Done> CalibrationService::takeDone() {
+std::vector<CalibrationService::Done> CalibrationService::take_done() {
   std::uint64_t v;
-  [[maybe_unused]] ssize_t n = ::read(doneFd_, &v, sizeof v);
+  [[maybe_unused]] ssize_t n = ::read(done_fd_, &v, sizeof v);
   std::vector<std::pair<Done, json>> done;
   {
     std::lock_guard lock(mutex_);
@@ -165,7 +165,7 @@ std::vector<CalibrationService::Done> CalibrationService::takeDone() {
   return out;
 }
 
-json CalibrationService::sessionState() const {
+json CalibrationService::session_state() const {
   if (!session_) return {{"active", false}};
   return {{"active", true},
           {"kind", session_->kind() == calib::CalibrationSession::Kind::intrinsics ? "intrinsics" : "hand-eye"},
@@ -177,7 +177,7 @@ json CalibrationService::sessionState() const {
           {"figures", session_->has_pending() ? figures_ : ""}};
 }
 
-void CalibrationService::start(ClientId client, Kind kind, calib::HandEyeMode mode, const fs::path& cameraFile,
+void CalibrationService::start(ClientId client, Kind kind, calib::HandEyeMode mode, const fs::path& camera_file,
                                const CalibrationSettings& settings) {
   post(client, "start", [=, this] {
     const calib::CheckerBoard board{settings.board_columns, settings.board_rows, settings.square_mm};
@@ -186,27 +186,28 @@ void CalibrationService::start(ClientId client, Kind kind, calib::HandEyeMode mo
       calib::IntrinsicsOptions options;
       options.distortion = calib::parse_distortion_model(settings.distortion);
       s = std::make_unique<calib::CalibrationSession>(
-          calib::CalibrationSession::intrinsics(cameraFile, board, options));
+          calib::CalibrationSession::intrinsics(camera_file, board, options));
     } else {
-      s = std::make_unique<calib::CalibrationSession>(calib::CalibrationSession::hand_eye(cameraFile, mode, board));
+      s = std::make_unique<calib::CalibrationSession>(calib::CalibrationSession::hand_eye(camera_file, mode, board));
     }
     session_ = std::move(s);
-    file_ = cameraFile;
+    file_ = camera_file;
     mode_ = kind == Kind::HandEye ? (mode == calib::HandEyeMode::eye_in_hand ? "eye-in-hand" : "eye-to-hand") : "";
     figures_.clear();
     captures_ = 0;
     logf(LogLevel::Notice, "calibration: %s session started on %s (%s)",
-         kind == Kind::Intrinsics ? "intrinsics" : "hand-eye", cameraFile.c_str(), board.describe().c_str());
+         kind == Kind::Intrinsics ? "intrinsics" : "hand-eye", camera_file.c_str(), board.describe().c_str());
     Done d;
     d.reply = {{"ok", true},
                {"board", board.describe()},
-               {"file", cameraFile.string()},
+               {"file", camera_file.string()},
                {"message", "session started; picking is paused until it is applied or aborted"}};
     return d;
   });
 }
 
-void CalibrationService::addView(ClientId client, cv::Mat1b image, std::optional<calib::RobotPose> flange, json about) {
+void CalibrationService::add_view(ClientId client, cv::Mat1b image, std::optional<calib::RobotPose> flange,
+                                  json about) {
   post(client, "capture", [this, image = std::move(image), flange, about = std::move(about)]() mutable {
     if (!session_) return Done{0, fail("calibrate capture: no calibration session (start one first)")};
     const std::string label = "view " + std::to_string(++captures_);
@@ -232,8 +233,8 @@ void CalibrationService::compute(ClientId client) {
     if (!session_) return Done{0, fail("calibrate compute: no calibration session (start one first)")};
     figures_ = session_->compute();  // throws CalibrationError: nothing pending, nothing written
     json j = {{"ok", true}, {"figures", figures_}, {"file", file_.string()}};
-    if (session_->intrinsics_result()) j["intrinsics"] = intrinsicsJson(*session_->intrinsics_result());
-    if (session_->hand_eye_result()) j["hand_eye"] = handEyeJson(*session_->hand_eye_result());
+    if (session_->intrinsics_result()) j["intrinsics"] = intrinsics_json(*session_->intrinsics_result());
+    if (session_->hand_eye_result()) j["hand_eye"] = hand_eye_json(*session_->hand_eye_result());
     j["message"] = "not written yet: check the figures, then mfcd-ctl calibrate apply";
     logf(LogLevel::Notice, "calibration computed:\n%s", figures_.c_str());
     return Done{0, j};
@@ -269,7 +270,7 @@ void CalibrationService::apply(ClientId client, std::vector<RecipeConfig> recipe
         "wrote " + file_.string() + " (previous kept as " + store.previous_file().string() + "); session closed";
     json invalidated = json::array();
     try {
-      invalidated = invalidatedRecipes(file_, recipes);
+      invalidated = invalidated_recipes(file_, recipes);
     } catch (const std::exception& e) {  // the file is written: say so, and why nothing was checked
       message += "; the recipes' templates could not be checked against it: " + std::string(e.what());
       logf(LogLevel::Warning, "calibration: checking the recipes' templates against %s: %s", file_.c_str(), e.what());
@@ -305,16 +306,16 @@ void CalibrationService::abort(ClientId client) {
   });
 }
 
-void CalibrationService::rollback(ClientId client, const fs::path& cameraFile) {
-  post(client, "rollback", [cameraFile] {
-    calib::CalibrationSession::rollback(cameraFile);  // throws when there is no previous file
-    const calib::CalibrationStore store(cameraFile);
-    logf(LogLevel::Notice, "calibration rolled back: %s restored from %s", cameraFile.c_str(),
+void CalibrationService::rollback(ClientId client, const fs::path& camera_file) {
+  post(client, "rollback", [camera_file] {
+    calib::CalibrationSession::rollback(camera_file);  // throws when there is no previous file
+    const calib::CalibrationStore store(camera_file);
+    logf(LogLevel::Notice, "calibration rolled back: %s restored from %s", camera_file.c_str(),
          store.previous_file().c_str());
     return Done{0,
                 {{"ok", true},
-                 {"file", cameraFile.string()},
-                 {"message", "restored " + cameraFile.string() + " from " + store.previous_file().string() +
+                 {"file", camera_file.string()},
+                 {"message", "restored " + camera_file.string() + " from " + store.previous_file().string() +
                                  " (the replaced file is now the previous one: a second rollback undoes this)"}},
                 true};
   });

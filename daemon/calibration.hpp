@@ -5,7 +5,7 @@
 // milliseconds to seconds, so none of it runs on the main thread (which answers the PLC and
 // feeds the systemd watchdog) or on the frame path: every session operation is a job run in
 // order by this class's own worker thread, and the main thread picks up each job's answer
-// through completionFd() in its poll loop. The CalibrationSession itself is touched only by
+// through completion_fd() in its poll loop. The CalibrationSession itself is touched only by
 // the worker; the main thread keeps the copy of its state that the last job reported.
 //
 // Images come from the cell's acquisition path (the ambient image of a calibration capture);
@@ -49,21 +49,21 @@ class CalibrationService {
   CalibrationService& operator=(const CalibrationService&) = delete;
 
   // --- main thread ---
-  int completionFd() const { return doneFd_; }
-  std::vector<Done> takeDone();  // drains completionFd()
+  int completion_fd() const { return done_fd_; }
+  std::vector<Done> take_done();  // drains completion_fd()
   bool busy() const { return pending_ > 0; }
   const std::string& working() const { return working_; }  // the job running, when busy
   bool active() const { return state_.value("active", false); }
-  bool handEye() const { return state_.value("kind", "") == "hand-eye"; }
-  bool eyeInHand() const { return state_.value("mode", "") == "eye-in-hand"; }
+  bool hand_eye() const { return state_.value("kind", "") == "hand-eye"; }
+  bool eye_in_hand() const { return state_.value("mode", "") == "eye-in-hand"; }
   bool computed() const { return state_.value("computed", false); }
   // {"active", "kind", "mode", "file", "views", "computed", "figures"}
   const nlohmann::json& state() const { return state_; }
 
-  // Each posts a job answered through completionFd(); the caller checks busy() first.
-  void start(ClientId client, Kind kind, vision::calib::HandEyeMode mode, const fs::path& cameraFile,
+  // Each posts a job answered through completion_fd(); the caller checks busy() first.
+  void start(ClientId client, Kind kind, vision::calib::HandEyeMode mode, const fs::path& camera_file,
              const CalibrationSettings& settings);
-  void addView(ClientId client, cv::Mat1b image, std::optional<vision::calib::RobotPose> flange, nlohmann::json about);
+  void add_view(ClientId client, cv::Mat1b image, std::optional<vision::calib::RobotPose> flange, nlohmann::json about);
   void compute(ClientId client);
   void check(ClientId client, cv::Mat1b image, vision::calib::RobotPose flange, nlohmann::json about);
   // Writes the camera file; then checks every recipe's template file against the new camera
@@ -71,12 +71,12 @@ class CalibrationService {
   // why) and the log the recipes to re-teach. The cell reloads on the new file afterwards.
   void apply(ClientId client, std::vector<RecipeConfig> recipes);
   void abort(ClientId client);
-  void rollback(ClientId client, const fs::path& cameraFile);
+  void rollback(ClientId client, const fs::path& camera_file);
 
  private:
   void post(ClientId client, std::string what, std::function<Done()> job);
-  void workerMain();
-  nlohmann::json sessionState() const;  // worker
+  void worker_main();
+  nlohmann::json session_state() const;  // worker
 
   // Worker-only.
   std::unique_ptr<vision::calib::CalibrationSession> session_;
@@ -95,17 +95,17 @@ class CalibrationService {
   std::deque<std::function<void()>> jobs_;
   std::vector<std::pair<Done, nlohmann::json>> done_;  // reply + session state after the job
   bool stop_ = false;
-  int doneFd_ = -1;
+  int done_fd_ = -1;
   std::thread worker_;
 };
 
-// The recipes whose template file `cameraFile` invalidates (vision::check_template_camera, or the
+// The recipes whose template file `camera_file` invalidates (vision::check_template_camera, or the
 // file cannot be read), each as {"recipe", "part", "templates", "why"}; recipes without templates
-// are skipped. Loads every .tdb: run it off the main thread. Throws when cameraFile is unreadable.
-nlohmann::json invalidatedRecipes(const fs::path& cameraFile, const std::vector<RecipeConfig>& recipes);
+// are skipped. Loads every .tdb: run it off the main thread. Throws when camera_file is unreadable.
+nlohmann::json invalidated_recipes(const fs::path& camera_file, const std::vector<RecipeConfig>& recipes);
 
 // "x,y,z,rx,ry,rz" as the JSON array mfcd-ctl sends, checked: six finite numbers. Throws
 // std::invalid_argument naming `what`.
-vision::calib::RobotPose poseFromJson(const nlohmann::json& j, const std::string& what);
+vision::calib::RobotPose pose_from_json(const nlohmann::json& j, const std::string& what);
 
 }  // namespace mfcd::daemon

@@ -19,136 +19,62 @@
 
 namespace mfcd::daemon {
 
-const char* toString(CycleOrigin o) {
-  switch (o) {
-    case CycleOrigin::Plc:
-      return "plc";
-    case CycleOrigin::Control:
-      return "control";
-    case CycleOrigin::Continuous:
-      return "continuous";
-    case CycleOrigin::Benchmark:
-      return "benchmark";
-  }
-  return "?";
-}
-
-void FrameSlot::allocate(const hal::ImageFormat& format) {
-  mfc.flash.assign(hal::kLedCount, cv::Mat1b());
-  for (int k = 0; k < hal::FrameSet::kSlots; ++k) {
-    hal::Image& img = frames.frames[static_cast<std::size_t>(k)].image;
-    img.allocate(format);
-    cv::Mat1b view(format.height, format.width, img.data(), format.strideBytes());
-    if (k < hal::kLedCount)
-      mfc.flash[static_cast<std::size_t>(k)] = view;
-    else
-      mfc.ambient = view;
-  }
-}
-
-namespace {
-void copyFrameInfo(const hal::SlotFrame& a, hal::SlotFrame& b) {
-  b.info = a.info;
-  b.led = a.led;
-  b.onNs = a.onNs;
-  b.offNs = a.offNs;
-  b.staleDiscarded = a.staleDiscarded;
-}
-}  // namespace
-
-void copyFrameSet(const hal::FrameSet& from, hal::FrameSet& to) {
-  for (std::size_t k = 0; k < from.frames.size(); ++k) {
-    const hal::SlotFrame& a = from.frames[k];
-    hal::SlotFrame& b = to.frames[k];
-    if (a.image.sizeBytes() != b.image.sizeBytes())
-      throw std::logic_error("copyFrameSet: FrameSet format differs from the preallocated slot");
-    std::memcpy(b.image.data(), a.image.data(), a.image.sizeBytes());
-    copyFrameInfo(a, b);
-  }
-  to.sequence = from.sequence;
-}
-
-void copyFrameSet(const hal::FrameSet& from, hal::FrameSet& to, const vision::FrameUndistorter& undistorter) {
-  if (!undistorter.active()) {
-    copyFrameSet(from, to);
-    return;
-  }
-  for (std::size_t k = 0; k < from.frames.size(); ++k) {
-    const hal::Image& a = from.frames[k].image;
-    hal::Image& b = to.frames[k].image;
-    if (a.sizeBytes() != b.sizeBytes() || a.format() != b.format())
-      throw std::logic_error("copyFrameSet: FrameSet format differs from the preallocated slot");
-    const hal::ImageFormat& f = a.format();
-    const int type = f.bitsPerPixel == 16 ? CV_16UC1 : CV_8UC1;
-    // Headers over the HAL's buffers (no allocation): the undistorter writes straight into the slot.
-    const cv::Mat src(f.height, f.width, type, const_cast<std::uint8_t*>(a.data()), f.strideBytes());
-    cv::Mat dst(f.height, f.width, type, b.data(), f.strideBytes());
-    undistorter.apply(src, dst);
-    if (dst.data != b.data()) throw std::logic_error("copyFrameSet: the undistorted image left the preallocated slot");
-    copyFrameInfo(from.frames[k], to.frames[k]);
-  }
-  to.sequence = from.sequence;
-}
-
 namespace {
 
-int makeEventFd() {
+int make_event_fd() {
   const int fd = ::eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK);
   if (fd < 0) throw std::system_error(errno, std::generic_category(), "eventfd");
   return fd;
 }
-void signalFd(int fd) noexcept {
+void signal_fd(int fd) noexcept {
   const std::uint64_t one = 1;
   [[maybe_unused]] ssize_t n = ::write(fd, &one, sizeof one);
 }
-void drainFd(int fd) noexcept {
+void drain_fd(int fd) noexcept {
   std::uint64_t v;
   [[maybe_unused]] ssize_t n = ::read(fd, &v, sizeof v);
 }
 // Waits for a wake-up or `ms`; returns true if woken.
-bool waitFd(int fd, int ms) noexcept {
+bool wait_fd(int fd, int ms) noexcept {
   pollfd p{fd, POLLIN, 0};
   const int r = ::poll(&p, 1, ms);
   if (r > 0) {
-    drainFd(fd);
+    drain_fd(fd);
     return true;
   }
   return false;
-}
-double msBetween(Clock::time_point a, Clock::time_point b) {
-  return std::chrono::duration<double, std::milli>(b - a).count();
 }
 
 }  // namespace
 
 Cell::Cell(DaemonConfig config, VisionStageFactory vision, FrameSourceFactory source)
-    : config_(std::move(config)), visionFactory_(std::move(vision)), sourceFactory_(std::move(source)) {
-  acqWake_ = makeEventFd();
-  visionWake_ = makeEventFd();
-  resultFd_ = makeEventFd();
+    : config_(std::move(config)), vision_factory_(std::move(vision)), source_factory_(std::move(source)) {
+  acq_wake_ = make_event_fd();
+  vision_wake_ = make_event_fd();
+  result_fd_ = make_event_fd();
 }
 
 Cell::~Cell() {
   stop();
-  ::close(acqWake_);
-  ::close(visionWake_);
-  ::close(resultFd_);
+  ::close(acq_wake_);
+  ::close(vision_wake_);
+  ::close(result_fd_);
 }
 
 void Cell::start() {
   stop_ = false;
-  std::promise<void> acqReady, visionReady;
-  auto acqFuture = acqReady.get_future(), visionFuture = visionReady.get_future();
-  acquisition_ = std::thread([this, &acqReady] { acquisitionMain(acqReady); });
-  vision_ = std::thread([this, &visionReady] { visionMain(visionReady); });
+  std::promise<void> acq_ready, vision_ready;
+  auto acq_future = acq_ready.get_future(), vision_future = vision_ready.get_future();
+  acquisition_ = std::thread([this, &acq_ready] { acquisition_main(acq_ready); });
+  vision_ = std::thread([this, &vision_ready] { vision_main(vision_ready); });
   std::string error;
   try {
-    acqFuture.get();
+    acq_future.get();
   } catch (const std::exception& e) {
     error = std::string("camera: ") + e.what();
   }
   try {
-    visionFuture.get();
+    vision_future.get();
   } catch (const std::exception& e) {
     if (error.empty()) error = std::string("vision: ") + e.what();
   }
@@ -160,31 +86,32 @@ void Cell::start() {
 
 void Cell::stop() noexcept {
   stop_ = true;
-  signalFd(acqWake_);
-  signalFd(visionWake_);
+  signal_fd(acq_wake_);
+  signal_fd(vision_wake_);
   if (acquisition_.joinable()) acquisition_.join();
   if (vision_.joinable()) vision_.join();
 }
 
 bool Cell::submit(const CycleRequest& request) noexcept {
   if (!requests_.push(request)) return false;
-  signalFd(acqWake_);
+  signal_fd(acq_wake_);
   return true;
 }
 
-CycleResult* Cell::beginResult() noexcept {
-  drainFd(resultFd_);  // before looking, so a result queued after this is never without a wake-up
+CycleResult* Cell::begin_result() noexcept {
+  drain_fd(result_fd_);  // before looking, so a result queued after this is never without a wake-up
   return results_.begin_read();
 }
 
-void Cell::acquisitionMain(std::promise<void>& ready) {
+void Cell::acquisition_main(std::promise<void>& ready) {
   try {
-    source_ = sourceFactory_(config_);
+    source_ = source_factory_(config_);
     source_->activate();
     const hal::ImageFormat format = source_->format();
     for (auto& slot : frames_.slots()) slot.allocate(format);
+    start_gripper_camera();
     retained_.allocate(format);
-    webFrames_.allocate(cv::Size(format.width, format.height));
+    web_frames_.allocate(cv::Size(format.width, format.height));
     // Real lenses distort; the simulated cell renders the ideal pinhole the templates were taught
     // for (its camera file has zero distortion, and a fitted k1, k2 on its renders is noise).
     undistorter_ = source_->simulation()
@@ -198,10 +125,12 @@ void Cell::acquisitionMain(std::promise<void>& ready) {
       logf(LogLevel::Info, "acquisition: undistorting every image with %s's lens distortion (K kept)",
            config_.camera.model.string().c_str());
     }
-    calibrationImage_.create(format.height, format.width);
-    sourceDescription_ = source_->describe();
+    calibration_image_.create(format.height, format.width);
+    source_description_ = source_->describe();
+    if (gripper_camera_) source_description_ += " + " + gripper_camera_->describe();
   } catch (...) {
     if (source_) source_->deactivate();
+    gripper_camera_.reset();
     source_.reset();
     ready.set_exception(std::current_exception());
     return;
@@ -223,15 +152,15 @@ void Cell::acquisitionMain(std::promise<void>& ready) {
   ready.set_value();
 
   while (!stop_.load()) {
-    waitFd(acqWake_, 200);
-    acqBeat_.fetch_add(1, std::memory_order_relaxed);
+    wait_fd(acq_wake_, 200);
+    acq_beat_.fetch_add(1, std::memory_order_relaxed);
     while (!stop_.load()) {
       const auto request = requests_.pop();
       if (!request) break;
       SimulatedWorld* sim = source_->simulation();
       const Eigen::Isometry3d* flange = request->flange_valid ? &request->base_T_flange : nullptr;
       if (request->kind == CycleRequest::Kind::RemovePicked) {
-        if (sim) sim->removePicked(request->picked_t_cam_mm, flange);  // may allocate
+        if (sim) sim->remove_picked(request->picked_R_cam, request->picked_t_cam_mm, flange);  // may allocate
         continue;
       }
       if (request->kind == CycleRequest::Kind::Refill) {
@@ -240,7 +169,7 @@ void Cell::acquisitionMain(std::promise<void>& ready) {
       }
       FrameSlot* slot = frames_.begin_write();
       if (!slot) {  // cannot happen while the main thread keeps at most one cycle in flight
-        framesDropped_.fetch_add(1, std::memory_order_relaxed);
+        frames_dropped_.fetch_add(1, std::memory_order_relaxed);
         continue;
       }
       slot->request = *request;
@@ -251,52 +180,57 @@ void Cell::acquisitionMain(std::promise<void>& ready) {
         // A calibration capture (operator-driven, picking paused) may re-stage the simulated
         // scene; that allocates, which the cycle path never does.
         // A real cell ignores the plate request: the plate is really there.
-        if (calibration && sim) sim->showPlate(request->plate);
-        // Eye-in-hand: the simulated camera is where the job's robot pose holds it.
-        if (!calibration && sim) sim->moveCamera(flange);
-        const hal::FrameSet& set = source_->capture();
-        // Calibration images stay as the lens made them: intrinsics calibration fits the
-        // distortion from them, hand-eye undistorts the board corners itself.
-        if (calibration)
-          copyFrameSet(set, slot->frames);
-        else
-          copyFrameSet(set, slot->frames, undistorter_);
+        if (calibration && sim) sim->show_plate(request->plate);
+        if (request->kind == CycleRequest::Kind::GripCheck) {
+          capture_gripper(*slot);
+        } else {
+          // Eye-in-hand: the simulated camera is where the job's robot pose holds it.
+          if (!calibration && sim) sim->move_camera(flange);
+          const hal::FrameSet& set = source_->capture();
+          // Calibration images stay as the lens made them: intrinsics calibration fits the
+          // distortion from them, hand-eye undistorts the board corners itself.
+          if (calibration)
+            copy_frame_set(set, slot->frames);
+          else
+            copy_frame_set(set, slot->frames, undistorter_);
+        }
         slot->ok = true;
       } catch (const std::exception& e) {
         slot->ok = false;
-        copyMessage(slot->error, sizeof slot->error, e.what());
+        copy_message(slot->error, sizeof slot->error, e.what());
       }
       if (calibration) {
         try {
-          if (sim) sim->showPlate({});
+          if (sim) sim->show_plate({});
         } catch (const std::exception& e) {
           logf(LogLevel::Error, "simulated cell: putting the bin back after a calibration capture: %s", e.what());
         }
       }
       slot->captured = Clock::now();
-      slot->capture_ms = msBetween(t0, slot->captured);
+      slot->capture_ms = ms_between(t0, slot->captured);
       slot->leds_after = source_->leds();
       slot->truth.count = 0;
       if (sim) sim->truth(slot->truth);
       frames_.end_write();
-      signalFd(visionWake_);
+      signal_fd(vision_wake_);
     }
   }
   source_->deactivate();  // LEDs off, streaming stopped
   logf(LogLevel::Info, "acquisition stopped, LEDs off");
+  gripper_camera_.reset();  // before the source: the simulated one renders with its world
   source_.reset();
 }
 
-void Cell::visionMain(std::promise<void>& ready) {
+void Cell::vision_main(std::promise<void>& ready) {
   try {
-    stage_ = visionFactory_(config_);
-    visionDescription_ = stage_->describe();
+    stage_ = vision_factory_(config_);
+    vision_description_ = stage_->describe();
     parts_ = stage_->parts();
-    pipelineResult_.candidates.reserve(64);
-    firstLook_.candidates.reserve(64);
+    pipeline_result_.candidates.reserve(64);
+    first_look_.candidates.reserve(64);
     snapshots_ = std::make_unique<SnapshotWriter>(config_);
-    if (!snapshots_->notReplayable().empty())
-      logf(LogLevel::Info, "snapshots will not be replayable by mfc-detect: %s", snapshots_->notReplayable().c_str());
+    if (!snapshots_->not_replayable().empty())
+      logf(LogLevel::Info, "snapshots will not be replayable by mfc-detect: %s", snapshots_->not_replayable().c_str());
   } catch (...) {
     stage_.reset();
     ready.set_exception(std::current_exception());
@@ -306,45 +240,49 @@ void Cell::visionMain(std::promise<void>& ready) {
   ready.set_value();
 
   while (!stop_.load()) {
-    waitFd(visionWake_, 200);
-    visionBeat_.fetch_add(1, std::memory_order_relaxed);
+    wait_fd(vision_wake_, 200);
+    vision_beat_.fetch_add(1, std::memory_order_relaxed);
     while (FrameSlot* slot = frames_.begin_read()) {
       CycleResult* out = results_.begin_write();
       if (!out) {  // main thread not consuming: wait rather than drop a cycle's answer
         if (stop_.load()) return;
-        waitFd(visionWake_, 10);
+        wait_fd(vision_wake_, 10);
         continue;
       }
-      if (slot->request.kind == CycleRequest::Kind::CalibrationCapture) {
-        handOverCalibrationImage(*slot, *out);
+      if (slot->request.kind == CycleRequest::Kind::CalibrationCapture ||
+          slot->request.kind == CycleRequest::Kind::GripCheck) {
+        if (slot->request.kind == CycleRequest::Kind::GripCheck)
+          check_grip(*slot, *out);
+        else
+          hand_over_calibration_image(*slot, *out);
         results_.end_write();
-        signalFd(resultFd_);
+        signal_fd(result_fd_);
         frames_.end_read();
         continue;
       }
-      runCycle(*slot, *out);
+      run_cycle(*slot, *out);
       const bool failed = out->error != CycleError::None || out->candidate_count == 0;
       const char* why = slot->request.snapshot ? "requested"
                         : config_.snapshots.on_failure && failed && slot->request.origin != CycleOrigin::Benchmark
                             ? (out->error != CycleError::None ? "failed cycle" : "nothing found")
                             : nullptr;
-      retained_.keepResult(*out);  // before the result leaves: the slot is the main thread's then
+      retained_.keep_result(*out);  // before the result leaves: the slot is the main thread's then
       results_.end_write();
-      signalFd(resultFd_);
+      signal_fd(result_fd_);
       // Kept after the result has left: a pick reported failed later is saved from here.
-      retained_.keepFrames(*slot, retained_.result().error == CycleError::None ? stage_->lastEdges() : nullptr);
-      if (config_.web.enabled && slot->ok) webFrames_.publish(retained_.slot(), retained_.result(), retained_.edges());
+      retained_.keep_frames(*slot, retained_.result().error == CycleError::None ? stage_->last_edges() : nullptr);
+      if (config_.web.enabled && slot->ok) web_frames_.publish(retained_.slot(), retained_.result(), retained_.edges());
       frames_.end_read();
-      if (why) writeSnapshot(why);
+      if (why) write_snapshot(why);
     }
-    serveSnapshotRequests();
+    serve_snapshot_requests();
   }
   stage_.reset();
 }
 
 // What every result of a captured slot starts with. False when the capture failed: the result
 // then carries the capture error and nothing else is to be done with the slot.
-bool Cell::startResult(const FrameSlot& slot, CycleResult::Kind kind, CycleResult& out) {
+bool Cell::start_result(const FrameSlot& slot, CycleResult::Kind kind, CycleResult& out) {
   out = CycleResult{};
   out.kind = kind;
   out.request = slot.request;
@@ -352,67 +290,68 @@ bool Cell::startResult(const FrameSlot& slot, CycleResult::Kind kind, CycleResul
   out.leds_off = slot.leds_after == 0;
   if (slot.ok) return true;
   out.error = CycleError::Capture;
-  copyMessage(out.message, sizeof out.message, slot.error);
+  copy_message(out.message, sizeof out.message, slot.error);
   return false;
 }
 
-void Cell::handOverCalibrationImage(const FrameSlot& slot, CycleResult& out) {
-  if (startResult(slot, CycleResult::Kind::CalibrationImage, out))
-    slot.mfc.ambient.copyTo(calibrationImage_);  // same size: no allocation
-  out.total_ms = msBetween(slot.request.trigger, Clock::now());
+void Cell::hand_over_calibration_image(const FrameSlot& slot, CycleResult& out) {
+  if (start_result(slot, CycleResult::Kind::CalibrationImage, out))
+    slot.mfc.ambient.copyTo(calibration_image_);  // same size: no allocation
+  out.total_ms = ms_between(slot.request.trigger, Clock::now());
 }
 
-void Cell::runCycle(FrameSlot& slot, CycleResult& out) {
+void Cell::run_cycle(FrameSlot& slot, CycleResult& out) {
   const Clock::time_point start = Clock::now();
-  const bool captured = startResult(slot, CycleResult::Kind::Cycle, out);
-  out.queue_ms = msBetween(slot.captured, start);
+  const bool captured = start_result(slot, CycleResult::Kind::Cycle, out);
+  out.queue_ms = ms_between(slot.captured, start);
   out.truth = slot.truth;
   if (captured) {
     try {
       const CycleRequest& request = slot.request;
       const VisionInput in{slot.mfc, request.obj_id, request.deadline, &slot.truth};
       if (request.second_look) {
-        fuseLook(in, request);
+        fuse_look(in, request);
       } else {
-        firstLookCycle_ = 0;  // the backend's state of the kept first look is overwritten now
-        stage_->process(in, pipelineResult_);
+        first_look_cycle_ = 0;  // the backend's state of the kept first look is overwritten now
+        stage_->process(in, pipeline_result_);
       }
-      const Clock::time_point visionDone = Clock::now();
-      out.vision_ms = msBetween(start, visionDone);
-      const auto& t = pipelineResult_.times;
+      const Clock::time_point vision_done = Clock::now();
+      out.vision_ms = ms_between(start, vision_done);
+      const auto& t = pipeline_result_.times;
       out.edges_ms = t.edges_ms, out.lines_ms = t.lines_ms, out.distance_ms = t.distance_ms;
       out.search_ms = t.search_ms, out.pose_ms = t.pose_ms, out.refine_ms = t.refine_ms;
-      out.degraded = pipelineResult_.degraded;
-      out.edge_pixels = pipelineResult_.edge_pixels;
-      out.search_rounds = pipelineResult_.rounds;
-      out.escalated = pipelineResult_.escalated;
+      out.degraded = pipeline_result_.degraded;
+      out.edge_pixels = pipeline_result_.edge_pixels;
+      out.search_rounds = pipeline_result_.rounds;
+      out.escalated = pipeline_result_.escalated;
       // A fused result is in the first look's camera frame: its picks go with that flange pose.
       const Eigen::Isometry3d* flange = !request.flange_valid ? nullptr
                                         : request.second_look ? &request.first_base_T_flange
                                                               : &request.base_T_flange;
       std::array<motion::PickCandidate, CycleResult::kMaxCandidates> choice{};
-      const int n = fillCandidates(flange, choice, out);
+      const int n = fill_candidates(flange, choice, out);
       if (request.mode == 0)
-        rankPicks(std::span<const motion::PickCandidate>(choice.data(), static_cast<std::size_t>(n)), out);
-      if (!request.second_look) planLook(request, out);
-      out.choice_ms = msBetween(visionDone, Clock::now());
+        rank_picks(std::span<const motion::PickCandidate>(choice.data(), static_cast<std::size_t>(n)), out);
+      if (!request.second_look) plan_look(request, out);
+      out.choice_ms = ms_between(vision_done, Clock::now());
     } catch (const std::exception& e) {
       out.error = CycleError::Vision;
-      copyMessage(out.message, sizeof out.message, e.what());
+      copy_message(out.message, sizeof out.message, e.what());
     }
   }
-  out.total_ms = msBetween(slot.request.trigger, Clock::now());
+  out.total_ms = ms_between(slot.request.trigger, Clock::now());
 }
 
-int Cell::fillCandidates(const Eigen::Isometry3d* base_T_flange,
-                         std::array<motion::PickCandidate, CycleResult::kMaxCandidates>& choice,
-                         CycleResult& out) const {
+int Cell::fill_candidates(const Eigen::Isometry3d* base_T_flange,
+                          std::array<motion::PickCandidate, CycleResult::kMaxCandidates>& choice,
+                          CycleResult& out) const {
   // Pick choice and robot-base transform, on fixed-size arrays.
   const motion::PickTransform transform(config_.hand_eye);
-  const int n = static_cast<int>(std::min<std::size_t>(pipelineResult_.candidates.size(), CycleResult::kMaxCandidates));
+  const int n =
+      static_cast<int>(std::min<std::size_t>(pipeline_result_.candidates.size(), CycleResult::kMaxCandidates));
   out.candidate_count = n;
   for (int i = 0; i < n; ++i) {
-    const vision::PoseCandidate& pc = pipelineResult_.candidates[static_cast<std::size_t>(i)];
+    const vision::PoseCandidate& pc = pipeline_result_.candidates[static_cast<std::size_t>(i)];
     CandidateOut& c = out.candidates[static_cast<std::size_t>(i)];
     c.obj_id = pc.obj_id;
     c.score = static_cast<float>(pc.score);
@@ -441,13 +380,13 @@ int Cell::fillCandidates(const Eigen::Isometry3d* base_T_flange,
   return n;
 }
 
-void Cell::rankPicks(std::span<const motion::PickCandidate> choice, CycleResult& out) const {
+void Cell::rank_picks(std::span<const motion::PickCandidate> choice, CycleResult& out) const {
   std::array<std::uint16_t, CycleResult::kMaxCandidates> order{};
   const std::size_t m = motion::rank_picks(choice, config_.pick.choice, order);
   if (m == 0) return;
   if (!out.candidates[order[0]].base_valid) {
     out.error = CycleError::Transform;
-    copyMessage(out.message, sizeof out.message, "the chosen pick has no valid robot-base pose");
+    copy_message(out.message, sizeof out.message, "the chosen pick has no valid robot-base pose");
     return;
   }
   out.chosen = order[0];
@@ -456,22 +395,22 @@ void Cell::rankPicks(std::span<const motion::PickCandidate> choice, CycleResult&
     if (out.candidates[order[k]].base_valid) out.ranked[static_cast<std::size_t>(out.ranked_count++)] = order[k];
 }
 
-bool Cell::requestSnapshot(std::uint64_t cycle, const char* reason) noexcept {
-  SnapshotRequest* r = snapshotRequests_.begin_write();
+bool Cell::request_snapshot(std::uint64_t cycle, const char* reason) noexcept {
+  SnapshotRequest* r = snapshot_requests_.begin_write();
   if (!r) return false;
   r->cycle = cycle;
-  copyMessage(r->reason, sizeof r->reason, reason);
-  snapshotRequests_.end_write();
-  signalFd(visionWake_);
+  copy_message(r->reason, sizeof r->reason, reason);
+  snapshot_requests_.end_write();
+  signal_fd(vision_wake_);
   return true;
 }
 
-void Cell::serveSnapshotRequests() {
-  while (SnapshotRequest* r = snapshotRequests_.begin_read()) {
+void Cell::serve_snapshot_requests() {
+  while (SnapshotRequest* r = snapshot_requests_.begin_read()) {
     const SnapshotRequest request = *r;
-    snapshotRequests_.end_read();
+    snapshot_requests_.end_read();
     if (retained_.holds(request.cycle)) {
-      writeSnapshot(request.reason);
+      write_snapshot(request.reason);
       continue;
     }
     CycleResult gone;
@@ -479,32 +418,32 @@ void Cell::serveSnapshotRequests() {
     gone.request.cycle_id = request.cycle;
     const std::string why = "the frame set of cycle " + std::to_string(request.cycle) + " is no longer kept (cycle " +
                             std::to_string(retained_.cycle()) + " ran after it)";
-    copyMessage(gone.message, sizeof gone.message, why.c_str());
-    postResult(gone);
+    copy_message(gone.message, sizeof gone.message, why.c_str());
+    post_result(gone);
   }
 }
 
-void Cell::writeSnapshot(const char* reason) {
+void Cell::write_snapshot(const char* reason) {
   CycleResult saved = retained_.result();
   saved.kind = CycleResult::Kind::SnapshotSaved;
   try {
     const std::string dir = snapshots_->save(retained_, stage_.get(), reason);
-    copyMessage(saved.snapshot_dir, sizeof saved.snapshot_dir, dir.c_str());
+    copy_message(saved.snapshot_dir, sizeof saved.snapshot_dir, dir.c_str());
     saved.message[0] = '\0';
   } catch (const std::exception& e) {
     saved.snapshot_dir[0] = '\0';
-    copyMessage(saved.message, sizeof saved.message, e.what());
+    copy_message(saved.message, sizeof saved.message, e.what());
   }
-  postResult(saved);
+  post_result(saved);
 }
 
-void Cell::postResult(const CycleResult& result) {
+void Cell::post_result(const CycleResult& result) {
   CycleResult* out = nullptr;
-  while (!(out = results_.begin_write()) && !stop_.load()) waitFd(visionWake_, 10);
+  while (!(out = results_.begin_write()) && !stop_.load()) wait_fd(vision_wake_, 10);
   if (!out) return;
   *out = result;
   results_.end_write();
-  signalFd(resultFd_);
+  signal_fd(result_fd_);
 }
 
 }  // namespace mfcd::daemon

@@ -10,13 +10,13 @@
 
 namespace mfcd::daemon {
 
-void Cell::planLook(const CycleRequest& request, CycleResult& out) {
-  const LookDecision d = decideLook(config_.second_look.when, out, config_.pick.choice);
+void Cell::plan_look(const CycleRequest& request, CycleResult& out) {
+  const LookDecision d = decide_look(config_.second_look.when, out, config_.pick.choice);
   if (d.reason == LookReason::None || !request.flange_valid) return;
-  const auto motion = stage_->suggestLook(pipelineResult_.candidates[static_cast<std::size_t>(d.candidate)]);
+  const auto motion = stage_->suggest_look(pipeline_result_.candidates[static_cast<std::size_t>(d.candidate)]);
   if (!motion) return;
   const motion::PoseXYZ flange =
-      motion::isometry_to_pose(lookFlangePose(request.base_T_flange, *motion, config_.hand_eye.camera));
+      motion::isometry_to_pose(look_flange_pose(request.base_T_flange, *motion, config_.hand_eye.camera));
   out.look_wanted = true;
   out.look_reason = static_cast<std::uint16_t>(d.reason);
   out.look_candidate = d.candidate;
@@ -27,18 +27,18 @@ void Cell::planLook(const CycleRequest& request, CycleResult& out) {
   out.chosen = -1;
   out.ranked_count = 0;
   // Kept without a copy: the next single look writes into the other result's storage.
-  std::swap(firstLook_, pipelineResult_);
-  firstLookCycle_ = request.cycle_id;
+  std::swap(first_look_, pipeline_result_);
+  first_look_cycle_ = request.cycle_id;
 }
 
-void Cell::fuseLook(const VisionInput& in, const CycleRequest& request) {
-  if (firstLookCycle_ == 0 || firstLookCycle_ != request.first_cycle)
+void Cell::fuse_look(const VisionInput& in, const CycleRequest& request) {
+  if (first_look_cycle_ == 0 || first_look_cycle_ != request.first_cycle)
     throw std::runtime_error("second look: cycle " + std::to_string(request.first_cycle) +
                              "'s first look is no longer kept (a later cycle ran in between)");
-  firstLookCycle_ = 0;  // one second look per first
-  stage_->fuse(firstLook_, in,
-               cameraMotion(request.first_base_T_flange, request.base_T_flange, config_.hand_eye.camera),
-               pipelineResult_);
+  first_look_cycle_ = 0;  // one second look per first
+  stage_->fuse(first_look_, in,
+               camera_motion(request.first_base_T_flange, request.base_T_flange, config_.hand_eye.camera),
+               pipeline_result_);
 }
 
 }  // namespace mfcd::daemon

@@ -23,7 +23,7 @@ namespace {
 
 // "source:line: key: reason", the line and key left out when unknown. Built by appending: GCC 12
 // warns -Wrestrict (falsely) on the inlined `"literal" + std::string` form here.
-std::string configErrorText(const std::string& source, int line, const std::string& key, const std::string& reason) {
+std::string config_error_text(const std::string& source, int line, const std::string& key, const std::string& reason) {
   std::string text = source;
   if (line > 0) text.append(":").append(std::to_string(line));
   text.append(": ");
@@ -34,12 +34,12 @@ std::string configErrorText(const std::string& source, int line, const std::stri
 }  // namespace
 
 ConfigError::ConfigError(std::string source, int line, std::string key, const std::string& reason)
-    : std::runtime_error(configErrorText(source, line, key, reason)),
+    : std::runtime_error(config_error_text(source, line, key, reason)),
       source_(std::move(source)),
       key_(std::move(key)),
       line_(line) {}
 
-const char* toString(RunMode m) { return m == RunMode::Triggered ? "triggered" : "continuous"; }
+const char* to_string(RunMode m) { return m == RunMode::Triggered ? "triggered" : "continuous"; }
 
 const RecipeConfig* DaemonConfig::recipe(int id) const {
   for (const auto& r : recipes)
@@ -52,7 +52,7 @@ namespace {
 // True when this program runs from the build tree that compiled it. The package installs these
 // very binaries: an installed copy (a .../usr/bin/ program, also one installed under the build
 // tree by the package tests) must not look for a developer's files.
-bool runFromBuildTree() {
+bool run_from_build_tree() {
   std::error_code ec;
   const std::string exe = fs::read_symlink("/proc/self/exe", ec).string();
   const std::string build = std::string(MFCD_BUILD_DIR) + "/";
@@ -61,13 +61,13 @@ bool runFromBuildTree() {
 }  // namespace
 #endif
 
-std::vector<fs::path> searchPath(const fs::path& configDir, const fs::path& dataDir) {
+std::vector<fs::path> search_path(const fs::path& config_dir, const fs::path& data_dir) {
   std::vector<fs::path> path;
-  if (!configDir.empty()) path.push_back(configDir);
-  if (!dataDir.empty()) path.push_back(dataDir);
+  if (!config_dir.empty()) path.push_back(config_dir);
+  if (!data_dir.empty()) path.push_back(data_dir);
 #ifdef MFCD_DEV_DATA_DIRS
   // Development runs from the build tree find the generated parts/templates, config/ and web/.
-  if (runFromBuildTree()) {
+  if (run_from_build_tree()) {
     std::stringstream dev(MFCD_DEV_DATA_DIRS);
     for (std::string dir; std::getline(dev, dir, ':');)
       if (!dir.empty()) path.emplace_back(dir);
@@ -78,10 +78,10 @@ std::vector<fs::path> searchPath(const fs::path& configDir, const fs::path& data
   return path;
 }
 
-DaemonConfig parseConfig(const std::string& yamlText, const std::string& source, const std::vector<fs::path>& path) {
+DaemonConfig parse_config(const std::string& yaml_text, const std::string& source, const std::vector<fs::path>& path) {
   YAML::Node root;
   try {
-    root = YAML::Load(yamlText);
+    root = YAML::Load(yaml_text);
   } catch (const YAML::Exception& e) {
     throw ConfigError(source, e.mark.line >= 0 ? e.mark.line + 1 : 0, "", "YAML syntax error: " + e.msg);
   }
@@ -92,35 +92,36 @@ DaemonConfig parseConfig(const std::string& yamlText, const std::string& source,
   c.search_path = path;
   Section top(root, "", 1, ctx);
 
-  readDaemonSection(top, c);
-  readCameraSection(top, c);
-  readLightsSection(top, c);
-  readSequencerSection(top, c);
-  readSimulationSection(top, c);
-  readVisionSection(top, c);
-  readRecipesSection(top, c);
-  readPickSection(top, c);
-  readHandEyeSection(top, c);
-  readSecondLookSection(top, c);
-  readModbusSection(top, c);
-  readWebSection(top, c);
-  readCanSection(top, c);
-  readCalibrationSection(top, c);
-  readSnapshotsSection(top, c);
+  read_daemon_section(top, c);
+  read_camera_section(top, c);
+  read_lights_section(top, c);
+  read_sequencer_section(top, c);
+  read_simulation_section(top, c);
+  read_vision_section(top, c);
+  read_recipes_section(top, c);
+  read_pick_section(top, c);
+  read_hand_eye_section(top, c);
+  read_second_look_section(top, c);
+  read_gripper_check_section(top, c);
+  read_modbus_section(top, c);
+  read_web_section(top, c);
+  read_can_section(top, c);
+  read_calibration_section(top, c);
+  read_snapshots_section(top, c);
   top.finish();
   return c;
 }
 
-DaemonConfig loadConfigFile(const fs::path& file, const fs::path& dataDir) {
+DaemonConfig load_config_file(const fs::path& file, const fs::path& data_dir) {
   std::ifstream in(file);
   if (!in) throw ConfigError(file.string(), 0, "", std::string("cannot read the file: ") + std::strerror(errno));
   std::stringstream text;
   text << in.rdbuf();
-  return parseConfig(text.str(), file.string(), searchPath(fs::absolute(file).parent_path(), dataDir));
+  return parse_config(text.str(), file.string(), search_path(fs::absolute(file).parent_path(), data_dir));
 }
 
-DaemonConfig loadEmbeddedConfig(const fs::path& dataDir) {
-  return parseConfig(embeddedSimConfig(), "<embedded sim.yaml>", searchPath({}, dataDir));
+DaemonConfig load_embedded_config(const fs::path& data_dir) {
+  return parse_config(embedded_sim_config(), "<embedded sim.yaml>", search_path({}, data_dir));
 }
 
 }  // namespace mfcd::daemon

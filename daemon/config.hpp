@@ -41,7 +41,7 @@ enum class CameraType { Simulated, V4L2, Aravis };
 enum class LightsType { Simulated, Gpiod, Camera };
 enum class StrobeSourceSetting { ExposureActive, Timer };
 
-const char* toString(RunMode m);
+const char* to_string(RunMode m);
 
 // Where the gripper takes a part (vision::GraspFeature): a spot in the part's model frame that
 // must be on top and facing the camera for the pick to be worth trying (pick.weight_grasp,
@@ -116,6 +116,12 @@ struct SimulationSettings {
   // every capture sees it from the flange pose of its job (a second look moves the camera). Unset:
   // every capture sees the bin as laid out, wherever the PLC says the robot is.
   std::optional<Eigen::Isometry3d> eye_in_hand_view;
+  // The simulated gripper (simulation.gripper), for gripper_check: the part the robot took is held
+  // where the vision's pose put it relative to the true one, then displaced by `slip` (model frame
+  // of the part: where it sits in the gripper relative to where it should); every drop_every-th
+  // part taken falls out before the check (0: none does).
+  Eigen::Isometry3d gripper_slip = Eigen::Isometry3d::Identity();
+  int gripper_drop_every = 0;
 };
 
 // second_look: when an eye-in-hand cell takes a second frame set from another camera pose and
@@ -128,6 +134,26 @@ enum class SecondLookWhen : std::uint8_t {
 struct SecondLookSettings {
   SecondLookWhen when = SecondLookWhen::Off;
   double tilt_deg = 25;  // out-of-plane turn of the second camera about the part's centre, 5..60
+};
+
+// gripper_check (paper Sec. 4.6): a standard camera on the arm, fixed to the tool and focused on
+// the gripper tip, checks a grasped part (COMMAND CHECK_GRIP, docs/register-map.md "Gripper
+// check"). Its image is taken as it comes (no lens distortion removed) and compared with the part
+// rendered at its ideal pose in the gripper: camera_T_part = tool_T_camera^-1 * part_T_grasp^-1.
+enum class GripperCameraType : std::uint8_t { Simulated, V4L2 };
+struct GripperCheckSettings {
+  bool enabled = false;  // the section is present
+  GripperCameraType type = GripperCameraType::Simulated;
+  std::string device = "/dev/video1";  // V4L2 node
+  int width = 640, height = 480;       // px
+  double fx = 900, fy = 900;           // px, focal lengths
+  double cx = 319.5, cy = 239.5;       // px, principal point
+  int dequeue_timeout_ms = 1000;
+  Eigen::Isometry3d tool_T_camera = Eigen::Isometry3d::Identity();  // the camera in the tool (grasp) frame, mm
+  double max_translation_mm = 1.5;                                  // measured vs ideal pose beyond this: a pose error
+  double max_rotation_deg = 2.0;                                    // likewise, degrees
+  double max_cost_px = 2.0;          // mean edge distance of the fitted model above this: not grasped
+  double min_inlier_fraction = 0.6;  // model edge points matched below this share: not grasped
 };
 
 // mfcd-ctl calibrate: the checkerboard the operator shows and the lens model to fit. The
@@ -188,6 +214,7 @@ struct DaemonConfig {
   bool can_enabled = false;
   motion::CanConfig can;
   SecondLookSettings second_look;
+  GripperCheckSettings gripper_check;
   SnapshotSettings snapshots;
   WebSettings web;
   fs::path web_root;  // the page's folder (index.html, app.js, style.css)
@@ -197,17 +224,17 @@ struct DaemonConfig {
 };
 
 // The embedded default (config/sim.yaml compiled into the binary).
-const char* embeddedSimConfig();
+const char* embedded_sim_config();
 
-// Directories searched for relative paths, in order: `configDir` (if not empty), `dataDir` (if
+// Directories searched for relative paths, in order: `config_dir` (if not empty), `data_dir` (if
 // not empty), the compiled-in development directories (build tree, source config/), /var/lib/mfcd.
-std::vector<fs::path> searchPath(const fs::path& configDir, const fs::path& dataDir);
+std::vector<fs::path> search_path(const fs::path& config_dir, const fs::path& data_dir);
 
 // Parses and validates; throws ConfigError.
-DaemonConfig parseConfig(const std::string& yamlText, const std::string& source,
-                         const std::vector<fs::path>& searchPath);
-// Reads `file` and parses it with searchPath(file's directory, dataDir).
-DaemonConfig loadConfigFile(const fs::path& file, const fs::path& dataDir);
-DaemonConfig loadEmbeddedConfig(const fs::path& dataDir);
+DaemonConfig parse_config(const std::string& yaml_text, const std::string& source,
+                          const std::vector<fs::path>& search_path);
+// Reads `file` and parses it with search_path(file's directory, data_dir).
+DaemonConfig load_config_file(const fs::path& file, const fs::path& data_dir);
+DaemonConfig load_embedded_config(const fs::path& data_dir);
 
 }  // namespace mfcd::daemon

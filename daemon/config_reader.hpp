@@ -1,7 +1,7 @@
 #pragma once
 // Reading the daemon's YAML configuration (config.cpp, config_sections.cpp): a Section remembers
 // which keys were read so that any other key is refused naming it and its line; one function per
-// top-level section, in the order parseConfig calls them (a later section may check an earlier
+// top-level section, in the order parse_config calls them (a later section may check an earlier
 // one's values).
 #include <yaml-cpp/yaml.h>
 
@@ -18,11 +18,11 @@
 
 namespace mfcd::daemon::config_reader {
 
-inline int lineOf(const YAML::Node& n) { return n.IsDefined() && n.Mark().line >= 0 ? n.Mark().line + 1 : 0; }
+inline int line_of(const YAML::Node& n) { return n.IsDefined() && n.Mark().line >= 0 ? n.Mark().line + 1 : 0; }
 
 struct Context {
   std::string source;
-  const std::vector<fs::path>* searchPath;
+  const std::vector<fs::path>* search_path;
 };
 
 // One YAML mapping being read: remembers which keys were asked for so that any other key (a
@@ -32,8 +32,8 @@ class Section {
   Section(YAML::Node node, std::string path, int line, const Context& ctx)
       : node_(std::move(node)), path_(std::move(path)), line_(line), ctx_(ctx) {
     if (node_.IsDefined() && !node_.IsNull() && !node_.IsMap())
-      fail(path_, lineOf(node_), "must be a mapping of keys to values");
-    if (node_.IsDefined() && !node_.IsNull()) line_ = lineOf(node_);
+      fail(path_, line_of(node_), "must be a mapping of keys to values");
+    if (node_.IsDefined() && !node_.IsNull()) line_ = line_of(node_);
   }
 
   [[noreturn]] void fail(const std::string& key, int line, const std::string& why) const {
@@ -58,7 +58,7 @@ class Section {
   }
 
   std::string scalar(const char* k, const YAML::Node& n) const {
-    if (!n.IsScalar()) fail(key(k), lineOf(n), "must be a single value");
+    if (!n.IsScalar()) fail(key(k), line_of(n), "must be a single value");
     return n.Scalar();
   }
 
@@ -68,33 +68,33 @@ class Section {
       if (required) fail(key(k), line_, "missing (required)");
       return def;
     }
-    return toInteger(k, n, min, max);
+    return to_integer(k, n, min, max);
   }
-  long long toInteger(const char* k, const YAML::Node& n, long long min, long long max) const {
+  long long to_integer(const char* k, const YAML::Node& n, long long min, long long max) const {
     const std::string s = scalar(k, n);
     errno = 0;
     char* end = nullptr;
     const long long v = std::strtoll(s.c_str(), &end, 0);
-    if (s.empty() || *end != '\0' || errno == ERANGE) fail(key(k), lineOf(n), "'" + s + "' is not an integer");
+    if (s.empty() || *end != '\0' || errno == ERANGE) fail(key(k), line_of(n), "'" + s + "' is not an integer");
     if (v < min || v > max)
-      fail(key(k), lineOf(n),
+      fail(key(k), line_of(n),
            std::to_string(v) + " is out of range " + std::to_string(min) + ".." + std::to_string(max));
     return v;
   }
   double number(const char* k, double def, double min, double max) {
     YAML::Node n = child(k);
     if (!n.IsDefined() || n.IsNull()) return def;
-    return toNumber(k, n, min, max);
+    return to_number(k, n, min, max);
   }
-  double toNumber(const char* k, const YAML::Node& n, double min, double max) const {
+  double to_number(const char* k, const YAML::Node& n, double min, double max) const {
     const std::string s = scalar(k, n);
     char* end = nullptr;
     const double v = std::strtod(s.c_str(), &end);
-    if (s.empty() || *end != '\0' || !std::isfinite(v)) fail(key(k), lineOf(n), "'" + s + "' is not a number");
+    if (s.empty() || *end != '\0' || !std::isfinite(v)) fail(key(k), line_of(n), "'" + s + "' is not a number");
     if (v < min || v > max) {
       std::ostringstream os;
       os << v << " is out of range " << min << ".." << max;
-      fail(key(k), lineOf(n), os.str());
+      fail(key(k), line_of(n), os.str());
     }
     return v;
   }
@@ -104,7 +104,7 @@ class Section {
     const std::string s = scalar(k, n);
     if (s == "true" || s == "yes" || s == "on") return true;
     if (s == "false" || s == "no" || s == "off") return false;
-    fail(key(k), lineOf(n), "'" + s + "' is not a boolean (true or false)");
+    fail(key(k), line_of(n), "'" + s + "' is not a boolean (true or false)");
   }
   std::string string(const char* k, const std::string& def, bool required = false) {
     YAML::Node n = child(k);
@@ -113,7 +113,7 @@ class Section {
       return def;
     }
     const std::string s = scalar(k, n);
-    if (s.empty()) fail(key(k), lineOf(n), "must not be empty");
+    if (s.empty()) fail(key(k), line_of(n), "must not be empty");
     return s;
   }
   template <typename E>
@@ -126,7 +126,7 @@ class Section {
       if (s == name) return value;
       allowed += (allowed.empty() ? "" : ", ") + std::string(name);
     }
-    fail(key(k), lineOf(n), "'" + s + "' is not one of " + allowed);
+    fail(key(k), line_of(n), "'" + s + "' is not one of " + allowed);
   }
   // A path that must exist: absolute, or found in the search path (first match wins).
   fs::path file(const char* k, bool required) {
@@ -136,22 +136,22 @@ class Section {
       return {};
     }
     const fs::path p = scalar(k, n);
-    if (p.empty()) fail(key(k), lineOf(n), "must not be empty");
+    if (p.empty()) fail(key(k), line_of(n), "must not be empty");
     // The error_code overloads: a name the file system cannot even look up (ENAMETOOLONG, a
     // path through a file) is "not found" here, named with its key, not a filesystem_error.
     std::error_code ec;
     if (p.is_absolute()) {
       if (!fs::exists(p, ec))
-        fail(key(k), lineOf(n), "file " + p.string() + " does not exist" + (ec ? " (" + ec.message() + ")" : ""));
+        fail(key(k), line_of(n), "file " + p.string() + " does not exist" + (ec ? " (" + ec.message() + ")" : ""));
       return p;
     }
     std::string tried;
-    for (const auto& dir : *ctx_.searchPath) {
+    for (const auto& dir : *ctx_.search_path) {
       const fs::path candidate = dir / p;
       if (fs::exists(candidate, ec)) return fs::absolute(candidate).lexically_normal();
       tried += (tried.empty() ? "" : ", ") + dir.string();
     }
-    fail(key(k), lineOf(n),
+    fail(key(k), line_of(n),
          "file '" + p.string() + "' not found in the search path (" + tried +
              "); give an absolute path or pass --data-dir");
   }
@@ -162,7 +162,7 @@ class Section {
     if (!node_.IsMap()) return;
     for (auto it = node_.begin(); it != node_.end(); ++it) {
       const std::string name = it->first.Scalar();
-      if (!known_.count(name)) fail(key(name.c_str()), lineOf(it->first), "unknown key");
+      if (!known_.count(name)) fail(key(name.c_str()), line_of(it->first), "unknown key");
     }
   }
 
@@ -174,7 +174,7 @@ class Section {
   std::set<std::string> known_;
 };
 
-inline Eigen::Isometry3d readPose(Section& s) {
+inline Eigen::Isometry3d read_pose(Section& s) {
   motion::PoseXYZ p;
   p.position_mm = {s.number("x_mm", 0, -1e5, 1e5), s.number("y_mm", 0, -1e5, 1e5), s.number("z_mm", 0, -1e5, 1e5)};
   p.rotation = {s.number("rx_deg", 0, -360, 360), s.number("ry_deg", 0, -360, 360), s.number("rz_deg", 0, -360, 360)};
@@ -182,7 +182,7 @@ inline Eigen::Isometry3d readPose(Section& s) {
   return motion::pose_to_isometry(p);
 }
 
-inline PoseSetting readPoseSetting(Section s, bool required) {
+inline PoseSetting read_pose_setting(Section s, bool required) {
   if (required && !s.has("x_mm") && !s.has("y_mm") && !s.has("z_mm"))
     s.fail(s.key(""), s.line(), "missing (required): a pose {x_mm, y_mm, z_mm, rx_deg, ry_deg, rz_deg}");
   PoseSetting p;
@@ -196,20 +196,21 @@ inline PoseSetting readPoseSetting(Section s, bool required) {
   return p;
 }
 
-void readDaemonSection(Section& top, DaemonConfig& c);
-void readCameraSection(Section& top, DaemonConfig& c);
-void readLightsSection(Section& top, DaemonConfig& c);
-void readSequencerSection(Section& top, DaemonConfig& c);
-void readSimulationSection(Section& top, DaemonConfig& c);
-void readVisionSection(Section& top, DaemonConfig& c);
-void readRecipesSection(Section& top, DaemonConfig& c);
-void readPickSection(Section& top, DaemonConfig& c);
-void readHandEyeSection(Section& top, DaemonConfig& c);
-void readSecondLookSection(Section& top, DaemonConfig& c);
-void readModbusSection(Section& top, DaemonConfig& c);
-void readWebSection(Section& top, DaemonConfig& c);
-void readCanSection(Section& top, DaemonConfig& c);
-void readCalibrationSection(Section& top, DaemonConfig& c);
-void readSnapshotsSection(Section& top, DaemonConfig& c);
+void read_daemon_section(Section& top, DaemonConfig& c);
+void read_camera_section(Section& top, DaemonConfig& c);
+void read_lights_section(Section& top, DaemonConfig& c);
+void read_sequencer_section(Section& top, DaemonConfig& c);
+void read_simulation_section(Section& top, DaemonConfig& c);
+void read_vision_section(Section& top, DaemonConfig& c);
+void read_recipes_section(Section& top, DaemonConfig& c);
+void read_pick_section(Section& top, DaemonConfig& c);
+void read_hand_eye_section(Section& top, DaemonConfig& c);
+void read_second_look_section(Section& top, DaemonConfig& c);
+void read_gripper_check_section(Section& top, DaemonConfig& c);
+void read_modbus_section(Section& top, DaemonConfig& c);
+void read_web_section(Section& top, DaemonConfig& c);
+void read_can_section(Section& top, DaemonConfig& c);
+void read_calibration_section(Section& top, DaemonConfig& c);
+void read_snapshots_section(Section& top, DaemonConfig& c);
 
 }  // namespace mfcd::daemon::config_reader

@@ -19,20 +19,26 @@ namespace mfcd::daemon {
 
 using Clock = std::chrono::steady_clock;
 
+// Milliseconds from a to b.
+inline double ms_between(Clock::time_point a, Clock::time_point b) {
+  return std::chrono::duration<double, std::milli>(b - a).count();
+}
+
 enum class CycleOrigin : std::uint8_t { Plc, Control, Continuous, Benchmark };
-const char* toString(CycleOrigin o);
+const char* to_string(CycleOrigin o);
 
 // Error codes published in ERROR_CODE (docs/operations.md lists them).
 enum class CycleError : std::uint16_t {
   None = 0,
-  UnknownRecipe = 1,  // RECIPE_ID not in the configuration
-  Capture = 2,        // camera or LEDs failed (HalError)
-  Vision = 3,         // the vision stage threw
-  Transform = 4,      // the chosen pick could not be transformed into the robot base frame
-  Abandoned = 5,      // the daemon stopped before the cycle finished
-  Calibrating = 6,    // a calibration session is running (mfcd-ctl calibrate): picking is paused
-  Unavailable = 7,    // the cell could not take the job (no cell running, or its request queue full)
-  NoRobotPose = 8,    // eye-in-hand: the robot pose block holds no valid pose for the capture
+  UnknownRecipe = 1,   // RECIPE_ID not in the configuration
+  Capture = 2,         // camera or LEDs failed (HalError)
+  Vision = 3,          // the vision stage threw
+  Transform = 4,       // the chosen pick could not be transformed into the robot base frame
+  Abandoned = 5,       // the daemon stopped before the cycle finished
+  Calibrating = 6,     // a calibration session is running (mfcd-ctl calibrate): picking is paused
+  Unavailable = 7,     // the cell could not take the job (no cell running, or its request queue full)
+  NoRobotPose = 8,     // eye-in-hand: the robot pose block holds no valid pose for the capture
+  NoGripperCheck = 9,  // CHECK_GRIP: gripper_check is not configured, or the checked pick is unknown
 };
 
 // Where the simulated cell puts its calibration plate for a calibration capture (real cells
@@ -50,8 +56,9 @@ struct PlateRequest {
 
 struct CycleRequest {
   // CalibrationCapture: one frame set whose ambient image goes to the calibration session
-  // instead of the vision pipeline.
-  enum class Kind : std::uint8_t { Capture, RemovePicked, Refill, CalibrationCapture };
+  // instead of the vision pipeline. GripCheck: one image of the gripper camera, checked against
+  // part obj_id at grip_camera_T_part (gripper_check).
+  enum class Kind : std::uint8_t { Capture, RemovePicked, Refill, CalibrationCapture, GripCheck };
   Kind kind = Kind::Capture;
   CycleOrigin origin = CycleOrigin::Plc;
   std::uint64_t cycle_id = 0;
@@ -65,7 +72,8 @@ struct CycleRequest {
   // RemovePicked: where the robot took a part, in the frame of the camera that saw it (on the
   // flange at base_T_flange when flange_valid).
   cv::Vec3d picked_t_cam_mm{0, 0, 0};
-  PlateRequest plate;  // CalibrationCapture, simulated cell
+  cv::Matx33d picked_R_cam = cv::Matx33d::eye();  // and the part's orientation as vision saw it
+  PlateRequest plate;                             // CalibrationCapture, simulated cell
   // Eye-in-hand: the flange pose in the robot base frame at the capture (the PLC's robot pose
   // block when the job started); picks are base_T_flange * flange_T_camera * cam_T_part.
   bool flange_valid = false;
@@ -76,6 +84,10 @@ struct CycleRequest {
   bool second_look = false;
   std::uint64_t first_cycle = 0;
   Eigen::Isometry3d first_base_T_flange = Eigen::Isometry3d::Identity();
+  // GripCheck: the part's ideal pose in the gripper camera (model -> camera, mm), and the job
+  // whose pick is checked.
+  Eigen::Isometry3d grip_camera_T_part = Eigen::Isometry3d::Identity();
+  std::uint16_t grip_of_job = 0;
   // Refill: the simulated bin looked empty to vision (nothing found): the operator refills it.
 };
 
@@ -91,7 +103,7 @@ struct SimTruth {
   std::array<Part, kMaxParts> parts{};
 };
 
-inline void copyMessage(char* dst, std::size_t size, const char* src) {
+inline void copy_message(char* dst, std::size_t size, const char* src) {
   const std::size_t n = std::min(std::strlen(src), size - 1);
   std::memcpy(dst, src, n);
   dst[n] = '\0';
@@ -109,15 +121,16 @@ struct FrameSlot {
   Clock::time_point captured{};
   SimTruth truth;
   hal::LedMask leds_after = 0;  // LED state right after the capture (must be 0)
+  cv::Mat1b gripper;            // GripCheck: the gripper camera's image (allocated when configured)
 
   void allocate(const hal::ImageFormat& format);
 };
 
 // Copies a FrameSet into a preallocated one of the same format (memcpy per image).
-void copyFrameSet(const hal::FrameSet& from, hal::FrameSet& to);
+void copy_frame_set(const hal::FrameSet& from, hal::FrameSet& to);
 // The same, each image undistorted by `undistorter` into the preallocated one (cv::remap, no
-// allocation); a plain copyFrameSet when the undistorter is not active().
-void copyFrameSet(const hal::FrameSet& from, hal::FrameSet& to, const vision::FrameUndistorter& undistorter);
+// allocation); a plain copy_frame_set when the undistorter is not active().
+void copy_frame_set(const hal::FrameSet& from, hal::FrameSet& to, const vision::FrameUndistorter& undistorter);
 
 struct CandidateOut {
   int obj_id = 0;
@@ -137,7 +150,7 @@ struct CandidateOut {
 // One cycle's outcome, vision -> main thread.
 struct CycleResult {
   static constexpr int kMaxCandidates = 16;
-  // CalibrationImage: the ambient image of a CalibrationCapture is in Cell::calibrationImage()
+  // CalibrationImage: the ambient image of a CalibrationCapture is in Cell::calibration_image()
   // (error/message say why not), valid until the next calibration capture is submitted.
   enum class Kind : std::uint8_t { Cycle, SnapshotSaved, CalibrationImage };
   Kind kind = Kind::Cycle;
@@ -163,6 +176,13 @@ struct CycleResult {
   std::uint16_t look_reason = 0;
   int look_candidate = -1;  // the candidate the second camera is centred on
   motion::PickPose look_pose;
+  // A gripper check (CycleRequest::Kind::GripCheck): motion::reg::GripState's code, the part
+  // measured in the tool frame (mm/deg; zero unless found), measured vs ideal, and the fit's mean
+  // edge distance and matched share of model edge points; `message` says why that state.
+  std::uint16_t grip_state = 0;
+  motion::PickPose grip_pose;
+  float grip_translation_mm = 0, grip_rotation_deg = 0;
+  float grip_cost_px = 0, grip_inliers = 0;
   SimTruth truth;
   bool leds_off = true;
   char snapshot_dir[256] = {};

@@ -9,12 +9,12 @@
 
 namespace mfcd::daemon {
 
-void cycleJournalFields(const CycleResult& r, JournalFields& out) {
+void cycle_journal_fields(const CycleResult& r, JournalFields& out) {
   out.clear();
   out.addf("MFCD_CYCLE", "%llu", static_cast<unsigned long long>(r.request.cycle_id));
   out.addf("MFCD_JOB_ID", "%u", static_cast<unsigned>(r.request.job_id));
   out.addf("MFCD_ERROR_CODE", "%u", static_cast<unsigned>(r.error));
-  // The same condition as the pick line of logCycleResult: an error line has no pick fields.
+  // The same condition as the pick line of log_cycle_result: an error line has no pick fields.
   if (r.error == CycleError::None && r.chosen >= 0 && r.chosen < CycleResult::kMaxCandidates) {
     const CandidateOut& c = r.candidates[static_cast<std::size_t>(r.chosen)];
     out.addf("MFCD_PART", "%d", c.obj_id);
@@ -22,14 +22,14 @@ void cycleJournalFields(const CycleResult& r, JournalFields& out) {
   }
 }
 
-void logCycleResult(const CycleResult& r) {
-  // The texts are the ones Daemon::onResult always wrote; the plain path prints them unchanged.
+void log_cycle_result(const CycleResult& r) {
+  // The texts are the ones Daemon::on_result always wrote; the plain path prints them unchanged.
   char line[1024];
   LogLevel level;
   const unsigned long long id = r.request.cycle_id;
   if (r.error != CycleError::None) {
     level = LogLevel::Error;
-    std::snprintf(line, sizeof line, "cycle %llu (%s job %u recipe %u): error %u: %s", id, toString(r.request.origin),
+    std::snprintf(line, sizeof line, "cycle %llu (%s job %u recipe %u): error %u: %s", id, to_string(r.request.origin),
                   r.request.job_id, r.request.recipe_id, static_cast<unsigned>(r.error), r.message);
   } else if (r.chosen >= 0) {
     level = LogLevel::Info;
@@ -38,18 +38,18 @@ void logCycleResult(const CycleResult& r) {
     std::snprintf(line, sizeof line,
                   "cycle %llu (%s job %u recipe %u): pick obj %d at %.1f %.1f %.1f / %.1f %.1f %.1f score %.3f, %d "
                   "found, %.0f ms%s",
-                  id, toString(r.request.origin), r.request.job_id, r.request.recipe_id, c.obj_id, p.x_mm, p.y_mm,
+                  id, to_string(r.request.origin), r.request.job_id, r.request.recipe_id, c.obj_id, p.x_mm, p.y_mm,
                   p.z_mm, p.rx_deg, p.ry_deg, p.rz_deg, c.score, r.candidate_count, r.total_ms,
                   r.degraded ? " (degraded)" : "");
   } else {
     level = LogLevel::Notice;
     std::snprintf(line, sizeof line, "cycle %llu (%s job %u recipe %u): no pick, %d found, %.0f ms", id,
-                  toString(r.request.origin), r.request.job_id, r.request.recipe_id, r.candidate_count, r.total_ms);
+                  to_string(r.request.origin), r.request.job_id, r.request.recipe_id, r.candidate_count, r.total_ms);
   }
-  if (!logEnabled(level)) return;
+  if (!log_enabled(level)) return;
   JournalFields fields;
-  if (logToJournal()) cycleJournalFields(r, fields);  // the plain path does not use them
-  logStructured(level, fields, line);
+  if (log_to_journal()) cycle_journal_fields(r, fields);  // the plain path does not use them
+  log_structured(level, fields, line);
 }
 
 }  // namespace mfcd::daemon

@@ -19,14 +19,14 @@ bool CycleStats::add(const CycleResult& r, int budget_ms) noexcept {
   window_[next_] = {static_cast<float>(r.total_ms), static_cast<float>(r.capture_ms), static_cast<float>(r.vision_ms)};
   next_ = (next_ + 1) % kWindow;
   count_ = std::min(count_ + 1, kWindow);
-  maxMs_ = std::max(maxMs_, r.total_ms);
-  sumMs_ += r.total_ms;
+  max_ms_ = std::max(max_ms_, r.total_ms);
+  sum_ms_ += r.total_ms;
   return overrun;
 }
 
-double CycleStats::percentileMs(double p) const { return percentileMs("total", p); }
+double CycleStats::percentile_ms(double p) const { return percentile_ms("total", p); }
 
-double CycleStats::percentileMs(const char* stage, double p) const {
+double CycleStats::percentile_ms(const char* stage, double p) const {
   if (count_ == 0) return 0;
   std::vector<float> v(count_);
   for (std::size_t i = 0; i < count_; ++i) {
@@ -40,34 +40,34 @@ double CycleStats::percentileMs(const char* stage, double p) const {
   return v[index];
 }
 
-void CycleStats::addPickResult(std::uint16_t outcome) noexcept {
-  if (outcome >= 1 && outcome < pickResults_.size()) ++pickResults_[outcome];
+void CycleStats::add_pick_result(std::uint16_t outcome) noexcept {
+  if (outcome >= 1 && outcome < pick_results_.size()) ++pick_results_[outcome];
 }
 
-nlohmann::json CycleStats::toJson() const {
+nlohmann::json CycleStats::to_json() const {
   nlohmann::json j = {{"cycles", cycles_},     {"overruns", overruns_},
                       {"degraded", degraded_}, {"errors", errors_},
                       {"empty", empty_},       {"detections", detections_},
                       {"picks", picks_},       {"window", count_},
-                      {"max_ms", maxMs_},      {"mean_ms", cycles_ ? sumMs_ / static_cast<double>(cycles_) : 0.0}};
+                      {"max_ms", max_ms_},     {"mean_ms", cycles_ ? sum_ms_ / static_cast<double>(cycles_) : 0.0}};
   // The robot's reports (Modbus PICK_RESULT): every outcome, and the share of reported picks that failed.
   std::uint64_t reported = 0;
-  for (std::size_t k = 1; k < pickResults_.size(); ++k) reported += pickResults_[k];
+  for (std::size_t k = 1; k < pick_results_.size(); ++k) reported += pick_results_[k];
   j["pick_results"] = {
-      {"ok", pickResults_[1]},
-      {"missed", pickResults_[2]},
-      {"unreachable", pickResults_[3]},
-      {"collision", pickResults_[4]},
-      {"dropped", pickResults_[5]},
+      {"ok", pick_results_[1]},
+      {"missed", pick_results_[2]},
+      {"unreachable", pick_results_[3]},
+      {"collision", pick_results_[4]},
+      {"dropped", pick_results_[5]},
       {"reported", reported},
       {"failed_share",
-       reported ? static_cast<double>(reported - pickResults_[1]) / static_cast<double>(reported) : 0.0}};
-  j["next_picks"] = nextPicks_;
+       reported ? static_cast<double>(reported - pick_results_[1]) / static_cast<double>(reported) : 0.0}};
+  j["next_picks"] = next_picks_;
   for (const char* stage : {"total", "capture", "vision"}) {
-    j["percentiles_ms"][stage] = {{"p50", percentileMs(stage, 50)},
-                                  {"p90", percentileMs(stage, 90)},
-                                  {"p99", percentileMs(stage, 99)},
-                                  {"max", percentileMs(stage, 100)}};
+    j["percentiles_ms"][stage] = {{"p50", percentile_ms(stage, 50)},
+                                  {"p90", percentile_ms(stage, 90)},
+                                  {"p99", percentile_ms(stage, 99)},
+                                  {"max", percentile_ms(stage, 100)}};
   }
   return j;
 }

@@ -18,10 +18,10 @@ class CycleStats {
   bool add(const CycleResult& r, int budget_ms) noexcept;
   // What the robot reported of a pick (motion::reg::PickOutcome, 1..5), and fall-back picks
   // published by NEXT.
-  void addPickResult(std::uint16_t outcome) noexcept;
-  void addNextPick() noexcept { ++nextPicks_; }
-  std::uint64_t pickResults(std::uint16_t outcome) const {
-    return outcome < pickResults_.size() ? pickResults_[outcome] : 0;
+  void add_pick_result(std::uint16_t outcome) noexcept;
+  void add_next_pick() noexcept { ++next_picks_; }
+  std::uint64_t pick_results(std::uint16_t outcome) const {
+    return outcome < pick_results_.size() ? pick_results_[outcome] : 0;
   }
 
   std::uint64_t cycles() const { return cycles_; }
@@ -33,10 +33,10 @@ class CycleStats {
   std::uint64_t picks() const { return picks_; }
 
   // Nearest-rank percentile (p in 0..100) of the total cycle time over the window; 0 when empty.
-  double percentileMs(double p) const;
+  double percentile_ms(double p) const;
   // The same for one stage: "capture", "vision" or "total".
-  double percentileMs(const char* stage, double p) const;
-  nlohmann::json toJson() const;
+  double percentile_ms(const char* stage, double p) const;
+  nlohmann::json to_json() const;
 
  private:
   struct Sample {
@@ -46,9 +46,9 @@ class CycleStats {
   std::size_t count_ = 0;  // samples in window (<= kWindow)
   std::size_t next_ = 0;
   std::uint64_t cycles_ = 0, overruns_ = 0, degraded_ = 0, errors_ = 0, empty_ = 0, detections_ = 0, picks_ = 0;
-  double maxMs_ = 0, sumMs_ = 0;
-  std::array<std::uint64_t, 6> pickResults_{};  // by PickOutcome; [0] unused
-  std::uint64_t nextPicks_ = 0;
+  double max_ms_ = 0, sum_ms_ = 0;
+  std::array<std::uint64_t, 6> pick_results_{};  // by PickOutcome; [0] unused
+  std::uint64_t next_picks_ = 0;
 };
 
 }  // namespace mfcd::daemon

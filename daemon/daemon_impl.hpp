@@ -34,9 +34,9 @@ using ClientId = ControlServer::ClientId;
 
 // A control client waiting for the cycle it started.
 // Robot-link commands that start a job (each ends with a result or an error code).
-inline bool startsJob(motion::PlcCommand::Kind k) {
+inline bool starts_job(motion::PlcCommand::Kind k) {
   using Kind = motion::PlcCommand::Kind;
-  return k == Kind::Trigger || k == Kind::SaveScene || k == Kind::Look;
+  return k == Kind::Trigger || k == Kind::SaveScene || k == Kind::Look || k == Kind::CheckGrip;
 }
 
 struct Waiter {
@@ -53,30 +53,30 @@ class Daemon {
 
  private:
   DaemonConfig load() const;
-  void startCell(const DaemonConfig& config);
+  void start_cell(const DaemonConfig& config);
   // Stops the cell (LEDs off, devices released), after the web view has let go of its frames.
-  void dropCell();
+  void drop_cell();
   // Hands the running cell's frames, parts and camera to the web view (when it runs).
-  void showCellOnWeb(const DaemonConfig& config);
-  void watchCell();  // (re-)registers the current cell's result fd with the loop
-  void lockMemory();
-  bool startServices();
-  void mainLoop();
+  void show_cell_on_web(const DaemonConfig& config);
+  void watch_cell();  // (re-)registers the current cell's result fd with the loop
+  void lock_memory();
+  bool start_services();
+  void main_loop();
   void shutdown();
-  void onSignal();
-  void onCellResults();
-  void onPlcCommands();
+  void on_signal();
+  void on_cell_results();
+  void on_plc_commands();
 
   // daemon_commands.cpp
-  void registerCommands();
-  nlohmann::json statusJson() const;
-  void startControlCycle(ClientId client, const RequestArgs& args, bool snapshot);
-  void selectPart(ClientId client, const RequestArgs& args);
+  void register_commands();
+  nlohmann::json status_json() const;
+  void start_control_cycle(ClientId client, const RequestArgs& args, bool snapshot);
+  void select_part(ClientId client, const RequestArgs& args);
   // daemon_calibration.cpp
   bool calibrating() const { return calib_ && (calib_->active() || calib_->busy() || capture_); }
-  void handleCalibrate(ClientId client, const nlohmann::json& req);
-  void onCalibrationImage(const CycleResult& r);
-  void onCalibrationDone();
+  void handle_calibrate(ClientId client, const nlohmann::json& req);
+  void on_calibration_image(const CycleResult& r);
+  void on_calibration_done();
 
   // daemon_cycles.cpp
   // A first look whose result asked for a second (the robot link's LOOK continues it).
@@ -86,36 +86,40 @@ class Daemon {
     Eigen::Isometry3d base_T_flange = Eigen::Isometry3d::Identity();
   };
   // `first`: the cycle is a second look fused with that first look.
-  std::optional<std::uint64_t> startCycle(CycleOrigin origin, std::uint16_t job, std::uint16_t recipe,
-                                          std::uint16_t mode, bool snapshot, const FirstLook* first = nullptr);
-  void onPlcCommand(const motion::PlcCommand& cmd);
+  std::optional<std::uint64_t> start_cycle(CycleOrigin origin, std::uint16_t job, std::uint16_t recipe,
+                                           std::uint16_t mode, bool snapshot, const FirstLook* first = nullptr);
+  void on_plc_command(const motion::PlcCommand& cmd);
   // NEXT (already published by the Modbus server): the report follows with that pick.
-  void onNextPick(const motion::PlcCommand& cmd);
+  void on_next_pick(const motion::PlcCommand& cmd);
   // PICK_RESULT: counted, logged, and a failed pick's frame set saved (snapshots.on_failed_pick).
-  void onPickResult(const motion::PlcCommand& cmd);
+  void on_pick_result(const motion::PlcCommand& cmd);
   // A PLC or continuous job's result into the robot link's report, with its ranked picks.
-  void reportJob(const CycleResult& r);
+  void report_job(const CycleResult& r);
   // Starts a TRIGGER's (or SAVE_SCENE's) cycle now, or answers the job with ERROR_CODE 7 when the cell cannot take it.
-  void startPlcJob(const motion::PlcCommand& cmd);
+  void start_plc_job(const motion::PlcCommand& cmd);
   // Ends a PLC job that will not run: JOB_ID_ECHO = job, PICK_VALID 0, ERROR_CODE = error.
-  void answerJob(std::uint16_t job, std::uint16_t recipe, CycleError error, const char* why);
+  void answer_job(std::uint16_t job, std::uint16_t recipe, CycleError error, const char* why);
+  // daemon_grip.cpp: CHECK_GRIP of the pick published last, and its result.
+  void start_grip_check(const motion::PlcCommand& cmd);
+  void on_grip_result(const CycleResult& r);
+  void clear_grip();  // no grip result in the report
   // No second look wanted in the report, and none kept.
-  void clearLook();
+  void clear_look();
   // Hands a request to the cell and extends the time its threads may be busy with it.
   bool submit(const CycleRequest& r);
-  void onResult(const CycleResult& r);
-  void afterCycle();
+  void on_result(const CycleResult& r);
+  void after_cycle();
   void publish();
-  void updateReady();
+  void update_ready();
 
   // daemon.cpp
   bool reload(std::string& message);
-  void notifyStatus();
-  void onTimer();
+  void notify_status();
+  void on_timer();
   // True while every frame-path thread has woken within `grace`, or is allowed to be busy with
   // a request (until that request's deadline + grace).
-  bool framePathMoving(Clock::time_point now, std::chrono::milliseconds grace) const;
-  int runBenchmark();
+  bool frame_path_moving(Clock::time_point now, std::chrono::milliseconds grace) const;
+  int run_benchmark();
 
   DaemonOptions options_;
   VisionStageFactory vision_;
@@ -125,26 +129,32 @@ class Daemon {
   ControlServer control_{loop_};
   RobotLink link_;
   std::unique_ptr<Cell> cell_;
-  std::unique_ptr<WebView> webView_;  // web.enabled: what the web server shows
+  std::unique_ptr<WebView> web_view_;  // web.enabled: what the web server shows
   std::unique_ptr<WebServer> web_;
-  int watchedCellFd_ = -1;
+  int watched_cell_fd_ = -1;
   motion::RobotReport report_;
   CycleStats stats_;
-  nlohmann::json lastResult_;
+  nlohmann::json last_result_;
 
-  std::optional<CycleRequest> inFlight_;
-  std::optional<motion::PlcCommand> pendingPlc_;
+  std::optional<CycleRequest> in_flight_;
+  std::optional<motion::PlcCommand> pending_plc_;
   std::vector<Waiter> waiters_;
-  std::vector<std::pair<ClientId, nlohmann::json>> reloadWaiters_;  // client, and what to add to the reload's answer
-  std::uint64_t nextCycle_ = 1;
-  std::uint16_t nextContinuousJob_ = 1;
-  std::uint64_t lastJobCycle_ = 0;      // cycle of the job in the robot link's report (0: none)
-  std::optional<FirstLook> firstLook_;  // the report's job asks for a second look
-  int selectedRecipe_ = 0;
-  bool reloadPending_ = false, stopping_ = false, cellOk_ = false;
-  Clock::time_point stopRequested_{};
+  std::vector<std::pair<ClientId, nlohmann::json>> reload_waiters_;  // client, and what to add to the reload's answer
+  std::uint64_t next_cycle_ = 1;
+  std::uint16_t next_continuous_job_ = 1;
+  std::uint64_t last_job_cycle_ = 0;     // cycle of the job in the robot link's report (0: none)
+  std::optional<FirstLook> first_look_;  // the report's job asks for a second look
+  // The picks in the robot link's report (CHECK_GRIP checks one of them): job 0 when none.
+  struct PublishedPicks {
+    std::uint16_t job = 0, recipe = 0, count = 0;
+    std::array<int, motion::kMaxRankedPicks> obj_id{};  // per rank
+  };
+  PublishedPicks last_pick_;
+  int selected_recipe_ = 0;
+  bool reload_pending_ = false, stopping_ = false, cell_ok_ = false;
+  Clock::time_point stop_requested_{};
 
-  motion::UniqueFd signalFd_, timerFd_;
+  motion::UniqueFd signal_fd_, timer_fd_;
 
   // mfcd-ctl calibrate: the session runs on the service's worker; a capture in flight waits here
   // for its frame set.
@@ -157,15 +167,15 @@ class Daemon {
   };
   std::unique_ptr<CalibrationService> calib_;
   std::optional<PendingCapture> capture_;
-  std::optional<std::uint16_t> lastPlcPoseSeq_;
-  std::uint64_t watchdogUsec_ = 0;
-  std::uint64_t lastAcqBeat_ = 0, lastVisionBeat_ = 0;
-  Clock::time_point acqMoved_ = Clock::now(), visionMoved_ = Clock::now();
-  std::string lastStatus_;
-  bool stuckLogged_ = false;
-  bool linkDownLogged_ = false;
-  bool framesOk_ = true;           // the last cycle captured and ran its vision stage (VISION_OK)
-  Clock::time_point busyUntil_{};  // the latest deadline of a request handed to the cell
+  std::optional<std::uint16_t> last_plc_pose_seq_;
+  std::uint64_t watchdog_usec_ = 0;
+  std::uint64_t last_acq_beat_ = 0, last_vision_beat_ = 0;
+  Clock::time_point acq_moved_ = Clock::now(), vision_moved_ = Clock::now();
+  std::string last_status_;
+  bool stuck_logged_ = false;
+  bool link_down_logged_ = false;
+  bool frames_ok_ = true;           // the last cycle captured and ran its vision stage (VISION_OK)
+  Clock::time_point busy_until_{};  // the latest deadline of a request handed to the cell
 };
 
 }  // namespace mfcd::daemon

@@ -12,6 +12,7 @@
 #include "daemon/cycle.hpp"
 #include "mfcd/hal/sequencer.hpp"
 #include "mfcd/hal/simulated.hpp"
+#include "vision/camera/camera.hpp"
 
 namespace mfcd::daemon {
 
@@ -23,19 +24,27 @@ class SimulatedWorld {
   // The bin's ground truth for the frame set just captured.
   virtual void truth(SimTruth& out) const = 0;
   // The robot takes the part nearest `t_cam_mm` (mm, in the frame of the camera that saw it: on a
-  // flange at `base_T_flange` when the cell moves the camera, see moveCamera). May allocate.
-  virtual void removePicked(const cv::Vec3d& t_cam_mm, const Eigen::Isometry3d* base_T_flange) = 0;
+  // flange at `base_T_flange` when the cell moves the camera, see move_camera), gripping it where
+  // vision put it (R_cam, t_cam_mm: model -> that camera). May allocate.
+  virtual void remove_picked(const cv::Matx33d& R_cam, const cv::Vec3d& t_cam_mm,
+                             const Eigen::Isometry3d* base_T_flange) = 0;
+  // The gripper camera's image (8-bit, camera.image_size) of the part taken last, held at
+  // camera_T_ideal (model -> that camera: where a perfect pick puts it) displaced by the pick's
+  // pose error (the true pose relative to vision's) and simulation.gripper.slip; an empty gripper
+  // when that pick took nothing or simulation.gripper.drop_every dropped it. May allocate.
+  virtual void capture_gripper(const vision::PinholeCamera& camera, const Eigen::Isometry3d& camera_T_ideal,
+                               cv::Mat1b& out) = 0;
   // The camera of the next capture is on a flange at `base_T_flange` (nullptr: not known). Moves
   // the simulated camera when simulation.eye_in_hand_view is set, otherwise does nothing. May
   // allocate (it re-stages the scene).
-  virtual void moveCamera(const Eigen::Isometry3d* base_T_flange) = 0;
+  virtual void move_camera(const Eigen::Isometry3d* base_T_flange) = 0;
   virtual void refill() = 0;
   // Shows the calibration plate as asked for the next capture(s); Kind::None brings the bin back.
   // Throws std::runtime_error when the cell cannot show it.
-  virtual void showPlate(const PlateRequest& plate) = 0;
+  virtual void show_plate(const PlateRequest& plate) = 0;
   // The simulated devices, for fault injection below the HAL's interfaces (the fault tests).
-  virtual hal::SimulatedCamera& simulatedCamera() = 0;
-  virtual hal::SimulatedLightRing& simulatedLights() = 0;
+  virtual hal::SimulatedCamera& simulated_camera() = 0;
+  virtual hal::SimulatedLightRing& simulated_lights() = 0;
 };
 
 class FrameSource {
@@ -56,11 +65,11 @@ using FrameSourceFactory = std::function<std::unique_ptr<FrameSource>(const Daem
 
 // Builds the source the configuration asks for. Throws (HalError, std::runtime_error) naming the
 // device or file.
-std::unique_ptr<FrameSource> makeFrameSource(const DaemonConfig& config);
+std::unique_ptr<FrameSource> make_frame_source(const DaemonConfig& config);
 
 // Drives every LED line of `config` off and releases it (mfcd --leds-off, the unit's
 // ExecStopPost=: after a crash or SIGKILL a GPIO line keeps the level it was last driven to).
 // Returns what was done; throws hal::HalError naming the chip and line when they cannot be driven.
-std::string switchLedsOff(const DaemonConfig& config);
+std::string switch_leds_off(const DaemonConfig& config);
 
 }  // namespace mfcd::daemon

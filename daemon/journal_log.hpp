@@ -13,7 +13,7 @@
 // little-endian length + value + `\n`, is for values that hold a newline; ours never do).
 //
 // Real-time: nothing here runs on the frame path. The cycle line is logged by the main thread
-// (Daemon::onResult) after the vision worker has handed the result over the SPSC ring. Even so the
+// (Daemon::on_result) after the vision worker has handed the result over the SPSC ring. Even so the
 // journal path allocates nothing (fixed buffers on the stack) and never blocks: the datagram is
 // sent with MSG_DONTWAIT, and when journald's queue is full (or journald is gone) the line falls
 // back to the plain path.
@@ -33,20 +33,20 @@ struct CycleResult;
 // journald's native socket (systemd.journal-fields(7), sd_journal_print(3)).
 inline constexpr const char* kJournalSocket = "/run/systemd/journal/socket";
 
-// True when `journalStream`, the value of $JOURNAL_STREAM ("<device>:<inode>", both decimal, as
+// True when `journal_stream`, the value of $JOURNAL_STREAM ("<device>:<inode>", both decimal, as
 // systemd.exec(5) describes it), names the file behind `fd`: systemd sets the variable when it
 // connects a service's stdout/stderr to the journal, and a child whose stderr was redirected
 // elsewhere inherits the variable but no longer matches. Null, empty or malformed values, and a
 // descriptor fstat cannot read, give false.
-bool journalStreamMatches(const char* journalStream, int fd);
+bool journal_stream_matches(const char* journal_stream, int fd);
 
-// journalStreamMatches(getenv("JOURNAL_STREAM"), STDERR_FILENO): how systemd's own tools decide
+// journal_stream_matches(getenv("JOURNAL_STREAM"), STDERR_FILENO): how systemd's own tools decide
 // that their stderr is the journal.
-bool stderrIsJournal();
+bool stderr_is_journal();
 
 // A journal field name as journald accepts it from a client: 1..64 characters of A-Z, 0-9 and
 // '_', not starting with '_' (those are journald's trusted fields) nor with a digit.
-bool journalFieldNameValid(std::string_view name);
+bool journal_field_name_valid(std::string_view name);
 
 // A fixed-capacity list of journal fields, each stored as "NAME=value" (the iovec form of
 // sd_journal_sendv). Built without heap allocation. Values are sanitised on the way in: every
@@ -85,20 +85,20 @@ class JournalFields {
 //   MFCD_SCORE       the pick's score, 0..1, three decimals like the line; only with a pick
 // An error result or a cycle without a pick has no MFCD_PART and no MFCD_SCORE, so
 // `journalctl MFCD_PART=4` lists the picks of part 4. `out` is cleared first.
-void cycleJournalFields(const CycleResult& result, JournalFields& out);
+void cycle_journal_fields(const CycleResult& result, JournalFields& out);
 
 // The whole journal entry of a log line: MESSAGE (cut at 1023 bytes, like logf's line), PRIORITY
 // (the syslog level, 3 error .. 7 debug), SYSLOG_FACILITY=3 (daemon, as openlog(LOG_DAEMON)),
 // SYSLOG_IDENTIFIER (`ident`, the name openlog got), then `extra` in its order. `out` is cleared
 // first.
-void journalEntry(LogLevel level, const char* ident, std::string_view message, const JournalFields& extra,
-                  JournalFields& out);
+void journal_entry(LogLevel level, const char* ident, std::string_view message, const JournalFields& extra,
+                   JournalFields& out);
 
 // Encodes `fields` as one native-protocol datagram into out[0..capacity): each field as its
 // "NAME=value" and a newline. Returns the length, or 0 when there is no field or it does not fit.
 // (The protocol's binary form, for values holding a newline, is never needed: JournalFields
 // sanitises every value.)
-std::size_t encodeJournalDatagram(const JournalFields& fields, char* out, std::size_t capacity);
+std::size_t encode_journal_datagram(const JournalFields& fields, char* out, std::size_t capacity);
 
 // Sends entries to a journald native socket: one unconnected AF_UNIX datagram socket, addressed
 // per send, so a journald restart is survived without reconnecting. Thread-safe (no shared state
@@ -108,9 +108,9 @@ class JournalSink {
   // The largest datagram send() makes: a full JournalFields, one newline per field.
   static constexpr std::size_t kMaxDatagram = JournalFields::kCapacity + JournalFields::kMaxFields;
 
-  // `socketPath`: kJournalSocket, or a socket a test bound. Throws std::runtime_error when the
+  // `socket_path`: kJournalSocket, or a socket a test bound. Throws std::runtime_error when the
   // path does not fit sockaddr_un or no socket can be made.
-  explicit JournalSink(const char* socketPath = kJournalSocket);
+  explicit JournalSink(const char* socket_path = kJournalSocket);
   ~JournalSink();
   JournalSink(const JournalSink&) = delete;
   JournalSink& operator=(const JournalSink&) = delete;
@@ -122,13 +122,13 @@ class JournalSink {
  private:
   int fd_ = -1;
   sockaddr_un addr_{};
-  socklen_t addrLen_ = 0;
+  socklen_t addr_len_ = 0;
 };
 
-// Logs one cycle's result line (the daemon's main thread, Daemon::onResult): error (LogLevel::Error),
+// Logs one cycle's result line (the daemon's main thread, Daemon::on_result): error (LogLevel::Error),
 // pick (Info) or no pick (Notice), the same text as always. Through journald with
-// cycleJournalFields() when log.hpp's journal sink is open (logOpen found stderr to be the journal),
+// cycle_journal_fields() when log.hpp's journal sink is open (log_open found stderr to be the journal),
 // else the plain path of logf().
-void logCycleResult(const CycleResult& result);
+void log_cycle_result(const CycleResult& result);
 
 }  // namespace mfcd::daemon

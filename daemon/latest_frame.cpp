@@ -8,7 +8,7 @@ void LatestFrame::allocate(cv::Size size) {
       m->create(size);
       *m = 0;  // resident from the start
     }
-    f.haveEdges = false;
+    f.have_edges = false;
   }
 }
 
@@ -20,8 +20,8 @@ void LatestFrame::publish(const FrameSlot& slot, const CycleResult& result, cons
   slot.mfc.flash[0].copyTo(f.composite);
   cv::Mat composite = f.composite;  // a header over the buffer: max writes in place
   for (std::size_t k = 1; k < slot.mfc.flash.size(); ++k) cv::max(composite, cv::Mat(slot.mfc.flash[k]), composite);
-  f.haveEdges = edges && edges->size() == f.edges.size();
-  if (f.haveEdges) edges->copyTo(f.edges);
+  f.have_edges = edges && edges->size() == f.edges.size();
+  if (f.have_edges) edges->copyTo(f.edges);
   f.result = result;
   // Release: the reader that sees kNew sees the buffer's contents.
   back_ = ready_.exchange(back_ | kNew, std::memory_order_acq_rel) & kIndex;

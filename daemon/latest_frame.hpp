@@ -17,8 +17,8 @@ namespace mfcd::daemon {
 struct WebFrame {
   cv::Mat1b ambient;    // the ambient image
   cv::Mat1b composite;  // max over the flash images: every outline lit (the overlay's background)
-  cv::Mat1b edges;      // the pipeline's depth edges; valid when haveEdges
-  bool haveEdges = false;
+  cv::Mat1b edges;      // the pipeline's depth edges; valid when have_edges
+  bool have_edges = false;
   CycleResult result;  // the cycle's result (candidates, chosen, ranked)
 };
 

@@ -17,7 +17,7 @@ namespace mfcd::daemon {
 
 // Why a first look asks for a second: the Modbus LOOK_REASON codes.
 using LookReason = motion::reg::LookReason;
-const char* toString(LookReason r);
+const char* to_string(LookReason r);
 
 struct LookDecision {
   LookReason reason = LookReason::None;
@@ -28,16 +28,16 @@ struct LookDecision {
 // with `always`, a look at the chosen pick (else the best-scored candidate); with `unsure`, a look
 // only when no pick was chosen because the best-scored candidate is ambiguous or below
 // pick.min_score. None when nothing was found, the cycle failed or counted only.
-LookDecision decideLook(SecondLookWhen when, const CycleResult& out, const motion::PickChoiceConfig& pick);
+LookDecision decide_look(SecondLookWhen when, const CycleResult& out, const motion::PickChoiceConfig& pick);
 
 // The camera's motion (first camera's frame -> second's: p2 = R p1 + t, mm) between captures by
 // a camera at flange_T_camera on flanges at base_T_flange1 and base_T_flange2.
-vision::RigidTransform cameraMotion(const Eigen::Isometry3d& base_T_flange1, const Eigen::Isometry3d& base_T_flange2,
-                                    const Eigen::Isometry3d& flange_T_camera);
+vision::RigidTransform camera_motion(const Eigen::Isometry3d& base_T_flange1, const Eigen::Isometry3d& base_T_flange2,
+                                     const Eigen::Isometry3d& flange_T_camera);
 
 // The flange pose whose camera has moved by `motion` from the capture at base_T_flange1: the
-// inverse of cameraMotion for the second pose.
-Eigen::Isometry3d lookFlangePose(const Eigen::Isometry3d& base_T_flange1, const vision::RigidTransform& motion,
-                                 const Eigen::Isometry3d& flange_T_camera);
+// inverse of camera_motion for the second pose.
+Eigen::Isometry3d look_flange_pose(const Eigen::Isometry3d& base_T_flange1, const vision::RigidTransform& motion,
+                                   const Eigen::Isometry3d& flange_T_camera);
 
 }  // namespace mfcd::daemon

@@ -1,4 +1,4 @@
 // mfcd: the vision daemon of the bin-picking cell (docs/operations.md).
 #include "daemon/daemon.hpp"
 
-int main(int argc, char** argv) { return mfcd::daemon::daemonMain(argc, argv, mfcd::daemon::makePipelineStage); }
+int main(int argc, char** argv) { return mfcd::daemon::daemon_main(argc, argv, mfcd::daemon::make_pipeline_stage); }

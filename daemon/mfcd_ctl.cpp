@@ -21,7 +21,7 @@
 namespace {
 
 // "x,y,z,rx,ry,rz" -> six finite numbers, or throws naming the option.
-nlohmann::json parsePose(const std::string& text, const std::string& option) {
+nlohmann::json parse_pose(const std::string& text, const std::string& option) {
   nlohmann::json out = nlohmann::json::array();
   std::stringstream in(text);
   std::string item;
@@ -39,30 +39,30 @@ nlohmann::json parsePose(const std::string& text, const std::string& option) {
 }
 
 struct Connection {
-  std::string socketPath;
-  int timeoutS;
+  std::string socket_path;
+  int timeout_s;
 };
 
 // Sends one request line and returns the answer; nullopt (message printed) on connection trouble.
-std::optional<nlohmann::json> roundTrip(const Connection& conn, const nlohmann::json& req) {
-  const std::string& socketPath = conn.socketPath;
+std::optional<nlohmann::json> round_trip(const Connection& conn, const nlohmann::json& req) {
+  const std::string& socket_path = conn.socket_path;
   const int fd = ::socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
   sockaddr_un addr{};
   addr.sun_family = AF_UNIX;
-  if (socketPath.size() >= sizeof addr.sun_path) {
-    std::fprintf(stderr, "mfcd-ctl: socket path too long: %s\n", socketPath.c_str());
+  if (socket_path.size() >= sizeof addr.sun_path) {
+    std::fprintf(stderr, "mfcd-ctl: socket path too long: %s\n", socket_path.c_str());
     return std::nullopt;
   }
-  std::strncpy(addr.sun_path, socketPath.c_str(), sizeof addr.sun_path - 1);
+  std::strncpy(addr.sun_path, socket_path.c_str(), sizeof addr.sun_path - 1);
   if (::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0) {
     std::fprintf(stderr, "mfcd-ctl: cannot connect to %s: %s (is mfcd running? -s sets the socket)\n",
-                 socketPath.c_str(), std::strerror(errno));
+                 socket_path.c_str(), std::strerror(errno));
     ::close(fd);
     return std::nullopt;
   }
   const std::string line = req.dump() + "\n";
   if (::send(fd, line.data(), line.size(), MSG_NOSIGNAL) != static_cast<ssize_t>(line.size())) {
-    std::fprintf(stderr, "mfcd-ctl: send to %s: %s\n", socketPath.c_str(), std::strerror(errno));
+    std::fprintf(stderr, "mfcd-ctl: send to %s: %s\n", socket_path.c_str(), std::strerror(errno));
     ::close(fd);
     return std::nullopt;
   }
@@ -70,14 +70,14 @@ std::optional<nlohmann::json> roundTrip(const Connection& conn, const nlohmann::
   char buf[8192];
   while (in.find('\n') == std::string::npos) {
     pollfd p{fd, POLLIN, 0};
-    if (::poll(&p, 1, conn.timeoutS * 1000) <= 0) {
-      std::fprintf(stderr, "mfcd-ctl: no answer from %s within %d s\n", socketPath.c_str(), conn.timeoutS);
+    if (::poll(&p, 1, conn.timeout_s * 1000) <= 0) {
+      std::fprintf(stderr, "mfcd-ctl: no answer from %s within %d s\n", socket_path.c_str(), conn.timeout_s);
       ::close(fd);
       return std::nullopt;
     }
     const ssize_t n = ::recv(fd, buf, sizeof buf, 0);
     if (n <= 0) {
-      std::fprintf(stderr, "mfcd-ctl: %s closed the connection\n", socketPath.c_str());
+      std::fprintf(stderr, "mfcd-ctl: %s closed the connection\n", socket_path.c_str());
       ::close(fd);
       return std::nullopt;
     }
@@ -99,23 +99,23 @@ struct Command {
 };
 
 // A recipe id argument: an integer (mfcd checks its range and whether it is configured).
-CLI::Option* addRecipe(CLI::App& cmd, Command& c, const std::string& help) {
+CLI::Option* add_recipe(CLI::App& cmd, Command& c, const std::string& help) {
   return cmd
       .add_option_function<std::string>(
           "RECIPE", [&c](const std::string& v) { c.request["recipe"] = mfcd::tools::parse_int("RECIPE", v); }, help)
       ->type_name("");
 }
 
-CLI::Option* addPose(CLI::App& cmd, Command& c, const std::string& name, const std::string& key,
-                     const std::string& help) {
+CLI::Option* add_pose(CLI::App& cmd, Command& c, const std::string& name, const std::string& key,
+                      const std::string& help) {
   return cmd
       .add_option_function<std::string>(
-          name, [&c, name, key](const std::string& v) { c.request[key] = parsePose(v, name); }, help)
+          name, [&c, name, key](const std::string& v) { c.request[key] = parse_pose(v, name); }, help)
       ->type_name("x,y,z,rx,ry,rz");
 }
 
 // mfcd-ctl calibrate ACTION: each sets "action" (and "kind" for start) when selected.
-void addCalibrate(CLI::App& app, Command& c) {
+void add_calibrate(CLI::App& app, Command& c) {
   CLI::App* cal = app.add_subcommand("calibrate", "the calibration workflow through the daemon (docs/operations.md)");
   cal->require_subcommand(1);
   auto action = [&c](CLI::App* sub, const std::string& name) {
@@ -140,15 +140,15 @@ void addCalibrate(CLI::App& app, Command& c) {
   CLI::App* capture = cal->add_subcommand(
       "capture", "grab the next frame set's ambient image as a view (hand-eye: with the flange pose)");
   action(capture, "capture");
-  addPose(*capture, c, "--pose", "pose", "the robot flange pose (mm, degrees)");
+  add_pose(*capture, c, "--pose", "pose", "the robot flange pose (mm, degrees)");
   capture->add_flag_callback(
       "--pose-from-plc", [&c] { c.request["pose_from_plc"] = true; },
       "the flange pose from the PLC's robot-pose block (registers 36..49)");
-  addPose(*capture, c, "--sim-plate-pose", "sim_plate_pose", "place the plate on the simulated cell");
+  add_pose(*capture, c, "--sim-plate-pose", "sim_plate_pose", "place the plate on the simulated cell");
   action(cal->add_subcommand("compute", "compute and show the figures (nothing is written)"), "compute");
   CLI::App* check = cal->add_subcommand("check", "hand-eye: predicted vs seen board in a new view");
   action(check, "check");
-  addPose(*check, c, "--pose", "pose", "the robot flange pose (mm, degrees)");
+  add_pose(*check, c, "--pose", "pose", "the robot flange pose (mm, degrees)");
   check->add_flag_callback(
       "--pose-from-plc", [&c] { c.request["pose_from_plc"] = true; },
       "the flange pose from the PLC's robot-pose block");
@@ -163,7 +163,7 @@ void addCalibrate(CLI::App& app, Command& c) {
   action(cal->add_subcommand("status", "show the session"), "status");
 }
 
-void addCommands(CLI::App& app, Command& c) {
+void add_commands(CLI::App& app, Command& c) {
   auto plain = [&](const char* name, const char* help) {
     CLI::App* sub = app.add_subcommand(name, help);
     sub->preparse_callback([&c, name](std::size_t) { c.request["cmd"] = name; });
@@ -172,13 +172,13 @@ void addCommands(CLI::App& app, Command& c) {
   plain("status", "daemon state, camera, vision backend, parts, Modbus clients");
   plain("stats", "cycle-time percentiles, overruns, detections, picks");
   plain("last", "the last cycle's result (candidates, pick, times, simulated ground truth)");
-  addRecipe(*plain("trigger", "run one cycle now (not published to the PLC) and print its result"), c,
-            "the recipe (default: the selected one)");
-  addRecipe(*plain("snapshot", "run one cycle and save its images, depth edges, overlay and result.json"), c,
-            "the recipe (default: the selected one)");
-  addRecipe(*plain("part", "select the recipe for trigger/snapshot and continuous mode"), c, "the recipe")->required();
+  add_recipe(*plain("trigger", "run one cycle now (not published to the PLC) and print its result"), c,
+             "the recipe (default: the selected one)");
+  add_recipe(*plain("snapshot", "run one cycle and save its images, depth edges, overlay and result.json"), c,
+             "the recipe (default: the selected one)");
+  add_recipe(*plain("part", "select the recipe for trigger/snapshot and continuous mode"), c, "the recipe")->required();
   plain("reload", "reload the configuration and templates (like SIGHUP) and report the outcome");
-  addCalibrate(app, c);
+  add_calibrate(app, c);
   app.require_subcommand(1);
 }
 
@@ -190,7 +190,7 @@ bool confirmed(const Connection& conn, const std::string& action) {
                  action.c_str());
     return false;
   }
-  const auto s = roundTrip(conn, {{"cmd", "calibrate"}, {"action", "status"}});
+  const auto s = round_trip(conn, {{"cmd", "calibrate"}, {"action", "status"}});
   if (!s) return false;
   const auto& session = (*s)["session"];
   if (action == "apply" && session.value("figures", "") != "")
@@ -213,12 +213,12 @@ int main(int argc, char** argv) {
   CLI::App app{"mfcd-ctl: the client of mfcd's control socket (JSON lines; docs/operations.md).", "mfcd-ctl"};
   mfcd::tools::init_app(app);
   Connection conn{std::getenv("MFCD_SOCKET") ? std::getenv("MFCD_SOCKET") : "/run/mfcd/control.sock", 60};
-  app.add_option("-s,--socket", conn.socketPath, "control socket (default: $MFCD_SOCKET, else /run/mfcd/control.sock)")
+  app.add_option("-s,--socket", conn.socket_path, "control socket (default: $MFCD_SOCKET, else /run/mfcd/control.sock)")
       ->type_name("SOCKET");
-  mfcd::tools::add_int(app, "-t,--timeout", conn.timeoutS, "seconds to wait for the answer (default 60)")
+  mfcd::tools::add_int(app, "-t,--timeout", conn.timeout_s, "seconds to wait for the answer (default 60)")
       ->type_name("SECONDS");
   Command c;
-  addCommands(app, c);
+  add_commands(app, c);
   app.footer("Exit status: 0 ok, 1 refused, 2 usage or connection.");
   if (const auto code = mfcd::tools::parse(app, argc, argv)) return *code;
   const nlohmann::json& req = c.request;
@@ -228,7 +228,7 @@ int main(int argc, char** argv) {
     if (!c.yes && !confirmed(conn, action)) return 1;
     c.request["confirm"] = true;
   }
-  const auto rsp = roundTrip(conn, req);
+  const auto rsp = round_trip(conn, req);
   if (!rsp) return 2;
   // Calibration figures are a table for people: printed as they are, then the whole answer.
   if (cmd == "calibrate" && rsp->contains("figures") && (*rsp)["figures"].is_string())

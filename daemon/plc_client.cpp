@@ -26,15 +26,15 @@ struct Snapshot {
   float f(int addr, WordOrder o) const { return decode_float(at(addr), at(addr + 1), o); }
 };
 
-bool readStatus(modbus_t* ctx, Snapshot& s) { return modbus_read_registers(ctx, reg::kStatus, 28, s.regs) == 28; }
+bool read_status(modbus_t* ctx, Snapshot& s) { return modbus_read_registers(ctx, reg::kStatus, 28, s.regs) == 28; }
 
 struct Options {
   std::string host = "127.0.0.1";
-  int port = 1502, cycles = 5, recipe = 0, mode = 0, firstJob = 0, timeoutMs = 10000, connectMs = 30000;
+  int port = 1502, cycles = 5, recipe = 0, mode = 0, first_job = 0, timeout_ms = 10000, connect_ms = 30000;
 };
 
 // The command line into `o`; the exit status when the program ends here (help, version, usage).
-std::optional<int> parseOptions(int argc, char** argv, Options& o) {
+std::optional<int> parse_options(int argc, char** argv, Options& o) {
   CLI::App app{
       "mfc-plc-client: triggers N cycles on mfcd over Modbus/TCP (the job-id handshake of\n"
       "docs/register-map.md) and prints each pick: job, recipe, x y z [mm] rx ry rz [deg] in the robot\n"
@@ -47,10 +47,11 @@ std::optional<int> parseOptions(int argc, char** argv, Options& o) {
   mfcd::tools::add_int(app, "--recipe", o.recipe, "RECIPE_ID of every trigger (default 0)")->type_name("R");
   app.add_flag_callback(
       "--count-only", [&o] { o.mode = 1; }, "MODE = COUNT_ONLY (objects remaining, no pick)");
-  mfcd::tools::add_int(app, "--first-job", o.firstJob, "the first job id (default: one past the last echoed)")
+  mfcd::tools::add_int(app, "--first-job", o.first_job, "the first job id (default: one past the last echoed)")
       ->type_name("J");
-  mfcd::tools::add_int(app, "--timeout-ms", o.timeoutMs, "how long one cycle may take (default 10000)")->type_name("T");
-  mfcd::tools::add_int(app, "--connect-timeout-ms", o.connectMs,
+  mfcd::tools::add_int(app, "--timeout-ms", o.timeout_ms, "how long one cycle may take (default 10000)")
+      ->type_name("T");
+  mfcd::tools::add_int(app, "--connect-timeout-ms", o.connect_ms,
                        "retries the connection while mfcd starts (default 30000)")
       ->type_name("T");
   app.footer("Exit status: 0 all cycles answered, 1 a cycle failed or timed out, 2 usage/connection.");
@@ -61,16 +62,16 @@ std::optional<int> parseOptions(int argc, char** argv, Options& o) {
 
 int main(int argc, char** argv) {
   Options o;
-  if (const auto code = parseOptions(argc, argv, o)) return *code;
+  if (const auto code = parse_options(argc, argv, o)) return *code;
   const std::string& host = o.host;
-  const int port = o.port, cycles = o.cycles, recipe = o.recipe, mode = o.mode, firstJob = o.firstJob,
-            timeoutMs = o.timeoutMs, connectMs = o.connectMs;
+  const int port = o.port, cycles = o.cycles, recipe = o.recipe, mode = o.mode, first_job = o.first_job,
+            timeout_ms = o.timeout_ms, connect_ms = o.connect_ms;
   // mfcd may still be starting (loading templates): retry the connection for a while.
   // Owned: freed on every return, also the error paths.
   const std::unique_ptr<modbus_t, decltype(&modbus_free)> context(modbus_new_tcp(host.c_str(), port), &modbus_free);
   modbus_t* ctx = context.get();
   bool connected = false;
-  for (const auto until = std::chrono::steady_clock::now() + std::chrono::milliseconds(connectMs);;) {
+  for (const auto until = std::chrono::steady_clock::now() + std::chrono::milliseconds(connect_ms);;) {
     connected = ctx && modbus_connect(ctx) == 0;
     if (connected || std::chrono::steady_clock::now() > until) break;
     std::this_thread::sleep_for(200ms);
@@ -81,13 +82,13 @@ int main(int argc, char** argv) {
   }
   modbus_set_response_timeout(ctx, 2, 0);
   Snapshot s{};
-  if (!readStatus(ctx, s)) {
+  if (!read_status(ctx, s)) {
     std::fprintf(stderr, "mfc-plc-client: reading the status block: %s\n", modbus_strerror(errno));
     return 2;
   }
   const WordOrder order = s.at(reg::kWordOrder) == 1 ? WordOrder::CDAB : WordOrder::ABCD;
   // A new job id: one past the last echoed, skipping 0 (the server refuses a repeated id).
-  std::uint16_t job = static_cast<std::uint16_t>(firstJob ? firstJob : s.at(reg::kJobIdEcho) + 1);
+  std::uint16_t job = static_cast<std::uint16_t>(first_job ? first_job : s.at(reg::kJobIdEcho) + 1);
   if (job == 0) job = 1;
   std::printf("%6s %6s %9s %9s %9s %8s %8s %8s %6s %8s %s\n", "job", "recipe", "x", "y", "z", "rx", "ry", "rz", "score",
               "cycle_ms", "part/objects");
@@ -95,12 +96,12 @@ int main(int argc, char** argv) {
   for (int c = 0; c < cycles; ++c, job = static_cast<std::uint16_t>(job == 65535 ? 1 : job + 1)) {
     const auto start = std::chrono::steady_clock::now();
     const auto expired = [&] {
-      return std::chrono::steady_clock::now() - start > std::chrono::milliseconds(timeoutMs);
+      return std::chrono::steady_clock::now() - start > std::chrono::milliseconds(timeout_ms);
     };
     // 1. wait for READY; 2-3. trigger in one FC 0x10 write.
     bool triggered = false;
     while (!triggered && !expired()) {
-      if (!readStatus(ctx, s)) break;
+      if (!read_status(ctx, s)) break;
       if (s.at(reg::kStatus) & reg::kError) {
         std::printf("%6u error %u latched: RESET\n", job, s.at(reg::kErrorCode));
         modbus_write_register(ctx, reg::kCommand, 2);
@@ -120,14 +121,14 @@ int main(int argc, char** argv) {
     // 4. poll until JOB_ID_ECHO = job.
     bool done = false;
     while (triggered && !expired()) {
-      if (readStatus(ctx, s) && s.at(reg::kJobIdEcho) == job) {
+      if (read_status(ctx, s) && s.at(reg::kJobIdEcho) == job) {
         done = true;
         break;
       }
       std::this_thread::sleep_for(5ms);
     }
     if (!done) {
-      std::printf("%6u timed out after %d ms\n", job, timeoutMs);
+      std::printf("%6u timed out after %d ms\n", job, timeout_ms);
       ++failures;
       continue;
     }

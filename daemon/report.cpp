@@ -14,8 +14,8 @@ namespace mfcd::daemon {
 
 using nlohmann::json;
 
-std::optional<motion::PickPose> basePose(const DaemonConfig& config, const cv::Matx33d& R, const cv::Vec3d& t,
-                                         const CycleRequest& request) {
+std::optional<motion::PickPose> base_pose(const DaemonConfig& config, const cv::Matx33d& R, const cv::Vec3d& t,
+                                          const CycleRequest& request) {
   Eigen::Isometry3d cam_T_part = Eigen::Isometry3d::Identity();
   for (int r = 0; r < 3; ++r) {
     for (int k = 0; k < 3; ++k) cam_T_part.linear()(r, k) = R(r, k);
@@ -25,17 +25,17 @@ std::optional<motion::PickPose> basePose(const DaemonConfig& config, const cv::M
       .pick_pose(cam_T_part, request.flange_valid ? std::optional(request.base_T_flange) : std::nullopt);
 }
 
-json poseJson(const motion::PickPose& p) {
+json pose_json(const motion::PickPose& p) {
   return {{"x", p.x_mm}, {"y", p.y_mm}, {"z", p.z_mm}, {"rx", p.rx_deg}, {"ry", p.ry_deg}, {"rz", p.rz_deg}};
 }
 
 namespace {
-json matJson(const cv::Matx33d& R) {
+json mat_json(const cv::Matx33d& R) {
   json a = json::array();
   for (int i = 0; i < 9; ++i) a.push_back(R.val[i]);
   return a;
 }
-const char* errorName(CycleError e) {
+const char* error_name(CycleError e) {
   switch (e) {
     case CycleError::None:
       return "none";
@@ -55,23 +55,25 @@ const char* errorName(CycleError e) {
       return "cell unavailable";
     case CycleError::NoRobotPose:
       return "no robot pose";
+    case CycleError::NoGripperCheck:
+      return "no gripper check";
   }
   return "?";
 }
 }  // namespace
 
-json resultJson(const CycleResult& r, const DaemonConfig& config) {
+json result_json(const CycleResult& r, const DaemonConfig& config) {
   json j;
   j["version"] = version();  // which mfcd made the result (result.json outlives the daemon)
   j["commit"] = git_commit();
   j["cycle"] = r.request.cycle_id;
-  j["origin"] = toString(r.request.origin);
+  j["origin"] = to_string(r.request.origin);
   j["job_id"] = r.request.job_id;
   j["recipe"] = r.request.recipe_id;
   if (const RecipeConfig* rc = config.recipe(r.request.recipe_id)) j["part"] = rc->part;
   j["mode"] = r.request.mode == 0 ? "pick" : "count";
   j["error_code"] = static_cast<int>(r.error);
-  j["error"] = errorName(r.error);
+  j["error"] = error_name(r.error);
   if (r.message[0]) j["message"] = r.message;
   // Eye-in-hand: the flange pose the picks were transformed with.
   if (r.request.flange_valid) {
@@ -92,10 +94,18 @@ json resultJson(const CycleResult& r, const DaemonConfig& config) {
                           {"ry", f.rotation.ry_deg},
                           {"rz", f.rotation.rz_deg}}}};
   }
+  if (r.request.kind == CycleRequest::Kind::GripCheck) {
+    static const char* const states[] = {"none", "expected", "pose_error", "not_grasped"};
+    j["grip_check"] = {
+        {"of_job", r.request.grip_of_job},           {"state", states[std::min<std::size_t>(r.grip_state, 3)]},
+        {"tool_T_part", pose_json(r.grip_pose)},     {"translation_error_mm", r.grip_translation_mm},
+        {"rotation_error_deg", r.grip_rotation_deg}, {"cost_px", r.grip_cost_px},
+        {"inlier_fraction", r.grip_inliers}};
+  }
   if (r.look_wanted)
-    j["look_wanted"] = {{"reason", toString(static_cast<LookReason>(r.look_reason))},
+    j["look_wanted"] = {{"reason", to_string(static_cast<LookReason>(r.look_reason))},
                         {"candidate", r.look_candidate},
-                        {"flange", poseJson(r.look_pose)}};
+                        {"flange", pose_json(r.look_pose)}};
   j["degraded"] = r.degraded;
   j["overrun"] = r.total_ms > config.cycle_budget_ms;
   j["leds_off_after_capture"] = r.leds_off;
@@ -117,9 +127,9 @@ json resultJson(const CycleResult& r, const DaemonConfig& config) {
                {"utility", c.utility},
                {"grasp_visibility", c.grasp_visibility},
                {"ambiguous", c.ambiguous},
-               {"R_cam", matJson(c.R_cam)},
+               {"R_cam", mat_json(c.R_cam)},
                {"t_cam_mm", {c.t_cam_mm[0], c.t_cam_mm[1], c.t_cam_mm[2]}}};
-    if (c.base_valid) cj["base"] = poseJson(c.base);
+    if (c.base_valid) cj["base"] = pose_json(c.base);
     cands.push_back(std::move(cj));
   }
   j["candidates"] = std::move(cands);
@@ -128,7 +138,7 @@ json resultJson(const CycleResult& r, const DaemonConfig& config) {
   j["ranked"] = std::vector<int>(r.ranked.begin(), r.ranked.begin() + std::max(0, r.ranked_count));
   if (r.chosen >= 0) {
     const CandidateOut& c = r.candidates[static_cast<std::size_t>(r.chosen)];
-    j["pick"] = poseJson(c.base);
+    j["pick"] = pose_json(c.base);
     j["pick"]["score"] = c.score;
     j["pick"]["obj_id"] = c.obj_id;
   }
@@ -136,8 +146,8 @@ json resultJson(const CycleResult& r, const DaemonConfig& config) {
     json truth = json::array();
     for (int i = 0; i < r.truth.count; ++i) {
       const SimTruth::Part& p = r.truth.parts[static_cast<std::size_t>(i)];
-      json tj = {{"obj_id", p.obj_id}, {"R_cam", matJson(p.R)}, {"t_cam_mm", {p.t_mm[0], p.t_mm[1], p.t_mm[2]}}};
-      if (const auto b = basePose(config, p.R, p.t_mm, r.request)) tj["base"] = poseJson(*b);
+      json tj = {{"obj_id", p.obj_id}, {"R_cam", mat_json(p.R)}, {"t_cam_mm", {p.t_mm[0], p.t_mm[1], p.t_mm[2]}}};
+      if (const auto b = base_pose(config, p.R, p.t_mm, r.request)) tj["base"] = pose_json(*b);
       truth.push_back(std::move(tj));
     }
     j["sim_truth"] = std::move(truth);
@@ -146,8 +156,8 @@ json resultJson(const CycleResult& r, const DaemonConfig& config) {
   return j;
 }
 
-vision::PipelineResult overlayCandidates(const CycleResult& result,
-                                         const std::vector<std::pair<int, std::string>>& parts) {
+vision::PipelineResult overlay_candidates(const CycleResult& result,
+                                          const std::vector<std::pair<int, std::string>>& parts) {
   vision::PipelineResult out;
   for (int i = 0; i < result.candidate_count; ++i) {
     const CandidateOut& c = result.candidates[static_cast<std::size_t>(i)];

@@ -19,8 +19,8 @@ class RetainedJob {
   // Vision worker, in two steps: the cycle's result before it is handed over (a fixed-size copy),
   // then, after, the slot's images and the edges (nullptr: none), into the preallocated buffers.
   // No allocation.
-  void keepResult(const CycleResult& result);
-  void keepFrames(const FrameSlot& slot, const vision::DepthEdges* edges);
+  void keep_result(const CycleResult& result);
+  void keep_frames(const FrameSlot& slot, const vision::DepthEdges* edges);
   // True when the kept cycle is `cycle`.
   bool holds(std::uint64_t cycle) const { return valid_ && result_.request.cycle_id == cycle; }
   std::uint64_t cycle() const { return valid_ ? result_.request.cycle_id : 0; }
@@ -28,13 +28,13 @@ class RetainedJob {
   const FrameSlot& slot() const { return slot_; }
   const CycleResult& result() const { return result_; }
   // The cycle's depth edges; nullptr when it had none (capture or vision failed).
-  const cv::Mat1b* edges() const { return haveEdges_ ? &edges_ : nullptr; }
+  const cv::Mat1b* edges() const { return have_edges_ ? &edges_ : nullptr; }
 
  private:
   FrameSlot slot_;
   CycleResult result_;
   cv::Mat1b edges_;
-  bool haveEdges_ = false;
+  bool have_edges_ = false;
   bool valid_ = false;
 };
 

@@ -18,7 +18,7 @@ namespace mfcd::daemon {
 
 namespace {
 
-std::uintmax_t directorySize(const fs::path& dir) {
+std::uintmax_t directory_size(const fs::path& dir) {
   std::uintmax_t total = 0;
   std::error_code ec;
   for (auto it = fs::recursive_directory_iterator(dir, ec); !ec && it != fs::recursive_directory_iterator();
@@ -29,7 +29,7 @@ std::uintmax_t directorySize(const fs::path& dir) {
 
 // ": no space left (N kB free)" when the file system of `dir` is full, the usual reason a write
 // fails; else nothing.
-std::string spaceNote(const fs::path& dir) {
+std::string space_note(const fs::path& dir) {
   std::error_code ec;
   const fs::space_info space = fs::space(dir, ec);
   if (!ec && space.available < (1u << 20))
@@ -37,21 +37,21 @@ std::string spaceNote(const fs::path& dir) {
   return "";
 }
 
-std::string writeFailure(const fs::path& file) {
-  return "cannot write " + file.string() + spaceNote(file.parent_path());
+std::string write_failure(const fs::path& file) {
+  return "cannot write " + file.string() + space_note(file.parent_path());
 }
 
-void writePng(const fs::path& file, const cv::Mat& image) {
+void write_png(const fs::path& file, const cv::Mat& image) {
   bool ok = false;
   try {
     ok = cv::imwrite(file.string(), image);
   } catch (const cv::Exception&) {
     ok = false;
   }
-  if (!ok) throw std::runtime_error("snapshot: " + writeFailure(file));
+  if (!ok) throw std::runtime_error("snapshot: " + write_failure(file));
 }
 
-void copyFile(const fs::path& from, const fs::path& to) {
+void copy_or_throw(const fs::path& from, const fs::path& to) {
   std::error_code ec;
   fs::copy_file(from, to, fs::copy_options::overwrite_existing, ec);
   if (ec)
@@ -60,7 +60,7 @@ void copyFile(const fs::path& from, const fs::path& to) {
 
 // A new directory for cycle `cycle` saved now: <UTC time>-cycle<N>, with -2, -3, ... when the
 // cycle was saved before within the same second (a failed cycle, then its failed pick).
-fs::path newSnapshotDir(const fs::path& root, std::uint64_t cycle) {
+fs::path new_snapshot_dir(const fs::path& root, std::uint64_t cycle) {
   char stamp[32];
   const std::time_t now = std::time(nullptr);
   std::tm tm{};
@@ -81,16 +81,16 @@ SnapshotWriter::SnapshotWriter(const DaemonConfig& config) : config_(config) {
   try {
     camera_ = vision::load_camera_config(config.camera.model);
   } catch (const std::exception& e) {
-    replayError_ = std::string("the camera file cannot be read: ") + e.what();
+    replay_error_ = std::string("the camera file cannot be read: ") + e.what();
     return;
   }
   try {
-    vision::ReplayManifest m = vision::make_replay_manifest(pipelineConfig(config));
+    vision::ReplayManifest m = vision::make_replay_manifest(pipeline_config(config));
     m.version = version();
     m.commit = git_commit();
     replay_ = std::move(m);
   } catch (const std::exception& e) {
-    replayError_ = e.what();
+    replay_error_ = e.what();
   }
 }
 
@@ -102,15 +102,15 @@ std::string SnapshotWriter::save(const RetainedJob& job, const VisionStage* stag
 
   // Quota: a snapshot is about 9 images + 3 (the gray/ copy, edges, overlay); keep the total
   // under the quota by deleting the oldest snapshot directories (names sort by time).
-  const std::uintmax_t estimate = 12 * job.slot().frames.frames[0].image.sizeBytes();
+  const std::uintmax_t estimate = 12 * job.slot().frames.frames[0].image.size_bytes();
   std::vector<fs::path> existing;
   for (const auto& e : fs::directory_iterator(root, ec))
     if (e.is_directory()) existing.push_back(e.path());
   std::sort(existing.begin(), existing.end());
-  std::uintmax_t used = directorySize(root);
+  std::uintmax_t used = directory_size(root);
   for (const auto& old : existing) {
     if (used + estimate <= config_.snapshots.quota_bytes) break;
-    const std::uintmax_t size = directorySize(old);
+    const std::uintmax_t size = directory_size(old);
     fs::remove_all(old, ec);
     used = used > size ? used - size : 0;
   }
@@ -118,9 +118,9 @@ std::string SnapshotWriter::save(const RetainedJob& job, const VisionStage* stag
     throw std::runtime_error("snapshot: quota of " + std::to_string(config_.snapshots.quota_bytes >> 20) + " MB in " +
                              root.string() + " is too small for one snapshot");
 
-  const fs::path dir = newSnapshotDir(root, job.result().request.cycle_id);
+  const fs::path dir = new_snapshot_dir(root, job.result().request.cycle_id);
   try {
-    writeFiles(dir, job, stage, reason);
+    write_files(dir, job, stage, reason);
   } catch (...) {
     fs::remove_all(dir, ec);  // no half snapshot is left to be taken for a whole one
     throw;
@@ -128,41 +128,41 @@ std::string SnapshotWriter::save(const RetainedJob& job, const VisionStage* stag
   return dir.string();
 }
 
-void SnapshotWriter::writeFiles(const fs::path& dir, const RetainedJob& job, const VisionStage* stage,
-                                const char* reason) const {
+void SnapshotWriter::write_files(const fs::path& dir, const RetainedJob& job, const VisionStage* stage,
+                                 const char* reason) const {
   const FrameSlot& slot = job.slot();
   const CycleResult& result = job.result();
-  std::string replayable = replayError_;
+  std::string replayable = replay_error_;
   if (slot.ok) {
     if (camera_) {
-      writeScene(dir, job);
+      write_scene(dir, job);
     }
     if (result.error == CycleError::None && stage) {
-      if (const cv::Mat1b* edges = job.edges()) writePng(dir / "edges.png", *edges);
+      if (const cv::Mat1b* edges = job.edges()) write_png(dir / "edges.png", *edges);
       // Overlay on the brightest-flash composite, where every outline is lit.
       cv::Mat composite = slot.mfc.flash[0].clone();
       for (int k = 1; k < hal::kLedCount; ++k)
         cv::max(composite, cv::Mat(slot.mfc.flash[static_cast<std::size_t>(k)]), composite);
-      writePng(dir / "overlay.png", stage->overlay(cv::Mat1b(composite), overlayCandidates(result, stage->parts())));
+      write_png(dir / "overlay.png", stage->overlay(cv::Mat1b(composite), overlay_candidates(result, stage->parts())));
     }
   } else {
     replayable = "the capture failed: no images";
   }
-  CycleResult withDir = result;
-  copyMessage(withDir.snapshot_dir, sizeof withDir.snapshot_dir, dir.c_str());
-  nlohmann::json j = resultJson(withDir, config_);
+  CycleResult with_dir = result;
+  copy_message(with_dir.snapshot_dir, sizeof with_dir.snapshot_dir, dir.c_str());
+  nlohmann::json j = result_json(with_dir, config_);
   j["snapshot_reason"] = reason;
   j["replayable"] = replayable.empty() ? nlohmann::json(true) : nlohmann::json(replayable);
   std::ofstream out(dir / "result.json");
   out << j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
   // close() flushes: a full disk shows here, not in the << above.
   out.close();
-  if (out.fail()) throw std::runtime_error("snapshot: " + writeFailure(dir / "result.json"));
+  if (out.fail()) throw std::runtime_error("snapshot: " + write_failure(dir / "result.json"));
 }
 
 // The one-image BOP scene (the frames as the pipeline saw them: undistorted, so the camera's K
 // without distortion describes them), the replay manifest and the copied files.
-void SnapshotWriter::writeScene(const fs::path& dir, const RetainedJob& job) const {
+void SnapshotWriter::write_scene(const fs::path& dir, const RetainedJob& job) const {
   const FrameSlot& slot = job.slot();
   std::vector<vision::BopGtPose> truth;
   for (int i = 0; i < slot.truth.count; ++i) {
@@ -175,11 +175,11 @@ void SnapshotWriter::writeScene(const fs::path& dir, const RetainedJob& job) con
     bop.write_camera(*camera_);
     bop.write_capture(1, *camera_, slot.mfc, truth);
   } catch (const std::exception& e) {
-    throw std::runtime_error(std::string("snapshot: ") + e.what() + spaceNote(dir));
+    throw std::runtime_error(std::string("snapshot: ") + e.what() + space_note(dir));
   }
-  copyFile(config_.camera.model, dir / "camera.yaml");
+  copy_or_throw(config_.camera.model, dir / "camera.yaml");
   std::error_code ec;
-  if (fs::is_regular_file(config_.source, ec)) copyFile(config_.source, dir / "mfcd.yaml");
+  if (fs::is_regular_file(config_.source, ec)) copy_or_throw(config_.source, dir / "mfcd.yaml");
   if (replay_) {
     vision::ReplayManifest m = *replay_;
     m.cycle = job.result().request.cycle_id;

@@ -31,17 +31,17 @@ class SnapshotWriter {
   std::string save(const RetainedJob& job, const VisionStage* stage, const char* reason) const;
 
   // Empty when snapshots are replayable; else why not.
-  const std::string& notReplayable() const { return replayError_; }
+  const std::string& not_replayable() const { return replay_error_; }
 
  private:
-  void writeFiles(const std::filesystem::path& dir, const RetainedJob& job, const VisionStage* stage,
-                  const char* reason) const;
-  void writeScene(const std::filesystem::path& dir, const RetainedJob& job) const;
+  void write_files(const std::filesystem::path& dir, const RetainedJob& job, const VisionStage* stage,
+                   const char* reason) const;
+  void write_scene(const std::filesystem::path& dir, const RetainedJob& job) const;
 
   DaemonConfig config_;
   std::optional<vision::CameraConfig> camera_;
   std::optional<vision::ReplayManifest> replay_;
-  std::string replayError_;
+  std::string replay_error_;
 };
 
 }  // namespace mfcd::daemon

@@ -10,7 +10,7 @@
 
 namespace mfcd::daemon {
 
-std::optional<vision::RigidTransform> VisionStage::suggestLook(const vision::PoseCandidate&) const {
+std::optional<vision::RigidTransform> VisionStage::suggest_look(const vision::PoseCandidate&) const {
   return std::nullopt;
 }
 
@@ -19,7 +19,12 @@ void VisionStage::fuse(const vision::PipelineResult&, const VisionInput&, const 
   throw std::logic_error(describe() + " cannot look twice");
 }
 
-vision::PipelineConfig pipelineConfig(const DaemonConfig& config) {
+vision::GripperCheckResult VisionStage::check_grip(int, const vision::RigidTransform&, const cv::Mat1b&,
+                                                   const vision::PinholeCamera&, Clock::time_point) {
+  throw std::logic_error(describe() + " cannot check grips");
+}
+
+vision::PipelineConfig pipeline_config(const DaemonConfig& config) {
   vision::PipelineConfig pc = config.vision.pipeline;
   for (const auto& r : config.recipes) {
     if (!r.templates) {
@@ -52,13 +57,23 @@ vision::PipelineConfig pipelineConfig(const DaemonConfig& config) {
 
 namespace {
 
+// gripper_check's limits over the gripper check's defaults.
+vision::GripperCheckParams gripper_check_params(const GripperCheckSettings& s) {
+  vision::GripperCheckParams p;
+  p.max_translation_mm = s.max_translation_mm;
+  p.max_rotation_deg = s.max_rotation_deg;
+  p.max_cost_px = s.max_cost_px;
+  p.min_inlier_fraction = s.min_inlier_fraction;
+  return p;
+}
+
 // One BinPickingPipeline; with second_look a vision::SecondLook, whose first pipeline serves
 // every single look (the second's templates are loaded too).
 class PipelineVisionStage final : public VisionStage {
  public:
   PipelineVisionStage(const vision::CameraConfig& camera, vision::PipelineConfig config, std::string files,
-                      const SecondLookSettings& look)
-      : files_(std::move(files)) {
+                      const SecondLookSettings& look, const GripperCheckSettings& grip)
+      : files_(std::move(files)), grip_params_(gripper_check_params(grip)) {
     if (look.when == SecondLookWhen::Off) {
       single_ = std::make_unique<vision::BinPickingPipeline>(camera, std::move(config));
     } else {
@@ -69,17 +84,17 @@ class PipelineVisionStage final : public VisionStage {
   }
   void process(const VisionInput& in, vision::PipelineResult& out) override {
     pipeline().process(in.frames, in.obj_id, in.deadline, out);
-    haveEdges_ = true;
+    have_edges_ = true;
   }
   std::vector<std::pair<int, std::string>> parts() const override { return pipeline().parts(); }
-  const vision::DepthEdges* lastEdges() const override { return haveEdges_ ? &pipeline().last_edges() : nullptr; }
+  const vision::DepthEdges* last_edges() const override { return have_edges_ ? &pipeline().last_edges() : nullptr; }
   cv::Mat3b overlay(const cv::Mat1b& image, const vision::PipelineResult& result) const override {
     return vision::draw_candidates(image, result, pipeline().camera());
   }
   std::string describe() const override {
     return std::string(look_ ? "BinPickingPipeline with second look (" : "BinPickingPipeline (") + files_ + ")";
   }
-  std::optional<vision::RigidTransform> suggestLook(const vision::PoseCandidate& candidate) const override {
+  std::optional<vision::RigidTransform> suggest_look(const vision::PoseCandidate& candidate) const override {
     if (!look_) return std::nullopt;
     return look_->suggest_motion(candidate);
   }
@@ -89,12 +104,19 @@ class PipelineVisionStage final : public VisionStage {
     look_->fuse(first, second.frames, motion, second.obj_id, second.deadline, fused_);
     look_->to_pipeline_result(fused_, out);
     out.times = fused_.second.times;
-    out.degraded = fused_.second.degraded;
+    out.degraded = fused_.degraded;
     out.edge_pixels = fused_.second.edge_pixels;
     out.rounds = fused_.second.rounds;
     out.escalated = fused_.second.escalated;
     // The edges kept for snapshots are the first image's; the frames of this cycle are the second.
-    haveEdges_ = false;
+    have_edges_ = false;
+  }
+  vision::GripperCheckResult check_grip(int obj_id, const vision::RigidTransform& ideal, const cv::Mat1b& image,
+                                        const vision::PinholeCamera& camera, Clock::time_point deadline) override {
+    if (!grip_) grip_ = pipeline().make_gripper_check(grip_params_);
+    const vision::GripperView view{image, camera, vision::RigidTransform{}};
+    return grip_->check(pipeline().pose_model_of(obj_id), ideal, std::span<const vision::GripperView>(&view, 1),
+                        deadline);
   }
 
  private:
@@ -104,19 +126,22 @@ class PipelineVisionStage final : public VisionStage {
   std::unique_ptr<vision::SecondLook> look_;
   vision::SecondLookResult fused_;
   std::string files_;
-  bool haveEdges_ = false;
+  bool have_edges_ = false;
+  vision::GripperCheckParams grip_params_;
+  std::unique_ptr<vision::GripperCheck> grip_;  // made on the first check (it renders)
 };
 
 }  // namespace
 
-bool pipelineAvailable() { return true; }
+bool pipeline_available() { return true; }
 
-std::unique_ptr<VisionStage> makePipelineStage(const DaemonConfig& config) {
+std::unique_ptr<VisionStage> make_pipeline_stage(const DaemonConfig& config) {
   const vision::CameraConfig camera = vision::load_camera_config(config.camera.model);
-  vision::PipelineConfig pc = pipelineConfig(config);
+  vision::PipelineConfig pc = pipeline_config(config);
   std::string files;
   for (const auto& f : pc.template_files) files += (files.empty() ? "" : ", ") + f.filename().string();
-  auto stage = std::make_unique<PipelineVisionStage>(camera, std::move(pc), files, config.second_look);
+  auto stage =
+      std::make_unique<PipelineVisionStage>(camera, std::move(pc), files, config.second_look, config.gripper_check);
   // Every recipe's obj_id must be one the templates define.
   const auto loaded = stage->parts();
   for (const auto& r : config.recipes) {
@@ -132,9 +157,9 @@ std::unique_ptr<VisionStage> makePipelineStage(const DaemonConfig& config) {
 
 #else
 
-bool pipelineAvailable() { return false; }
+bool pipeline_available() { return false; }
 
-std::unique_ptr<VisionStage> makePipelineStage(const DaemonConfig&) {
+std::unique_ptr<VisionStage> make_pipeline_stage(const DaemonConfig&) {
   throw std::runtime_error(
       "this mfcd was built without vision/pipeline (target mfcd_vision_pipeline), so it has no vision backend");
 }

@@ -46,10 +46,10 @@ class WebData {
   // The control socket's "status" object: state, ready, vision_ok, error_code, recipe, camera,
   // modbus {clients, ...}, version, commit, recipes [...], calibration {...}.
   virtual nlohmann::json status() = 0;
-  // The last cycle's result (report.hpp's resultJson: cycle, job_id, times_ms {total, ...}, error,
+  // The last cycle's result (report.hpp's result_json: cycle, job_id, times_ms {total, ...}, error,
   // candidates [...], chosen, ranked [...], pick {...}); null before the first cycle.
   virtual nlohmann::json last_cycle() = 0;
-  // CycleStats::toJson(): cycles, overruns, errors, pick_results {...}, percentiles_ms {total {p50, ...}}.
+  // CycleStats::to_json(): cycles, overruns, errors, pick_results {...}, percentiles_ms {total {p50, ...}}.
   virtual nlohmann::json stats() = 0;
   // {"directory": "...", "snapshots": [{"name": "<dir name>", "files": ["overlay.png", ...], ...}]}
   virtual nlohmann::json snapshots() = 0;

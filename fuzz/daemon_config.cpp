@@ -1,4 +1,4 @@
-// daemon/config.hpp parseConfig() on the daemon's YAML configuration (docs/configuration.md),
+// daemon/config.hpp parse_config() on the daemon's YAML configuration (docs/configuration.md),
 // with a search path holding the files the seeds name (a camera YAML with and without a
 // hand_eye section, the six parts' templates and meshes as empty files). ConfigError is the
 // documented refusal; any other exception is a finding.
@@ -69,7 +69,7 @@ const std::vector<fs::path>& search_path() {
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const std::string text(reinterpret_cast<const char*>(data), size);
   try {
-    mfcd::daemon::parseConfig(text, "fuzz.yaml", search_path());
+    mfcd::daemon::parse_config(text, "fuzz.yaml", search_path());
   } catch (const mfcd::daemon::ConfigError&) {
     // documented: the source, line and key named
   }

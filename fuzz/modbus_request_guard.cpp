@@ -15,7 +15,7 @@ namespace {
 
 using namespace mfcd::motion;
 
-// motion/modbus_requests.cpp's kPolicy: reads [0, 80) (the whole map), writes [0, 6) (control
+// motion/modbus_requests.cpp's kPolicy: reads [0, 96) (the whole map), writes [0, 6) (control
 // block) or [36, 50) (robot pose block).
 constexpr RegisterPolicy kPolicy{reg::kBlockSize, 0, reg::kWritableEnd, reg::kRobotPoseBegin, reg::kRobotPoseEnd};
 

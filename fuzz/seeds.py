@@ -61,6 +61,9 @@ def modbus():
     write(n, "fc03-read-map-v4", mbap(14, 1, struct.pack(">BHH", 0x03, 0, 80)))
     write(n, "fc03-read-past-map", mbap(15, 1, struct.pack(">BHH", 0x03, 79, 2)))
     write(n, "fc16-look", mbap(16, 1, struct.pack(">BHHB4H", 0x10, 0, 4, 8, 5, 8, 2, 0)))
+    write(n, "fc03-read-map-v5", mbap(17, 1, struct.pack(">BHH", 0x03, 0, 96)))
+    write(n, "fc03-read-past-map-v5", mbap(18, 1, struct.pack(">BHH", 0x03, 95, 2)))
+    write(n, "fc16-check-grip", mbap(19, 1, struct.pack(">BHHB6H", 0x10, 0, 6, 12, 6, 9, 2, 0, 1, 8)))
 
 
 # --- camera_config: OpenCV FileStorage YAML / JSON / XML --------------------------------------
@@ -272,6 +275,9 @@ def session():
     read_map_v4 = mbap(5, 1, bytes([0x03, 0, 0, 0, 80]))
     look = mbap(6, 1, bytes([0x10, 0, 0, 0, 4, 8, 0, 5, 0, 8, 0, 0, 0, 0]))
     write(n, "trigger-then-look", bytes([0x33]) + trigger + read_map_v4 + look + read_map_v4)
+    read_map_v5 = mbap(7, 1, bytes([0x03, 0, 0, 0, 96]))
+    check_grip = mbap(8, 1, bytes([0x10, 0, 0, 0, 4, 8, 0, 6, 0, 9, 0, 0, 0, 0]))
+    write(n, "trigger-then-check-grip", bytes([0x2C]) + trigger + read_map_v5 + check_grip + read_map_v5)
 
 
 # --- control_line: one JSON request per line ---------------------------------------------------

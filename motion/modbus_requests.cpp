@@ -17,6 +17,10 @@ constexpr RegisterPolicy kPolicy{reg::kBlockSize, 0, reg::kWritableEnd, reg::kRo
 
 std::uint16_t be16(const std::uint8_t* p) noexcept { return static_cast<std::uint16_t>((p[0] << 8) | p[1]); }
 
+// PICK_VALID: the report has a pick to show. A result that asks for a second look or answers a
+// gripper check has none, whatever pick_valid says.
+bool shows_pick(const RobotReport& r) noexcept { return r.pick_valid != 0 && r.look_wanted == 0 && r.grip_state == 0; }
+
 }  // namespace
 
 // Every read sees one consistent snapshot of the daemon's report.
@@ -35,9 +39,8 @@ RobotReport ModbusServer::Impl::refresh_registers() {
   if (job_pending) status |= reg::kBusy;
   if (!job_pending && last_job != 0 && r.job_id == last_job) status |= reg::kDone;
   if (r.error_code != 0) status |= reg::kError;
-  // A result that asks for a second look has no pick to show, whatever pick_valid says.
   const bool look = r.look_wanted != 0;
-  const bool valid = r.pick_valid != 0 && !look;
+  const bool valid = shows_pick(r);
   if (valid) status |= reg::kPickValid;
   if (r.vision_ok) status |= reg::kVisionOk;
   if (look) status |= reg::kLookWanted;
@@ -60,12 +63,14 @@ RobotReport ModbusServer::Impl::refresh_registers() {
     regs[at] = words[0];
     regs[at + 1] = words[1];
   };
-  put(reg::kPickX, valid ? shown.pick.x_mm : 0.0f);
-  put(reg::kPickY, valid ? shown.pick.y_mm : 0.0f);
-  put(reg::kPickZ, valid ? shown.pick.z_mm : 0.0f);
-  put(reg::kPickRx, valid ? shown.pick.rx_deg : 0.0f);
-  put(reg::kPickRy, valid ? shown.pick.ry_deg : 0.0f);
-  put(reg::kPickRz, valid ? shown.pick.rz_deg : 0.0f);
+  // A pose's six float pairs from `first` on (X, Y, Z, RX, RY, RZ are consecutive), or 0.0.
+  const auto put_pose = [&](std::uint16_t first, const PickPose& p, bool shown_pose) {
+    const float v[6] = {p.x_mm, p.y_mm, p.z_mm, p.rx_deg, p.ry_deg, p.rz_deg};
+    for (std::uint16_t i = 0; i < 6; ++i) put(static_cast<std::uint16_t>(first + 2 * i), shown_pose ? v[i] : 0.0f);
+  };
+  static_assert(reg::kPickRz == reg::kPickX + 10 && reg::kLookRz == reg::kLookX + 10 &&
+                reg::kGripRz == reg::kGripX + 10);
+  put_pose(reg::kPickX, shown.pick, valid);
   put(reg::kScore, valid ? shown.score : 0.0f);
   put(reg::kTestVector, reg::kTestVectorValue);
   regs[reg::kPickRank] = valid ? shown_rank : 0;
@@ -75,12 +80,15 @@ RobotReport ModbusServer::Impl::refresh_registers() {
   regs[reg::kSoftwareVersion] = config.software_version;
   regs[reg::kSoftwarePatch] = config.software_patch;
   regs[reg::kLookReason] = look ? r.look_reason : 0;
-  put(reg::kLookX, look ? r.look_pose.x_mm : 0.0f);
-  put(reg::kLookY, look ? r.look_pose.y_mm : 0.0f);
-  put(reg::kLookZ, look ? r.look_pose.z_mm : 0.0f);
-  put(reg::kLookRx, look ? r.look_pose.rx_deg : 0.0f);
-  put(reg::kLookRy, look ? r.look_pose.ry_deg : 0.0f);
-  put(reg::kLookRz, look ? r.look_pose.rz_deg : 0.0f);
+  put_pose(reg::kLookX, r.look_pose, look);
+  // A check's pose and errors are shown only when the part was found in the gripper.
+  const bool found = r.grip_state == static_cast<std::uint16_t>(reg::GripState::Expected) ||
+                     r.grip_state == static_cast<std::uint16_t>(reg::GripState::PoseError);
+  regs[reg::kGripState] = r.grip_state;
+  regs[reg::kGripOfJob] = r.grip_state != 0 ? r.grip_of_job : 0;
+  put_pose(reg::kGripX, r.grip_pose, found);
+  put(reg::kGripTranslationError, found ? r.grip_translation_mm : 0.0f);
+  put(reg::kGripRotationError, found ? r.grip_rotation_deg : 0.0f);
   std::memcpy(map->tab_input_registers, regs, reg::kBlockSize * sizeof(std::uint16_t));
   return r;
 }
@@ -112,7 +120,8 @@ ModbusException ModbusServer::Impl::decide_command(const RegisterWrite& w, const
     case reg::Command::Trigger:
     case reg::Command::SaveScene:
     case reg::Command::Look:
-      // A new job: same checks, same handshake for all three.
+    case reg::Command::CheckGrip:
+      // A new job: same checks, same handshake for all four.
       if (asked.job_id == 0 || asked.job_id == last_job || asked.mode > reg::kModeMax)
         return ModbusException::IllegalDataValue;
       if (job_pending || !report.ready || report.error_code != 0 || queue_full())
@@ -120,11 +129,19 @@ ModbusException ModbusServer::Impl::decide_command(const RegisterWrite& w, const
       // LOOK continues the job in the registers, and only when its result asked for a second look.
       if (command_code == reg::Command::Look && (report.job_id == 0 || !report.look_wanted))
         return ModbusException::IllegalDataValue;
+      // CHECK_GRIP checks the pick in the registers: only a result that shows one (PICK_VALID).
+      if (command_code == reg::Command::CheckGrip && (report.job_id == 0 || !shows_pick(report)))
+        return ModbusException::IllegalDataValue;
       command = asked;
       if (command_code == reg::Command::SaveScene) command->kind = PlcCommand::Kind::SaveScene;
       if (command_code == reg::Command::Look) {
         command->kind = PlcCommand::Kind::Look;
         command->look_of_job = report.job_id;
+      }
+      if (command_code == reg::Command::CheckGrip) {
+        command->kind = PlcCommand::Kind::CheckGrip;
+        command->rank = shown_rank;
+        command->check_of_job = report.job_id;
       }
       return ModbusException::None;
     case reg::Command::Reset:
@@ -135,7 +152,7 @@ ModbusException ModbusServer::Impl::decide_command(const RegisterWrite& w, const
     case reg::Command::Next:
       // The job in the registers: its next pick, if it has one.
       if (job_pending || report.error_code != 0 || queue_full()) return ModbusException::ServerDeviceBusy;
-      if (!report.pick_valid || report.look_wanted || report.job_id == 0 || shown_rank + 1 >= report.pick_count)
+      if (!shows_pick(report) || report.job_id == 0 || shown_rank + 1 >= report.pick_count)
         return ModbusException::IllegalDataValue;
       command = PlcCommand{
           PlcCommand::Kind::Next, report.job_id, report.recipe_id, 0, static_cast<std::uint16_t>(shown_rank + 1), 0};
@@ -152,7 +169,7 @@ ModbusException ModbusServer::Impl::decide_pick_result(const RegisterWrite& w, c
   if (outcome == static_cast<std::uint16_t>(reg::PickOutcome::None)) return ModbusException::None;
   if (outcome > reg::kPickOutcomeMax) return ModbusException::IllegalDataValue;
   // Only the pick in the registers can be reported on: the job must be JOB_ID_ECHO and have a pick.
-  if (report.job_id == 0 || control[reg::kPickResultJob] != report.job_id || !report.pick_valid || report.look_wanted)
+  if (report.job_id == 0 || control[reg::kPickResultJob] != report.job_id || !shows_pick(report))
     return ModbusException::IllegalDataValue;
   if (reported_job == report.job_id && reported_rank == shown_rank) return ModbusException::None;  // a repeat
   if (queue_full()) return ModbusException::ServerDeviceBusy;
@@ -200,6 +217,7 @@ void ModbusServer::Impl::queue_command(const PlcCommand& command) {
     case PlcCommand::Kind::Trigger:
     case PlcCommand::Kind::SaveScene:
     case PlcCommand::Kind::Look:
+    case PlcCommand::Kind::CheckGrip:
       job_pending = true;
       last_job = command.job_id;
       break;

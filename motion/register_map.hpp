@@ -8,13 +8,14 @@ namespace mfcd::motion::reg {
 
 // Everything lives in one block of holding registers starting at protocol address 0, so a
 // single "read holding registers" (FC 0x03) of kBlockSize covers the whole map.
-inline constexpr std::uint16_t kBlockSize = 80;
-// 2: robot pose block at 36..49; 3: NEXT, SAVE_SCENE, PICK_RESULT; 4: LOOK, LOOK_WANTED, 55..67
-inline constexpr std::uint16_t kMapVersion = 4;
+inline constexpr std::uint16_t kBlockSize = 96;
+// 2: robot pose block at 36..49; 3: NEXT, SAVE_SCENE, PICK_RESULT; 4: LOOK, LOOK_WANTED, 55..67;
+// 5: CHECK_GRIP, 68..85
+inline constexpr std::uint16_t kMapVersion = 5;
 
 // --- Control block: written by the PLC ---------------------------------------------------
 inline constexpr std::uint16_t kCommand = 0;   // command code, see Command; reads back 0 once taken
-inline constexpr std::uint16_t kJobId = 1;     // job id for the next TRIGGER, SAVE_SCENE or LOOK (1..65535)
+inline constexpr std::uint16_t kJobId = 1;     // job id for the next TRIGGER, SAVE_SCENE, LOOK or CHECK_GRIP (1..65535)
 inline constexpr std::uint16_t kRecipeId = 2;  // part / recipe id for the next job
 inline constexpr std::uint16_t kMode = 3;      // cycle mode for the next job, see Mode
 // The outcome of the pick in the registers (JOB_ID_ECHO, PICK_RANK), see PickOutcome; a
@@ -83,13 +84,42 @@ inline constexpr std::uint16_t kLookZ = 60;
 inline constexpr std::uint16_t kLookRx = 62;  // degrees, R = Rz(rz) * Ry(ry) * Rx(rx)
 inline constexpr std::uint16_t kLookRy = 64;
 inline constexpr std::uint16_t kLookRz = 66;
-// 68..79 reserved, read 0.
+
+// --- Gripper check: written by mfcd, read-only (map version 5) ----------------------------
+// The result of a CHECK_GRIP job: how the part of the checked job's pick sits in the gripper,
+// seen by the gripper camera (fixed to the tool). All 0 in every other result.
+inline constexpr std::uint16_t kGripState = 68;  // see GripState
+// The job whose pick was checked (JOB_ID_ECHO when CHECK_GRIP was taken); 0 with GRIP_STATE 0.
+inline constexpr std::uint16_t kGripOfJob = 69;
+// The measured pose of the part in the tool frame (tool_T_part): float32 pairs in the configured
+// word order like PICK_X..PICK_RZ; 0.0 unless GRIP_STATE is Expected or PoseError.
+inline constexpr std::uint16_t kGripX = 70;  // mm
+inline constexpr std::uint16_t kGripY = 72;
+inline constexpr std::uint16_t kGripZ = 74;
+inline constexpr std::uint16_t kGripRx = 76;  // degrees, R = Rz(rz) * Ry(ry) * Rx(rx)
+inline constexpr std::uint16_t kGripRy = 78;
+inline constexpr std::uint16_t kGripRz = 80;
+// Measured vs ideal tool_T_part: distance of the part origins (mm) and angle of the relative
+// rotation (degrees), float32; 0.0 unless GRIP_STATE is Expected or PoseError.
+inline constexpr std::uint16_t kGripTranslationError = 82;
+inline constexpr std::uint16_t kGripRotationError = 84;
+// 86..95 reserved, read 0.
 
 // TRIGGER and SAVE_SCENE start a job (SAVE_SCENE also saves its frame set as a snapshot);
 // NEXT publishes the job's next pick at once, without a new capture; LOOK starts a job that
 // takes a second frame set at the robot's current pose and fuses it with the first look of
-// the job in JOB_ID_ECHO (accepted only while that result has kLookWanted).
-enum class Command : std::uint16_t { None = 0, Trigger = 1, Reset = 2, Next = 3, SaveScene = 4, Look = 5 };
+// the job in JOB_ID_ECHO (accepted only while that result has kLookWanted); CHECK_GRIP starts a
+// job that checks the part in the gripper after the robot took the pick of the job in
+// JOB_ID_ECHO (accepted only while that result has kPickValid).
+enum class Command : std::uint16_t {
+  None = 0,
+  Trigger = 1,
+  Reset = 2,
+  Next = 3,
+  SaveScene = 4,
+  Look = 5,
+  CheckGrip = 6
+};
 // What the robot made of a published pick (PICK_RESULT). Anything but Ok counts as a failed
 // pick, and mfcd keeps a snapshot of the job's frame set.
 enum class PickOutcome : std::uint16_t { None = 0, Ok = 1, Missed = 2, Unreachable = 3, Collision = 4, Dropped = 5 };
@@ -100,6 +130,13 @@ enum class LookReason : std::uint16_t {
   Always = 1,     // the configuration asks for a second look on every job
   Ambiguous = 2,  // the best candidate is ambiguous
   LowScore = 3,   // the best candidate scored below pick.min_score
+};
+// What the gripper check found (GRIP_STATE).
+enum class GripState : std::uint16_t {
+  None = 0,        // not a CHECK_GRIP result
+  Expected = 1,    // the part sits in the gripper as the pick meant it to (within mfcd's tolerances)
+  PoseError = 2,   // the part is in the gripper at another pose: kGripX..kGripRz hold it
+  NotGrasped = 3,  // the part is not in the gripper
 };
 enum class Mode : std::uint16_t { Pick = 0, CountOnly = 1 };
 inline constexpr std::uint16_t kModeMax = 1;

@@ -52,6 +52,17 @@ struct RobotReport {
   std::uint16_t look_wanted = 0;
   std::uint16_t look_reason = 0;
   PickPose look_pose;
+  // Gripper check: the result of a CHECK_GRIP job (job_id is the check's job). grip_state is
+  // reg::GripState, 0 in every other result; grip_of_job the job whose pick was checked
+  // (PlcCommand::check_of_job). grip_pose is the measured pose of the part in the tool frame
+  // (tool_T_part: mm/deg, R = Rz * Ry * Rx like `pick`), grip_translation_mm and
+  // grip_rotation_deg how far it is from the ideal tool_T_part (distance of the part origins,
+  // angle of the relative rotation); all three are shown only for Expected and PoseError.
+  // pick_valid is 0 in a check's result.
+  std::uint16_t grip_state = 0;
+  std::uint16_t grip_of_job = 0;
+  PickPose grip_pose;
+  float grip_translation_mm = 0, grip_rotation_deg = 0;
   std::array<RankedPick, kMaxRankedPicks> ranked{};
 };
 
@@ -72,17 +83,29 @@ struct RobotPoseReading {
 //   pick of rank `rank` of job job_id;
 //   Look: start job job_id like Trigger (recipe_id, mode; the robot pose block read at job
 //   start), taking the second frame set at the robot's current pose and fusing it with the
-//   first look of job look_of_job, whose published result asked for it (look_wanted).
+//   first look of job look_of_job, whose published result asked for it (look_wanted);
+//   CheckGrip: start job job_id (recipe_id, mode) that checks the part in the gripper after the
+//   robot took the pick of rank `rank` of job check_of_job, whose published result had a pick
+//   (pick_valid); the job's result carries grip_state and no pick.
 // Kind's values are not COMMAND codes (reg::Command); the server maps one to the other.
 struct PlcCommand {
-  enum class Kind : std::uint16_t { Trigger = 1, Reset = 2, Next = 3, SaveScene = 4, PickResult = 5, Look = 6 };
+  enum class Kind : std::uint16_t {
+    Trigger = 1,
+    Reset = 2,
+    Next = 3,
+    SaveScene = 4,
+    PickResult = 5,
+    Look = 6,
+    CheckGrip = 7
+  };
   Kind kind = Kind::Trigger;
   std::uint16_t job_id = 0;
   std::uint16_t recipe_id = 0;
   std::uint16_t mode = 0;
   std::uint16_t rank = 0;
   std::uint16_t outcome = 0;
-  std::uint16_t look_of_job = 0;  // Look: the job (JOB_ID_ECHO when LOOK was taken) whose look it continues
+  std::uint16_t look_of_job = 0;   // Look: the job (JOB_ID_ECHO when LOOK was taken) whose look it continues
+  std::uint16_t check_of_job = 0;  // CheckGrip: the job (JOB_ID_ECHO when CHECK_GRIP was taken) whose pick it checks
 };
 
 }  // namespace mfcd::motion

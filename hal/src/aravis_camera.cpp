@@ -303,7 +303,7 @@ void AravisCamera::Session::setup_image() {
   if (!have_mono8 && !have_mono16)
     throw HalError(ErrorCode::UnsupportedFormat, owner.describe() + ": offers neither Mono8 nor Mono16 (offers " +
                                                      join(offered) + "); a colour model needs its mono variant");
-  // Prefer the format that already has the wanted depth, as V4L2Camera does; convertToGrey does the rest.
+  // Prefer the format that already has the wanted depth, as V4L2Camera does; convert_to_grey does the rest.
   const bool use16 = c.bits_per_pixel == 16 ? have_mono16 : !have_mono8;
   owner.source_ = use16 ? SourceFormat::Y16 : SourceFormat::Grey;
   owner.pixel_format_name_ = use16 ? "Mono16" : "Mono8";
@@ -494,7 +494,7 @@ void AravisCamera::Session::setup_stream() {
   const guint payload = arv_camera_get_payload(cam, e.out());
   check(e, "PayloadSize");
   const std::size_t image_bytes =
-      owner.format_.sizeBytes() / owner.format_.bytesPerPixel() * bytes_per_source_pixel(owner.source_);
+      owner.format_.size_bytes() / owner.format_.bytes_per_pixel() * bytes_per_source_pixel(owner.source_);
   if (payload < image_bytes)
     throw HalError(ErrorCode::UnsupportedFormat, owner.describe() + ": payload of " + std::to_string(payload) +
                                                      " bytes is smaller than the image; check the camera's settings");
@@ -524,7 +524,7 @@ bool AravisCamera::Session::deliver(ArvBuffer* buffer, Image& out, FrameInfo& in
   const ArvBufferStatus status = arv_buffer_get_status(buffer);
   if (status == ARV_BUFFER_STATUS_CLEARED) return false;  // handed back unused: no frame in it
   if (status != ARV_BUFFER_STATUS_SUCCESS) {              // lost packets, size mismatch, aborted
-    ++stats.errorBuffers;
+    ++stats.error_buffers;
     return false;
   }
   const ImageFormat& f = owner.format_;
@@ -539,15 +539,15 @@ bool AravisCamera::Session::deliver(ArvBuffer* buffer, Image& out, FrameInfo& in
   if (!data || arv_buffer_get_image_width(buffer) != f.width || arv_buffer_get_image_height(buffer) != f.height ||
       arv_buffer_get_image_pixel_format(buffer) != expected ||
       size < stride * static_cast<std::size_t>(f.height - 1) + row_bytes) {
-    ++stats.errorBuffers;  // not the negotiated image (another program changed the format?)
+    ++stats.error_buffers;  // not the negotiated image (another program changed the format?)
     return false;
   }
   const std::uint64_t id = arv_buffer_get_frame_id(buffer);
-  if (owner.have_frame_id_) stats.droppedFrames += gev_frames_missed_between(owner.last_frame_id_, id);
+  if (owner.have_frame_id_) stats.dropped_frames += gev_frames_missed_between(owner.last_frame_id_, id);
   owner.last_frame_id_ = id;
   owner.have_frame_id_ = true;
-  convertToGrey(owner.source_, data, stride, out);
-  info.timestampNs = trigger_ns;
+  convert_to_grey(owner.source_, data, stride, out);
+  info.timestamp_ns = trigger_ns;
   info.sequence = static_cast<std::uint32_t>(id);
   ++stats.frames;
   return true;
@@ -623,7 +623,7 @@ void AravisCamera::discard_completed_frames() {
     if (status == ARV_BUFFER_STATUS_SUCCESS)
       ++discarded_frames_;
     else if (status != ARV_BUFFER_STATUS_CLEARED)
-      ++stats_.errorBuffers;
+      ++stats_.error_buffers;
     arv_stream_push_buffer(stream, buffer);
   }
 }
@@ -650,7 +650,7 @@ void AravisCamera::mark_gone(const std::string& cause) {
   close_session();
   if (!gone_) {
     backoff_ = config_.reconnect_backoff_min;
-    next_reconnect_ns_ = monotonicNowNs() + std::chrono::nanoseconds(backoff_).count();
+    next_reconnect_ns_ = monotonic_now_ns() + std::chrono::nanoseconds(backoff_).count();
   }
   gone_ = true;
   restart_ = false;
@@ -665,7 +665,7 @@ void AravisCamera::try_reconnect() {
                                               ": camera gone, still releasing the lost connection (Aravis waits "
                                               "out its GVCP retries); check the cable and its power (PoE)");
   join_releaser();
-  const std::int64_t now = monotonicNowNs();
+  const std::int64_t now = monotonic_now_ns();
   if (now < next_reconnect_ns_)
     throw HalError(ErrorCode::DeviceGone, describe() + ": camera gone, next reconnect attempt in " +
                                               std::to_string((next_reconnect_ns_ - now) / 1'000'000) +
@@ -676,7 +676,7 @@ void AravisCamera::try_reconnect() {
   } catch (const HalError& e) {
     close_session();
     backoff_ = std::min(config_.reconnect_backoff_max, std::max(config_.reconnect_backoff_min, backoff_ * 2));
-    next_reconnect_ns_ = monotonicNowNs() + std::chrono::nanoseconds(backoff_).count();
+    next_reconnect_ns_ = monotonic_now_ns() + std::chrono::nanoseconds(backoff_).count();
     throw HalError(ErrorCode::DeviceGone, describe() + ": camera gone, reconnect failed (" + e.what() +
                                               "); retrying in " + std::to_string(backoff_.count()) + " ms");
   }
@@ -741,14 +741,14 @@ void AravisCamera::read(Image& out, FrameInfo& info) {
   while_in_use([&] {
     if (restart_) restart_acquisition();
     discard_completed_frames();
-    trigger_ns = monotonicNowNs();  // the exposure cannot start before this
+    trigger_ns = monotonic_now_ns();  // the exposure cannot start before this
     ErrorRef e;
     arv_camera_software_trigger(session_->camera.get(), e.out());
     session_->check(e, "TriggerSoftware");
   });
   const std::int64_t deadline = trigger_ns + std::chrono::nanoseconds(config_.frame_timeout).count();
   for (;;) {
-    const std::int64_t remaining_ns = deadline - monotonicNowNs();
+    const std::int64_t remaining_ns = deadline - monotonic_now_ns();
     if (remaining_ns <= 0) break;
     // Waits in slices of at most 100 ms so that a lost heartbeat ends the wait early.
     const auto wait_us = static_cast<guint64>(std::min<std::int64_t>(remaining_ns / 1000 + 1, 100'000));

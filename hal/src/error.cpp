@@ -2,7 +2,7 @@
 
 namespace mfcd::hal {
 
-const char* toString(ErrorCode code) noexcept {
+const char* to_string(ErrorCode code) noexcept {
   switch (code) {
     case ErrorCode::DeviceMissing:
       return "device missing";

@@ -17,12 +17,12 @@ GpiodLightRing::GpiodLightRing(GpiodLightRingConfig config) : config_(std::move(
 GpiodLightRing::~GpiodLightRing() { release(); }
 
 std::string GpiodLightRing::describe() const {
-  if (chip_) return "GPIO chip " + chipName_ + " [" + chipLabel_ + "]";
+  if (chip_) return "GPIO chip " + chip_name_ + " [" + chip_label_ + "]";
   return "GPIO chip '" + config_.chip + "'";
 }
 
 // Drives every LED off. Returns false if even that failed (the caller is already on an error path).
-bool GpiodLightRing::allOff() noexcept {
+bool GpiodLightRing::all_off() noexcept {
   if (!bulk_) return true;
   int values[kLedCount] = {};
   if (gpiod_line_set_value_bulk(bulk_, values) < 0) {
@@ -35,7 +35,7 @@ bool GpiodLightRing::allOff() noexcept {
 
 void GpiodLightRing::release() noexcept {
   if (bulk_) {
-    allOff();
+    all_off();
     gpiod_line_release_bulk(bulk_);
     delete bulk_;
     bulk_ = nullptr;
@@ -55,20 +55,21 @@ void GpiodLightRing::configure() {
                    "GPIO chip '" + config_.chip + "': not found by name, path, label or number (" + std::strerror(err) +
                        "); check the chip with gpiodetect and that the daemon may open /dev/gpiochip*");
   }
-  chipName_ = gpiod_chip_name(chip_);
-  chipLabel_ = gpiod_chip_label(chip_);
-  const unsigned numLines = gpiod_chip_num_lines(chip_);
+  chip_name_ = gpiod_chip_name(chip_);
+  chip_label_ = gpiod_chip_label(chip_);
+  const unsigned num_lines = gpiod_chip_num_lines(chip_);
   for (int i = 0; i < kLedCount; ++i) {
     const unsigned offset = config_.offsets[static_cast<std::size_t>(i)];
-    const auto wrongLine = [&](const std::string& why) {
+    const auto wrong_line = [&](const std::string& why) {
       const std::string msg = describe() + ": LED " + std::to_string(i) + " line offset " + std::to_string(offset) +
-                              " " + why + "; check the offsets in the configuration against gpioinfo " + chipName_;
+                              " " + why + "; check the offsets in the configuration against gpioinfo " + chip_name_;
       release();
       throw HalError(ErrorCode::WrongLine, msg);
     };
-    if (offset >= numLines) wrongLine("is out of range: the chip has " + std::to_string(numLines) + " lines");
+    if (offset >= num_lines) wrong_line("is out of range: the chip has " + std::to_string(num_lines) + " lines");
     for (int j = 0; j < i; ++j)
-      if (config_.offsets[static_cast<std::size_t>(j)] == offset) wrongLine("is also used by LED " + std::to_string(j));
+      if (config_.offsets[static_cast<std::size_t>(j)] == offset)
+        wrong_line("is also used by LED " + std::to_string(j));
   }
 
   auto bulk = std::make_unique<gpiod_line_bulk>();
@@ -78,7 +79,7 @@ void GpiodLightRing::configure() {
     release();
     throw HalError(ErrorCode::WrongLine, msg);
   }
-  const int flags = config_.activeLow ? GPIOD_LINE_REQUEST_FLAG_ACTIVE_LOW : 0;
+  const int flags = config_.active_low ? GPIOD_LINE_REQUEST_FLAG_ACTIVE_LOW : 0;
   int off[kLedCount] = {};  // logical 0 = LED off, whatever the polarity
   if (gpiod_line_request_bulk_output_flags(bulk.get(), config_.consumer.c_str(), flags, off) < 0) {
     const int err = errno;
@@ -95,10 +96,10 @@ void GpiodLightRing::configure() {
                  ") held by consumer \"" + (who ? who : "?") + "\";";
         }
       }
-      msg += " check gpioinfo " + chipName_ + " and stop the other program (only one process may drive the LEDs)";
+      msg += " check gpioinfo " + chip_name_ + " and stop the other program (only one process may drive the LEDs)";
     } else {
-      msg =
-          describe() + ": requesting the LED lines as outputs: " + std::strerror(err) + "; check gpioinfo " + chipName_;
+      msg = describe() + ": requesting the LED lines as outputs: " + std::strerror(err) + "; check gpioinfo " +
+            chip_name_;
     }
     release();
     throw HalError(err == EBUSY ? ErrorCode::LineBusy : ErrorCode::Io, msg);
@@ -114,7 +115,7 @@ void GpiodLightRing::activate() {
 
 void GpiodLightRing::deactivate() {
   active_ = false;
-  if (bulk_ && !allOff())
+  if (bulk_ && !all_off())
     throw HalError(ErrorCode::Io, describe() + ": switching the LEDs off failed: " + std::strerror(errno) +
                                       "; check the chip (dmesg) — LEDs may still be lit");
 }
@@ -125,7 +126,7 @@ void GpiodLightRing::set(LedMask mask) {
   for (int i = 0; i < kLedCount; ++i) values[i] = (mask >> i) & 1;
   if (gpiod_line_set_value_bulk(bulk_, values) < 0) {
     const int err = errno;
-    allOff();
+    all_off();
     throw HalError(ErrorCode::Io,
                    describe() + ": driving the LED lines: " + std::strerror(err) + "; check the chip (dmesg)");
   }

@@ -6,12 +6,12 @@ namespace mfcd::hal {
 
 // 8 → 16 bit scales full range (v * 257: 255 → 65535); 16 → 8 bit keeps the high byte.
 // The loops are written so GCC vectorises them; tests/hal compares them to a per-pixel reference.
-void convertToGrey(SourceFormat source, const std::uint8_t* src, std::size_t srcStride, Image& out) {
+void convert_to_grey(SourceFormat source, const std::uint8_t* src, std::size_t src_stride, Image& out) {
   const ImageFormat& f = out.format();
   const int w = f.width;
   for (int y = 0; y < f.height; ++y) {
-    const std::uint8_t* s = src + static_cast<std::size_t>(y) * srcStride;
-    if (f.bitsPerPixel == 8) {
+    const std::uint8_t* s = src + static_cast<std::size_t>(y) * src_stride;
+    if (f.bits_per_pixel == 8) {
       std::uint8_t* d = out.row(y);
       switch (source) {
         case SourceFormat::Grey:

@@ -9,12 +9,12 @@ namespace mfcd::hal {
 RenderedCellScene::RenderedCellScene(vision::MfcRenderer& renderer, std::vector<vision::ScenePart> parts)
     : renderer_(renderer), parts_(std::move(parts)) {}
 
-void RenderedCellScene::setParts(std::vector<vision::ScenePart> parts) {
+void RenderedCellScene::set_parts(std::vector<vision::ScenePart> parts) {
   parts_ = std::move(parts);
   stale_ = true;
 }
 
-void RenderedCellScene::render(LedMask lit, std::uint64_t exposureIndex, Image& out) {
+void RenderedCellScene::render(LedMask lit, std::uint64_t exposure_index, Image& out) {
   const ImageFormat& f = out.format();
   const cv::Size size = renderer_.camera().image_size;
   if (f.width != size.width || f.height != size.height)
@@ -24,12 +24,12 @@ void RenderedCellScene::render(LedMask lit, std::uint64_t exposureIndex, Image& 
   // A new FrameSet starts with LED 0 alone: render the scene once for the whole set, with fresh
   // sensor noise (seeded by the exposure index, so runs are reproducible).
   if (stale_ || lit == LedMask{1}) {
-    renderer_.render(parts_, render_, exposureIndex + 1);
+    renderer_.render(parts_, render_, exposure_index + 1);
     stale_ = false;
     ++renders_;
   }
   const vision::MfcFrames& frames = render_.frames;
-  const bool wide = f.bitsPerPixel == 16;
+  const bool wide = f.bits_per_pixel == 16;
   // One LED (or none): exactly that rendered exposure. Several: light adds, so the ambient plus
   // what each lit LED contributes on top of it (saturating like a sensor).
   const bool single = lit == 0 || (lit & (lit - 1)) == 0;

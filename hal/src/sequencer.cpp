@@ -24,7 +24,7 @@ MfcSequencer::~MfcSequencer() {
 
 void MfcSequencer::configure() {
   if (active_) throw HalError(ErrorCode::InvalidState, "MFC sequencer: configure() while active; deactivate() first");
-  if (config_.maxStaleFramesPerSlot < 0)
+  if (config_.max_stale_frames_per_slot < 0)
     throw HalError(ErrorCode::InvalidState, "MFC sequencer: maxStaleFramesPerSlot must be >= 0");
   lights_.configure();
   camera_.configure();
@@ -58,24 +58,24 @@ void MfcSequencer::deactivate() {
   camera_.deactivate();
 }
 
-// Reads frames until one was exposed entirely after `windowStartNs` (plus the settle time) or the
+// Reads frames until one was exposed entirely after `window_start_ns` (plus the settle time) or the
 // stale budget is spent. Frames exposed earlier are still in the queue from before the switch.
-void MfcSequencer::captureSlot(SlotFrame& slot, std::int64_t windowStartNs) {
-  slot.staleDiscarded = 0;
-  const std::int64_t lead = camera_.exposureLeadNs();
+void MfcSequencer::capture_slot(SlotFrame& slot, std::int64_t window_start_ns) {
+  slot.stale_discarded = 0;
+  const std::int64_t lead = camera_.exposure_lead_ns();
   for (;;) {
     camera_.read(slot.image, slot.info);
-    const std::int64_t exposureStart = slot.info.timestampNs - lead;
-    if (exposureStart >= windowStartNs + config_.settleNs) return;
-    ++slot.staleDiscarded;
-    ++stats_.staleDiscarded;
-    if (slot.staleDiscarded > config_.maxStaleFramesPerSlot) {
+    const std::int64_t exposure_start = slot.info.timestamp_ns - lead;
+    if (exposure_start >= window_start_ns + config_.settle_ns) return;
+    ++slot.stale_discarded;
+    ++stats_.stale_discarded;
+    if (slot.stale_discarded > config_.max_stale_frames_per_slot) {
       const std::string what =
           slot.led == kAmbientLed ? std::string("ambient frame") : "LED " + std::to_string(slot.led);
       throw HalError(ErrorCode::StaleFrames,
-                     "MFC sequencer: " + camera_.describe() + ": " + std::to_string(slot.staleDiscarded) +
+                     "MFC sequencer: " + camera_.describe() + ": " + std::to_string(slot.stale_discarded) +
                          " frames in a row for the " + what + " were exposed before its window opened (last frame " +
-                         std::to_string((windowStartNs - exposureStart) / 1000) +
+                         std::to_string((window_start_ns - exposure_start) / 1000) +
                          " us early); check the camera's buffer count, frame rate and timestamp source");
     }
   }
@@ -87,15 +87,15 @@ const FrameSet& MfcSequencer::read() {
     for (int led = 0; led < kLedCount; ++led) {
       SlotFrame& slot = set_.frames[static_cast<std::size_t>(led)];
       lights_.set(static_cast<LedMask>(1u << led));
-      slot.onNs = monotonicNowNs();
-      captureSlot(slot, slot.onNs);
+      slot.on_ns = monotonic_now_ns();
+      capture_slot(slot, slot.on_ns);
       lights_.set(0);
-      slot.offNs = monotonicNowNs();
+      slot.off_ns = monotonic_now_ns();
     }
     SlotFrame& ambient = set_.frames[kLedCount];
-    ambient.onNs = set_.frames[kLedCount - 1].offNs;
-    captureSlot(ambient, ambient.onNs);
-    ambient.offNs = monotonicNowNs();
+    ambient.on_ns = set_.frames[kLedCount - 1].off_ns;
+    capture_slot(ambient, ambient.on_ns);
+    ambient.off_ns = monotonic_now_ns();
   } catch (...) {
     ++stats_.failures;
     try {
@@ -106,7 +106,7 @@ const FrameSet& MfcSequencer::read() {
     throw;
   }
   ++set_.sequence;
-  ++stats_.frameSets;
+  ++stats_.frame_sets;
   return set_;
 }
 

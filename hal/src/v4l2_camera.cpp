@@ -28,13 +28,13 @@ int xioctl(int fd, unsigned long request, void* arg) {
   return r;
 }
 
-std::string fourccToString(std::uint32_t fourcc) {
+std::string fourcc_to_string(std::uint32_t fourcc) {
   std::string s(4, ' ');
   for (int i = 0; i < 4; ++i) s[static_cast<std::size_t>(i)] = static_cast<char>((fourcc >> (8 * i)) & 0xff);
   return s;
 }
 
-std::uint32_t fourccOf(SourceFormat f) {
+std::uint32_t fourcc_of(SourceFormat f) {
   switch (f) {
     case SourceFormat::Grey:
       return V4L2_PIX_FMT_GREY;
@@ -46,14 +46,14 @@ std::uint32_t fourccOf(SourceFormat f) {
   return 0;
 }
 
-std::size_t bytesPerSourcePixel(SourceFormat f) { return f == SourceFormat::Grey ? 1 : 2; }
+std::size_t bytes_per_source_pixel(SourceFormat f) { return f == SourceFormat::Grey ? 1 : 2; }
 
 }  // namespace
 
 V4L2Camera::V4L2Camera(V4L2CameraConfig config) : config_(std::move(config)) {}
 
 V4L2Camera::~V4L2Camera() {
-  streamOff();
+  stream_off();
   close();
 }
 
@@ -98,14 +98,14 @@ void V4L2Camera::open() {
 }
 
 void V4L2Camera::negotiate() {
-  if (config_.bitsPerPixel != 8 && config_.bitsPerPixel != 16)
+  if (config_.bits_per_pixel != 8 && config_.bits_per_pixel != 16)
     throw HalError(ErrorCode::UnsupportedFormat, describe() + ": output depth must be 8 or 16 bit, not " +
-                                                     std::to_string(config_.bitsPerPixel) +
+                                                     std::to_string(config_.bits_per_pixel) +
                                                      "; check the configuration");
   // Prefer a format that already has the wanted depth; YUYV (luma only) is the common fallback.
   const SourceFormat prefer8[] = {SourceFormat::Grey, SourceFormat::Yuyv, SourceFormat::Y16};
   const SourceFormat prefer16[] = {SourceFormat::Y16, SourceFormat::Grey, SourceFormat::Yuyv};
-  const SourceFormat* order = config_.bitsPerPixel == 16 ? prefer16 : prefer8;
+  const SourceFormat* order = config_.bits_per_pixel == 16 ? prefer16 : prefer8;
 
   std::string offered;
   bool have[3] = {false, false, false};
@@ -115,9 +115,9 @@ void V4L2Camera::negotiate() {
     desc.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
     if (xioctl(fd_, VIDIOC_ENUM_FMT, &desc) < 0) break;
     if (!offered.empty()) offered += ' ';
-    offered += fourccToString(desc.pixelformat);
+    offered += fourcc_to_string(desc.pixelformat);
     for (int k = 0; k < 3; ++k)
-      if (desc.pixelformat == fourccOf(static_cast<SourceFormat>(k))) have[k] = true;
+      if (desc.pixelformat == fourcc_of(static_cast<SourceFormat>(k))) have[k] = true;
   }
   int chosen = -1;
   for (int k = 0; k < 3 && chosen < 0; ++k)
@@ -131,7 +131,7 @@ void V4L2Camera::negotiate() {
   fmt.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
   fmt.fmt.pix.width = static_cast<std::uint32_t>(config_.width);
   fmt.fmt.pix.height = static_cast<std::uint32_t>(config_.height);
-  fmt.fmt.pix.pixelformat = fourccOf(source_);
+  fmt.fmt.pix.pixelformat = fourcc_of(source_);
   fmt.fmt.pix.field = V4L2_FIELD_NONE;
   if (xioctl(fd_, VIDIOC_S_FMT, &fmt) < 0) {
     if (errno == EBUSY)
@@ -139,39 +139,39 @@ void V4L2Camera::negotiate() {
                      describe() + ": VIDIOC_S_FMT: device busy; check that no other program is streaming from it");
     fail(errno, "VIDIOC_S_FMT");
   }
-  if (fmt.fmt.pix.pixelformat != fourccOf(source_) || fmt.fmt.pix.width != static_cast<std::uint32_t>(config_.width) ||
+  if (fmt.fmt.pix.pixelformat != fourcc_of(source_) || fmt.fmt.pix.width != static_cast<std::uint32_t>(config_.width) ||
       fmt.fmt.pix.height != static_cast<std::uint32_t>(config_.height) ||
       (fmt.fmt.pix.field != V4L2_FIELD_NONE && fmt.fmt.pix.field != V4L2_FIELD_ANY))
     throw HalError(ErrorCode::UnsupportedFormat,
                    describe() + ": asked for " + std::to_string(config_.width) + "x" + std::to_string(config_.height) +
-                       " " + fourccToString(fourccOf(source_)) + " progressive, device offers " +
+                       " " + fourcc_to_string(fourcc_of(source_)) + " progressive, device offers " +
                        std::to_string(fmt.fmt.pix.width) + "x" + std::to_string(fmt.fmt.pix.height) + " " +
-                       fourccToString(fmt.fmt.pix.pixelformat) + "; check the configured size against v4l2-ctl -d " +
+                       fourcc_to_string(fmt.fmt.pix.pixelformat) + "; check the configured size against v4l2-ctl -d " +
                        config_.device + " --list-formats-ext");
-  srcStride_ = fmt.fmt.pix.bytesperline ? fmt.fmt.pix.bytesperline
-                                        : static_cast<std::size_t>(config_.width) * bytesPerSourcePixel(source_);
-  format_ = ImageFormat{config_.width, config_.height, config_.bitsPerPixel};
+  src_stride_ = fmt.fmt.pix.bytesperline ? fmt.fmt.pix.bytesperline
+                                         : static_cast<std::size_t>(config_.width) * bytes_per_source_pixel(source_);
+  format_ = ImageFormat{config_.width, config_.height, config_.bits_per_pixel};
 
   // The frame period bounds how long before its timestamp an end-of-frame-stamped frame was exposed.
   v4l2_streamparm parm{};
   parm.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
-  if (config_.frameRate > 0) {
-    parm.parm.capture.timeperframe = {1, static_cast<std::uint32_t>(config_.frameRate)};
+  if (config_.frame_rate > 0) {
+    parm.parm.capture.timeperframe = {1, static_cast<std::uint32_t>(config_.frame_rate)};
     if (xioctl(fd_, VIDIOC_S_PARM, &parm) < 0 || parm.parm.capture.timeperframe.numerator == 0 ||
         parm.parm.capture.timeperframe.denominator / parm.parm.capture.timeperframe.numerator !=
-            static_cast<std::uint32_t>(config_.frameRate))
+            static_cast<std::uint32_t>(config_.frame_rate))
       syslog(LOG_WARNING, "mfcd hal: %s does not run at %d fps at this size; using what it offers", describe().c_str(),
-             config_.frameRate);
+             config_.frame_rate);
     parm = {};
     parm.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
   }
-  exposureLeadNs_ = 0;
+  exposure_lead_ns_ = 0;
   if (xioctl(fd_, VIDIOC_G_PARM, &parm) == 0 && parm.parm.capture.timeperframe.denominator != 0)
-    exposureLeadNs_ = static_cast<std::int64_t>(parm.parm.capture.timeperframe.numerator) * 1'000'000'000 /
-                      parm.parm.capture.timeperframe.denominator;
+    exposure_lead_ns_ = static_cast<std::int64_t>(parm.parm.capture.timeperframe.numerator) * 1'000'000'000 /
+                        parm.parm.capture.timeperframe.denominator;
 }
 
-void V4L2Camera::applyControls() {
+void V4L2Camera::apply_controls() {
   auto has = [&](std::uint32_t id, v4l2_queryctrl& q) {
     q = {};
     q.id = id;
@@ -185,15 +185,15 @@ void V4L2Camera::applyControls() {
                                         " -L");
   };
   v4l2_queryctrl q{};
-  exposureApplied_ = gainApplied_ = false;
-  if (config_.exposureUs) {
+  exposure_applied_ = gain_applied_ = false;
+  if (config_.exposure_us) {
     if (has(V4L2_CID_EXPOSURE_ABSOLUTE, q)) {
       if (has(V4L2_CID_EXPOSURE_AUTO, q)) set(V4L2_CID_EXPOSURE_AUTO, V4L2_EXPOSURE_MANUAL, "exposure mode");
-      set(V4L2_CID_EXPOSURE_ABSOLUTE, std::max(1, *config_.exposureUs / 100), "exposure (100 us units)");
-      exposureApplied_ = true;
+      set(V4L2_CID_EXPOSURE_ABSOLUTE, std::max(1, *config_.exposure_us / 100), "exposure (100 us units)");
+      exposure_applied_ = true;
     } else {
       syslog(LOG_WARNING, "mfcd hal: %s has no exposure control; the configured %d us is not applied",
-             describe().c_str(), *config_.exposureUs);
+             describe().c_str(), *config_.exposure_us);
     }
   }
   if (config_.gain) {
@@ -204,31 +204,31 @@ void V4L2Camera::applyControls() {
                                           std::to_string(q.maximum) + "; check the configuration");
       if (has(V4L2_CID_AUTOGAIN, q)) set(V4L2_CID_AUTOGAIN, 0, "automatic gain");
       set(V4L2_CID_GAIN, *config_.gain, "gain");
-      gainApplied_ = true;
+      gain_applied_ = true;
     } else {
       syslog(LOG_WARNING, "mfcd hal: %s has no gain control; the configured gain is not applied", describe().c_str());
     }
   }
 }
 
-void V4L2Camera::allocateBuffers() {
+void V4L2Camera::allocate_buffers() {
   v4l2_requestbuffers req{};
-  req.count = static_cast<std::uint32_t>(std::clamp(config_.bufferCount, 2, kMaxBuffers));
+  req.count = static_cast<std::uint32_t>(std::clamp(config_.buffer_count, 2, kMaxBuffers));
   req.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
   req.memory = V4L2_MEMORY_MMAP;
   if (xioctl(fd_, VIDIOC_REQBUFS, &req) < 0) fail(errno, "VIDIOC_REQBUFS (mmap streaming)");
   if (req.count < 2)
     throw HalError(ErrorCode::Io, describe() + ": driver granted only " + std::to_string(req.count) +
                                       " buffer(s); check available memory (CMA) for the camera");
-  bufferCount_ = static_cast<int>(std::min<std::uint32_t>(req.count, kMaxBuffers));
-  for (int i = 0; i < bufferCount_; ++i) {
+  buffer_count_ = static_cast<int>(std::min<std::uint32_t>(req.count, kMaxBuffers));
+  for (int i = 0; i < buffer_count_; ++i) {
     v4l2_buffer b{};
     b.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
     b.memory = V4L2_MEMORY_MMAP;
     b.index = static_cast<std::uint32_t>(i);
     if (xioctl(fd_, VIDIOC_QUERYBUF, &b) < 0) fail(errno, "VIDIOC_QUERYBUF");
     if (i == 0 && (b.flags & V4L2_BUF_FLAG_TSTAMP_SRC_MASK) == V4L2_BUF_FLAG_TSTAMP_SRC_SOE)
-      exposureLeadNs_ = 0;  // stamped at start of exposure: no lead
+      exposure_lead_ns_ = 0;  // stamped at start of exposure: no lead
     if ((b.flags & V4L2_BUF_FLAG_TIMESTAMP_MASK) != V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC)
       syslog(LOG_WARNING, "mfcd hal: %s does not stamp buffers with CLOCK_MONOTONIC; LED windows cannot be verified",
              describe().c_str());
@@ -236,28 +236,28 @@ void V4L2Camera::allocateBuffers() {
     if (p == MAP_FAILED) fail(errno, "mmap of a capture buffer");
     buffers_[static_cast<std::size_t>(i)] = {p, b.length};
   }
-  if (srcStride_ * static_cast<std::size_t>(format_.height) > buffers_[0].length)
+  if (src_stride_ * static_cast<std::size_t>(format_.height) > buffers_[0].length)
     throw HalError(ErrorCode::UnsupportedFormat,
                    describe() + ": capture buffers smaller than the negotiated image; check the driver");
 }
 
-void V4L2Camera::releaseBuffers() {
-  for (int i = 0; i < bufferCount_; ++i) {
+void V4L2Camera::release_buffers() {
+  for (int i = 0; i < buffer_count_; ++i) {
     Mapping& m = buffers_[static_cast<std::size_t>(i)];
     if (m.data) ::munmap(m.data, m.length);
     m = {};
   }
-  if (bufferCount_ > 0 && fd_ >= 0) {
+  if (buffer_count_ > 0 && fd_ >= 0) {
     v4l2_requestbuffers req{};
     req.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
     req.memory = V4L2_MEMORY_MMAP;
     xioctl(fd_, VIDIOC_REQBUFS, &req);  // count 0 frees the driver's buffers; failure is harmless here
   }
-  bufferCount_ = 0;
+  buffer_count_ = 0;
 }
 
 void V4L2Camera::close() noexcept {
-  releaseBuffers();
+  release_buffers();
   if (fd_ >= 0) ::close(fd_);
   fd_ = -1;
   streaming_ = false;
@@ -270,8 +270,8 @@ void V4L2Camera::configure() {
   try {
     open();
     negotiate();
-    applyControls();
-    allocateBuffers();
+    apply_controls();
+    allocate_buffers();
   } catch (...) {
     close();
     throw;
@@ -280,8 +280,8 @@ void V4L2Camera::configure() {
   configured_ = true;
 }
 
-void V4L2Camera::streamOn() {
-  for (int i = 0; i < bufferCount_; ++i) {
+void V4L2Camera::stream_on() {
+  for (int i = 0; i < buffer_count_; ++i) {
     v4l2_buffer b{};
     b.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
     b.memory = V4L2_MEMORY_MMAP;
@@ -295,10 +295,10 @@ void V4L2Camera::streamOn() {
     fail(err, "VIDIOC_STREAMON");
   }
   streaming_ = true;
-  haveSequence_ = false;
+  have_sequence_ = false;
 }
 
-void V4L2Camera::streamOff() noexcept {
+void V4L2Camera::stream_off() noexcept {
   if (!streaming_ || fd_ < 0) return;
   int type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
   xioctl(fd_, VIDIOC_STREAMOFF, &type);  // also dequeues every buffer
@@ -307,35 +307,35 @@ void V4L2Camera::streamOff() noexcept {
 
 void V4L2Camera::activate() {
   if (!configured_) throw HalError(ErrorCode::InvalidState, describe() + ": activate() before configure()");
-  if (gone_) tryReconnect();
-  if (!streaming_) streamOn();
-  restartStream_ = false;
+  if (gone_) try_reconnect();
+  if (!streaming_) stream_on();
+  restart_stream_ = false;
   active_ = true;
 }
 
 void V4L2Camera::deactivate() {
-  streamOff();
+  stream_off();
   active_ = false;
 }
 
 // After ENODEV every fd is closed (drivers only come back once all handles are gone); reopening is
 // attempted from read() no more often than the current backoff, which doubles up to the maximum.
-void V4L2Camera::tryReconnect() {
-  const std::int64_t now = monotonicNowNs();
-  if (now < nextReconnectNs_)
+void V4L2Camera::try_reconnect() {
+  const std::int64_t now = monotonic_now_ns();
+  if (now < next_reconnect_ns_)
     throw HalError(ErrorCode::DeviceGone, describe() + ": device gone, next reconnect attempt in " +
-                                              std::to_string((nextReconnectNs_ - now) / 1'000'000) +
+                                              std::to_string((next_reconnect_ns_ - now) / 1'000'000) +
                                               " ms; check the cable");
   try {
     open();
     negotiate();
-    applyControls();
-    allocateBuffers();
-    streamOn();
+    apply_controls();
+    allocate_buffers();
+    stream_on();
   } catch (const HalError& e) {
     close();
-    backoff_ = std::min(config_.reconnectBackoffMax, std::max(config_.reconnectBackoffMin, backoff_ * 2));
-    nextReconnectNs_ = monotonicNowNs() + std::chrono::nanoseconds(backoff_).count();
+    backoff_ = std::min(config_.reconnect_backoff_max, std::max(config_.reconnect_backoff_min, backoff_ * 2));
+    next_reconnect_ns_ = monotonic_now_ns() + std::chrono::nanoseconds(backoff_).count();
     throw HalError(ErrorCode::DeviceGone, describe() + ": device gone, reconnect failed (" + e.what() +
                                               "); retrying in " + std::to_string(backoff_.count()) + " ms");
   }
@@ -349,27 +349,27 @@ void V4L2Camera::read(Image& out, FrameInfo& info) {
   if (!active_) throw HalError(ErrorCode::InvalidState, describe() + ": read() while not streaming; call activate()");
   if (out.format() != format_)
     throw HalError(ErrorCode::InvalidState, describe() + ": read() into an image of the wrong format");
-  if (gone_) tryReconnect();
-  if (restartStream_) {  // after a watchdog expiry or a fatal queue error: restart the stream
-    streamOff();
-    streamOn();
-    restartStream_ = false;
+  if (gone_) try_reconnect();
+  if (restart_stream_) {  // after a watchdog expiry or a fatal queue error: restart the stream
+    stream_off();
+    stream_on();
+    restart_stream_ = false;
   }
-  auto markGone = [&](const char* what) {
+  auto mark_gone = [&](const char* what) {
     const int err = errno;
     close();
     gone_ = true;
-    backoff_ = config_.reconnectBackoffMin;
-    nextReconnectNs_ = monotonicNowNs() + std::chrono::nanoseconds(backoff_).count();
+    backoff_ = config_.reconnect_backoff_min;
+    next_reconnect_ns_ = monotonic_now_ns() + std::chrono::nanoseconds(backoff_).count();
     syslog(LOG_ERR, "mfcd hal: %s: %s: %s", describe().c_str(), what, std::strerror(err));
     throw HalError(ErrorCode::DeviceGone, describe() + ": " + what + ": " + std::strerror(err) +
                                               "; the camera was unplugged or its driver reset — check the cable; "
                                               "reconnecting with backoff");
   };
 
-  const std::int64_t deadline = monotonicNowNs() + std::chrono::nanoseconds(config_.dequeueTimeout).count();
+  const std::int64_t deadline = monotonic_now_ns() + std::chrono::nanoseconds(config_.dequeue_timeout).count();
   for (;;) {
-    const std::int64_t remaining = deadline - monotonicNowNs();
+    const std::int64_t remaining = deadline - monotonic_now_ns();
     pollfd p{fd_, POLLIN, 0};
     const int r = remaining > 0 ? ::poll(&p, 1, static_cast<int>((remaining + 999'999) / 1'000'000)) : 0;
     if (r < 0) {
@@ -378,9 +378,9 @@ void V4L2Camera::read(Image& out, FrameInfo& info) {
     }
     if (r == 0) {
       ++stats_.timeouts;
-      restartStream_ = true;
+      restart_stream_ = true;
       throw HalError(ErrorCode::StreamTimeout,
-                     describe() + ": no frame within " + std::to_string(config_.dequeueTimeout.count()) +
+                     describe() + ": no frame within " + std::to_string(config_.dequeue_timeout.count()) +
                          " ms (dequeue watchdog); check the frame rate, the trigger wiring and the cable");
     }
     v4l2_buffer b{};
@@ -388,38 +388,38 @@ void V4L2Camera::read(Image& out, FrameInfo& info) {
     b.memory = V4L2_MEMORY_MMAP;
     if (xioctl(fd_, VIDIOC_DQBUF, &b) < 0) {
       if (errno == EAGAIN) continue;
-      if (errno == ENODEV || errno == ENXIO) markGone("VIDIOC_DQBUF");
+      if (errno == ENODEV || errno == ENXIO) mark_gone("VIDIOC_DQBUF");
       if (errno == EIO || errno == EPIPE) {  // queue in error state: the stream must be restarted
-        restartStream_ = true;
+        restart_stream_ = true;
         fail(errno, "VIDIOC_DQBUF (streaming error, restarting the stream)");
       }
       fail(errno, "VIDIOC_DQBUF");
     }
     const auto requeue = [&] {
       if (xioctl(fd_, VIDIOC_QBUF, &b) < 0) {
-        if (errno == ENODEV || errno == ENXIO) markGone("VIDIOC_QBUF");
+        if (errno == ENODEV || errno == ENXIO) mark_gone("VIDIOC_QBUF");
         fail(errno, "VIDIOC_QBUF");
       }
     };
     if (b.flags & V4L2_BUF_FLAG_ERROR) {  // corrupt frame: give the buffer back and wait for the next
-      ++stats_.errorBuffers;
-      lastSequence_ = b.sequence;
-      haveSequence_ = true;
+      ++stats_.error_buffers;
+      last_sequence_ = b.sequence;
+      have_sequence_ = true;
       requeue();
       continue;
     }
-    if (haveSequence_) stats_.droppedFrames += framesMissedBetween(lastSequence_, b.sequence);
-    lastSequence_ = b.sequence;
-    haveSequence_ = true;
-    if (b.index >= static_cast<std::uint32_t>(bufferCount_) ||
-        b.bytesused < srcStride_ * static_cast<std::size_t>(format_.height)) {
-      ++stats_.errorBuffers;  // short frame: treat like an error buffer
+    if (have_sequence_) stats_.dropped_frames += frames_missed_between(last_sequence_, b.sequence);
+    last_sequence_ = b.sequence;
+    have_sequence_ = true;
+    if (b.index >= static_cast<std::uint32_t>(buffer_count_) ||
+        b.bytesused < src_stride_ * static_cast<std::size_t>(format_.height)) {
+      ++stats_.error_buffers;  // short frame: treat like an error buffer
       requeue();
       continue;
     }
-    convertToGrey(source_, static_cast<const std::uint8_t*>(buffers_[b.index].data), srcStride_, out);
-    info.timestampNs = static_cast<std::int64_t>(b.timestamp.tv_sec) * 1'000'000'000 +
-                       static_cast<std::int64_t>(b.timestamp.tv_usec) * 1000;
+    convert_to_grey(source_, static_cast<const std::uint8_t*>(buffers_[b.index].data), src_stride_, out);
+    info.timestamp_ns = static_cast<std::int64_t>(b.timestamp.tv_sec) * 1'000'000'000 +
+                        static_cast<std::int64_t>(b.timestamp.tv_usec) * 1000;
     info.sequence = b.sequence;
     ++stats_.frames;
     requeue();

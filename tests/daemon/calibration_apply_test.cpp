@@ -1,5 +1,5 @@
 // What `mfcd-ctl calibrate apply` reports after writing new intrinsics: the recipes whose template
-// files the new camera invalidates (invalidatedRecipes, daemon/calibration.hpp), with the reason.
+// files the new camera invalidates (invalidated_recipes, daemon/calibration.hpp), with the reason.
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -36,7 +36,7 @@ TEST(CalibrationApply, NamesTheRecipesWhoseTemplatesTheNewCameraInvalidates) {
   mfcd::vision::CameraConfig camera = mfcd::vision::load_camera_config(MFC_SOURCE_DIR "/config/camera-sim.yaml");
   const fs::path same = dir / "same.yaml";
   mfcd::vision::save_camera_config(camera, same);
-  nlohmann::json out = invalidatedRecipes(same, recipes);
+  nlohmann::json out = invalidated_recipes(same, recipes);
   ASSERT_EQ(out.size(), 1u) << out.dump();
   EXPECT_EQ(out[0]["recipe"], 4);
   EXPECT_NE(out[0]["why"].get<std::string>().find("missing.tdb"), std::string::npos) << out.dump();
@@ -46,7 +46,7 @@ TEST(CalibrationApply, NamesTheRecipesWhoseTemplatesTheNewCameraInvalidates) {
   camera.camera.distortion = {-0.1, 0.02, 0, 0, 0};
   const fs::path changed = dir / "changed.yaml";
   mfcd::vision::save_camera_config(camera, changed);
-  out = invalidatedRecipes(changed, recipes);
+  out = invalidated_recipes(changed, recipes);
   ASSERT_EQ(out.size(), 3u) << out.dump();
   EXPECT_EQ(out[0]["recipe"], 1);
   EXPECT_EQ(out[0]["part"], "tnut");
@@ -58,6 +58,6 @@ TEST(CalibrationApply, NamesTheRecipesWhoseTemplatesTheNewCameraInvalidates) {
   // Only the distortion changed: the templates (ideal pinhole, same K) stay valid.
   camera.camera.K(0, 0) /= 1.01;
   mfcd::vision::save_camera_config(camera, changed);
-  EXPECT_EQ(invalidatedRecipes(changed, recipes).size(), 1u);
+  EXPECT_EQ(invalidated_recipes(changed, recipes).size(), 1u);
   fs::remove_all(dir);
 }

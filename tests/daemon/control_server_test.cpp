@@ -64,35 +64,35 @@ class Peer {
 class ControlServerTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir = fs::temp_directory_path() / ("mfcd-ctl-test-" + std::to_string(::getpid()));
-    fs::create_directories(dir);
-    path = dir / "ctl.sock";
-    server.on("echo", [this](ControlServer::ClientId c, const RequestArgs& a) {
-      server.reply(c, {{"ok", true}, {"text", a.string("text", "")}, {"n", a.integer("n", 0, 0, 10)}});
+    dir_ = fs::temp_directory_path() / ("mfcd-ctl-test-" + std::to_string(::getpid()));
+    fs::create_directories(dir_);
+    path_ = dir_ / "ctl.sock";
+    server_.on("echo", [this](ControlServer::ClientId c, const RequestArgs& a) {
+      server_.reply(c, {{"ok", true}, {"text", a.string("text", "")}, {"n", a.integer("n", 0, 0, 10)}});
     });
-    server.on("boom", [](ControlServer::ClientId, const RequestArgs&) { throw std::runtime_error("exploded"); });
-    server.on_disconnect([this](ControlServer::ClientId c) { disconnected.push_back(c); });
-    server.open(path);
+    server_.on("boom", [](ControlServer::ClientId, const RequestArgs&) { throw std::runtime_error("exploded"); });
+    server_.on_disconnect([this](ControlServer::ClientId c) { disconnected_.push_back(c); });
+    server_.open(path_);
   }
   void TearDown() override {
-    server.close();
-    fs::remove_all(dir);
+    server_.close();
+    fs::remove_all(dir_);
   }
   json ask(Peer& p, const std::string& line) {
     p.send(line);
-    const std::string answer = p.line(loop);
+    const std::string answer = p.line(loop_);
     return json::parse(answer);  // throws (fails the test) unless the reply is valid JSON
   }
-  fs::path dir, path;
-  EventLoop loop;
-  ControlServer server{loop};
-  std::vector<ControlServer::ClientId> disconnected;
+  fs::path dir_, path_;
+  EventLoop loop_;
+  ControlServer server_{loop_};
+  std::vector<ControlServer::ClientId> disconnected_;
 };
 
 }  // namespace
 
 TEST_F(ControlServerTest, CommandsGoThroughTheTableWithTypedArguments) {
-  Peer p(path);
+  Peer p(path_);
   ASSERT_TRUE(p.connected());
   json r = ask(p, R"({"cmd":"echo","text":"hi","n":3})"
                   "\n");
@@ -114,7 +114,7 @@ TEST_F(ControlServerTest, CommandsGoThroughTheTableWithTypedArguments) {
 }
 
 TEST_F(ControlServerTest, AThrowingHandlerIsAnsweredAndTheServerGoesOn) {
-  Peer p(path);
+  Peer p(path_);
   json r = ask(p, R"({"cmd":"boom"})"
                   "\n");
   EXPECT_EQ(r["ok"], false);
@@ -126,7 +126,7 @@ TEST_F(ControlServerTest, AThrowingHandlerIsAnsweredAndTheServerGoesOn) {
 
 TEST_F(ControlServerTest, InvalidUtf8IsAnsweredWithValidJson) {
   // The two bytes that used to end mfcd: json::dump() threw on the raw byte in the parse error.
-  Peer p(path);
+  Peer p(path_);
   json r = ask(p, "\xff\n");
   EXPECT_EQ(r["ok"], false);
   r = ask(p, "{\"cmd\":\"echo\",\"text\":\"caf\xe9\"}\n");  // Latin-1 é inside a string
@@ -137,30 +137,30 @@ TEST_F(ControlServerTest, InvalidUtf8IsAnsweredWithValidJson) {
 }
 
 TEST_F(ControlServerTest, AnOverlongLineIsRefusedAndTheClientClosed) {
-  Peer p(path);
+  Peer p(path_);
   p.send(std::string(ControlServer::kMaxLine + 10, 'x'));
-  const json r = json::parse(p.line(loop));
+  const json r = json::parse(p.line(loop_));
   EXPECT_NE(r["error"].get<std::string>().find("request line too long"), std::string::npos);
-  EXPECT_TRUE(p.closed_by_server(loop));
-  EXPECT_EQ(disconnected.size(), 1u);
-  EXPECT_EQ(server.clients(), 0u);
+  EXPECT_TRUE(p.closed_by_server(loop_));
+  EXPECT_EQ(disconnected_.size(), 1u);
+  EXPECT_EQ(server_.clients(), 0u);
 }
 
 TEST_F(ControlServerTest, ClientsAreBoundedAndASlotFreesOnClose) {
   std::vector<std::unique_ptr<Peer>> peers;
   for (std::size_t i = 0; i < ControlServer::kMaxClients; ++i) {
-    peers.push_back(std::make_unique<Peer>(path));
-    loop.run_once(20);
+    peers.push_back(std::make_unique<Peer>(path_));
+    loop_.run_once(20);
   }
-  EXPECT_EQ(server.clients(), ControlServer::kMaxClients);
-  Peer extra(path);
-  const json r = json::parse(extra.line(loop));
+  EXPECT_EQ(server_.clients(), ControlServer::kMaxClients);
+  Peer extra(path_);
+  const json r = json::parse(extra.line(loop_));
   EXPECT_NE(r["error"].get<std::string>().find("too many control clients"), std::string::npos);
-  EXPECT_TRUE(extra.closed_by_server(loop));
+  EXPECT_TRUE(extra.closed_by_server(loop_));
   peers.pop_back();  // one leaves
-  for (int i = 0; i < 5; ++i) loop.run_once(20);
-  EXPECT_EQ(server.clients(), ControlServer::kMaxClients - 1);
-  Peer next(path);
+  for (int i = 0; i < 5; ++i) loop_.run_once(20);
+  EXPECT_EQ(server_.clients(), ControlServer::kMaxClients - 1);
+  Peer next(path_);
   EXPECT_EQ(ask(next, R"({"cmd":"echo","text":"in"})"
                       "\n")["text"],
             "in");
@@ -173,7 +173,7 @@ TEST_F(ControlServerTest, OutOfDescriptorsRefusesTheNewcomerWithoutSpinning) {
 #endif
   // Connect first (the client's socket exists), then let the process run out of descriptors:
   // accept4() fails with EMFILE, the spare descriptor is given up to take and refuse the client.
-  Peer p(path);
+  Peer p(path_);
   ASSERT_TRUE(p.connected());
   rlimit saved{};
   ASSERT_EQ(::getrlimit(RLIMIT_NOFILE, &saved), 0);
@@ -183,15 +183,15 @@ TEST_F(ControlServerTest, OutOfDescriptorsRefusesTheNewcomerWithoutSpinning) {
   std::vector<UniqueFd> filler;  // every free descriptor number below the limit
   for (int fd; (fd = ::dup(0)) >= 0;) filler.emplace_back(fd);
   ASSERT_EQ(errno, EMFILE);
-  loop.run_once(100);
-  loop.run_once(100);  // the listener is not left readable: nothing more to do, no spinning
+  loop_.run_once(100);
+  loop_.run_once(100);  // the listener is not left readable: nothing more to do, no spinning
   filler.clear();
   ASSERT_EQ(::setrlimit(RLIMIT_NOFILE, &saved), 0);
-  const json r = json::parse(p.line(loop));
+  const json r = json::parse(p.line(loop_));
   EXPECT_NE(r["error"].get<std::string>().find("out of file descriptors"), std::string::npos) << r.dump();
-  EXPECT_EQ(server.refused(), 1u);
-  EXPECT_EQ(server.clients(), 0u);
-  Peer later(path);
+  EXPECT_EQ(server_.refused(), 1u);
+  EXPECT_EQ(server_.clients(), 0u);
+  Peer later(path_);
   EXPECT_EQ(ask(later, R"({"cmd":"echo","text":"back"})"
                        "\n")["text"],
             "back")

@@ -26,35 +26,35 @@ using namespace std::chrono_literals;
 
 namespace {
 
-DaemonConfig patternConfig(int budgetMs) {
+DaemonConfig pattern_config(int budget_ms) {
   // No recipe mesh: the simulated camera serves the HAL's test pattern (no OpenGL needed).
-  DaemonConfig c = parseConfig(
+  DaemonConfig c = parse_config(
       "camera:\n  model: camera-sim.yaml\nrecipes:\n  - {id: 0, part: any, obj_id: 0}\n"
       "daemon:\n  realtime_priority: 0\n  cycle_budget_ms: " +
-          std::to_string(budgetMs) + "\n",
+          std::to_string(budget_ms) + "\n",
       "test", {MFC_SOURCE_DIR "/config"});
   return c;
 }
 
-CycleRequest request(std::uint64_t id, int budgetMs) {
+CycleRequest request(std::uint64_t id, int budget_ms) {
   CycleRequest r;
   r.origin = CycleOrigin::Benchmark;
   r.cycle_id = id;
   r.trigger = Clock::now();
-  r.deadline = r.trigger + std::chrono::milliseconds(budgetMs) * 9 / 10;
+  r.deadline = r.trigger + std::chrono::milliseconds(budget_ms) * 9 / 10;
   return r;
 }
 
-CycleResult runOne(Cell& cell, const CycleRequest& r) { return test::runCycle(cell, r); }
+CycleResult run_one(Cell& cell, const CycleRequest& r) { return test::run_cycle(cell, r); }
 
 // The next SnapshotSaved result (other kinds are skipped).
-CycleResult nextSnapshot(Cell& cell) {
+CycleResult next_snapshot(Cell& cell) {
   for (int i = 0; i < 100; ++i) {
-    pollfd p{cell.resultFd(), POLLIN, 0};
+    pollfd p{cell.result_fd(), POLLIN, 0};
     ::poll(&p, 1, 100);
-    if (CycleResult* res = cell.beginResult()) {
+    if (CycleResult* res = cell.begin_result()) {
       const CycleResult copy = *res;
-      cell.endResult();
+      cell.end_result();
       if (copy.kind == CycleResult::Kind::SnapshotSaved) return copy;
     }
   }
@@ -62,7 +62,7 @@ CycleResult nextSnapshot(Cell& cell) {
   return {};
 }
 
-std::string readFile(const std::filesystem::path& file) {
+std::string read_file(const std::filesystem::path& file) {
   std::ifstream in(file);
   return std::string(std::istreambuf_iterator<char>(in), {});
 }
@@ -70,10 +70,10 @@ std::string readFile(const std::filesystem::path& file) {
 }  // namespace
 
 TEST(Cycle, WithinBudgetNotDegradedNotOverrun) {
-  const DaemonConfig config = patternConfig(1000);
+  const DaemonConfig config = pattern_config(1000);
   Cell cell(config, [](const DaemonConfig&) { return std::make_unique<test::TruthVisionStage>(30ms); });
   cell.start();
-  const CycleResult r = runOne(cell, request(1, 1000));
+  const CycleResult r = run_one(cell, request(1, 1000));
   EXPECT_EQ(r.error, CycleError::None) << r.message;
   EXPECT_FALSE(r.degraded);
   EXPECT_GE(r.vision_ms, 29.0);
@@ -86,11 +86,11 @@ TEST(Cycle, WithinBudgetNotDegradedNotOverrun) {
 }
 
 TEST(Cycle, DeadlineCutsTheVisionStageShortAndFlagsDegraded) {
-  const DaemonConfig config = patternConfig(200);
+  const DaemonConfig config = pattern_config(200);
   Cell cell(config, [](const DaemonConfig&) { return std::make_unique<test::TruthVisionStage>(2000ms); });
   cell.start();
   const auto t0 = Clock::now();
-  const CycleResult r = runOne(cell, request(1, 200));
+  const CycleResult r = run_one(cell, request(1, 200));
   const double wall = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
   EXPECT_TRUE(r.degraded);
   EXPECT_LT(wall, 1000.0) << "the worker must not block for the backend's full 2 s";
@@ -101,10 +101,10 @@ TEST(Cycle, DeadlineCutsTheVisionStageShortAndFlagsDegraded) {
 }
 
 TEST(Cycle, ABackendIgnoringTheDeadlineIsCountedAsOverrun) {
-  const DaemonConfig config = patternConfig(100);
+  const DaemonConfig config = pattern_config(100);
   Cell cell(config, [](const DaemonConfig&) { return std::make_unique<test::TruthVisionStage>(250ms, false); });
   cell.start();
-  const CycleResult r = runOne(cell, request(1, 100));
+  const CycleResult r = run_one(cell, request(1, 100));
   EXPECT_FALSE(r.degraded);
   EXPECT_GT(r.total_ms, 250.0);
   CycleStats stats;
@@ -113,7 +113,7 @@ TEST(Cycle, ABackendIgnoringTheDeadlineIsCountedAsOverrun) {
 }
 
 TEST(Cycle, BackendFailureAtStartIsReportedAndThreadsJoined) {
-  const DaemonConfig config = patternConfig(100);
+  const DaemonConfig config = pattern_config(100);
   Cell cell(config, [](const DaemonConfig&) -> std::unique_ptr<VisionStage> {
     throw std::runtime_error("templates/x.tdb: corrupt");
   });
@@ -127,25 +127,25 @@ TEST(Cycle, BackendFailureAtStartIsReportedAndThreadsJoined) {
 
 // Heap allocations over 20 cycles of a started cell after 3 warm-up cycles; every cycle must
 // succeed (a failed one is a test failure and counts as an allocation, so the check cannot pass).
-static std::uint64_t steadyStateAllocations(Cell& cell) {
-  for (int i = 1; i <= 3; ++i) runOne(cell, request(static_cast<std::uint64_t>(i), 1000));  // warm-up
-  const std::uint64_t before = mfcd::hal::test::allocationCount();
+static std::uint64_t steady_state_allocations(Cell& cell) {
+  for (int i = 1; i <= 3; ++i) run_one(cell, request(static_cast<std::uint64_t>(i), 1000));  // warm-up
+  const std::uint64_t before = mfcd::hal::test::allocation_count();
   std::uint64_t failed = 0;
   for (int i = 4; i < 24; ++i) {
-    const CycleResult r = runOne(cell, request(static_cast<std::uint64_t>(i), 1000));
+    const CycleResult r = run_one(cell, request(static_cast<std::uint64_t>(i), 1000));
     if (r.error != CycleError::None) {
       ADD_FAILURE() << "cycle " << i << ": " << r.message;
       ++failed;
     }
   }
-  return mfcd::hal::test::allocationCount() - before + failed;
+  return mfcd::hal::test::allocation_count() - before + failed;
 }
 
 TEST(Cycle, NoAllocationOnTheFramePathInSteadyState) {
-  const DaemonConfig config = patternConfig(1000);
+  const DaemonConfig config = pattern_config(1000);
   Cell cell(config, [](const DaemonConfig&) { return std::make_unique<test::TruthVisionStage>(1ms); });
   cell.start();
-  EXPECT_EQ(steadyStateAllocations(cell), 0u) << "acquisition, copy into the ring, vision worker, results";
+  EXPECT_EQ(steady_state_allocations(cell), 0u) << "acquisition, copy into the ring, vision worker, results";
 }
 
 namespace {
@@ -167,7 +167,7 @@ class AsRealCamera final : public FrameSource {
 }  // namespace
 
 TEST(Cycle, NoAllocationOnTheFramePathInSteadyStateWithLensDistortion) {
-  DaemonConfig config = patternConfig(1000);
+  DaemonConfig config = pattern_config(1000);
   mfcd::vision::CameraConfig camera = mfcd::vision::load_camera_config(config.camera.model);
   camera.camera.distortion = {-0.2, 0.05, 0.001, -0.001, 0.0};
   const std::filesystem::path file =
@@ -177,10 +177,10 @@ TEST(Cycle, NoAllocationOnTheFramePathInSteadyStateWithLensDistortion) {
   Cell cell(
       config, [](const DaemonConfig&) { return std::make_unique<test::TruthVisionStage>(1ms); },
       [](const DaemonConfig& c) -> std::unique_ptr<FrameSource> {
-        return std::make_unique<AsRealCamera>(makeFrameSource(c));
+        return std::make_unique<AsRealCamera>(make_frame_source(c));
       });
   cell.start();
-  EXPECT_EQ(steadyStateAllocations(cell), 0u) << "acquisition, undistortion into the ring, vision worker, results";
+  EXPECT_EQ(steady_state_allocations(cell), 0u) << "acquisition, undistortion into the ring, vision worker, results";
   cell.stop();
   std::filesystem::remove(file);
 }
@@ -201,16 +201,16 @@ TEST(Cycle, UndistortingCopyRemapsEveryImageIntoTheSlotAndKeepsTheMetadata) {
       for (int x = 0; x < 64; ++x)
         from.frames[k].image.row(y)[x] = static_cast<std::uint8_t>((x * 4 + y * 3 + static_cast<int>(k) * 17) & 0xff);
     from.frames[k].led = static_cast<int>(k);
-    from.frames[k].onNs = 1000 + static_cast<std::int64_t>(k);
+    from.frames[k].on_ns = 1000 + static_cast<std::int64_t>(k);
   }
   from.sequence = 42;
-  const std::uint8_t* slotData = to.frames[3].image.data();
-  copyFrameSet(from, to, undistorter);
+  const std::uint8_t* slot_data = to.frames[3].image.data();
+  copy_frame_set(from, to, undistorter);
   EXPECT_EQ(to.sequence, 42u);
-  EXPECT_EQ(to.frames[3].image.data(), slotData) << "written in place";
+  EXPECT_EQ(to.frames[3].image.data(), slot_data) << "written in place";
   for (std::size_t k = 0; k < from.frames.size(); ++k) {
     EXPECT_EQ(to.frames[k].led, from.frames[k].led);
-    EXPECT_EQ(to.frames[k].onNs, from.frames[k].onNs);
+    EXPECT_EQ(to.frames[k].on_ns, from.frames[k].on_ns);
     const cv::Mat src(48, 64, CV_8UC1, from.frames[k].image.data());
     cv::Mat want;
     undistorter.apply(src, want);
@@ -224,11 +224,11 @@ TEST(Cycle, UndistortingCopyRemapsEveryImageIntoTheSlotAndKeepsTheMetadata) {
 // the real Cell every frame set passes and yields one stand-in pick; frames that are not what the
 // sequencer should have delivered are refused, each with a message naming the image.
 TEST(Cycle, PatternCheckPassesTheRealFramePathAndPicksTheStandIn) {
-  const DaemonConfig config = patternConfig(1000);
+  const DaemonConfig config = pattern_config(1000);
   Cell cell(config, [](const DaemonConfig&) { return std::make_unique<test::TruthVisionStage>(1ms, true, 0, true); });
   cell.start();
   for (int i = 1; i <= 5; ++i) {
-    const CycleResult r = runOne(cell, request(static_cast<std::uint64_t>(i), 1000));
+    const CycleResult r = run_one(cell, request(static_cast<std::uint64_t>(i), 1000));
     ASSERT_EQ(r.error, CycleError::None) << r.message;
     ASSERT_EQ(r.candidate_count, 1);
     EXPECT_EQ(r.chosen, 0);
@@ -287,30 +287,30 @@ TEST(Cycle, PatternCheckRefusesWrongLedStaleAndUntaggedFrames) {
 TEST(Cycle, KeptFrameSetIsSavedUntilTheNextCycleReplacesIt) {
   const std::filesystem::path dir =
       std::filesystem::temp_directory_path() / ("mfcd-kept-" + std::to_string(::getpid()));
-  DaemonConfig config = patternConfig(1000);
+  DaemonConfig config = pattern_config(1000);
   config.snapshots.directory = dir;
   Cell cell(config, [](const DaemonConfig&) { return std::make_unique<test::TruthVisionStage>(5ms, true, 0, true); });
   cell.start();
-  ASSERT_EQ(runOne(cell, request(1, 1000)).error, CycleError::None);
-  ASSERT_TRUE(cell.requestSnapshot(1, "pick result: missed (job 1, pick 1)"));
-  const CycleResult saved = nextSnapshot(cell);
+  ASSERT_EQ(run_one(cell, request(1, 1000)).error, CycleError::None);
+  ASSERT_TRUE(cell.request_snapshot(1, "pick result: missed (job 1, pick 1)"));
+  const CycleResult saved = next_snapshot(cell);
   ASSERT_NE(saved.snapshot_dir[0], '\0') << saved.message;
   EXPECT_EQ(saved.request.cycle_id, 1u);
   const std::filesystem::path snap = saved.snapshot_dir;
   for (const char* f : {"test/000001/flash/000000_0.png", "test/000001/flash/000000_7.png",
                         "test/000001/ambient/000000.png", "overlay.png", "result.json"})
     EXPECT_TRUE(std::filesystem::exists(snap / f)) << f;
-  const std::string json = readFile(snap / "result.json");
+  const std::string json = read_file(snap / "result.json");
   EXPECT_NE(json.find("\"snapshot_reason\": \"pick result: missed (job 1, pick 1)\""), std::string::npos) << json;
   EXPECT_NE(json.find("\"cycle\": 1,"), std::string::npos);
 
-  ASSERT_EQ(runOne(cell, request(2, 1000)).error, CycleError::None);
-  ASSERT_TRUE(cell.requestSnapshot(1, "late"));
-  const CycleResult gone = nextSnapshot(cell);
+  ASSERT_EQ(run_one(cell, request(2, 1000)).error, CycleError::None);
+  ASSERT_TRUE(cell.request_snapshot(1, "late"));
+  const CycleResult gone = next_snapshot(cell);
   EXPECT_EQ(gone.snapshot_dir[0], '\0');
   EXPECT_NE(std::string(gone.message).find("no longer kept (cycle 2 ran after it)"), std::string::npos) << gone.message;
-  ASSERT_TRUE(cell.requestSnapshot(2, "pick result: dropped"));
-  EXPECT_NE(nextSnapshot(cell).snapshot_dir[0], '\0');
+  ASSERT_TRUE(cell.request_snapshot(2, "pick result: dropped"));
+  EXPECT_NE(next_snapshot(cell).snapshot_dir[0], '\0');
   cell.stop();
   std::filesystem::remove_all(dir);
 }
@@ -334,7 +334,7 @@ TEST(CycleStats, PercentilesMatchASortedReference) {
     for (double p : {0.0, 1.0, 50.0, 90.0, 99.0, 100.0}) {
       std::size_t k = static_cast<std::size_t>(std::ceil(p / 100 * static_cast<double>(window.size())));
       k = k == 0 ? 0 : k - 1;
-      EXPECT_FLOAT_EQ(static_cast<float>(stats.percentileMs(p)), window[k]) << "p" << p << " n " << n;
+      EXPECT_FLOAT_EQ(static_cast<float>(stats.percentile_ms(p)), window[k]) << "p" << p << " n " << n;
     }
     EXPECT_EQ(stats.overruns(),
               static_cast<std::uint64_t>(std::count_if(all.begin(), all.end(), [](float v) { return v > 150; })));

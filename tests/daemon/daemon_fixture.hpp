@@ -14,27 +14,27 @@ namespace mfcd::daemon::test {
 
 class DaemonFixture : public ::testing::Test {
  protected:
-  void startDaemon(const std::string& name, int budgetMs = 1000, std::vector<std::string> env = {},
-                   const std::string& extra = "") {
-    startDaemonOn(
-        name, [&](const fs::path& dir) { return simCellConfig(dir, budgetMs, extra); }, std::move(env));
+  void start_daemon(const std::string& name, int budget_ms = 1000, std::vector<std::string> env = {},
+                    const std::string& extra = "") {
+    start_daemon_on(
+        name, [&](const fs::path& dir) { return sim_cell_config(dir, budget_ms, extra); }, std::move(env));
   }
   // The same on a configuration of the test's own, made for the process's folder.
-  void startDaemonOn(const std::string& name, const std::function<std::string(const fs::path& dir)>& config,
-                     std::vector<std::string> env = {}) {
-    proc = std::make_unique<DaemonProcess>(name);
-    proc->writeConfig(config(proc->dir()));
-    proc->start(MFCD_TEST_DAEMON, {}, std::move(env));
-    if (!proc->waitReady()) {
-      const std::string log = proc->log();
+  void start_daemon_on(const std::string& name, const std::function<std::string(const fs::path& dir)>& config,
+                       std::vector<std::string> env = {}) {
+    proc_ = std::make_unique<DaemonProcess>(name);
+    proc_->write_config(config(proc_->dir()));
+    proc_->start(MFCD_TEST_DAEMON, {}, std::move(env));
+    if (!proc_->wait_ready()) {
+      const std::string log = proc_->log();
       if (log.find("EGL") != std::string::npos || log.find("OpenGL") != std::string::npos)
         GTEST_SKIP() << "no offscreen OpenGL: " << log;
       FAIL() << "mfcd did not become ready:\n" << log;
     }
-    port = proc->modbusPort();
+    port_ = proc_->modbus_port();
   }
-  std::unique_ptr<DaemonProcess> proc;
-  int port = 0;
+  std::unique_ptr<DaemonProcess> proc_;
+  int port_ = 0;
 };
 
 }  // namespace mfcd::daemon::test

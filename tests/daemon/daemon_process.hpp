@@ -30,12 +30,12 @@ namespace fs = std::filesystem;
 using nlohmann::json;
 
 // The simulated cell with the six parts (meshes from <build>/parts), robot link on a free port.
-inline std::string simCellConfig(const fs::path& dir, int budgetMs = 1000, const std::string& extraDaemon = "",
-                                 bool templates = false) {
+inline std::string sim_cell_config(const fs::path& dir, int budget_ms = 1000, const std::string& extra_daemon = "",
+                                   bool templates = false) {
   std::ostringstream s;
-  s << "daemon:\n  cycle_budget_ms: " << budgetMs << "\n  control_socket: " << (dir / "ctl.sock").string()
+  s << "daemon:\n  cycle_budget_ms: " << budget_ms << "\n  control_socket: " << (dir / "ctl.sock").string()
     << "\n  lock_memory: false\n  realtime_priority: 0\n"
-    << extraDaemon << "camera:\n  model: camera-sim.yaml\nsimulation:\n  parts_per_bin: 4\n  seed: 5\nrecipes:\n"
+    << extra_daemon << "camera:\n  model: camera-sim.yaml\nsimulation:\n  parts_per_bin: 4\n  seed: 5\nrecipes:\n"
     << "  - {id: 0, part: any, obj_id: 0}\n";
   // In the order of config/parts/parts.csv: obj_id = position + 1.
   const char* parts[] = {"breaker", "diamond", "ellipse", "tnut", "knob", "wheel"};
@@ -56,7 +56,7 @@ inline std::string simCellConfig(const fs::path& dir, int budgetMs = 1000, const
 
 // Sends raw bytes (one request line and its newline) and returns the reply line, without its
 // newline; empty when the daemon does not answer.
-inline std::string ctlLine(const fs::path& socket, const std::string& line, int timeoutMs = 30000) {
+inline std::string ctl_line(const fs::path& socket, const std::string& line, int timeout_ms = 30000) {
   const int fd = ::socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
   sockaddr_un addr{};
   addr.sun_family = AF_UNIX;
@@ -70,7 +70,7 @@ inline std::string ctlLine(const fs::path& socket, const std::string& line, int 
   char buf[8192];
   while (in.find('\n') == std::string::npos) {
     pollfd p{fd, POLLIN, 0};
-    if (::poll(&p, 1, timeoutMs) <= 0) break;
+    if (::poll(&p, 1, timeout_ms) <= 0) break;
     const ssize_t n = ::recv(fd, buf, sizeof buf, 0);
     if (n <= 0) break;
     in.append(buf, static_cast<std::size_t>(n));
@@ -80,8 +80,8 @@ inline std::string ctlLine(const fs::path& socket, const std::string& line, int 
   return in.substr(0, in.find('\n'));
 }
 
-inline json ctlRequest(const fs::path& socket, const json& request, int timeoutMs = 30000) {
-  const std::string reply = ctlLine(socket, request.dump() + "\n", timeoutMs);
+inline json ctl_request(const fs::path& socket, const json& request, int timeout_ms = 30000) {
+  const std::string reply = ctl_line(socket, request.dump() + "\n", timeout_ms);
   if (reply.empty()) return {{"ok", false}, {"error", "no answer"}};
   return json::parse(reply);
 }
@@ -102,12 +102,12 @@ class DaemonProcess {
   }
   const fs::path& dir() const { return dir_; }
   fs::path socket() const { return dir_ / "ctl.sock"; }
-  fs::path configFile() const { return dir_ / "mfcd.yaml"; }
-  void writeConfig(const std::string& text) const { std::ofstream(configFile()) << text; }
+  fs::path config_file() const { return dir_ / "mfcd.yaml"; }
+  void write_config(const std::string& text) const { std::ofstream(config_file()) << text; }
 
   // Starts `binary -c mfcd.yaml -f [args]` with extra environment; stderr goes to log.txt.
   void start(const std::string& binary, std::vector<std::string> args = {}, std::vector<std::string> env = {}) {
-    std::vector<std::string> argv{binary, "-c", configFile().string(), "-f"};
+    std::vector<std::string> argv{binary, "-c", config_file().string(), "-f"};
     argv.insert(argv.end(), args.begin(), args.end());
     std::vector<char*> a;
     for (auto& s : argv) a.push_back(s.data());
@@ -128,8 +128,8 @@ class DaemonProcess {
     posix_spawn_file_actions_destroy(&fa);
   }
   // Waits until the control socket answers status (the daemon is ready) or the process exits.
-  bool waitReady(int timeoutMs = 60000) {
-    const auto end = std::chrono::steady_clock::now() + std::chrono::milliseconds(timeoutMs);
+  bool wait_ready(int timeout_ms = 60000) {
+    const auto end = std::chrono::steady_clock::now() + std::chrono::milliseconds(timeout_ms);
     while (std::chrono::steady_clock::now() < end) {
       if (exited()) return false;
       if (fs::exists(socket())) {
@@ -140,25 +140,25 @@ class DaemonProcess {
     }
     return false;
   }
-  json ctl(const json& request, int timeoutMs = 30000) const { return ctlRequest(socket(), request, timeoutMs); }
-  int modbusPort() const { return ctl({{"cmd", "status"}})["modbus"]["port"].get<int>(); }
+  json ctl(const json& request, int timeout_ms = 30000) const { return ctl_request(socket(), request, timeout_ms); }
+  int modbus_port() const { return ctl({{"cmd", "status"}})["modbus"]["port"].get<int>(); }
   void signal(int sig) const { ::kill(pid_, sig); }
   pid_t pid() const { return pid_; }
   bool exited() {
     if (pid_ <= 0) return true;
     int status = 0;
     if (::waitpid(pid_, &status, WNOHANG) == pid_) {
-      exitCode_ = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+      exit_code_ = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
       pid_ = -1;
       return true;
     }
     return false;
   }
-  // Exit code, or nullopt if still running after timeoutMs.
-  std::optional<int> wait(int timeoutMs) {
-    const auto end = std::chrono::steady_clock::now() + std::chrono::milliseconds(timeoutMs);
+  // Exit code, or nullopt if still running after timeout_ms.
+  std::optional<int> wait(int timeout_ms) {
+    const auto end = std::chrono::steady_clock::now() + std::chrono::milliseconds(timeout_ms);
     while (std::chrono::steady_clock::now() < end) {
-      if (exited()) return exitCode_;
+      if (exited()) return exit_code_;
       std::this_thread::sleep_for(std::chrono::milliseconds(20));
     }
     return std::nullopt;
@@ -179,7 +179,7 @@ class DaemonProcess {
  private:
   fs::path dir_;
   pid_t pid_ = -1;
-  int exitCode_ = -1;
+  int exit_code_ = -1;
 };
 
 }  // namespace mfcd::daemon::test

@@ -31,7 +31,7 @@ constexpr int kBudgetMs = 1000;
 constexpr int kJobs = 40;
 
 // Connects to the Modbus port, sends `bytes`, closes.
-void sendRaw(int port, const std::string& bytes) {
+void send_raw(int port, const std::string& bytes) {
   const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
   sockaddr_in a{};
   a.sin_family = AF_INET;
@@ -47,9 +47,9 @@ void sendRaw(int port, const std::string& bytes) {
 class DaemonFaultMatrix : public DaemonFixture {};
 
 TEST_F(DaemonFaultMatrix, EveryAcceptedJobEndsWithAResultOrAnErrorCode) {
-  startDaemon("fault-matrix", kBudgetMs, {"MFCD_TEST_FAULTS=7,25"});
+  start_daemon("fault-matrix", kBudgetMs, {"MFCD_TEST_FAULTS=7,25"});
   if (IsSkipped() || HasFailure()) return;
-  DaemonProcess& proc = *this->proc;
+  DaemonProcess& proc = *this->proc_;
   const fs::path socket = proc.dir() / "ctl.sock";
 
   std::atomic<bool> done{false};
@@ -65,25 +65,25 @@ TEST_F(DaemonFaultMatrix, EveryAcceptedJobEndsWithAResultOrAnErrorCode) {
           ++outside["SIGHUP reload"];
           break;
         case 1:
-          ctlLine(socket, "\xff\xfe{\"cmd\":\"st\xc3\n", 2000);
+          ctl_line(socket, "\xff\xfe{\"cmd\":\"st\xc3\n", 2000);
           ++outside["invalid UTF-8 control line"];
           break;
         case 2:
-          ctlLine(socket, std::string(1 << 20, 'x') + "\n", 2000);
+          ctl_line(socket, std::string(1 << 20, 'x') + "\n", 2000);
           ++outside["1 MiB control line"];
           break;
         case 3:
-          ctlLine(socket, "{\"cmd\":\"trigger\"}\n", 5000);
+          ctl_line(socket, "{\"cmd\":\"trigger\"}\n", 5000);
           ++outside["control-socket cycle"];
           break;
         case 4:
-          sendRaw(port, std::string("\x00\x01\x00", 3));
+          send_raw(port_, std::string("\x00\x01\x00", 3));
           ++outside["Modbus client gone mid-frame"];
           break;
         default: {
           std::string junk(260, '\0');
           for (char& c : junk) c = static_cast<char>(rng() & 0xff);
-          sendRaw(port, junk);
+          send_raw(port_, junk);
           ++outside["Modbus garbage"];
           break;
         }
@@ -91,11 +91,11 @@ TEST_F(DaemonFaultMatrix, EveryAcceptedJobEndsWithAResultOrAnErrorCode) {
     }
   });
 
-  Client plc(port);
+  Client plc(port_);
   ASSERT_TRUE(plc.connected);
   std::map<int, int> ended;  // ERROR_CODE -> jobs (0: a result)
   int accepted = 0, picks = 0;
-  double slowestMs = 0;
+  double slowest_ms = 0;
   for (std::uint16_t job = 1; job <= kJobs; ++job) {
     // Ready, clearing a latched error as a PLC does.
     Regs r;
@@ -115,9 +115,10 @@ TEST_F(DaemonFaultMatrix, EveryAcceptedJobEndsWithAResultOrAnErrorCode) {
     const auto t0 = std::chrono::steady_clock::now();
     if (plc.trigger(job, 0) != 0) continue;  // refused (busy: a control cycle or a reload): not accepted
     ++accepted;
-    ASSERT_TRUE(plc.waitFor(job, r, kBudgetMs + 2000)) << "job " << job << " accepted but not answered\n" << proc.log();
-    slowestMs =
-        std::max(slowestMs, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+    ASSERT_TRUE(plc.wait_for(job, r, kBudgetMs + 2000)) << "job " << job << " accepted but not answered\n"
+                                                        << proc.log();
+    slowest_ms =
+        std::max(slowest_ms, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
     const std::uint16_t error = r.at(reg::kErrorCode);
     const bool pick = r.at(reg::kStatus) & reg::kPickValid;
     EXPECT_FALSE(pick && error != 0) << "job " << job;
@@ -128,7 +129,7 @@ TEST_F(DaemonFaultMatrix, EveryAcceptedJobEndsWithAResultOrAnErrorCode) {
   faults.join();
 
   std::string summary = "accepted " + std::to_string(accepted) + " of " + std::to_string(kJobs) + ", picks " +
-                        std::to_string(picks) + ", slowest answer " + std::to_string(slowestMs) + " ms; ended:";
+                        std::to_string(picks) + ", slowest answer " + std::to_string(slowest_ms) + " ms; ended:";
   for (const auto& [code, n] : ended) summary += " code " + std::to_string(code) + " x" + std::to_string(n);
   summary += "; sent:";
   for (const auto& [what, n] : outside) summary += " " + what + " x" + std::to_string(n);

@@ -23,19 +23,19 @@ class FaultySource final : public FrameSource {
     if (SimulatedWorld* sim = inner_->simulation(); sim && std::uniform_int_distribution<int>(0, 99)(rng_) < percent_) {
       switch (std::uniform_int_distribution<int>(0, 4)(rng_)) {
         case 0:
-          sim->simulatedCamera().injectTimeouts(1);
+          sim->simulated_camera().inject_timeouts(1);
           break;
         case 1:
-          sim->simulatedCamera().injectErrorFrames(2);
+          sim->simulated_camera().inject_error_frames(2);
           break;
         case 2:
-          sim->simulatedCamera().injectStaleFrames(1);
+          sim->simulated_camera().inject_stale_frames(1);
           break;
         case 3:
-          sim->simulatedCamera().injectDisconnect();
+          sim->simulated_camera().inject_disconnect();
           break;
         default:
-          sim->simulatedLights().failNextSets(1);
+          sim->simulated_lights().fail_next_sets(1);
           break;
       }
     }

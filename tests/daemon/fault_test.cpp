@@ -21,12 +21,12 @@ TEST(DaemonFaults, AFullDiskFailsTheSnapshotWithTheReasonAndLeavesNoHalfSnapshot
     fs::path p;
     ~Unmount() { ::umount2(p.c_str(), MNT_DETACH); }
   } unmount{small};
-  std::string config = simCellConfig(proc.dir());
+  std::string config = sim_cell_config(proc.dir());
   const std::string from = "snapshots:\n  directory: " + (proc.dir() / "snapshots").string();
   config.replace(config.find(from), from.size(), "snapshots:\n  directory: " + small.string());
-  proc.writeConfig(config);
+  proc.write_config(config);
   proc.start(MFCD_TEST_DAEMON);
-  if (!proc.waitReady()) {
+  if (!proc.wait_ready()) {
     const std::string log = proc.log();
     if (log.find("EGL") != std::string::npos || log.find("OpenGL") != std::string::npos)
       GTEST_SKIP() << "no offscreen OpenGL";

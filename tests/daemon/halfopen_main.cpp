@@ -546,22 +546,22 @@ int run_main(const std::map<std::string, std::string>& o) {
   s.plc_addr = need(o, "--plc-addr");
 
   DaemonProcess proc("halfopen");
-  std::string config = simCellConfig(proc.dir());
+  std::string config = sim_cell_config(proc.dir());
   const std::string modbus = "modbus:\n  bind_address: 127.0.0.1\n  port: 0\n";
   config.replace(config.find(modbus), modbus.size(),
                  "modbus:\n  bind_address: " + s.host + "\n  port: 0\n  max_clients: " + std::to_string(kMaxClients) +
                      "\n  frame_timeout_ms: " + std::to_string(kFrameTimeoutMs) +
                      "\n  idle_timeout_ms: " + std::to_string(kIdleTimeoutMs) + "\n");
-  proc.writeConfig(config);
+  proc.write_config(config);
   for (int sig : {SIGTERM, SIGINT, SIGHUP}) ::signal(sig, on_terminate);
   proc.start(need(o, "--daemon"));
   g_daemon_pid = proc.pid();
-  if (!proc.waitReady()) {
+  if (!proc.wait_ready()) {
     const std::string log = proc.log();
     std::fprintf(stderr, "mfcd did not become ready:\n%s\n", log.c_str());
     return log.find("EGL") != std::string::npos || log.find("OpenGL") != std::string::npos ? 77 : 1;
   }
-  s.port = proc.modbusPort();
+  s.port = proc.modbus_port();
   const int fds_before = settled_fd_count(proc.pid());
   std::printf("daemon pid %d on %s:%d, %d descriptors; max_clients %d, frame_timeout_ms %d, idle_timeout_ms %d\n",
               proc.pid(), s.host.c_str(), s.port, fds_before, kMaxClients, kFrameTimeoutMs, kIdleTimeoutMs);

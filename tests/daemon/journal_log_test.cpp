@@ -59,7 +59,7 @@ class TempDir {
   fs::path path_;
 };
 
-std::string devIno(int fd) {
+std::string dev_ino(int fd) {
   struct stat st {};
   if (::fstat(fd, &st) != 0) return "";
   return std::to_string(static_cast<unsigned long long>(st.st_dev)) + ":" +
@@ -78,10 +78,10 @@ class FakeJournal {
       throw std::runtime_error("cannot bind " + path.string());
   }
   ~FakeJournal() { ::close(fd_); }
-  // The next datagram, or nullopt when none arrives within `timeoutMs`.
-  std::optional<std::string> receive(int timeoutMs = 2000) {
+  // The next datagram, or nullopt when none arrives within `timeout_ms`.
+  std::optional<std::string> receive(int timeout_ms = 2000) {
     pollfd p{fd_, POLLIN, 0};
-    if (::poll(&p, 1, timeoutMs) != 1) return std::nullopt;
+    if (::poll(&p, 1, timeout_ms) != 1) return std::nullopt;
     char buf[65536];
     const ssize_t n = ::recv(fd_, buf, sizeof buf, 0);
     if (n < 0) return std::nullopt;
@@ -96,7 +96,7 @@ class FakeJournal {
 
 // Parses a native-protocol datagram of NAME=value lines, as journald does, strictly: every line
 // ends with '\n', has a '=' and a valid upper-case name. Failures are test failures.
-std::vector<std::pair<std::string, std::string>> parseDatagram(const std::string& d) {
+std::vector<std::pair<std::string, std::string>> parse_datagram(const std::string& d) {
   std::vector<std::pair<std::string, std::string>> out;
   std::size_t pos = 0;
   while (pos < d.size()) {
@@ -111,7 +111,7 @@ std::vector<std::pair<std::string, std::string>> parseDatagram(const std::string
       ADD_FAILURE() << "line without '=' (the binary form is never sent): " << line;
     } else {
       const std::string name = line.substr(0, eq);
-      EXPECT_TRUE(journalFieldNameValid(name)) << name;
+      EXPECT_TRUE(journal_field_name_valid(name)) << name;
       for (const char c : name) EXPECT_TRUE((c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_') << name;
       out.emplace_back(name, line.substr(eq + 1));
     }
@@ -120,7 +120,7 @@ std::vector<std::pair<std::string, std::string>> parseDatagram(const std::string
   return out;
 }
 
-std::map<std::string, std::string> asMap(const std::vector<std::pair<std::string, std::string>>& fields) {
+std::map<std::string, std::string> as_map(const std::vector<std::pair<std::string, std::string>>& fields) {
   std::map<std::string, std::string> m;
   for (const auto& [k, v] : fields) {
     EXPECT_EQ(m.count(k), 0u) << "field " << k << " twice";
@@ -129,7 +129,7 @@ std::map<std::string, std::string> asMap(const std::vector<std::pair<std::string
   return m;
 }
 
-Fields asStrings(const JournalFields& f) {
+Fields as_strings(const JournalFields& f) {
   Fields out;
   for (std::size_t i = 0; i < f.size(); ++i) out.emplace_back(f[i]);
   return out;
@@ -172,12 +172,12 @@ class StderrCapture {
 };
 
 // The log as mfcd opens it (stderr on, as with -f), its journal sink on `socket` (nullptr: none).
-void openLog(const char* socket) {
+void open_log(const char* socket) {
   ::unsetenv("JOURNAL_STREAM");
-  logOpen("mfcd", true, LogLevel::Info);
-  ASSERT_FALSE(logToJournal());
+  log_open("mfcd", true, LogLevel::Info);
+  ASSERT_FALSE(log_to_journal());
   if (socket) {
-    ASSERT_TRUE(logOpenJournal(socket));
+    ASSERT_TRUE(log_open_journal(socket));
   }
 }
 
@@ -189,26 +189,26 @@ TEST(JournalStream, MatchesTheDescriptorItNames) {
   TempDir dir;
   const int file = ::open((dir.path() / "f").c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0600);
   ASSERT_GE(file, 0);
-  EXPECT_TRUE(journalStreamMatches(devIno(file).c_str(), file));
+  EXPECT_TRUE(journal_stream_matches(dev_ino(file).c_str(), file));
   // Another file on the same device: same st_dev, other inode.
   const int other = ::open((dir.path() / "g").c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0600);
-  EXPECT_FALSE(journalStreamMatches(devIno(file).c_str(), other));
-  EXPECT_TRUE(journalStreamMatches(devIno(other).c_str(), other));
+  EXPECT_FALSE(journal_stream_matches(dev_ino(file).c_str(), other));
+  EXPECT_TRUE(journal_stream_matches(dev_ino(other).c_str(), other));
   // A pipe (stderr redirected by a shell): another device and inode.
   int p[2];
   ASSERT_EQ(::pipe2(p, O_CLOEXEC), 0);
-  EXPECT_FALSE(journalStreamMatches(devIno(file).c_str(), p[1]));
-  EXPECT_TRUE(journalStreamMatches(devIno(p[1]).c_str(), p[1]));
+  EXPECT_FALSE(journal_stream_matches(dev_ino(file).c_str(), p[1]));
+  EXPECT_TRUE(journal_stream_matches(dev_ino(p[1]).c_str(), p[1]));
   // Same inode number on another device, same device with the next inode.
   struct stat st {};
   ASSERT_EQ(::fstat(file, &st), 0);
   const auto dev = static_cast<unsigned long long>(st.st_dev), ino = static_cast<unsigned long long>(st.st_ino);
-  EXPECT_FALSE(journalStreamMatches((std::to_string(dev + 1) + ":" + std::to_string(ino)).c_str(), file));
-  EXPECT_FALSE(journalStreamMatches((std::to_string(dev) + ":" + std::to_string(ino + 1)).c_str(), file));
+  EXPECT_FALSE(journal_stream_matches((std::to_string(dev + 1) + ":" + std::to_string(ino)).c_str(), file));
+  EXPECT_FALSE(journal_stream_matches((std::to_string(dev) + ":" + std::to_string(ino + 1)).c_str(), file));
   // A closed descriptor cannot be the journal.
-  const std::string s = devIno(file);
+  const std::string s = dev_ino(file);
   ::close(file);
-  EXPECT_FALSE(journalStreamMatches(s.c_str(), file));
+  EXPECT_FALSE(journal_stream_matches(s.c_str(), file));
   ::close(other);
   ::close(p[0]);
   ::close(p[1]);
@@ -222,39 +222,39 @@ TEST(JournalStream, MalformedValuesDoNotMatch) {
   ASSERT_EQ(::fstat(file, &st), 0);
   const std::string dev = std::to_string(static_cast<unsigned long long>(st.st_dev));
   const std::string ino = std::to_string(static_cast<unsigned long long>(st.st_ino));
-  ASSERT_TRUE(journalStreamMatches((dev + ":" + ino).c_str(), file));
-  EXPECT_FALSE(journalStreamMatches(nullptr, file));
+  ASSERT_TRUE(journal_stream_matches((dev + ":" + ino).c_str(), file));
+  EXPECT_FALSE(journal_stream_matches(nullptr, file));
   for (const std::string& bad :
        {std::string(), std::string(":"), dev, dev + ":", ":" + ino, ino + ":" + dev, " " + dev + ":" + ino,
         dev + ":" + ino + " ", dev + ":" + ino + "\n", dev + " :" + ino, "+" + dev + ":" + ino, "-" + dev + ":" + ino,
         dev + ":0x" + ino, dev + ":" + ino + ":0", dev + "/" + ino, "99999999999999999999999:" + ino,
         std::string("a:b")})
-    EXPECT_FALSE(journalStreamMatches(bad.c_str(), file)) << "'" << bad << "'";
+    EXPECT_FALSE(journal_stream_matches(bad.c_str(), file)) << "'" << bad << "'";
   ::close(file);
 }
 
-// stderrIsJournal and logOpen read $JOURNAL_STREAM against the process's real fd 2.
+// stderr_is_journal and log_open read $JOURNAL_STREAM against the process's real fd 2.
 TEST(JournalStream, StderrAndLogOpenFollowTheEnvironment) {
   TempDir dir;
   StderrCapture capture;  // fd 2 is now a file of ours
-  const std::string mine = devIno(STDERR_FILENO);
+  const std::string mine = dev_ino(STDERR_FILENO);
   int p[2];
   ASSERT_EQ(::pipe2(p, O_CLOEXEC), 0);
 
   ::setenv("JOURNAL_STREAM", mine.c_str(), 1);
-  EXPECT_TRUE(stderrIsJournal());
-  logOpen("mfcd", true, LogLevel::Info);
-  EXPECT_TRUE(logToJournal());  // the sink on kJournalSocket (made, not yet used)
+  EXPECT_TRUE(stderr_is_journal());
+  log_open("mfcd", true, LogLevel::Info);
+  EXPECT_TRUE(log_to_journal());  // the sink on kJournalSocket (made, not yet used)
 
-  ::setenv("JOURNAL_STREAM", devIno(p[1]).c_str(), 1);  // inherited from a parent whose stderr was the journal
-  EXPECT_FALSE(stderrIsJournal());
-  logOpen("mfcd", true, LogLevel::Info);
-  EXPECT_FALSE(logToJournal());
+  ::setenv("JOURNAL_STREAM", dev_ino(p[1]).c_str(), 1);  // inherited from a parent whose stderr was the journal
+  EXPECT_FALSE(stderr_is_journal());
+  log_open("mfcd", true, LogLevel::Info);
+  EXPECT_FALSE(log_to_journal());
 
   ::unsetenv("JOURNAL_STREAM");
-  EXPECT_FALSE(stderrIsJournal());
-  logOpen("mfcd", true, LogLevel::Info);
-  EXPECT_FALSE(logToJournal());
+  EXPECT_FALSE(stderr_is_journal());
+  log_open("mfcd", true, LogLevel::Info);
+  EXPECT_FALSE(log_to_journal());
   ::close(p[0]);
   ::close(p[1]);
 }
@@ -263,13 +263,13 @@ TEST(JournalStream, StderrAndLogOpenFollowTheEnvironment) {
 
 TEST(JournalFields, NamesAreCheckedAsJournaldDoes) {
   for (const char* good : {"MESSAGE", "MFCD_CYCLE", "MFCD_ERROR_CODE", "A", "X9_", "PRIORITY"})
-    EXPECT_TRUE(journalFieldNameValid(good)) << good;
-  EXPECT_TRUE(journalFieldNameValid(std::string(64, 'A')));
+    EXPECT_TRUE(journal_field_name_valid(good)) << good;
+  EXPECT_TRUE(journal_field_name_valid(std::string(64, 'A')));
   for (const std::string& bad :
        {std::string(), std::string("mfcd_cycle"), std::string("Mfcd_Cycle"), std::string("_PID"), std::string("1ABC"),
         std::string("MFCD-CYCLE"), std::string("MFCD CYCLE"), std::string("MFCD=X"), std::string(65, 'A'),
         std::string("MFCD\nX")})
-    EXPECT_FALSE(journalFieldNameValid(bad)) << bad;
+    EXPECT_FALSE(journal_field_name_valid(bad)) << bad;
   JournalFields f;
   EXPECT_FALSE(f.add("mfcd_cycle", "1"));
   EXPECT_FALSE(f.add("_PID", "1"));
@@ -282,8 +282,8 @@ TEST(JournalFields, ValuesAreSanitisedToOneLine) {
   ASSERT_TRUE(f.add("MFCD_PART", "\xc2\xb5-part"));  // UTF-8 stays as it is
   ASSERT_TRUE(f.addf("MFCD_SCORE", "%.3f", 0.5));
   ASSERT_TRUE(f.add("EMPTY", ""));
-  EXPECT_EQ(asStrings(f), (Fields{"MESSAGE=camera failed EIO  again   end", "MFCD_PART=\xc2\xb5-part",
-                                  "MFCD_SCORE=0.500", "EMPTY="}));
+  EXPECT_EQ(as_strings(f), (Fields{"MESSAGE=camera failed EIO  again   end", "MFCD_PART=\xc2\xb5-part",
+                                   "MFCD_SCORE=0.500", "EMPTY="}));
 }
 
 TEST(JournalFields, FullListDropsWholeFields) {
@@ -305,32 +305,32 @@ TEST(JournalFields, FullListDropsWholeFields) {
 
 TEST(CycleJournalFields, ErrorResult) {
   JournalFields f;
-  cycleJournalFields(errorResult(41, 7), f);
-  EXPECT_EQ(asStrings(f), (Fields{"MFCD_CYCLE=41", "MFCD_JOB_ID=7", "MFCD_ERROR_CODE=2"}));
+  cycle_journal_fields(error_result(41, 7), f);
+  EXPECT_EQ(as_strings(f), (Fields{"MFCD_CYCLE=41", "MFCD_JOB_ID=7", "MFCD_ERROR_CODE=2"}));
   // An error after a pick was chosen (the transform failed) still carries no pick fields.
-  CycleResult r = pickResult(44, 9);
+  CycleResult r = pick_result(44, 9);
   r.error = CycleError::Transform;
-  cycleJournalFields(r, f);
-  EXPECT_EQ(asStrings(f), (Fields{"MFCD_CYCLE=44", "MFCD_JOB_ID=9", "MFCD_ERROR_CODE=4"}));
+  cycle_journal_fields(r, f);
+  EXPECT_EQ(as_strings(f), (Fields{"MFCD_CYCLE=44", "MFCD_JOB_ID=9", "MFCD_ERROR_CODE=4"}));
 }
 
 TEST(CycleJournalFields, PickResult) {
   JournalFields f;
-  cycleJournalFields(pickResult(18446744073709551615ull, 65535), f);
-  EXPECT_EQ(asStrings(f), (Fields{"MFCD_CYCLE=18446744073709551615", "MFCD_JOB_ID=65535", "MFCD_ERROR_CODE=0",
-                                  "MFCD_PART=4", "MFCD_SCORE=0.625"}));
+  cycle_journal_fields(pick_result(18446744073709551615ull, 65535), f);
+  EXPECT_EQ(as_strings(f), (Fields{"MFCD_CYCLE=18446744073709551615", "MFCD_JOB_ID=65535", "MFCD_ERROR_CODE=0",
+                                   "MFCD_PART=4", "MFCD_SCORE=0.625"}));
 }
 
 TEST(CycleJournalFields, ResultWithoutAPick) {
   JournalFields f;
-  cycleJournalFields(noPickResult(43, 0), f);
-  EXPECT_EQ(asStrings(f), (Fields{"MFCD_CYCLE=43", "MFCD_JOB_ID=0", "MFCD_ERROR_CODE=0"}));
+  cycle_journal_fields(no_pick_result(43, 0), f);
+  EXPECT_EQ(as_strings(f), (Fields{"MFCD_CYCLE=43", "MFCD_JOB_ID=0", "MFCD_ERROR_CODE=0"}));
 }
 
 TEST(CycleJournalFields, WholeEntryAndDatagram) {
   JournalFields extra, entry;
-  cycleJournalFields(errorResult(41, 7), extra);
-  journalEntry(LogLevel::Error, "mfcd", errorLine(41, 7), extra, entry);
+  cycle_journal_fields(error_result(41, 7), extra);
+  journal_entry(LogLevel::Error, "mfcd", error_line(41, 7), extra, entry);
   const Fields expected{"MESSAGE=cycle 41 (plc job 7 recipe 2): error 2: camera: VIDIOC_DQBUF failed EIO",
                         "PRIORITY=3",
                         "SYSLOG_FACILITY=3",
@@ -338,31 +338,31 @@ TEST(CycleJournalFields, WholeEntryAndDatagram) {
                         "MFCD_CYCLE=41",
                         "MFCD_JOB_ID=7",
                         "MFCD_ERROR_CODE=2"};
-  EXPECT_EQ(asStrings(entry), expected);
+  EXPECT_EQ(as_strings(entry), expected);
   char d[JournalSink::kMaxDatagram];
-  const std::size_t n = encodeJournalDatagram(entry, d, sizeof d);
+  const std::size_t n = encode_journal_datagram(entry, d, sizeof d);
   std::string bytes;
   for (const auto& f : expected) bytes += f + "\n";
   EXPECT_EQ(std::string(d, n), bytes);
   // Too small a buffer, or nothing to send: 0, never a cut datagram.
-  EXPECT_EQ(encodeJournalDatagram(entry, d, bytes.size() - 1), 0u);
-  EXPECT_EQ(encodeJournalDatagram(entry, d, bytes.size()), bytes.size());
-  EXPECT_EQ(encodeJournalDatagram(JournalFields{}, d, sizeof d), 0u);
+  EXPECT_EQ(encode_journal_datagram(entry, d, bytes.size() - 1), 0u);
+  EXPECT_EQ(encode_journal_datagram(entry, d, bytes.size()), bytes.size());
+  EXPECT_EQ(encode_journal_datagram(JournalFields{}, d, sizeof d), 0u);
 
   // PRIORITY follows the level; a long message is cut at 1023 bytes like logf's line.
-  cycleJournalFields(pickResult(42, 8), extra);
-  journalEntry(LogLevel::Info, "mfcd", std::string(3000, 'm'), extra, entry);
-  const Fields got = asStrings(entry);
+  cycle_journal_fields(pick_result(42, 8), extra);
+  journal_entry(LogLevel::Info, "mfcd", std::string(3000, 'm'), extra, entry);
+  const Fields got = as_strings(entry);
   ASSERT_EQ(got.size(), 9u);
   EXPECT_EQ(got[0], "MESSAGE=" + std::string(1023, 'm'));
   EXPECT_EQ(got[1], "PRIORITY=6");
   EXPECT_EQ(got[7], "MFCD_PART=4");
   EXPECT_EQ(got[8], "MFCD_SCORE=0.625");
-  journalEntry(LogLevel::Notice, "mfcd", "x", extra, entry);
+  journal_entry(LogLevel::Notice, "mfcd", "x", extra, entry);
   EXPECT_EQ(entry[1], "PRIORITY=5");
-  journalEntry(LogLevel::Warning, "mfcd", "x", extra, entry);
+  journal_entry(LogLevel::Warning, "mfcd", "x", extra, entry);
   EXPECT_EQ(entry[1], "PRIORITY=4");
-  journalEntry(LogLevel::Debug, "mfcd", "x", extra, entry);
+  journal_entry(LogLevel::Debug, "mfcd", "x", extra, entry);
   EXPECT_EQ(entry[1], "PRIORITY=7");
 }
 
@@ -373,16 +373,16 @@ TEST(JournalSink, OneDatagramArrivesOnTheBoundSocket) {
   FakeJournal journal(dir.path() / "socket");
   JournalSink sink((dir.path() / "socket").c_str());
   JournalFields extra, entry;
-  cycleJournalFields(pickResult(42, 8), extra);
-  journalEntry(LogLevel::Info, "mfcd", pickLine(42, 8), extra, entry);
+  cycle_journal_fields(pick_result(42, 8), extra);
+  journal_entry(LogLevel::Info, "mfcd", pick_line(42, 8), extra, entry);
   ASSERT_TRUE(sink.send(entry));
   const auto d = journal.receive();
   ASSERT_TRUE(d);
   char expected[JournalSink::kMaxDatagram];
-  EXPECT_EQ(*d, std::string(expected, encodeJournalDatagram(entry, expected, sizeof expected)));
-  const auto fields = parseDatagram(*d);
+  EXPECT_EQ(*d, std::string(expected, encode_journal_datagram(entry, expected, sizeof expected)));
+  const auto fields = parse_datagram(*d);
   ASSERT_EQ(fields.size(), 9u);
-  EXPECT_EQ(fields[0], std::make_pair(std::string("MESSAGE"), pickLine(42, 8)));
+  EXPECT_EQ(fields[0], std::make_pair(std::string("MESSAGE"), pick_line(42, 8)));
   EXPECT_EQ(fields[8], std::make_pair(std::string("MFCD_SCORE"), std::string("0.625")));
   EXPECT_FALSE(journal.receive(50)) << "one entry, one datagram";
 }
@@ -392,22 +392,22 @@ TEST(JournalSink, RefusesAPathThatDoesNotFit) {
   EXPECT_THROW(JournalSink(""), std::runtime_error);
 }
 
-// The daemon's own call: logCycleResult with the sink open sends the three lines as entries
+// The daemon's own call: log_cycle_result with the sink open sends the three lines as entries
 // and writes nothing on stderr (under systemd stderr is the same journal).
 TEST(JournalLog, CycleLinesGoToTheJournalWithFields) {
   TempDir dir;
   FakeJournal journal(dir.path() / "socket");
   StderrCapture capture;
-  openLog((dir.path() / "socket").c_str());
+  open_log((dir.path() / "socket").c_str());
 
-  logCycleResult(errorResult(41, 7));
-  logCycleResult(pickResult(42, 8));
-  logCycleResult(noPickResult(43, 9));
+  log_cycle_result(error_result(41, 7));
+  log_cycle_result(pick_result(42, 8));
+  log_cycle_result(no_pick_result(43, 9));
 
   auto d = journal.receive();
   ASSERT_TRUE(d);
-  auto m = asMap(parseDatagram(*d));
-  EXPECT_EQ(m, (std::map<std::string, std::string>{{"MESSAGE", flattened(errorLine(41, 7))},
+  auto m = as_map(parse_datagram(*d));
+  EXPECT_EQ(m, (std::map<std::string, std::string>{{"MESSAGE", flattened(error_line(41, 7))},
                                                    {"PRIORITY", "3"},
                                                    {"SYSLOG_FACILITY", "3"},
                                                    {"SYSLOG_IDENTIFIER", "mfcd"},
@@ -416,8 +416,8 @@ TEST(JournalLog, CycleLinesGoToTheJournalWithFields) {
                                                    {"MFCD_ERROR_CODE", "2"}}));
   d = journal.receive();
   ASSERT_TRUE(d);
-  m = asMap(parseDatagram(*d));
-  EXPECT_EQ(m["MESSAGE"], pickLine(42, 8));
+  m = as_map(parse_datagram(*d));
+  EXPECT_EQ(m["MESSAGE"], pick_line(42, 8));
   EXPECT_EQ(m["PRIORITY"], "6");
   EXPECT_EQ(m["MFCD_CYCLE"], "42");
   EXPECT_EQ(m["MFCD_JOB_ID"], "8");
@@ -426,26 +426,26 @@ TEST(JournalLog, CycleLinesGoToTheJournalWithFields) {
   EXPECT_EQ(m["MFCD_SCORE"], "0.625");
   d = journal.receive();
   ASSERT_TRUE(d);
-  m = asMap(parseDatagram(*d));
-  EXPECT_EQ(m["MESSAGE"], noPickLine(43, 9));
+  m = as_map(parse_datagram(*d));
+  EXPECT_EQ(m["MESSAGE"], no_pick_line(43, 9));
   EXPECT_EQ(m["PRIORITY"], "5");
   EXPECT_EQ(m.count("MFCD_PART"), 0u);
   EXPECT_EQ(m.count("MFCD_SCORE"), 0u);
   EXPECT_EQ(m.size(), 7u);
   EXPECT_FALSE(journal.receive(50));
   EXPECT_EQ(capture.text(), "");
-  logOpenJournal(nullptr);
+  log_open_journal(nullptr);
 }
 
-// Without a journal the line is written exactly as Daemon::onResult always wrote it.
+// Without a journal the line is written exactly as Daemon::on_result always wrote it.
 TEST(JournalLog, PlainLineUnchangedWithoutJournal) {
   TempDir dir;
   FakeJournal journal(dir.path() / "socket");  // bound, but the sink is not pointed at it
   StderrCapture capture;
-  openLog(nullptr);
-  logCycleResult(errorResult(41, 7));
-  logCycleResult(pickResult(42, 8));
-  logCycleResult(noPickResult(43, 9));
+  open_log(nullptr);
+  log_cycle_result(error_result(41, 7));
+  log_cycle_result(pick_result(42, 8));
+  log_cycle_result(no_pick_result(43, 9));
   EXPECT_EQ(capture.text(),
             "mfcd[error]: cycle 41 (plc job 7 recipe 2): error 2: camera: VIDIOC_DQBUF failed\nEIO\n"
             "mfcd[info]: cycle 42 (plc job 8 recipe 3): pick obj 4 at 512.5 -20.0 130.3 / 180.0 0.0 -35.5 "
@@ -458,36 +458,36 @@ TEST(JournalLog, LevelFilterApplies) {
   TempDir dir;
   FakeJournal journal(dir.path() / "socket");
   StderrCapture capture;
-  openLog((dir.path() / "socket").c_str());
-  logSetLevel(LogLevel::Warning);
-  logCycleResult(pickResult(42, 8));    // info: filtered
-  logCycleResult(noPickResult(43, 9));  // notice: filtered
-  logCycleResult(errorResult(41, 7));
+  open_log((dir.path() / "socket").c_str());
+  log_set_level(LogLevel::Warning);
+  log_cycle_result(pick_result(42, 8));     // info: filtered
+  log_cycle_result(no_pick_result(43, 9));  // notice: filtered
+  log_cycle_result(error_result(41, 7));
   const auto d = journal.receive();
   ASSERT_TRUE(d);
-  EXPECT_EQ(asMap(parseDatagram(*d))["MFCD_CYCLE"], "41");
+  EXPECT_EQ(as_map(parse_datagram(*d))["MFCD_CYCLE"], "41");
   EXPECT_FALSE(journal.receive(50));
-  logSetLevel(LogLevel::Info);
-  logOpenJournal(nullptr);
+  log_set_level(LogLevel::Info);
+  log_open_journal(nullptr);
 }
 
 // journald stopped (nothing bound at the path): the lines take the plain path; one warning says so.
 TEST(JournalLog, FallsBackToThePlainLineWhenJournaldIsGone) {
   TempDir dir;
   StderrCapture capture;
-  openLog((dir.path() / "nobody-listens").c_str());
-  logCycleResult(errorResult(41, 7));
-  logCycleResult(noPickResult(43, 9));
+  open_log((dir.path() / "nobody-listens").c_str());
+  log_cycle_result(error_result(41, 7));
+  log_cycle_result(no_pick_result(43, 9));
   const std::string text = capture.text();
   EXPECT_EQ(text,
             "mfcd[warning]: journal: a structured entry could not be sent (No such file or directory); such lines go "
             "to syslog without fields\n"
             "mfcd[error]: " +
-                errorLine(41, 7) +
+                error_line(41, 7) +
                 "\n"
                 "mfcd[notice]: " +
-                noPickLine(43, 9) + "\n");
-  logOpenJournal(nullptr);
+                no_pick_line(43, 9) + "\n");
+  log_open_journal(nullptr);
 }
 
 // journald's queue full: the send does not wait (MSG_DONTWAIT), the line takes the plain path.
@@ -496,22 +496,22 @@ TEST(JournalLog, FullQueueNeverBlocks) {
   FakeJournal journal(dir.path() / "socket");  // never read until the end
   JournalSink filler((dir.path() / "socket").c_str());
   JournalFields entry;
-  journalEntry(LogLevel::Info, "mfcd", "filler", JournalFields{}, entry);
+  journal_entry(LogLevel::Info, "mfcd", "filler", JournalFields{}, entry);
   int sent = 0;
   while (filler.send(entry) && sent < 1000000) ++sent;
   ASSERT_EQ(errno, EAGAIN) << "after " << sent << " datagrams";
   ASSERT_GT(sent, 0);
 
   StderrCapture capture;
-  openLog((dir.path() / "socket").c_str());
+  open_log((dir.path() / "socket").c_str());
   const auto t0 = std::chrono::steady_clock::now();
-  logCycleResult(errorResult(41, 7));
+  log_cycle_result(error_result(41, 7));
   const auto ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   EXPECT_LT(ms, 500.0);
   const std::string text = capture.text();
   EXPECT_NE(text.find("(Resource temporarily unavailable)"), std::string::npos) << text;
-  EXPECT_NE(text.find("mfcd[error]: " + errorLine(41, 7) + "\n"), std::string::npos) << text;
-  logOpenJournal(nullptr);
+  EXPECT_NE(text.find("mfcd[error]: " + error_line(41, 7) + "\n"), std::string::npos) << text;
+  log_open_journal(nullptr);
 }
 
 // The journal path formats and sends from fixed buffers: no heap allocation per line.
@@ -519,22 +519,22 @@ TEST(JournalLog, JournalPathDoesNotAllocate) {
   TempDir dir;
   FakeJournal journal(dir.path() / "socket");
   StderrCapture capture;
-  openLog((dir.path() / "socket").c_str());
-  const CycleResult results[] = {errorResult(41, 7), pickResult(42, 8), noPickResult(43, 9)};
-  logCycleResult(results[0]);  // warm-up
+  open_log((dir.path() / "socket").c_str());
+  const CycleResult results[] = {error_result(41, 7), pick_result(42, 8), no_pick_result(43, 9)};
+  log_cycle_result(results[0]);  // warm-up
   ASSERT_TRUE(journal.receive());
   int received = 0;
-  const auto before = mfcd::hal::test::allocationCount();
+  const auto before = mfcd::hal::test::allocation_count();
   for (int i = 0; i < 30; ++i) {
-    logCycleResult(results[i % 3]);
+    log_cycle_result(results[i % 3]);
     char buf[4096];  // drain, so the queue never fills
     if (::recv(journal.fd(), buf, sizeof buf, MSG_DONTWAIT) > 0) ++received;
   }
-  const auto allocations = mfcd::hal::test::allocationCount() - before;
+  const auto allocations = mfcd::hal::test::allocation_count() - before;
   EXPECT_EQ(allocations, 0u);
   EXPECT_EQ(received, 30);
   EXPECT_EQ(capture.text(), "");
-  logOpenJournal(nullptr);
+  log_open_journal(nullptr);
 }
 
 // ---- a real journald ----
@@ -584,16 +584,16 @@ TEST(JournalRoundTrip, JournalctlSelectsCyclesByTheirFields) {
     EXPECT_EQ(field(entries[i], "MFCD_CYCLE"), std::to_string(cycle + i));
     EXPECT_EQ(field(entries[i], "MFCD_JOB_ID"), std::to_string(job));
   }
-  EXPECT_EQ(field(entries[0], "MESSAGE"), flattened(errorLine(cycle, static_cast<std::uint16_t>(job))));
+  EXPECT_EQ(field(entries[0], "MESSAGE"), flattened(error_line(cycle, static_cast<std::uint16_t>(job))));
   EXPECT_EQ(field(entries[0], "PRIORITY"), "3");
   EXPECT_EQ(field(entries[0], "MFCD_ERROR_CODE"), "2");
   EXPECT_EQ(field(entries[0], "MFCD_PART"), "-");
-  EXPECT_EQ(field(entries[1], "MESSAGE"), pickLine(cycle + 1, static_cast<std::uint16_t>(job)));
+  EXPECT_EQ(field(entries[1], "MESSAGE"), pick_line(cycle + 1, static_cast<std::uint16_t>(job)));
   EXPECT_EQ(field(entries[1], "PRIORITY"), "6");
   EXPECT_EQ(field(entries[1], "MFCD_ERROR_CODE"), "0");
   EXPECT_EQ(field(entries[1], "MFCD_PART"), "4");
   EXPECT_EQ(field(entries[1], "MFCD_SCORE"), "0.625");
-  EXPECT_EQ(field(entries[2], "MESSAGE"), noPickLine(cycle + 2, static_cast<std::uint16_t>(job)));
+  EXPECT_EQ(field(entries[2], "MESSAGE"), no_pick_line(cycle + 2, static_cast<std::uint16_t>(job)));
   EXPECT_EQ(field(entries[2], "PRIORITY"), "5");
   EXPECT_EQ(field(entries[2], "MFCD_ERROR_CODE"), "0");
   EXPECT_EQ(field(entries[2], "MFCD_SCORE"), "-");

@@ -1,7 +1,7 @@
 #pragma once
 // The three cycle results the journald tests log (journal_log_test.cpp) and the probe sends
 // through a real journald (journal_probe_main.cpp): an error, a pick and a cycle without a pick,
-// with the exact result lines Daemon::onResult has always written for them.
+// with the exact result lines Daemon::on_result has always written for them.
 #include <cstdint>
 #include <string>
 
@@ -11,24 +11,24 @@ namespace mfcd::daemon::test {
 
 // Cycle `cycle`, job `job`: the camera failed (ERROR_CODE 2). The message holds a newline, as an
 // exception's what() may.
-inline CycleResult errorResult(std::uint64_t cycle, std::uint16_t job) {
+inline CycleResult error_result(std::uint64_t cycle, std::uint16_t job) {
   CycleResult r;
   r.request.cycle_id = cycle;
   r.request.job_id = job;
   r.request.recipe_id = 2;
   r.request.origin = CycleOrigin::Plc;
   r.error = CycleError::Capture;
-  copyMessage(r.message, sizeof r.message, "camera: VIDIOC_DQBUF failed\nEIO");
+  copy_message(r.message, sizeof r.message, "camera: VIDIOC_DQBUF failed\nEIO");
   r.total_ms = 12;
   return r;
 }
-inline std::string errorLine(std::uint64_t cycle, std::uint16_t job) {
+inline std::string error_line(std::uint64_t cycle, std::uint16_t job) {
   return "cycle " + std::to_string(cycle) + " (plc job " + std::to_string(job) +
          " recipe 2): error 2: camera: VIDIOC_DQBUF failed\nEIO";
 }
 
 // Cycle `cycle`, job `job`: three candidates, the second (obj 4, score 0.625) picked.
-inline CycleResult pickResult(std::uint64_t cycle, std::uint16_t job) {
+inline CycleResult pick_result(std::uint64_t cycle, std::uint16_t job) {
   CycleResult r;
   r.request.cycle_id = cycle;
   r.request.job_id = job;
@@ -47,13 +47,13 @@ inline CycleResult pickResult(std::uint64_t cycle, std::uint16_t job) {
   r.total_ms = 180.4;
   return r;
 }
-inline std::string pickLine(std::uint64_t cycle, std::uint16_t job) {
+inline std::string pick_line(std::uint64_t cycle, std::uint16_t job) {
   return "cycle " + std::to_string(cycle) + " (plc job " + std::to_string(job) +
          " recipe 3): pick obj 4 at 512.5 -20.0 130.3 / 180.0 0.0 -35.5 score 0.625, 3 found, 180 ms";
 }
 
 // Cycle `cycle`, job `job`, from the control socket: nothing found.
-inline CycleResult noPickResult(std::uint64_t cycle, std::uint16_t job) {
+inline CycleResult no_pick_result(std::uint64_t cycle, std::uint16_t job) {
   CycleResult r;
   r.request.cycle_id = cycle;
   r.request.job_id = job;
@@ -64,7 +64,7 @@ inline CycleResult noPickResult(std::uint64_t cycle, std::uint16_t job) {
   r.total_ms = 95.6;
   return r;
 }
-inline std::string noPickLine(std::uint64_t cycle, std::uint16_t job) {
+inline std::string no_pick_line(std::uint64_t cycle, std::uint16_t job) {
   return "cycle " + std::to_string(cycle) + " (control job " + std::to_string(job) +
          " recipe 1): no pick, 0 found, 96 ms";
 }

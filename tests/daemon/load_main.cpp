@@ -295,7 +295,7 @@ int main(int argc, char** argv) {
     return 2;
   }
   DaemonProcess proc("load");
-  std::string config = simCellConfig(proc.dir(), o.budget_ms);
+  std::string config = sim_cell_config(proc.dir(), o.budget_ms);
   const std::string port_line = "  port: 0\n";
   config.replace(config.find(port_line), port_line.size(), port_line + "  max_clients: 64\n");
   std::vector<std::string> env{"MFCD_TEST_VISION_MS=" + std::to_string(o.vision_ms)};
@@ -305,14 +305,14 @@ int main(int argc, char** argv) {
       config.erase(at, config.find('}', at) - at);
     env.push_back("MFCD_TEST_VISION_PATTERN=1");
   }
-  proc.writeConfig(config);
+  proc.write_config(config);
   proc.start(o.daemon, {}, env);
-  if (!proc.waitReady()) {
+  if (!proc.wait_ready()) {
     const std::string log = proc.log();
     std::fprintf(stderr, "mfcd did not become ready:\n%s\n", log.c_str());
     return log.find("EGL") != std::string::npos || log.find("OpenGL") != std::string::npos ? 77 : 1;
   }
-  const int port = proc.modbusPort();
+  const int port = proc.modbus_port();
   const pid_t pid = proc.pid();
   const int fds_before = fd_count(pid);
 
@@ -327,7 +327,7 @@ int main(int argc, char** argv) {
   threads.emplace_back([&] {
     while (!stop.load()) {
       ++control_requests;
-      const std::string r = ctlLine(proc.socket(), "{\"cmd\":\"status\"}\n", 5000);
+      const std::string r = ctl_line(proc.socket(), "{\"cmd\":\"status\"}\n", 5000);
       if (r.empty() || json::parse(r).value("ok", false) != true) ++control_failures;
       std::this_thread::sleep_for(500ms);
     }

@@ -35,19 +35,19 @@ TEST(PipelineE2E, RealMfcdPicksSimulatedPartsWithinToleranceAndBudget) {
 #ifndef MFCD_HAVE_PIPELINE
   GTEST_SKIP() << "mfcd was built without vision/pipeline (mfcd_vision_pipeline): no real vision backend yet";
 #else
-  if (const std::string missing = missingTemplate(); !missing.empty()) GTEST_SKIP() << missing;
+  if (const std::string missing = missing_template(); !missing.empty()) GTEST_SKIP() << missing;
   DaemonProcess proc("pipeline");
   // Two search rounds (vision.search_rounds), as config/sim.yaml has them.
-  proc.writeConfig(simCellConfig(proc.dir(), kBudgetMs, "", true) + "vision:\n  search_rounds: 2\n");
+  proc.write_config(sim_cell_config(proc.dir(), kBudgetMs, "", true) + "vision:\n  search_rounds: 2\n");
   proc.start(MFCD_BINARY);
-  ASSERT_TRUE(proc.waitReady(180000)) << proc.log();
-  modbus_t* ctx = modbus_new_tcp("127.0.0.1", proc.modbusPort());
+  ASSERT_TRUE(proc.wait_ready(180000)) << proc.log();
+  modbus_t* ctx = modbus_new_tcp("127.0.0.1", proc.modbus_port());
   ASSERT_EQ(modbus_connect(ctx), 0);
   modbus_set_response_timeout(ctx, 3, 0);
   std::uint16_t regs[28];
   auto at = [&](int a) { return regs[a - reg::kStatus]; };
   auto f = [&](int a) { return decode_float(at(a), at(a + 1), WordOrder::ABCD); };
-  int matched = 0, picks = 0, degraded = 0, twoRounds = 0;
+  int matched = 0, picks = 0, degraded = 0, two_rounds = 0;
   for (std::uint16_t job = 1; job <= 6; ++job) {
     for (int i = 0; i < 2000; ++i) {
       ASSERT_EQ(modbus_read_registers(ctx, reg::kStatus, 28, regs), 28);
@@ -71,7 +71,7 @@ TEST(PipelineE2E, RealMfcdPicksSimulatedPartsWithinToleranceAndBudget) {
     EXPECT_TRUE(last.contains("escalated") && last["escalated"].is_boolean()) << "job " << job << ": " << last.dump();
     EXPECT_TRUE(rounds == 1 || rounds == 2) << "job " << job << ": " << rounds << " search rounds";
     degraded += last["degraded"].get<bool>();
-    twoRounds += rounds == 2;
+    two_rounds += rounds == 2;
     if (!(at(reg::kStatus) & reg::kPickValid)) {
       std::string found;
       for (const auto& c : last["candidates"])
@@ -86,20 +86,20 @@ TEST(PipelineE2E, RealMfcdPicksSimulatedPartsWithinToleranceAndBudget) {
     ++picks;
     const double x = f(reg::kPickX), y = f(reg::kPickY), z = f(reg::kPickZ);
     double best = 1e9, dxy = 0, dz = 0;
-    int truthObj = 0;
+    int truth_obj = 0;
     for (const auto& t : last["sim_truth"]) {
       const double ex = t["base"]["x"].get<double>() - x, ey = t["base"]["y"].get<double>() - y,
                    ez = t["base"]["z"].get<double>() - z;
       const double d = std::sqrt(ex * ex + ey * ey + ez * ez);
-      if (d < best) best = d, truthObj = t["obj_id"].get<int>(), dxy = std::hypot(ex, ey), dz = ez;
+      if (d < best) best = d, truth_obj = t["obj_id"].get<int>(), dxy = std::hypot(ex, ey), dz = ez;
     }
     std::printf(
         "job %u: pick %.1f %.1f %.1f obj %d score %.2f; nearest part obj %d: %.2f mm (xy %.2f, z %+.2f); cycle %u "
         "ms%s\n",
-        job, x, y, z, last["pick"]["obj_id"].get<int>(), f(reg::kScore), truthObj, best, dxy, dz, at(reg::kCycleTimeMs),
-        last["degraded"].get<bool>() ? " degraded" : "");
+        job, x, y, z, last["pick"]["obj_id"].get<int>(), f(reg::kScore), truth_obj, best, dxy, dz,
+        at(reg::kCycleTimeMs), last["degraded"].get<bool>() ? " degraded" : "");
     if (dxy <= kLateralToleranceMm && std::abs(dz) <= kDepthToleranceMm &&
-        truthObj == last["pick"]["obj_id"].get<int>())
+        truth_obj == last["pick"]["obj_id"].get<int>())
       ++matched;
   }
   modbus_close(ctx);
@@ -112,9 +112,9 @@ TEST(PipelineE2E, RealMfcdPicksSimulatedPartsWithinToleranceAndBudget) {
   EXPECT_EQ(picks, 6);
   // A second round runs when the first was complete and the budget leaves it room (release: every
   // cycle; under ASan the deadline degrades the first round, and then no second runs).
-  std::printf("%d of 6 cycles degraded, %d ran two search rounds\n", degraded, twoRounds);
+  std::printf("%d of 6 cycles degraded, %d ran two search rounds\n", degraded, two_rounds);
   if (degraded == 0) {
-    EXPECT_GT(twoRounds, 0) << "no cycle ran its second search round";
+    EXPECT_GT(two_rounds, 0) << "no cycle ran its second search round";
   }
   proc.signal(SIGTERM);
   EXPECT_EQ(proc.wait(15000), 0);
@@ -131,7 +131,7 @@ struct CsvEstimate {
 };
 
 // The rows of a BOP results CSV (vision/dataset/bop_results.hpp): scene_id,im_id,obj_id,score,R,t,time.
-std::vector<CsvEstimate> readBopCsv(const fs::path& file) {
+std::vector<CsvEstimate> read_bop_csv(const fs::path& file) {
   std::ifstream in(file);
   std::string line;
   std::getline(in, line);  // header
@@ -160,12 +160,12 @@ TEST(PipelineE2E, SnapshotReplaysToTheSameCandidates) {
 #ifndef MFCD_HAVE_PIPELINE
   GTEST_SKIP() << "mfcd was built without vision/pipeline (mfcd_vision_pipeline): no real vision backend yet";
 #else
-  if (const std::string missing = missingTemplate(); !missing.empty()) GTEST_SKIP() << missing;
+  if (const std::string missing = missing_template(); !missing.empty()) GTEST_SKIP() << missing;
   DaemonProcess proc("replay");
   // A budget no machine reaches (ASan included): the cycle runs to its end, as mfc-detect does.
-  proc.writeConfig(simCellConfig(proc.dir(), 60000, "", true) + "vision:\n  search_rounds: 2\n");
+  proc.write_config(sim_cell_config(proc.dir(), 60000, "", true) + "vision:\n  search_rounds: 2\n");
   proc.start(MFCD_BINARY);
-  ASSERT_TRUE(proc.waitReady(180000)) << proc.log();
+  ASSERT_TRUE(proc.wait_ready(180000)) << proc.log();
   const json snap = proc.ctl({{"cmd", "snapshot"}, {"recipe", 0}}, 120000);
   ASSERT_TRUE(snap.value("ok", false)) << snap.dump() << proc.log();
   const fs::path dir = snap["snapshot"].get<std::string>();
@@ -181,7 +181,7 @@ TEST(PipelineE2E, SnapshotReplaysToTheSameCandidates) {
   const std::string cmd = std::string(MFC_DETECT_BINARY) + " --dataset " + dir.string() + " --out " + csv.string() +
                           " --quiet > " + (proc.dir() / "detect.log").string() + " 2>&1";
   ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
-  const std::vector<CsvEstimate> replayed = readBopCsv(csv);
+  const std::vector<CsvEstimate> replayed = read_bop_csv(csv);
   const json& cands = result["candidates"];
   ASSERT_EQ(replayed.size(), cands.size()) << "the replay found another number of candidates";
   for (std::size_t i = 0; i < replayed.size(); ++i) {

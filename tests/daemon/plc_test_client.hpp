@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdint>
 #include <thread>
+#include <vector>
 
 #include "motion/float_codec.hpp"
 #include "motion/register_map.hpp"
@@ -38,17 +39,17 @@ struct Client {
     const std::uint16_t cmd[4] = {1, job, recipe, mode};
     return modbus_write_registers(ctx, motion::reg::kCommand, 4, cmd) == 4 ? 0 : errno;
   }
-  bool waitFor(std::uint16_t job, Regs& out, int timeoutMs = 20000) {
-    const auto end = std::chrono::steady_clock::now() + std::chrono::milliseconds(timeoutMs);
+  bool wait_for(std::uint16_t job, Regs& out, int timeout_ms = 20000) {
+    const auto end = std::chrono::steady_clock::now() + std::chrono::milliseconds(timeout_ms);
     while (std::chrono::steady_clock::now() < end) {
       if (read(out) && out.at(motion::reg::kJobIdEcho) == job) return true;
       std::this_thread::sleep_for(5ms);
     }
     return false;
   }
-  bool waitReady(int timeoutMs = 20000) {
+  bool wait_ready(int timeout_ms = 20000) {
     Regs r;
-    const auto end = std::chrono::steady_clock::now() + std::chrono::milliseconds(timeoutMs);
+    const auto end = std::chrono::steady_clock::now() + std::chrono::milliseconds(timeout_ms);
     while (std::chrono::steady_clock::now() < end) {
       if (read(r) && (r.at(motion::reg::kStatus) & motion::reg::kReady)) return true;
       std::this_thread::sleep_for(5ms);
@@ -60,7 +61,7 @@ struct Client {
 };
 
 // x, y, z mm and rx, ry, rz degrees with R = Rz * Ry * Rx (docs/register-map.md "Orientation").
-inline Eigen::Isometry3d poseOf(double x, double y, double z, double rx, double ry, double rz) {
+inline Eigen::Isometry3d pose_of(double x, double y, double z, double rx, double ry, double rz) {
   const double d = M_PI / 180;
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
   T.linear() =
@@ -72,7 +73,7 @@ inline Eigen::Isometry3d poseOf(double x, double y, double z, double rx, double 
 }
 
 // The robot pose block (36..49) in one FC 0x10, ABCD; returns what modbus_write_registers does.
-inline int writeRobotPose(modbus_t* mb, const double (&v)[6], std::uint16_t valid, std::uint16_t seq) {
+inline int write_robot_pose(modbus_t* mb, const double (&v)[6], std::uint16_t valid, std::uint16_t seq) {
   std::uint16_t block[14];
   for (int i = 0; i < 6; ++i) {
     const auto w = motion::encode_float(static_cast<float>(v[i]), motion::WordOrder::ABCD);
@@ -80,6 +81,37 @@ inline int writeRobotPose(modbus_t* mb, const double (&v)[6], std::uint16_t vali
   }
   block[12] = valid, block[13] = seq;
   return modbus_write_registers(mb, motion::reg::kRobotPoseX, 14, block);
+}
+
+// The whole register map in one FC 0x03 read; empty when the read fails.
+inline std::vector<std::uint16_t> read_map(modbus_t* mb) {
+  std::vector<std::uint16_t> m(motion::reg::kBlockSize);
+  if (modbus_read_registers(mb, 0, motion::reg::kBlockSize, m.data()) != motion::reg::kBlockSize) m.clear();
+  return m;
+}
+// The float32 pair at register `a` of a map read, ABCD.
+inline float float_at(const std::vector<std::uint16_t>& m, int a) {
+  return motion::decode_float(m[static_cast<std::size_t>(a)], m[static_cast<std::size_t>(a) + 1],
+                              motion::WordOrder::ABCD);
+}
+
+// Waits for READY, starts a job (COMMAND, JOB_ID, RECIPE_ID, MODE 0 in one write) and waits for
+// its result: the map read that shows it, or empty after ~60 s.
+inline std::vector<std::uint16_t> run_job(modbus_t* mb, std::uint16_t command, std::uint16_t job,
+                                          std::uint16_t recipe = 0) {
+  for (int i = 0; i < 4000; ++i) {
+    const auto m = read_map(mb);
+    if (!m.empty() && (m[motion::reg::kStatus] & motion::reg::kReady)) break;
+    std::this_thread::sleep_for(5ms);
+  }
+  const std::uint16_t cmd[4] = {command, job, recipe, 0};
+  if (modbus_write_registers(mb, motion::reg::kCommand, 4, cmd) != 4) return {};
+  for (int i = 0; i < 12000; ++i) {
+    auto m = read_map(mb);
+    if (!m.empty() && m[motion::reg::kJobIdEcho] == job && !(m[motion::reg::kStatus] & motion::reg::kBusy)) return m;
+    std::this_thread::sleep_for(5ms);
+  }
+  return {};
 }
 
 }  // namespace mfcd::daemon::test

@@ -25,14 +25,14 @@ using namespace std::chrono_literals;
 namespace {
 
 // Distance of a published pick to the nearest simulated part (robot base frame), and that part.
-double distanceToTruth(const json& last, float x, float y, float z, int* objId = nullptr) {
+double distance_to_truth(const json& last, float x, float y, float z, int* obj_id = nullptr) {
   double best = 1e9;
   for (const auto& t : last["sim_truth"]) {
     const double d = std::hypot(t["base"]["x"].get<double>() - x, t["base"]["y"].get<double>() - y,
                                 t["base"]["z"].get<double>() - z);
     if (d < best) {
       best = d;
-      if (objId) *objId = t["obj_id"].get<int>();
+      if (obj_id) *obj_id = t["obj_id"].get<int>();
     }
   }
   return best;
@@ -43,22 +43,22 @@ class DaemonE2E : public DaemonFixture {};
 }  // namespace
 
 TEST_F(DaemonE2E, PlcTriggerPublishesThePickOfASimulatedPartWithinBudget) {
-  startDaemon("pick");
-  Client plc(port);
+  start_daemon("pick");
+  Client plc(port_);
   ASSERT_TRUE(plc.connected);
-  ASSERT_TRUE(plc.waitReady());
+  ASSERT_TRUE(plc.wait_ready());
   Regs r;
   for (std::uint16_t job = 21; job <= 24; ++job) {
     ASSERT_EQ(plc.trigger(job, 0), 0) << modbus_strerror(errno);
-    ASSERT_TRUE(plc.waitFor(job, r)) << proc->log();
+    ASSERT_TRUE(plc.wait_for(job, r)) << proc_->log();
     EXPECT_EQ(r.at(reg::kErrorCode), 0);
     EXPECT_TRUE(r.at(reg::kStatus) & reg::kDone);
     ASSERT_TRUE(r.at(reg::kStatus) & reg::kPickValid);
     EXPECT_LE(r.at(reg::kCycleTimeMs), 1000) << "trigger to pick within the budget";
-    const json last = proc->ctl({{"cmd", "last"}})["result"];
+    const json last = proc_->ctl({{"cmd", "last"}})["result"];
     ASSERT_EQ(last["job_id"], job);
     const float x = r.f(reg::kPickX), y = r.f(reg::kPickY), z = r.f(reg::kPickZ);
-    EXPECT_LT(distanceToTruth(last, x, y, z), 0.01)
+    EXPECT_LT(distance_to_truth(last, x, y, z), 0.01)
         << "the published pick is a simulated part's pose in the base frame";
     // Camera 800 mm above the base looking down, floor 330 mm below the camera.
     EXPECT_NEAR(z, 800 - 330, 30);
@@ -66,124 +66,124 @@ TEST_F(DaemonE2E, PlcTriggerPublishesThePickOfASimulatedPartWithinBudget) {
     EXPECT_EQ(r.at(reg::kObjectsRemaining), last["sim_truth"].size());
   }
   // The picked parts were taken out of the bin (refilled when empty).
-  const json stats = proc->ctl({{"cmd", "stats"}});
+  const json stats = proc_->ctl({{"cmd", "stats"}});
   EXPECT_EQ(stats["picks"], 4);
   EXPECT_EQ(stats["overruns"], 0);
 }
 
 TEST_F(DaemonE2E, PickedPartLeavesTheSimulatedBin) {
-  startDaemon("bin");
-  json a = proc->ctl({{"cmd", "trigger"}});
+  start_daemon("bin");
+  json a = proc_->ctl({{"cmd", "trigger"}});
   ASSERT_TRUE(a["ok"]) << a.dump();
   const std::size_t before = a["result"]["sim_truth"].size();
   ASSERT_GE(before, 2u);
-  const json b = proc->ctl({{"cmd", "trigger"}});
+  const json b = proc_->ctl({{"cmd", "trigger"}});
   ASSERT_EQ(b["result"]["sim_truth"].size(), before - 1);
   // The part picked in the first cycle is not in the second cycle's bin.
   const auto& pick = a["result"]["pick"];
-  EXPECT_GT(distanceToTruth(b["result"], pick["x"], pick["y"], pick["z"]), 5.0);
+  EXPECT_GT(distance_to_truth(b["result"], pick["x"], pick["y"], pick["z"]), 5.0);
 }
 
 TEST_F(DaemonE2E, RecipeSelectsThePartType) {
-  startDaemon("recipe");
+  start_daemon("recipe");
   for (int recipe = 1; recipe <= 6; ++recipe) {
-    const json r = proc->ctl({{"cmd", "trigger"}, {"recipe", recipe}});
+    const json r = proc_->ctl({{"cmd", "trigger"}, {"recipe", recipe}});
     ASSERT_TRUE(r["ok"]) << r.dump();
     for (const auto& c : r["result"]["candidates"]) EXPECT_EQ(c["obj_id"], recipe);
   }
 }
 
 TEST_F(DaemonE2E, UnknownRecipeLatchesAnErrorUntilReset) {
-  startDaemon("error");
-  Client plc(port);
-  ASSERT_TRUE(plc.waitReady());
+  start_daemon("error");
+  Client plc(port_);
+  ASSERT_TRUE(plc.wait_ready());
   Regs r;
   ASSERT_EQ(plc.trigger(7, 99), 0);
-  ASSERT_TRUE(plc.waitFor(7, r));
+  ASSERT_TRUE(plc.wait_for(7, r));
   EXPECT_TRUE(r.at(reg::kStatus) & reg::kError);
   EXPECT_EQ(r.at(reg::kErrorCode), 1);
   EXPECT_FALSE(r.at(reg::kStatus) & reg::kPickValid);
   EXPECT_EQ(plc.trigger(8, 0), EMBXSBUSY) << "a latched error refuses triggers";
   ASSERT_EQ(modbus_write_register(plc.ctx, reg::kCommand, 2), 1);  // RESET
-  ASSERT_TRUE(plc.waitReady());
+  ASSERT_TRUE(plc.wait_ready());
   ASSERT_EQ(plc.trigger(8, 0), 0);
-  ASSERT_TRUE(plc.waitFor(8, r));
+  ASSERT_TRUE(plc.wait_for(8, r));
   EXPECT_EQ(r.at(reg::kErrorCode), 0);
   EXPECT_EQ(plc.trigger(8, 0), EMBXILVAL) << "the previous job id is refused";
 }
 
 TEST_F(DaemonE2E, SeveralClientsAtOnce) {
-  startDaemon("clients");
+  start_daemon("clients");
   std::atomic<bool> stop{false};
-  std::atomic<int> readFailures{0}, reads{0};
+  std::atomic<int> read_failures{0}, reads{0};
   std::vector<std::thread> readers;
   for (int i = 0; i < 4; ++i)
     readers.emplace_back([&] {
-      Client c(port);
+      Client c(port_);
       Regs r;
       while (!stop) {
-        if (!c.read(r)) ++readFailures;
+        if (!c.read(r)) ++read_failures;
         ++reads;
         std::this_thread::sleep_for(2ms);
       }
     });
-  Client plc(port);
+  Client plc(port_);
   Regs r;
   for (std::uint16_t job = 1; job <= 3; ++job) {
-    ASSERT_TRUE(plc.waitReady());
+    ASSERT_TRUE(plc.wait_ready());
     ASSERT_EQ(plc.trigger(job, 0), 0);
-    ASSERT_TRUE(plc.waitFor(job, r));
+    ASSERT_TRUE(plc.wait_for(job, r));
   }
   stop = true;
   for (auto& t : readers) t.join();
-  EXPECT_EQ(readFailures, 0);
+  EXPECT_EQ(read_failures, 0);
   EXPECT_GT(reads, 20);
-  EXPECT_GE(proc->ctl({{"cmd", "status"}})["modbus"]["requests"].get<int>(), reads.load());
+  EXPECT_GE(proc_->ctl({{"cmd", "status"}})["modbus"]["requests"].get<int>(), reads.load());
 }
 
 TEST_F(DaemonE2E, ClientDroppingMidTransactionDoesNotDisturbTheOthers) {
-  startDaemon("drop");
-  auto rawConnect = [&] {
+  start_daemon("drop");
+  auto raw_connect = [&] {
     const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
     sockaddr_in a{};
     a.sin_family = AF_INET;
-    a.sin_port = htons(static_cast<std::uint16_t>(port));
+    a.sin_port = htons(static_cast<std::uint16_t>(port_));
     a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
     EXPECT_EQ(::connect(fd, reinterpret_cast<sockaddr*>(&a), sizeof a), 0);
     return fd;
   };
   // Half a request, then gone.
-  int fd = rawConnect();
+  int fd = raw_connect();
   const std::uint8_t half[] = {0x00, 0x01, 0x00, 0x00, 0x00, 0x0F, 0xFF, 0x10};
   ASSERT_EQ(::send(fd, half, sizeof half, MSG_NOSIGNAL), static_cast<ssize_t>(sizeof half));
   ::close(fd);
   // A whole trigger (job 5), then gone before reading the answer: the job still runs.
-  fd = rawConnect();
+  fd = raw_connect();
   const std::uint8_t trig[] = {0x00, 0x02, 0x00, 0x00, 0x00, 0x0F, 0xFF, 0x10, 0x00, 0x00, 0x00,
                                0x04, 0x08, 0x00, 0x01, 0x00, 0x05, 0x00, 0x00, 0x00, 0x00};
   ASSERT_EQ(::send(fd, trig, sizeof trig, MSG_NOSIGNAL), static_cast<ssize_t>(sizeof trig));
   ::close(fd);
-  Client plc(port);
+  Client plc(port_);
   Regs r;
-  ASSERT_TRUE(plc.waitFor(5, r)) << "the dropped client's job completes";
+  ASSERT_TRUE(plc.wait_for(5, r)) << "the dropped client's job completes";
   EXPECT_TRUE(r.at(reg::kStatus) & reg::kPickValid);
-  ASSERT_TRUE(plc.waitReady());
+  ASSERT_TRUE(plc.wait_ready());
   ASSERT_EQ(plc.trigger(6, 0), 0);
-  ASSERT_TRUE(plc.waitFor(6, r));
+  ASSERT_TRUE(plc.wait_for(6, r));
 }
 
 TEST_F(DaemonE2E, ControlSocketStatusStatsSnapshotAndTheRealCli) {
-  startDaemon("ctl");
+  start_daemon("ctl");
   struct stat st {};
-  ASSERT_EQ(::stat(proc->socket().c_str(), &st), 0);
+  ASSERT_EQ(::stat(proc_->socket().c_str(), &st), 0);
   EXPECT_EQ(st.st_mode & 0777, 0660u);
-  json s = proc->ctl({{"cmd", "status"}});
+  json s = proc_->ctl({{"cmd", "status"}});
   EXPECT_EQ(s["state"], "ready");
   EXPECT_EQ(s["mode"], "triggered");
   EXPECT_EQ(s["version"], mfcd::version());
-  const json triggered = proc->ctl({{"cmd", "trigger"}});
+  const json triggered = proc_->ctl({{"cmd", "trigger"}});
   ASSERT_TRUE(triggered["ok"]);
-  const json snap = proc->ctl({{"cmd", "snapshot"}, {"recipe", 0}});
+  const json snap = proc_->ctl({{"cmd", "snapshot"}, {"recipe", 0}});
   ASSERT_TRUE(snap["ok"]) << snap.dump();
   const fs::path dir = snap["snapshot"].get<std::string>();
   for (const char* f :
@@ -196,110 +196,110 @@ TEST_F(DaemonE2E, ControlSocketStatusStatsSnapshotAndTheRealCli) {
   EXPECT_EQ(saved["version"], mfcd::version());
   EXPECT_EQ(saved["commit"], mfcd::git_commit());
   EXPECT_EQ(triggered["result"]["version"], mfcd::version());
-  const json stats = proc->ctl({{"cmd", "stats"}});
+  const json stats = proc_->ctl({{"cmd", "stats"}});
   EXPECT_EQ(stats["cycles"], 2);
   EXPECT_GT(stats["percentiles_ms"]["total"]["p50"].get<double>(), 0.0);
-  EXPECT_EQ(proc->ctl({{"cmd", "part"}, {"recipe", 42}})["ok"], false);
-  EXPECT_EQ(proc->ctl({{"cmd", "part"}, {"recipe", 3}})["part"], "ellipse");
-  const json cal = proc->ctl({{"cmd", "calibrate"}});  // no action: refused, naming the actions
+  EXPECT_EQ(proc_->ctl({{"cmd", "part"}, {"recipe", 42}})["ok"], false);
+  EXPECT_EQ(proc_->ctl({{"cmd", "part"}, {"recipe", 3}})["part"], "ellipse");
+  const json cal = proc_->ctl({{"cmd", "calibrate"}});  // no action: refused, naming the actions
   EXPECT_EQ(cal["ok"], false);
   EXPECT_NE(cal["error"].get<std::string>().find("start, capture, compute"), std::string::npos) << cal.dump();
-  EXPECT_EQ(proc->ctl({{"cmd", "calibrate"}, {"action", "compute"}})["ok"], false) << "no session";
-  EXPECT_EQ(proc->ctl({{"cmd", "calibrate"}, {"action", "status"}})["session"]["active"], false);
-  EXPECT_EQ(proc->ctl({{"cmd", "frobnicate"}})["ok"], false);
+  EXPECT_EQ(proc_->ctl({{"cmd", "calibrate"}, {"action", "compute"}})["ok"], false) << "no session";
+  EXPECT_EQ(proc_->ctl({{"cmd", "calibrate"}, {"action", "status"}})["session"]["active"], false);
+  EXPECT_EQ(proc_->ctl({{"cmd", "frobnicate"}})["ok"], false);
   // Bytes that are not UTF-8 come back in the error text: the reply must still be valid JSON
   // (invalid bytes replaced) and the daemon must go on answering.
   for (const std::string& raw : {std::string("\xff\n"), std::string("{\"cmd\": \"\xc3\x28\"}\n"),
                                  std::string("{\"cmd\": \"part\", \"recipe\": \"\xfe\"}\n")}) {
-    const std::string answer = ctlLine(proc->socket(), raw);
+    const std::string answer = ctl_line(proc_->socket(), raw);
     ASSERT_FALSE(answer.empty()) << "no answer to a request with invalid UTF-8";
     const json bad = json::parse(answer);
     EXPECT_EQ(bad["ok"], false) << answer;
   }
-  EXPECT_EQ(proc->ctl({{"cmd", "status"}})["state"], "ready") << "the daemon survives invalid UTF-8";
+  EXPECT_EQ(proc_->ctl({{"cmd", "status"}})["state"], "ready") << "the daemon survives invalid UTF-8";
 
   // mfcd-ctl itself.
   const std::string cmd =
-      std::string(MFCD_CTL) + " -s " + proc->socket().string() + " status > " + (proc->dir() / "cli.json").string();
+      std::string(MFCD_CTL) + " -s " + proc_->socket().string() + " status > " + (proc_->dir() / "cli.json").string();
   EXPECT_EQ(std::system(cmd.c_str()), 0);
-  const json cli = json::parse(std::ifstream(proc->dir() / "cli.json"));
+  const json cli = json::parse(std::ifstream(proc_->dir() / "cli.json"));
   EXPECT_EQ(cli["recipe"], 3);
   EXPECT_EQ(cli["version"], mfcd::version());
   EXPECT_EQ(cli["commit"], mfcd::git_commit());
   const std::string started = std::string("mfcd ") + mfcd::version() + " (" + mfcd::git_commit() + ") starting";
-  EXPECT_NE(proc->log().find(started), std::string::npos) << "the startup line names the version:\n" << proc->log();
-  const std::string bad = std::string(MFCD_CTL) + " -s " + proc->socket().string() + " part 42 > /dev/null";
+  EXPECT_NE(proc_->log().find(started), std::string::npos) << "the startup line names the version:\n" << proc_->log();
+  const std::string bad = std::string(MFCD_CTL) + " -s " + proc_->socket().string() + " part 42 > /dev/null";
   EXPECT_EQ(WEXITSTATUS(std::system(bad.c_str())), 1);
 }
 
 TEST_F(DaemonE2E, SnapshotQuotaDeletesTheOldest) {
-  startDaemon("quota", 1000, {}, "");
+  start_daemon("quota", 1000, {}, "");
   std::vector<std::string> dirs;
   for (int i = 0; i < 3; ++i) {
-    const json snap = proc->ctl({{"cmd", "snapshot"}});
+    const json snap = proc_->ctl({{"cmd", "snapshot"}});
     ASSERT_TRUE(snap["ok"]) << snap.dump();
     dirs.push_back(snap["snapshot"]);
     std::this_thread::sleep_for(1100ms);  // snapshot names carry the second
   }
   // Shrink the quota so that only about one snapshot fits, then take another.
-  std::string text = simCellConfig(proc->dir());
+  std::string text = sim_cell_config(proc_->dir());
   text.replace(text.find("quota_mb: 50"), 12, "quota_mb: 4");
-  proc->writeConfig(text);
-  ASSERT_TRUE(proc->ctl({{"cmd", "reload"}})["ok"]);
-  const json snap = proc->ctl({{"cmd", "snapshot"}});
+  proc_->write_config(text);
+  ASSERT_TRUE(proc_->ctl({{"cmd", "reload"}})["ok"]);
+  const json snap = proc_->ctl({{"cmd", "snapshot"}});
   ASSERT_TRUE(snap["ok"]) << snap.dump();
   EXPECT_FALSE(fs::exists(dirs[0])) << "oldest snapshot deleted for the quota";
   EXPECT_TRUE(fs::exists(snap["snapshot"].get<std::string>()));
 }
 
 TEST_F(DaemonE2E, SighupReloadsWithoutDroppingTheModbusConnection) {
-  startDaemon("reload");
-  Client plc(port);
+  start_daemon("reload");
+  Client plc(port_);
   Regs r;
   ASSERT_TRUE(plc.read(r));
-  proc->writeConfig(simCellConfig(proc->dir(), 777));
-  proc->signal(SIGHUP);
+  proc_->write_config(sim_cell_config(proc_->dir(), 777));
+  proc_->signal(SIGHUP);
   bool reloaded = false;
   for (int i = 0; i < 400 && !reloaded; ++i) {
     std::this_thread::sleep_for(50ms);
-    const json s = proc->ctl({{"cmd", "status"}});
+    const json s = proc_->ctl({{"cmd", "status"}});
     reloaded = s.value("cycle_budget_ms", 0) == 777 && s.value("state", "") == "ready";
   }
-  ASSERT_TRUE(reloaded) << proc->log();
+  ASSERT_TRUE(reloaded) << proc_->log();
   ASSERT_TRUE(plc.read(r)) << "same connection still served";
-  ASSERT_TRUE(plc.waitReady());
+  ASSERT_TRUE(plc.wait_ready());
   ASSERT_EQ(plc.trigger(3, 0), 0);
-  ASSERT_TRUE(plc.waitFor(3, r));
+  ASSERT_TRUE(plc.wait_for(3, r));
   EXPECT_TRUE(r.at(reg::kStatus) & reg::kPickValid);
 
   // An invalid new configuration is refused, the running one kept.
-  proc->writeConfig(simCellConfig(proc->dir(), 777) + "bogus_key: 1\n");
-  proc->signal(SIGHUP);
-  for (int i = 0; i < 100 && proc->log().find("reload refused") == std::string::npos; ++i)
+  proc_->write_config(sim_cell_config(proc_->dir(), 777) + "bogus_key: 1\n");
+  proc_->signal(SIGHUP);
+  for (int i = 0; i < 100 && proc_->log().find("reload refused") == std::string::npos; ++i)
     std::this_thread::sleep_for(50ms);
-  const std::string log = proc->log();
+  const std::string log = proc_->log();
   EXPECT_NE(log.find("reload refused, keeping the running configuration"), std::string::npos) << log;
   EXPECT_NE(log.find("mfcd.yaml:"), std::string::npos);
   EXPECT_NE(log.find(": bogus_key: unknown key"), std::string::npos) << log;
-  EXPECT_EQ(proc->ctl({{"cmd", "status"}})["state"], "ready");
+  EXPECT_EQ(proc_->ctl({{"cmd", "status"}})["state"], "ready");
   ASSERT_TRUE(plc.read(r));
   // The control socket's reload reports the same refusal.
-  const json rr = proc->ctl({{"cmd", "reload"}});
+  const json rr = proc_->ctl({{"cmd", "reload"}});
   EXPECT_FALSE(rr["ok"]);
   EXPECT_NE(rr["error"].get<std::string>().find("bogus_key"), std::string::npos);
 }
 
 TEST_F(DaemonE2E, SigtermMidCycleFinishesTheCycleAndSwitchesTheLedsOff) {
-  startDaemon("term", 3000, {"MFCD_TEST_VISION_MS=800"});
-  Client plc(port);
-  ASSERT_TRUE(plc.waitReady());
+  start_daemon("term", 3000, {"MFCD_TEST_VISION_MS=800"});
+  Client plc(port_);
+  ASSERT_TRUE(plc.wait_ready());
   ASSERT_EQ(plc.trigger(9, 0), 0);
   std::this_thread::sleep_for(300ms);
-  proc->signal(SIGTERM);
-  const auto code = proc->wait(10000);
+  proc_->signal(SIGTERM);
+  const auto code = proc_->wait(10000);
   ASSERT_TRUE(code.has_value()) << "mfcd did not stop";
   EXPECT_EQ(*code, 0);
-  const std::string log = proc->log();
+  const std::string log = proc_->log();
   const auto cycle = log.find("cycle 1 (plc job 9");
   const auto leds = log.find("acquisition stopped, LEDs off");
   const auto stopped = log.find("mfcd stopped");
@@ -308,24 +308,24 @@ TEST_F(DaemonE2E, SigtermMidCycleFinishesTheCycleAndSwitchesTheLedsOff) {
   ASSERT_NE(stopped, std::string::npos) << log;
   EXPECT_LT(cycle, leds);
   EXPECT_LT(leds, stopped);
-  EXPECT_FALSE(fs::exists(proc->socket())) << "control socket removed";
+  EXPECT_FALSE(fs::exists(proc_->socket())) << "control socket removed";
 }
 
 TEST_F(DaemonE2E, DeadlineDegradesInsteadOfBlocking) {
-  startDaemon("degrade", 400, {"MFCD_TEST_VISION_MS=3000"});
+  start_daemon("degrade", 400, {"MFCD_TEST_VISION_MS=3000"});
   const auto t0 = std::chrono::steady_clock::now();
-  const json r = proc->ctl({{"cmd", "trigger"}});
+  const json r = proc_->ctl({{"cmd", "trigger"}});
   const double wall = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   EXPECT_TRUE(r["result"]["degraded"]) << r.dump();
   EXPECT_LT(wall, 1500.0);
-  const json stats = proc->ctl({{"cmd", "stats"}});
+  const json stats = proc_->ctl({{"cmd", "stats"}});
   EXPECT_EQ(stats["degraded"], 1);
-  EXPECT_EQ(proc->ctl({{"cmd", "status"}})["last_cycle"]["degraded"], true);
+  EXPECT_EQ(proc_->ctl({{"cmd", "status"}})["last_cycle"]["degraded"], true);
 }
 
 TEST_F(DaemonE2E, ContinuousModeRunsCyclesByItself) {
-  startDaemon("continuous", 1000, {}, "  mode: continuous\n");
-  Client plc(port);
+  start_daemon("continuous", 1000, {}, "  mode: continuous\n");
+  Client plc(port_);
   Regs r;
   std::uint16_t first = 0;
   for (int i = 0; i < 400 && first == 0; ++i) {
@@ -345,14 +345,14 @@ TEST_F(DaemonE2E, ContinuousModeRunsCyclesByItself) {
 
 TEST(DaemonProcessErrors, BadConfigExitsWithFileLineAndKey) {
   DaemonProcess proc("badconfig");
-  proc.writeConfig(simCellConfig(proc.dir()) + "modbus_typo: {port: 1}\n");
+  proc.write_config(sim_cell_config(proc.dir()) + "modbus_typo: {port: 1}\n");
   proc.start(MFCD_TEST_DAEMON, {"--check-config"});
   ASSERT_EQ(proc.wait(10000), 2);
   const std::string log = proc.log();
   EXPECT_NE(log.find("mfcd.yaml:"), std::string::npos) << log;
   EXPECT_NE(log.find(": modbus_typo: unknown key"), std::string::npos) << log;
 
-  proc.writeConfig(simCellConfig(proc.dir()));
+  proc.write_config(sim_cell_config(proc.dir()));
   proc.start(MFCD_TEST_DAEMON, {"--check-config"});
   EXPECT_EQ(proc.wait(10000), 0) << proc.log();
 }
@@ -361,11 +361,11 @@ TEST(DaemonProcessErrors, LedsOffNamesAMissingChipAndPassesOnTheSimulatedRing) {
   // The unit's ExecStopPost=: on the simulated ring there is nothing to drive; on a GPIO chip that
   // is not there the error names it (driving real lines is in the HIL tier, gpio-sim).
   DaemonProcess proc("ledsoff");
-  proc.writeConfig(simCellConfig(proc.dir()));
+  proc.write_config(sim_cell_config(proc.dir()));
   proc.start(MFCD_TEST_DAEMON, {"--leds-off"});
   EXPECT_EQ(proc.wait(10000), 0) << proc.log();
   EXPECT_NE(proc.log().find("simulated LEDs"), std::string::npos) << proc.log();
-  proc.writeConfig(simCellConfig(proc.dir()) + "lights:\n  type: gpiod\n  chip: no-such-chip-mfcd-test\n");
+  proc.write_config(sim_cell_config(proc.dir()) + "lights:\n  type: gpiod\n  chip: no-such-chip-mfcd-test\n");
   proc.start(MFCD_TEST_DAEMON, {"--leds-off"});
   EXPECT_EQ(proc.wait(10000), 1) << proc.log();
   EXPECT_NE(proc.log().find("no-such-chip-mfcd-test"), std::string::npos) << proc.log();
@@ -373,15 +373,15 @@ TEST(DaemonProcessErrors, LedsOffNamesAMissingChipAndPassesOnTheSimulatedRing) {
 
 TEST(DaemonProcessErrors, PortInUseIsReportedAndExits) {
   DaemonProcess a("port-a");
-  std::string text = simCellConfig(a.dir());
-  a.writeConfig(text);
+  std::string text = sim_cell_config(a.dir());
+  a.write_config(text);
   a.start(MFCD_TEST_DAEMON);
-  ASSERT_TRUE(a.waitReady()) << a.log();
-  const int port = a.modbusPort();
+  ASSERT_TRUE(a.wait_ready()) << a.log();
+  const int port = a.modbus_port();
   DaemonProcess b("port-b");
-  text = simCellConfig(b.dir());
+  text = sim_cell_config(b.dir());
   text.replace(text.find("port: 0"), 7, "port: " + std::to_string(port));
-  b.writeConfig(text);
+  b.write_config(text);
   b.start(MFCD_TEST_DAEMON);
   ASSERT_EQ(b.wait(30000), 1);
   EXPECT_NE(b.log().find(std::to_string(port)), std::string::npos) << b.log();
@@ -389,14 +389,14 @@ TEST(DaemonProcessErrors, PortInUseIsReportedAndExits) {
 
 TEST(DaemonProcessSystemd, NotifiesReadyStatusAndWatchdog) {
   DaemonProcess proc("notify");
-  const fs::path sockPath = proc.dir() / "notify.sock";
+  const fs::path sock_path = proc.dir() / "notify.sock";
   const int fd = ::socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0);
   sockaddr_un addr{};
   addr.sun_family = AF_UNIX;
-  std::strncpy(addr.sun_path, sockPath.c_str(), sizeof addr.sun_path - 1);
+  std::strncpy(addr.sun_path, sock_path.c_str(), sizeof addr.sun_path - 1);
   ASSERT_EQ(::bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr), 0);
-  proc.writeConfig(simCellConfig(proc.dir()));
-  proc.start(MFCD_TEST_DAEMON, {}, {"NOTIFY_SOCKET=" + sockPath.string(), "WATCHDOG_USEC=400000"});
+  proc.write_config(sim_cell_config(proc.dir()));
+  proc.start(MFCD_TEST_DAEMON, {}, {"NOTIFY_SOCKET=" + sock_path.string(), "WATCHDOG_USEC=400000"});
   bool ready = false, status = false;
   int watchdogs = 0;
   const auto end = std::chrono::steady_clock::now() + 60s;
@@ -423,14 +423,14 @@ TEST(DaemonProcessSecurity, ControlSocketRefusesOtherUsers) {
   if (::geteuid() != 0) GTEST_SKIP() << "needs root to connect as another user";
   DaemonProcess proc("peercred");
   fs::permissions(proc.dir(), fs::perms::all);
-  proc.writeConfig(simCellConfig(proc.dir()));
+  proc.write_config(sim_cell_config(proc.dir()));
   proc.start(MFCD_TEST_DAEMON);
-  ASSERT_TRUE(proc.waitReady()) << proc.log();
+  ASSERT_TRUE(proc.wait_ready()) << proc.log();
   ::chmod(proc.socket().c_str(), 0666);  // let the file mode through, so SO_PEERCRED is what refuses
   const pid_t child = ::fork();
   if (child == 0) {
     if (::setgid(65534) != 0 || ::setuid(65534) != 0) _exit(3);
-    const json r = ctlRequest(proc.socket(), {{"cmd", "status"}}, 5000);
+    const json r = ctl_request(proc.socket(), {{"cmd", "status"}}, 5000);
     const bool refused = !r.value("ok", true) && r.value("error", "").find("permission denied") != std::string::npos;
     _exit(refused ? 0 : 1);
   }
@@ -448,31 +448,31 @@ TEST(DaemonProcessSecurity, ControlSocketRefusesOtherUsers) {
 TEST_F(DaemonE2E, CanLinkDownDoesNotStopThePlcLink) {
   // CAN enabled on an interface that does not exist: the publisher reports the link down and keeps
   // retrying; the Modbus side works as before.
-  startDaemon("can", 1000, {}, "");
-  proc->signal(SIGTERM);
-  ASSERT_EQ(proc->wait(10000), 0);
-  std::string text = simCellConfig(proc->dir());
+  start_daemon("can", 1000, {}, "");
+  proc_->signal(SIGTERM);
+  ASSERT_EQ(proc_->wait(10000), 0);
+  std::string text = sim_cell_config(proc_->dir());
   text += "can:\n  enabled: true\n  interface: mfcdnone0\n  retry_ms: 100\n";
-  proc->writeConfig(text);
-  proc->start(MFCD_TEST_DAEMON);
-  ASSERT_TRUE(proc->waitReady()) << proc->log();
-  const json s = proc->ctl({{"cmd", "status"}});
+  proc_->write_config(text);
+  proc_->start(MFCD_TEST_DAEMON);
+  ASSERT_TRUE(proc_->wait_ready()) << proc_->log();
+  const json s = proc_->ctl({{"cmd", "status"}});
   ASSERT_TRUE(s.contains("can")) << s.dump();
   EXPECT_EQ(s["can"]["interface"], "mfcdnone0");
   EXPECT_EQ(s["can"]["state"], "down");
-  Client plc(proc->modbusPort());
+  Client plc(proc_->modbus_port());
   Regs r;
-  ASSERT_TRUE(plc.waitReady());
+  ASSERT_TRUE(plc.wait_ready());
   ASSERT_EQ(plc.trigger(1, 0), 0);
-  ASSERT_TRUE(plc.waitFor(1, r));
+  ASSERT_TRUE(plc.wait_for(1, r));
   EXPECT_TRUE(r.at(reg::kStatus) & reg::kPickValid);
 }
 
 TEST_F(DaemonE2E, PlcClientDemoProgramPrintsEachPick) {
-  startDaemon("plcclient");
-  const fs::path out = proc->dir() / "plc.txt";
+  start_daemon("plcclient");
+  const fs::path out = proc_->dir() / "plc.txt";
   const std::string cmd =
-      std::string(MFC_PLC_CLIENT) + " --port " + std::to_string(port) + " --cycles 3 --first-job 40 > " + out.string();
+      std::string(MFC_PLC_CLIENT) + " --port " + std::to_string(port_) + " --cycles 3 --first-job 40 > " + out.string();
   ASSERT_EQ(std::system(cmd.c_str()), 0);
   std::ifstream in(out);
   std::string line;
@@ -490,5 +490,5 @@ TEST_F(DaemonE2E, PlcClientDemoProgramPrintsEachPick) {
     }
   }
   EXPECT_EQ(rows, 3);
-  EXPECT_EQ(proc->ctl({{"cmd", "stats"}})["picks"], 3);
+  EXPECT_EQ(proc_->ctl({{"cmd", "stats"}})["picks"], 3);
 }

@@ -9,14 +9,14 @@
 
 namespace mfcd::daemon::test {
 
-inline CycleResult runCycle(Cell& cell, const CycleRequest& request) {
+inline CycleResult run_cycle(Cell& cell, const CycleRequest& request) {
   EXPECT_TRUE(cell.submit(request));
   for (;;) {
-    pollfd p{cell.resultFd(), POLLIN, 0};
+    pollfd p{cell.result_fd(), POLLIN, 0};
     ::poll(&p, 1, 5000);
-    if (CycleResult* res = cell.beginResult()) {
+    if (CycleResult* res = cell.begin_result()) {
       const CycleResult copy = *res;
-      cell.endResult();
+      cell.end_result();
       if (copy.kind == CycleResult::Kind::Cycle) return copy;
     }
   }

@@ -28,46 +28,19 @@ constexpr double kView[6] = {400, 50, 600, 180, 0, 30};
 // position from one view is within 2 mm (pipeline_e2e_test), depth within 8; two views hold both.
 constexpr double kOnPartMm = 5.0;
 
-std::string secondLookConfig(const fs::path& dir, const char* when) {
-  std::string c = simCellConfig(dir, 8000, "", true);
-  const std::string eyeToHand =
+std::string second_look_config(const fs::path& dir, const char* when) {
+  std::string c = sim_cell_config(dir, 8000, "", true);
+  const std::string eye_to_hand =
       "hand_eye:\n  base_T_camera: {x_mm: 500, y_mm: 0, z_mm: 800, rx_deg: 180, ry_deg: 0, rz_deg: 0}\n";
-  const auto at = c.find(eyeToHand);
+  const auto at = c.find(eye_to_hand);
   const auto sim = c.find("simulation:\n");
   if (at == std::string::npos || sim == std::string::npos) return "";
-  c.replace(at, eyeToHand.size(),
+  c.replace(at, eye_to_hand.size(),
             "hand_eye:\n  setup: eye_in_hand\n"
             "  flange_T_camera: {x_mm: 10, y_mm: -20, z_mm: 150, rx_deg: 0, ry_deg: 0, rz_deg: 90}\n");
   c.replace(sim, 12,
             "simulation:\n  eye_in_hand_view: {x_mm: 400, y_mm: 50, z_mm: 600, rx_deg: 180, ry_deg: 0, rz_deg: 30}\n");
   return c + "vision:\n  search_rounds: 2\nsecond_look:\n  when: " + when + "\n";
-}
-
-// Registers 0..79 in one read.
-std::vector<std::uint16_t> readMap(modbus_t* ctx) {
-  std::vector<std::uint16_t> m(reg::kBlockSize);
-  if (modbus_read_registers(ctx, 0, reg::kBlockSize, m.data()) != reg::kBlockSize) m.clear();
-  return m;
-}
-float floatAt(const std::vector<std::uint16_t>& m, int a) {
-  return decode_float(m[static_cast<std::size_t>(a)], m[static_cast<std::size_t>(a) + 1], WordOrder::ABCD);
-}
-
-// Starts a job (COMMAND, JOB_ID, RECIPE_ID 0, MODE 0 in one write) and waits for its result.
-std::vector<std::uint16_t> runJob(modbus_t* ctx, std::uint16_t command, std::uint16_t job) {
-  for (int i = 0; i < 4000; ++i) {
-    const auto m = readMap(ctx);
-    if (!m.empty() && (m[reg::kStatus] & reg::kReady)) break;
-    std::this_thread::sleep_for(5ms);
-  }
-  const std::uint16_t cmd[4] = {command, job, 0, 0};
-  if (modbus_write_registers(ctx, reg::kCommand, 4, cmd) != 4) return {};
-  for (int i = 0; i < 12000; ++i) {
-    auto m = readMap(ctx);
-    if (!m.empty() && m[reg::kJobIdEcho] == job && !(m[reg::kStatus] & reg::kBusy)) return m;
-    std::this_thread::sleep_for(5ms);
-  }
-  return {};
 }
 
 }  // namespace
@@ -76,24 +49,24 @@ TEST(SecondLookE2E, RobotTakesTheCameraWhereMfcdAsksAndGetsTheFusedPick) {
 #ifndef MFCD_HAVE_PIPELINE
   GTEST_SKIP() << "mfcd was built without vision/pipeline (mfcd_vision_pipeline)";
 #else
-  if (const std::string missing = missingTemplate(); !missing.empty()) GTEST_SKIP() << missing;
+  if (const std::string missing = missing_template(); !missing.empty()) GTEST_SKIP() << missing;
   DaemonProcess proc("second-look");
-  const std::string config = secondLookConfig(proc.dir(), "always");
+  const std::string config = second_look_config(proc.dir(), "always");
   ASSERT_FALSE(config.empty()) << "simCellConfig's hand_eye or simulation changed";
-  proc.writeConfig(config);
+  proc.write_config(config);
   proc.start(MFCD_BINARY);
-  ASSERT_TRUE(proc.waitReady(180000)) << proc.log();
-  modbus_t* ctx = modbus_new_tcp("127.0.0.1", proc.modbusPort());
+  ASSERT_TRUE(proc.wait_ready(180000)) << proc.log();
+  modbus_t* ctx = modbus_new_tcp("127.0.0.1", proc.modbus_port());
   ASSERT_EQ(modbus_connect(ctx), 0);
   modbus_set_response_timeout(ctx, 3, 0);
 
-  int onPart = 0;
+  int on_part = 0;
   constexpr int kJobs = 3;
   std::uint16_t seq = 1;
   for (int k = 0; k < kJobs; ++k) {
     const auto first_job = static_cast<std::uint16_t>(2 * k + 1), look_job = static_cast<std::uint16_t>(2 * k + 2);
-    ASSERT_EQ(writeRobotPose(ctx, kView, 1, seq++), 14);
-    auto m = runJob(ctx, 1, first_job);
+    ASSERT_EQ(write_robot_pose(ctx, kView, 1, seq++), 14);
+    auto m = run_job(ctx, 1, first_job);
     ASSERT_FALSE(m.empty()) << proc.log();
     ASSERT_EQ(m[reg::kErrorCode], 0) << proc.log();
     // when: always: every first look that found a part asks for a second, and publishes no pick.
@@ -102,19 +75,19 @@ TEST(SecondLookE2E, RobotTakesTheCameraWhereMfcdAsksAndGetsTheFusedPick) {
     EXPECT_EQ(m[reg::kLookReason], static_cast<std::uint16_t>(reg::LookReason::Always));
     const json first = proc.ctl({{"cmd", "last"}})["result"];
     ASSERT_TRUE(first.contains("look_wanted")) << first.dump();
-    const double look[6] = {floatAt(m, reg::kLookX),  floatAt(m, reg::kLookY),  floatAt(m, reg::kLookZ),
-                            floatAt(m, reg::kLookRx), floatAt(m, reg::kLookRy), floatAt(m, reg::kLookRz)};
+    const double look[6] = {float_at(m, reg::kLookX),  float_at(m, reg::kLookY),  float_at(m, reg::kLookZ),
+                            float_at(m, reg::kLookRx), float_at(m, reg::kLookRy), float_at(m, reg::kLookRz)};
     EXPECT_NEAR(look[0], first["look_wanted"]["flange"]["x"].get<double>(), 1e-3);
     EXPECT_NEAR(look[5], first["look_wanted"]["flange"]["rz"].get<double>(), 1e-3);
     // The second camera is elsewhere: turned about the part, not the view pose again.
-    const Eigen::Isometry3d a = poseOf(kView[0], kView[1], kView[2], kView[3], kView[4], kView[5]);
-    const Eigen::Isometry3d b = poseOf(look[0], look[1], look[2], look[3], look[4], look[5]);
+    const Eigen::Isometry3d a = pose_of(kView[0], kView[1], kView[2], kView[3], kView[4], kView[5]);
+    const Eigen::Isometry3d b = pose_of(look[0], look[1], look[2], look[3], look[4], look[5]);
     const double turn_deg = Eigen::AngleAxisd(a.linear().transpose() * b.linear()).angle() * 180 / M_PI;
     EXPECT_GT(turn_deg, 10) << "job " << first_job;
 
     // The robot moves there and says so; LOOK fuses the two frame sets.
-    ASSERT_EQ(writeRobotPose(ctx, look, 1, seq++), 14);
-    m = runJob(ctx, 5, look_job);
+    ASSERT_EQ(write_robot_pose(ctx, look, 1, seq++), 14);
+    m = run_job(ctx, 5, look_job);
     ASSERT_FALSE(m.empty()) << proc.log();
     ASSERT_EQ(m[reg::kErrorCode], 0) << proc.log();
     EXPECT_FALSE(m[reg::kStatus] & reg::kLookWanted);
@@ -132,24 +105,78 @@ TEST(SecondLookE2E, RobotTakesTheCameraWhereMfcdAsksAndGetsTheFusedPick) {
       ADD_FAILURE() << "job " << look_job << ": no pick after the second look: " << fused.dump();
       continue;
     }
-    const double x = floatAt(m, reg::kPickX), y = floatAt(m, reg::kPickY), z = floatAt(m, reg::kPickZ);
+    const double x = float_at(m, reg::kPickX), y = float_at(m, reg::kPickY), z = float_at(m, reg::kPickZ);
     double best = 1e9;
-    int truthObj = 0;
+    int truth_obj = 0;
     for (const auto& t : fused["sim_truth"]) {
       const double d = std::hypot(t["base"]["x"].get<double>() - x, t["base"]["y"].get<double>() - y,
                                   t["base"]["z"].get<double>() - z);
-      if (d < best) best = d, truthObj = t["obj_id"].get<int>();
+      if (d < best) best = d, truth_obj = t["obj_id"].get<int>();
     }
     std::printf("jobs %u+%u: fused pick %.1f %.1f %.1f obj %d score %.2f; nearest part obj %d at %.2f mm\n", first_job,
-                look_job, x, y, z, fused["pick"]["obj_id"].get<int>(), floatAt(m, reg::kScore), truthObj, best);
-    onPart += best <= kOnPartMm && truthObj == fused["pick"]["obj_id"].get<int>();
+                look_job, x, y, z, fused["pick"]["obj_id"].get<int>(), float_at(m, reg::kScore), truth_obj, best);
+    on_part += best <= kOnPartMm && truth_obj == fused["pick"]["obj_id"].get<int>();
   }
   // LOOK on a result that asks for none (the fused one): refused with exception 3.
   const std::uint16_t again[4] = {5, 99, 0, 0};
   EXPECT_EQ(modbus_write_registers(ctx, reg::kCommand, 4, again), -1);
   modbus_close(ctx);
   modbus_free(ctx);
-  EXPECT_EQ(onPart, kJobs) << proc.log();
+  EXPECT_EQ(on_part, kJobs) << proc.log();
+  proc.signal(SIGTERM);
+  EXPECT_EQ(proc.wait(30000), 0);
+#endif
+}
+
+// when: unsure asks only when the first look would withhold its pick. With pick.min_score above
+// every score a look can reach, every first look that finds a part asks (LOOK_REASON 3, low
+// score), and the fused result, below it too, delivers no pick and does not ask again.
+TEST(SecondLookE2E, UnsureAsksWhenTheBestScoreIsBelowMinScore) {
+#ifndef MFCD_HAVE_PIPELINE
+  GTEST_SKIP() << "mfcd was built without vision/pipeline (mfcd_vision_pipeline)";
+#else
+  if (const std::string missing = missing_template(); !missing.empty()) GTEST_SKIP() << missing;
+  DaemonProcess proc("second-look-unsure");
+  std::string config = second_look_config(proc.dir(), "unsure");
+  const std::string min_score = "pick:\n  min_score: 0.1\n";
+  const auto at = config.find(min_score);
+  ASSERT_NE(at, std::string::npos) << "simCellConfig's pick section changed";
+  config.replace(at, min_score.size(), "pick:\n  min_score: 0.9999\n");
+  proc.write_config(config);
+  proc.start(MFCD_BINARY);
+  ASSERT_TRUE(proc.wait_ready(180000)) << proc.log();
+  modbus_t* ctx = modbus_new_tcp("127.0.0.1", proc.modbus_port());
+  ASSERT_EQ(modbus_connect(ctx), 0);
+  modbus_set_response_timeout(ctx, 3, 0);
+
+  ASSERT_EQ(write_robot_pose(ctx, kView, 1, 1), 14);
+  auto m = run_job(ctx, 1, 1);
+  ASSERT_FALSE(m.empty()) << proc.log();
+  ASSERT_EQ(m[reg::kErrorCode], 0) << proc.log();
+  const json first = proc.ctl({{"cmd", "last"}})["result"];
+  ASSERT_FALSE(first["candidates"].empty()) << first.dump();
+  double best = 0;
+  for (const auto& c : first["candidates"]) best = std::max(best, c["score"].get<double>());
+  ASSERT_LT(best, 0.9999) << "a first look scored above the test's min_score";
+  ASSERT_TRUE(m[reg::kStatus] & reg::kLookWanted) << first.dump();
+  EXPECT_FALSE(m[reg::kStatus] & reg::kPickValid);
+  EXPECT_EQ(m[reg::kLookReason], static_cast<std::uint16_t>(reg::LookReason::LowScore));
+  EXPECT_EQ(first["look_wanted"]["reason"], "low score");
+
+  const double look[6] = {float_at(m, reg::kLookX),  float_at(m, reg::kLookY),  float_at(m, reg::kLookZ),
+                          float_at(m, reg::kLookRx), float_at(m, reg::kLookRy), float_at(m, reg::kLookRz)};
+  ASSERT_EQ(write_robot_pose(ctx, look, 1, 2), 14);
+  m = run_job(ctx, 5, 2);
+  ASSERT_FALSE(m.empty()) << proc.log();
+  ASSERT_EQ(m[reg::kErrorCode], 0) << proc.log();
+  const json fused = proc.ctl({{"cmd", "last"}})["result"];
+  ASSERT_TRUE(fused.contains("second_look")) << fused.dump();
+  EXPECT_FALSE(m[reg::kStatus] & reg::kLookWanted) << "a second look asks for no third";
+  EXPECT_FALSE(m[reg::kStatus] & reg::kPickValid) << fused.dump();
+  std::printf("unsure: first look best score %.3f asked (low score); fused best %.3f, no pick\n", best,
+              fused["candidates"].empty() ? 0.0 : fused["candidates"][0]["score"].get<double>());
+  modbus_close(ctx);
+  modbus_free(ctx);
   proc.signal(SIGTERM);
   EXPECT_EQ(proc.wait(30000), 0);
 #endif

@@ -18,18 +18,18 @@ int main(int argc, char** argv) {
   const std::chrono::milliseconds work(ms ? std::atoi(ms) : 20);
   const char* hang = std::getenv("MFCD_TEST_VISION_HANG");
   const char* fail = std::getenv("MFCD_TEST_VISION_FAIL_FIRST");
-  const bool honourDeadline = !(hang && std::atoi(hang) != 0);
-  const int failFirst = fail ? std::atoi(fail) : 0;
+  const bool honour_deadline = !(hang && std::atoi(hang) != 0);
+  const int fail_first = fail ? std::atoi(fail) : 0;
   const char* pattern = std::getenv("MFCD_TEST_VISION_PATTERN");
   const bool check_pattern = pattern && std::atoi(pattern) != 0;
   unsigned long long seed = 0;
   int percent = 0;
   if (const char* faults = std::getenv("MFCD_TEST_FAULTS")) std::sscanf(faults, "%llu,%d", &seed, &percent);
   const auto vision = [=](const mfcd::daemon::DaemonConfig&) {
-    return std::make_unique<mfcd::daemon::test::TruthVisionStage>(work, honourDeadline, failFirst, check_pattern);
+    return std::make_unique<mfcd::daemon::test::TruthVisionStage>(work, honour_deadline, fail_first, check_pattern);
   };
-  if (percent <= 0) return mfcd::daemon::daemonMain(argc, argv, vision);
-  return mfcd::daemon::daemonMain(argc, argv, vision, [=](const mfcd::daemon::DaemonConfig& config) {
-    return std::make_unique<mfcd::daemon::test::FaultySource>(mfcd::daemon::makeFrameSource(config), seed, percent);
+  if (percent <= 0) return mfcd::daemon::daemon_main(argc, argv, vision);
+  return mfcd::daemon::daemon_main(argc, argv, vision, [=](const mfcd::daemon::DaemonConfig& config) {
+    return std::make_unique<mfcd::daemon::test::FaultySource>(mfcd::daemon::make_frame_source(config), seed, percent);
   });
 }

@@ -29,10 +29,10 @@ namespace mfcd::daemon::test {
 
 class TruthVisionStage final : public VisionStage {
  public:
-  // failFirst: the first that many calls throw, as a failing vision stage does.
-  explicit TruthVisionStage(std::chrono::milliseconds work, bool honourDeadline = true, int failFirst = 0,
+  // fail_first: the first that many calls throw, as a failing vision stage does.
+  explicit TruthVisionStage(std::chrono::milliseconds work, bool honour_deadline = true, int fail_first = 0,
                             bool check_pattern = false)
-      : work_(work), honourDeadline_(honourDeadline), failFirst_(failFirst), check_pattern_(check_pattern) {
+      : work_(work), honour_deadline_(honour_deadline), fail_first_(fail_first), check_pattern_(check_pattern) {
     if (check_pattern_) {
       // The tag's magic byte as the HAL writes it (not restated here): one tiny rendered image.
       hal::Image probe(hal::ImageFormat{hal::PatternSceneRenderer::kTagPixels, 1, 8});
@@ -41,7 +41,7 @@ class TruthVisionStage final : public VisionStage {
     }
   }
   void process(const VisionInput& in, vision::PipelineResult& out) override {
-    if (calls < failFirst_) {
+    if (calls < fail_first_) {
       ++calls;
       throw std::runtime_error("injected vision failure (test backend)");
     }
@@ -49,7 +49,7 @@ class TruthVisionStage final : public VisionStage {
     const auto start = Clock::now();
     auto until = start + work_;
     out.degraded = false;
-    if (honourDeadline_ && in.deadline < until) {
+    if (honour_deadline_ && in.deadline < until) {
       until = in.deadline;
       out.degraded = true;
     }
@@ -82,11 +82,11 @@ class TruthVisionStage final : public VisionStage {
     out.times.search_ms = out.times.total_ms = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
     // Edges: a cheap stand-in computed from the frames so snapshots have something to save.
     cv::absdiff(in.frames.flash[0], in.frames.ambient, edges_.edges);
-    haveEdges_ = true;
+    have_edges_ = true;
     ++calls;
   }
   std::vector<std::pair<int, std::string>> parts() const override { return {{0, "truth"}}; }
-  const vision::DepthEdges* lastEdges() const override { return haveEdges_ ? &edges_ : nullptr; }
+  const vision::DepthEdges* last_edges() const override { return have_edges_ ? &edges_ : nullptr; }
   cv::Mat3b overlay(const cv::Mat1b& image, const vision::PipelineResult& result) const override {
     cv::Mat3b out;
     cv::cvtColor(image, out, cv::COLOR_GRAY2BGR);
@@ -127,14 +127,14 @@ class TruthVisionStage final : public VisionStage {
   }
 
   std::chrono::milliseconds work_;
-  bool honourDeadline_;
-  int failFirst_;
+  bool honour_deadline_;
+  int fail_first_;
   bool check_pattern_;
   std::uint8_t tag_magic_ = 0;
   bool have_previous_ = false;
   std::uint64_t previous_newest_ = 0;
   vision::DepthEdges edges_;
-  bool haveEdges_ = false;
+  bool have_edges_ = false;
 };
 
 }  // namespace mfcd::daemon::test

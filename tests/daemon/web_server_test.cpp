@@ -143,33 +143,33 @@ std::string status_line(const std::string& response) { return response.substr(0,
 class WebServerTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir = fs::temp_directory_path() / ("mfcd-web-test-" + std::to_string(::getpid()));
-    fs::remove_all(dir);
-    fs::create_directories(dir / "web");
-    fs::create_directories(dir / "snapshots" / "20250101T000000Z-cycle7");
-    write(dir / "web" / "index.html", "<!doctype html><title>t</title><p id=\"status-state\"></p>");
-    write(dir / "web" / "app.js", "'use strict';");
-    write(dir / "web" / "style.css", "body{}");
-    write(dir / "web" / "secret.txt", "not served");
-    write(dir / "outside.txt", "outside the web root");
-    write(dir / "snapshots" / "20250101T000000Z-cycle7" / "result.json", "{\"cycle\": 7}");
-    data.snapshot_root = dir / "snapshots";
-    settings.port = 0;
+    dir_ = fs::temp_directory_path() / ("mfcd-web-test-" + std::to_string(::getpid()));
+    fs::remove_all(dir_);
+    fs::create_directories(dir_ / "web");
+    fs::create_directories(dir_ / "snapshots" / "20250101T000000Z-cycle7");
+    write(dir_ / "web" / "index.html", "<!doctype html><title>t</title><p id=\"status-state\"></p>");
+    write(dir_ / "web" / "app.js", "'use strict';");
+    write(dir_ / "web" / "style.css", "body{}");
+    write(dir_ / "web" / "secret.txt", "not served");
+    write(dir_ / "outside.txt", "outside the web root");
+    write(dir_ / "snapshots" / "20250101T000000Z-cycle7" / "result.json", "{\"cycle\": 7}");
+    data_.snapshot_root = dir_ / "snapshots";
+    settings_.port = 0;
   }
   void TearDown() override {
-    server.reset();
-    fs::remove_all(dir);
+    server_.reset();
+    fs::remove_all(dir_);
   }
 
   static void write(const fs::path& p, const std::string& text) { std::ofstream(p, std::ios::binary) << text; }
 
   void start() {
-    server = std::make_unique<WebServer>(settings, data, dir / "web");
-    server->start();
-    ASSERT_NE(server->port(), 0);
+    server_ = std::make_unique<WebServer>(settings_, data_, dir_ / "web");
+    server_->start();
+    ASSERT_NE(server_->port(), 0);
   }
   httplib::Client client() const {
-    httplib::Client c("127.0.0.1", server->port());
+    httplib::Client c("127.0.0.1", server_->port());
     c.set_connection_timeout(2);
     c.set_read_timeout(10);
     return c;
@@ -183,17 +183,17 @@ class WebServerTest : public ::testing::Test {
     EXPECT_EQ(json::parse(r->body)["state"], "ready");
   }
   std::string raw(const std::string& bytes) const {
-    Raw c(server->port());
+    Raw c(server_->port());
     EXPECT_TRUE(c.connected());
     c.send(bytes);
     c.end_sending();
     return c.receive();
   }
 
-  fs::path dir;
-  FakeData data;
-  WebSettings settings;
-  std::unique_ptr<WebServer> server;
+  fs::path dir_;
+  FakeData data_;
+  WebSettings settings_;
+  std::unique_ptr<WebServer> server_;
 };
 
 TEST(WebSettings, Validate) {
@@ -213,14 +213,14 @@ TEST(WebSettings, Validate) {
 }
 
 TEST_F(WebServerTest, JsonViews) {
-  data.last_json = {{"cycle", 12}, {"job_id", 3}, {"times_ms", {{"total", 98.5}}}, {"candidates", json::array()}};
-  data.snapshots_json = {{"snapshots", {{{"name", "20250101T000000Z-cycle7"}, {"files", {"result.json"}}}}}};
+  data_.last_json = {{"cycle", 12}, {"job_id", 3}, {"times_ms", {{"total", 98.5}}}, {"candidates", json::array()}};
+  data_.snapshots_json = {{"snapshots", {{{"name", "20250101T000000Z-cycle7"}, {"files", {"result.json"}}}}}};
   start();
   for (const auto& [path, expected] :
-       std::vector<std::pair<std::string, json>>{{"/api/status", data.status_json},
-                                                 {"/api/last", data.last_json},
-                                                 {"/api/stats", data.stats_json},
-                                                 {"/api/snapshots", data.snapshots_json}}) {
+       std::vector<std::pair<std::string, json>>{{"/api/status", data_.status_json},
+                                                 {"/api/last", data_.last_json},
+                                                 {"/api/stats", data_.stats_json},
+                                                 {"/api/snapshots", data_.snapshots_json}}) {
     const auto r = get(path);
     ASSERT_TRUE(r) << path;
     EXPECT_EQ(r->status, 200) << path;
@@ -229,7 +229,7 @@ TEST_F(WebServerTest, JsonViews) {
     EXPECT_EQ(json::parse(r->body), expected) << path;
   }
   // Before the first cycle the last cycle is null.
-  data.last_json = nullptr;
+  data_.last_json = nullptr;
   const auto r = get("/api/last");
   ASSERT_TRUE(r);
   EXPECT_EQ(r->body, "null");
@@ -237,13 +237,13 @@ TEST_F(WebServerTest, JsonViews) {
 
 TEST_F(WebServerTest, ProviderFailureIs500AndInvalidUtf8IsReplaced) {
   start();
-  data.throw_in_status = true;
+  data_.throw_in_status = true;
   auto r = get("/api/status");
   ASSERT_TRUE(r);
   EXPECT_EQ(r->status, 500);
   EXPECT_EQ(json::parse(r->body)["error"], "provider failed");
-  data.throw_in_status = false;
-  data.status_json = {{"state", "ready"}, {"camera", std::string("cam\xff\xfe")}};
+  data_.throw_in_status = false;
+  data_.status_json = {{"state", "ready"}, {"camera", std::string("cam\xff\xfe")}};
   r = get("/api/status");
   ASSERT_TRUE(r);
   EXPECT_EQ(r->status, 200);
@@ -285,7 +285,7 @@ TEST_F(WebServerTest, ImagesAre404UntilThereIsOne) {
     EXPECT_EQ(json::parse(r->body)["error"], std::string("no ") + name + " image yet");
   }
   const std::string png("\x89PNG\r\n\x1a\n-fake-", 14);
-  data.images["overlay"] = png;
+  data_.images["overlay"] = png;
   auto r = get("/api/image/overlay.png?cycle=5");
   ASSERT_TRUE(r);
   EXPECT_EQ(r->status, 200);
@@ -344,12 +344,12 @@ TEST_F(WebServerTest, SnapshotPathTraversalRefused) {
     EXPECT_EQ(response.find("X-Injected"), std::string::npos) << path;
   }
   // None of them reached the provider: only well-formed names are passed on.
-  std::lock_guard lock(data.mutex);
-  EXPECT_TRUE(data.asked.empty()) << data.asked.front().first << "/" << data.asked.front().second;
+  std::lock_guard lock(data_.mutex);
+  EXPECT_TRUE(data_.asked.empty()) << data_.asked.front().first << "/" << data_.asked.front().second;
 }
 
 TEST_F(WebServerTest, OnlyGetAndHead) {
-  settings.allow_control = true;  // no control endpoints yet: changes nothing
+  settings_.allow_control = true;  // no control endpoints yet: changes nothing
   start();
   auto c = client();
   std::vector<std::pair<std::string, httplib::Result>> results;
@@ -374,8 +374,8 @@ TEST_F(WebServerTest, OnlyGetAndHead) {
 }
 
 TEST_F(WebServerTest, AllowListRefusesOtherPeers) {
-  settings.bind_address = "127.0.0.1";
-  settings.allow_list = {"10.0.0.0/8"};
+  settings_.bind_address = "127.0.0.1";
+  settings_.allow_list = {"10.0.0.0/8"};
   start();
   for (const char* path : {"/api/status", "/", "/api/image/overlay.png", "/snapshots/a/b"}) {
     const auto r = get(path);
@@ -386,8 +386,8 @@ TEST_F(WebServerTest, AllowListRefusesOtherPeers) {
   const auto r = client().Post("/api/status", "{}", "application/json");
   ASSERT_TRUE(r);
   EXPECT_EQ(r->status, 403);
-  server.reset();
-  settings.allow_list = {"10.0.0.0/8", "127.0.0.0/8"};
+  server_.reset();
+  settings_.allow_list = {"10.0.0.0/8", "127.0.0.0/8"};
   start();
   expect_alive();
 }
@@ -401,32 +401,32 @@ TEST_F(WebServerTest, StartFailsNamingAddressAndPort) {
   ASSERT_EQ(::listen(taken.get(), 1), 0);
   socklen_t len = sizeof a;
   ASSERT_EQ(::getsockname(taken.get(), reinterpret_cast<sockaddr*>(&a), &len), 0);
-  settings.port = ntohs(a.sin_port);
-  WebServer s(settings, data, dir / "web");
+  settings_.port = ntohs(a.sin_port);
+  WebServer s(settings_, data_, dir_ / "web");
   try {
     s.start();
     FAIL() << "bound a port in use";
   } catch (const std::system_error& e) {
     EXPECT_EQ(e.code(), std::errc::address_in_use);
-    EXPECT_NE(std::string(e.what()).find("127.0.0.1:" + std::to_string(settings.port)), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("127.0.0.1:" + std::to_string(settings_.port)), std::string::npos) << e.what();
   }
   EXPECT_FALSE(s.running());
 
-  settings.port = 0;
-  settings.allow_list = {"not-an-address"};
-  WebServer bad_list(settings, data, dir / "web");
+  settings_.port = 0;
+  settings_.allow_list = {"not-an-address"};
+  WebServer bad_list(settings_, data_, dir_ / "web");
   EXPECT_THROW(bad_list.start(), std::invalid_argument);
 }
 
 TEST_F(WebServerTest, StopAndStartAgain) {
   start();
   expect_alive();
-  EXPECT_THROW(server->start(), std::logic_error);
-  server->stop();
-  EXPECT_FALSE(server->running());
-  EXPECT_EQ(server->port(), 0);
-  server->stop();  // idempotent
-  server->start();
+  EXPECT_THROW(server_->start(), std::logic_error);
+  server_->stop();
+  EXPECT_FALSE(server_->running());
+  EXPECT_EQ(server_->port(), 0);
+  server_->stop();  // idempotent
+  server_->start();
   expect_alive();
 }
 
@@ -437,7 +437,7 @@ TEST_F(WebServerTest, RandomBytesDoNotStopIt) {
     std::string bytes(static_cast<std::size_t>(1 + rng() % 8192), '\0');
     for (char& c : bytes) c = static_cast<char>(rng());
     if (round % 2) bytes.insert(0, "GET /api/status HTTP/1.1\r\n");  // a good start, then noise
-    Raw c(server->port());
+    Raw c(server_->port());
     ASSERT_TRUE(c.connected());
     c.send(bytes);
     c.end_sending();
@@ -454,7 +454,7 @@ TEST_F(WebServerTest, HalfRequestsTimeOutWhileOthersAreServed) {
   start();
   std::vector<std::unique_ptr<Raw>> held;
   for (const char* part : {"GET /api/sta", "GET /api/status HTTP/1.1\r\nHost: x\r\n", "G"}) {
-    held.push_back(std::make_unique<Raw>(server->port()));
+    held.push_back(std::make_unique<Raw>(server_->port()));
     ASSERT_TRUE(held.back()->connected());
     held.back()->send(part);
   }
@@ -486,7 +486,7 @@ TEST_F(WebServerTest, EndlessHeadersAreCutOff) {
   // cpp-httplib 0.11 keeps every header line it is sent; WebServer stops reading a request at
   // kMaxRequestBytes, so the server ends a connection that never stops sending headers.
   start();
-  Raw c(server->port());
+  Raw c(server_->port());
   ASSERT_TRUE(c.connected());
   ASSERT_TRUE(c.send("GET /api/status HTTP/1.1\r\n"));
   const std::string lines = [] {
@@ -513,7 +513,7 @@ TEST_F(WebServerTest, IdleConnectionsDoNotStopIt) {
   // kIoTimeout at most, so a GET behind them is answered within a few of those.
   start();
   std::vector<std::unique_ptr<Raw>> idle;
-  for (int i = 0; i < 3 * WebServer::kWorkers; ++i) idle.push_back(std::make_unique<Raw>(server->port()));
+  for (int i = 0; i < 3 * WebServer::kWorkers; ++i) idle.push_back(std::make_unique<Raw>(server_->port()));
   const auto t0 = Clock::now();
   const auto r = client().Get("/api/status");
   ASSERT_TRUE(r) << httplib::to_string(r.error());
@@ -531,12 +531,12 @@ TEST_F(WebServerTest, StopIsPromptWithConnectionsOpen) {
   std::vector<std::unique_ptr<Raw>> held;
   // More than the workers and the queue take: the rest wait in the kernel's backlog.
   for (std::size_t i = 0; i < WebServer::kWorkers + WebServer::kQueued + 8; ++i) {
-    held.push_back(std::make_unique<Raw>(server->port()));
+    held.push_back(std::make_unique<Raw>(server_->port()));
     held.back()->send("GET /api/status HTTP/1.1\r\n");  // and never the rest
   }
   std::this_thread::sleep_for(100ms);  // workers are waiting on them
   const auto t0 = Clock::now();
-  server->stop();
+  server_->stop();
   EXPECT_LT(Clock::now() - t0, 1s);
   for (auto& c : held) {
     c->receive(2s);

@@ -27,7 +27,7 @@ using namespace std::chrono_literals;
 namespace {
 
 // The HTTP status of GET `path` from 127.0.0.1:port and the body's size; 0 when no answer.
-int httpGet(std::uint16_t port, const std::string& path, std::size_t* bodyBytes = nullptr) {
+int http_get(std::uint16_t port, const std::string& path, std::size_t* body_bytes = nullptr) {
   const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
   sockaddr_in a{};
   a.sin_family = AF_INET;
@@ -48,7 +48,7 @@ int httpGet(std::uint16_t port, const std::string& path, std::size_t* bodyBytes 
     }
     if (answer.rfind("HTTP/1.1 ", 0) == 0) status = std::atoi(answer.c_str() + 9);
     const auto body = answer.find("\r\n\r\n");
-    if (bodyBytes) *bodyBytes = body == std::string::npos ? 0 : answer.size() - body - 4;
+    if (body_bytes) *body_bytes = body == std::string::npos ? 0 : answer.size() - body - 4;
   }
   ::close(fd);
   return status;
@@ -89,7 +89,7 @@ TEST(LatestFrame, TheReaderAlwaysTakesAWholeFrameAndNeverAnOlderOne) {
     const int v = static_cast<int>(cycle % 200);
     ASSERT_EQ(cv::countNonZero(f->ambient != v), 0) << "ambient of another cycle in frame " << cycle;
     ASSERT_EQ(cv::countNonZero(f->composite != v + 7), 0) << "composite is the max of the flashes";
-    ASSERT_TRUE(f->haveEdges);
+    ASSERT_TRUE(f->have_edges);
     ASSERT_EQ(cv::countNonZero(f->edges != 255 - v), 0);
     taken += cycle != last;
     last = cycle;
@@ -103,7 +103,7 @@ TEST(LatestFrame, TheReaderAlwaysTakesAWholeFrameAndNeverAnOlderOne) {
 // The web view serves the cell's images while cycles run; the cell's threads allocate nothing
 // (the web server's threads, named mfcd-web*, may).
 TEST(WebView, FramePathDoesNotAllocateWhileABrowserPolls) {
-  DaemonConfig config = parseConfig(
+  DaemonConfig config = parse_config(
       "camera:\n  model: camera-sim.yaml\nrecipes:\n  - {id: 0, part: any, obj_id: 0}\n"
       "daemon:\n  realtime_priority: 0\n  cycle_budget_ms: 1000\n"
       "web:\n  enabled: true\n  port: 0\n",
@@ -114,18 +114,18 @@ TEST(WebView, FramePathDoesNotAllocateWhileABrowserPolls) {
   WebView view(fs::temp_directory_path() / "mfcd-no-snapshots");
   WebServer server(config.web, view, config.web_root);
   server.start();
-  view.setCell(cell.webFrames(), cell.parts(), mfcd::vision::load_camera_config(config.camera.model));
+  view.set_cell(cell.web_frames(), cell.parts(), mfcd::vision::load_camera_config(config.camera.model));
 
   CycleRequest r;
   r.origin = CycleOrigin::Benchmark;
-  const auto runCycle = [&](std::uint64_t id) {
+  const auto run_cycle = [&](std::uint64_t id) {
     r.cycle_id = id;
     r.trigger = Clock::now();
     r.deadline = r.trigger + 900ms;
-    return test::runCycle(cell, r);
+    return test::run_cycle(cell, r);
   };
-  for (std::uint64_t i = 1; i <= 3; ++i) ASSERT_EQ(runCycle(i).error, CycleError::None);
-  ASSERT_EQ(httpGet(server.port(), "/api/image/overlay.png"), 200) << "an overlay once a cycle has run";
+  for (std::uint64_t i = 1; i <= 3; ++i) ASSERT_EQ(run_cycle(i).error, CycleError::None);
+  ASSERT_EQ(http_get(server.port(), "/api/image/overlay.png"), 200) << "an overlay once a cycle has run";
 
   std::atomic<bool> stop{false};
   std::atomic<int> served{0};
@@ -134,21 +134,21 @@ TEST(WebView, FramePathDoesNotAllocateWhileABrowserPolls) {
     while (!stop.load()) {
       for (const char* path : {"/api/image/overlay.png", "/api/image/ambient.png", "/api/image/edges.png"}) {
         std::size_t bytes = 0;
-        if (httpGet(server.port(), path, &bytes) == 200 && bytes > 100) ++served;
+        if (http_get(server.port(), path, &bytes) == 200 && bytes > 100) ++served;
       }
     }
   });
-  mfcd::hal::test::excludeThreadsNamed("mfcd-web");
-  const std::uint64_t before = mfcd::hal::test::allocationCountOutsideExcluded();
-  const int servedBefore = served.load();
-  for (std::uint64_t i = 4; i < 24; ++i) EXPECT_EQ(runCycle(i).error, CycleError::None);
-  const std::uint64_t allocations = mfcd::hal::test::allocationCountOutsideExcluded() - before;
-  const int images = served.load() - servedBefore;
-  mfcd::hal::test::excludeThreadsNamed(nullptr);
+  mfcd::hal::test::exclude_threads_named("mfcd-web");
+  const std::uint64_t before = mfcd::hal::test::allocation_count_outside_excluded();
+  const int served_before = served.load();
+  for (std::uint64_t i = 4; i < 24; ++i) EXPECT_EQ(run_cycle(i).error, CycleError::None);
+  const std::uint64_t allocations = mfcd::hal::test::allocation_count_outside_excluded() - before;
+  const int images = served.load() - served_before;
+  mfcd::hal::test::exclude_threads_named(nullptr);
   stop = true;
   browser.join();
   server.stop();
-  view.setCell(nullptr, {}, {});
+  view.set_cell(nullptr, {}, {});
   EXPECT_EQ(allocations, 0u) << "acquisition, vision worker and results while the web view served " << images
                              << " images";
   EXPECT_GE(images, 5) << "the browser's requests ran alongside the cycles";

@@ -13,7 +13,7 @@ std::atomic<std::uint64_t> g_allocations{0};
 std::atomic<std::uint64_t> g_outside{0};
 std::atomic<const char*> g_excluded{nullptr};  // thread-name prefix not counted in g_outside
 
-void* countedAlloc(std::size_t size, std::size_t align) {
+void* counted_alloc(std::size_t size, std::size_t align) {
   g_allocations.fetch_add(1, std::memory_order_relaxed);
   if (const char* prefix = g_excluded.load(std::memory_order_relaxed)) {
     char name[17] = {};
@@ -29,25 +29,25 @@ void* countedAlloc(std::size_t size, std::size_t align) {
 }  // namespace
 
 namespace mfcd::hal::test {
-std::uint64_t allocationCount() noexcept { return g_allocations.load(std::memory_order_relaxed); }
-void excludeThreadsNamed(const char* prefix) noexcept { g_excluded.store(prefix, std::memory_order_relaxed); }
-std::uint64_t allocationCountOutsideExcluded() noexcept { return g_outside.load(std::memory_order_relaxed); }
+std::uint64_t allocation_count() noexcept { return g_allocations.load(std::memory_order_relaxed); }
+void exclude_threads_named(const char* prefix) noexcept { g_excluded.store(prefix, std::memory_order_relaxed); }
+std::uint64_t allocation_count_outside_excluded() noexcept { return g_outside.load(std::memory_order_relaxed); }
 }  // namespace mfcd::hal::test
 
-void* operator new(std::size_t size) { return countedAlloc(size, 0); }
-void* operator new[](std::size_t size) { return countedAlloc(size, 0); }
-void* operator new(std::size_t size, std::align_val_t a) { return countedAlloc(size, static_cast<std::size_t>(a)); }
-void* operator new[](std::size_t size, std::align_val_t a) { return countedAlloc(size, static_cast<std::size_t>(a)); }
+void* operator new(std::size_t size) { return counted_alloc(size, 0); }
+void* operator new[](std::size_t size) { return counted_alloc(size, 0); }
+void* operator new(std::size_t size, std::align_val_t a) { return counted_alloc(size, static_cast<std::size_t>(a)); }
+void* operator new[](std::size_t size, std::align_val_t a) { return counted_alloc(size, static_cast<std::size_t>(a)); }
 void* operator new(std::size_t size, const std::nothrow_t&) noexcept {
   try {
-    return countedAlloc(size, 0);
+    return counted_alloc(size, 0);
   } catch (...) {
     return nullptr;
   }
 }
 void* operator new[](std::size_t size, const std::nothrow_t&) noexcept {
   try {
-    return countedAlloc(size, 0);
+    return counted_alloc(size, 0);
   } catch (...) {
     return nullptr;
   }

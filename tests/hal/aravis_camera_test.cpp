@@ -338,25 +338,25 @@ TEST_F(AravisFakeCamera, CapturesFrameSetsOneSoftwareTriggerPerFlash) {
     ASSERT_EQ(f.image.format(), (ImageFormat{kWidth, kHeight, 8})) << "slot " << k;
     EXPECT_EQ(check_ramp8(f.image, f.info.sequence, 1.0), "") << "slot " << k;
     // Stamped just before its trigger, which the sequencer sends after switching the LED.
-    EXPECT_GE(f.info.timestampNs, f.onNs) << "slot " << k;
-    EXPECT_LE(f.info.timestampNs, f.offNs) << "slot " << k;
-    EXPECT_EQ(f.staleDiscarded, 0) << "slot " << k;
+    EXPECT_GE(f.info.timestamp_ns, f.on_ns) << "slot " << k;
+    EXPECT_LE(f.info.timestamp_ns, f.off_ns) << "slot " << k;
+    EXPECT_EQ(f.stale_discarded, 0) << "slot " << k;
     if (k > 0) {  // one frame per trigger: consecutive ids, so the images differ
       const SlotFrame& prev = set.frames[static_cast<std::size_t>(k - 1)];
       EXPECT_EQ(f.info.sequence, next_block_id(prev.info.sequence)) << "slot " << k;
-      EXPECT_NE(std::memcmp(f.image.data(), prev.image.data(), f.image.sizeBytes()), 0) << "slot " << k;
+      EXPECT_NE(std::memcmp(f.image.data(), prev.image.data(), f.image.size_bytes()), 0) << "slot " << k;
     }
   }
   EXPECT_EQ(camera.stats().frames, 9u);
   EXPECT_EQ(camera.stats().timeouts, 0u);
-  EXPECT_EQ(camera.stats().errorBuffers, 0u);
+  EXPECT_EQ(camera.stats().error_buffers, 0u);
 
   // Steady state: no allocation per frame set, across the fake camera's 16-bit frame id wrap
   // (it starts at 65400).
   constexpr int kSets = 16;
   std::uint32_t last = set.frames.back().info.sequence;
   bool wrapped = false;
-  const std::uint64_t before = test::allocationCount();
+  const std::uint64_t before = test::allocation_count();
   const std::clock_t cpu0 = std::clock();
   const auto t1 = Clock::now();
   for (int i = 0; i < kSets; ++i) {
@@ -368,10 +368,10 @@ TEST_F(AravisFakeCamera, CapturesFrameSetsOneSoftwareTriggerPerFlash) {
   }
   const double per_set_ms = std::chrono::duration<double, std::milli>(Clock::now() - t1).count() / kSets;
   const double cpu_per_set_ms = 1000.0 * static_cast<double>(std::clock() - cpu0) / CLOCKS_PER_SEC / kSets;
-  const std::uint64_t allocations = test::allocationCount() - before;
+  const std::uint64_t allocations = test::allocation_count() - before;
   EXPECT_EQ(allocations, 0u) << "allocations over " << kSets << " frame sets";
   EXPECT_TRUE(wrapped) << "the frame ids never wrapped (last " << last << ")";
-  EXPECT_EQ(camera.stats().droppedFrames, 0u);
+  EXPECT_EQ(camera.stats().dropped_frames, 0u);
   EXPECT_EQ(camera.stats().frames, 9u * (kSets + 1));
   const SlotFrame& after = sequencer.read().frames[4];
   EXPECT_EQ(check_ramp8(after.image, after.info.sequence, 1.0), "");
@@ -774,9 +774,9 @@ TEST_F(AravisFakeCameraWithOutputs, StrobeAndSelectLinesFollowEveryFlashOfAFrame
   // The strobe writes allocate nothing either (the probe's record is reserved beforehand).
   lights.seen.clear();
   lights.seen.reserve(64);
-  const std::uint64_t before = test::allocationCount();
+  const std::uint64_t before = test::allocation_count();
   sequencer.read();
-  EXPECT_EQ(test::allocationCount() - before, 0u) << "allocations over a frame set with the camera strobe";
+  EXPECT_EQ(test::allocation_count() - before, 0u) << "allocations over a frame set with the camera strobe";
   EXPECT_EQ(lights.seen.size(), 16u);
   EXPECT_EQ(catch_hal([&] { strobe.set(0x03); }).code(), ErrorCode::InvalidState);  // one index at a time
   sequencer.deactivate();

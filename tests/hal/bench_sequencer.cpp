@@ -28,9 +28,9 @@ void BM_SequencerFrameSet(benchmark::State& state) {
   seq.configure();
   seq.activate();
   seq.read();
-  const std::uint64_t before = mfcd::hal::test::allocationCount();
+  const std::uint64_t before = mfcd::hal::test::allocation_count();
   for (auto _ : state) benchmark::DoNotOptimize(seq.read().sequence);
-  const std::uint64_t allocs = mfcd::hal::test::allocationCount() - before;
+  const std::uint64_t allocs = mfcd::hal::test::allocation_count() - before;
   state.counters["allocs_per_set"] =
       benchmark::Counter(static_cast<double>(allocs) / static_cast<double>(state.iterations()));
   state.counters["frames_per_s"] =
@@ -46,10 +46,10 @@ void BM_SequencerFrameSetPatternRenderer(benchmark::State& state) {
   seq.configure();
   seq.activate();
   seq.read();
-  const std::uint64_t before = mfcd::hal::test::allocationCount();
+  const std::uint64_t before = mfcd::hal::test::allocation_count();
   for (auto _ : state) benchmark::DoNotOptimize(seq.read().sequence);
   state.counters["allocs_per_set"] = benchmark::Counter(
-      static_cast<double>(mfcd::hal::test::allocationCount() - before) / static_cast<double>(state.iterations()));
+      static_cast<double>(mfcd::hal::test::allocation_count() - before) / static_cast<double>(state.iterations()));
 }
 BENCHMARK(BM_SequencerFrameSetPatternRenderer)->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime();
 

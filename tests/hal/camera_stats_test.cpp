@@ -12,17 +12,17 @@ namespace mfcd::hal {
 namespace {
 
 TEST(CameraStats, FramesMissedAreForwardGapsOfTheSequence) {
-  EXPECT_EQ(framesMissedBetween(5, 6), 0u);
-  EXPECT_EQ(framesMissedBetween(5, 9), 3u);
-  EXPECT_EQ(framesMissedBetween(0xFFFFFFFFu, 0), 0u);  // wrap, no gap
-  EXPECT_EQ(framesMissedBetween(0xFFFFFFFEu, 1), 2u);  // wrap with two missed
+  EXPECT_EQ(frames_missed_between(5, 6), 0u);
+  EXPECT_EQ(frames_missed_between(5, 9), 3u);
+  EXPECT_EQ(frames_missed_between(0xFFFFFFFFu, 0), 0u);  // wrap, no gap
+  EXPECT_EQ(frames_missed_between(0xFFFFFFFEu, 1), 2u);  // wrap with two missed
 }
 
 TEST(CameraStats, RepeatedOrBackwardSequenceIsNoDrop) {
-  EXPECT_EQ(framesMissedBetween(0, 0), 0u);
-  EXPECT_EQ(framesMissedBetween(7, 7), 0u);
-  EXPECT_EQ(framesMissedBetween(9, 5), 0u);
-  EXPECT_EQ(framesMissedBetween(1000, 0), 0u);  // a restarted count
+  EXPECT_EQ(frames_missed_between(0, 0), 0u);
+  EXPECT_EQ(frames_missed_between(7, 7), 0u);
+  EXPECT_EQ(frames_missed_between(9, 5), 0u);
+  EXPECT_EQ(frames_missed_between(1000, 0), 0u);  // a restarted count
 }
 
 }  // namespace

@@ -1,4 +1,4 @@
-// convertToGrey (vectorisable loops) against an obviously-right per-pixel reference, random inputs.
+// convert_to_grey (vectorisable loops) against an obviously-right per-pixel reference, random inputs.
 #include <gtest/gtest.h>
 
 #include <random>
@@ -10,7 +10,7 @@ namespace mfcd::hal {
 namespace {
 
 // Reference: decode one pixel's luma as 16-bit, then map to the output depth.
-std::uint16_t referenceLuma16(SourceFormat f, const std::vector<std::uint8_t>& src, std::size_t stride, int x, int y) {
+std::uint16_t reference_luma16(SourceFormat f, const std::vector<std::uint8_t>& src, std::size_t stride, int x, int y) {
   const std::size_t row = static_cast<std::size_t>(y) * stride;
   switch (f) {
     case SourceFormat::Grey:
@@ -27,8 +27,8 @@ std::uint16_t referenceLuma16(SourceFormat f, const std::vector<std::uint8_t>& s
   return 0;
 }
 
-std::uint32_t readPixel(const Image& img, int x, int y) {
-  if (img.format().bitsPerPixel == 8) return img.row(y)[x];
+std::uint32_t read_pixel(const Image& img, int x, int y) {
+  if (img.format().bits_per_pixel == 8) return img.row(y)[x];
   return reinterpret_cast<const std::uint16_t*>(img.row(y))[x];
 }
 
@@ -45,13 +45,13 @@ TEST(PixelConvert, MatchesReferenceOnRandomFrames) {
         std::vector<std::uint8_t> src(stride * static_cast<std::size_t>(h));
         for (auto& b : src) b = static_cast<std::uint8_t>(rng());
         Image out(ImageFormat{w, h, depth});
-        convertToGrey(f, src.data(), stride, out);
+        convert_to_grey(f, src.data(), stride, out);
         for (int y = 0; y < h; ++y)
           for (int x = 0; x < w; ++x) {
-            const std::uint16_t ref16 = referenceLuma16(f, src, stride, x, y);
+            const std::uint16_t ref16 = reference_luma16(f, src, stride, x, y);
             const std::uint32_t expected = depth == 16 ? ref16 : static_cast<std::uint32_t>(ref16 >> 8);
-            ASSERT_EQ(readPixel(out, x, y), expected) << "format " << static_cast<int>(f) << " depth " << depth
-                                                      << " at " << x << "," << y << " size " << w << "x" << h;
+            ASSERT_EQ(read_pixel(out, x, y), expected) << "format " << static_cast<int>(f) << " depth " << depth
+                                                       << " at " << x << "," << y << " size " << w << "x" << h;
           }
       }
     }

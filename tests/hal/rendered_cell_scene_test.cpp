@@ -13,7 +13,7 @@
 using namespace mfcd;
 
 namespace {
-vision::CameraConfig smallCamera() {
+vision::CameraConfig small_camera() {
   vision::CameraConfig cfg = vision::load_camera_config(MFC_SOURCE_DIR "/config/camera-sim.yaml");
   cfg.camera.image_size = {320, 240};
   cfg.camera.K = cv::Matx33d(cfg.camera.fx() / 2, 0, 160, 0, cfg.camera.fy() / 2, 120, 0, 0, 1);
@@ -25,7 +25,7 @@ cv::Mat1b view(const hal::Image& img) {
 }  // namespace
 
 TEST(RenderedCellScene, SequencerCapturesTheRenderedCellInLockstep) {
-  const vision::CameraConfig cfg = smallCamera();
+  const vision::CameraConfig cfg = small_camera();
   std::unique_ptr<vision::MfcRenderer> renderer;
   try {
     renderer = std::make_unique<vision::MfcRenderer>(cfg);
@@ -51,7 +51,7 @@ TEST(RenderedCellScene, SequencerCapturesTheRenderedCellInLockstep) {
   EXPECT_EQ(cell.renders(), 2u) << "one render per FrameSet";
 
   // Each slot holds exactly the render of its LED (slot 8: ambient).
-  const vision::MfcRender& r = cell.lastRender();
+  const vision::MfcRender& r = cell.last_render();
   for (int k = 0; k < hal::kLedCount; ++k)
     EXPECT_EQ(cv::countNonZero(view(set2.frames[k].image) != r.frames.flash[k]), 0) << "LED " << k;
   EXPECT_EQ(cv::countNonZero(view(set2.frames[8].image) != r.frames.ambient), 0);

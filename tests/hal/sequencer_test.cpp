@@ -21,35 +21,35 @@ struct Rig {
   }
 };
 
-LedMask tagMask(const SlotFrame& f) {
+LedMask tag_mask(const SlotFrame& f) {
   auto tag = PatternSceneRenderer::decode(f.image);
   EXPECT_TRUE(tag.has_value());
   return tag ? tag->lit : 0xFF;
 }
 
 // Every slot shows exactly its own LED (ambient: none), exposed inside its on-window.
-void expectValidSet(const FrameSet& set, std::int64_t lead = 0) {
+void expect_valid_set(const FrameSet& set, std::int64_t lead = 0) {
   for (int s = 0; s < FrameSet::kSlots; ++s) {
     const SlotFrame& f = set.frames[static_cast<std::size_t>(s)];
     SCOPED_TRACE("slot " + std::to_string(s));
     EXPECT_EQ(f.led, s < kLedCount ? s : kAmbientLed);
-    EXPECT_EQ(tagMask(f), s < kLedCount ? LedMask(1u << s) : LedMask(0));
-    EXPECT_GE(f.info.timestampNs - lead, f.onNs);
-    EXPECT_LE(f.info.timestampNs, f.offNs);
-    EXPECT_LT(f.onNs, f.offNs);
+    EXPECT_EQ(tag_mask(f), s < kLedCount ? LedMask(1u << s) : LedMask(0));
+    EXPECT_GE(f.info.timestamp_ns - lead, f.on_ns);
+    EXPECT_LE(f.info.timestamp_ns, f.off_ns);
+    EXPECT_LT(f.on_ns, f.off_ns);
     if (s > 0) {
-      EXPECT_GE(f.onNs, set.frames[static_cast<std::size_t>(s - 1)].offNs);  // windows never overlap
+      EXPECT_GE(f.on_ns, set.frames[static_cast<std::size_t>(s - 1)].off_ns);  // windows never overlap
     }
   }
 }
 
 TEST(Sequencer, FiresEachLedOnceInOrderThenAmbient) {
   Rig rig;
-  rig.ring.recordHistory(64);
+  rig.ring.record_history(64);
   rig.start();
   const FrameSet& set = rig.sequencer.read();
   EXPECT_EQ(set.sequence, 1u);
-  expectValidSet(set);
+  expect_valid_set(set);
   // The ring saw: off (configure), then on/off for LEDs 0..7, nothing else.
   const auto& h = rig.ring.history();
   ASSERT_EQ(h.size(), 1u + 2 * kLedCount);
@@ -63,42 +63,42 @@ TEST(Sequencer, FiresEachLedOnceInOrderThenAmbient) {
 TEST(Sequencer, ConsecutiveSetsHaveIncreasingSequenceAndExposures) {
   Rig rig(SimulatedCameraConfig{{32, 8, 16}});
   rig.start();
-  std::uint64_t lastExposure = 0;
+  std::uint64_t last_exposure = 0;
   bool first = true;
   for (std::uint64_t n = 1; n <= 5; ++n) {
     const FrameSet& set = rig.sequencer.read();
     EXPECT_EQ(set.sequence, n);
-    expectValidSet(set);
+    expect_valid_set(set);
     for (const SlotFrame& f : set.frames) {
       auto tag = PatternSceneRenderer::decode(f.image);
       ASSERT_TRUE(tag);
       if (!first) {
-        EXPECT_EQ(tag->exposureIndex, lastExposure + 1);
+        EXPECT_EQ(tag->exposure_index, last_exposure + 1);
       }
-      lastExposure = tag->exposureIndex;
+      last_exposure = tag->exposure_index;
       first = false;
     }
   }
-  EXPECT_EQ(rig.sequencer.stats().frameSets, 5u);
+  EXPECT_EQ(rig.sequencer.stats().frame_sets, 5u);
 }
 
 TEST(Sequencer, RespectsExposureLeadOfEndOfFrameTimestamps) {
   SimulatedCameraConfig cfg;
-  cfg.exposureNs = 200'000;  // 0.2 ms exposures, stamped at their end
+  cfg.exposure_ns = 200'000;  // 0.2 ms exposures, stamped at their end
   Rig rig(cfg);
   rig.start();
-  expectValidSet(rig.sequencer.read(), cfg.exposureNs);
+  expect_valid_set(rig.sequencer.read(), cfg.exposure_ns);
 }
 
 TEST(Sequencer, DiscardsStaleFramesAndKeepsTheFreshOne) {
   Rig rig;
   rig.start();
-  rig.camera.injectStaleFrames(2);  // two frames already queued before LED 0 went on
+  rig.camera.inject_stale_frames(2);  // two frames already queued before LED 0 went on
   const FrameSet& set = rig.sequencer.read();
-  expectValidSet(set);
-  EXPECT_EQ(set.frames[0].staleDiscarded, 2);
-  EXPECT_EQ(set.frames[1].staleDiscarded, 0);
-  EXPECT_EQ(rig.sequencer.stats().staleDiscarded, 2u);
+  expect_valid_set(set);
+  EXPECT_EQ(set.frames[0].stale_discarded, 2);
+  EXPECT_EQ(set.frames[1].stale_discarded, 0);
+  EXPECT_EQ(rig.sequencer.stats().stale_discarded, 2u);
 }
 
 TEST(Sequencer, StaleAmbientFrameIsDiscardedToo) {
@@ -113,7 +113,7 @@ TEST(Sequencer, StaleAmbientFrameIsDiscardedToo) {
     void activate() override { inner.activate(); }
     void deactivate() override { inner.deactivate(); }
     void set(LedMask m) override {
-      if (m == 0 && inner.state() == 0x80) cam.injectStaleFrames(1);
+      if (m == 0 && inner.state() == 0x80) cam.inject_stale_frames(1);
       inner.set(m);
     }
     LedMask state() const override { return inner.state(); }
@@ -123,16 +123,16 @@ TEST(Sequencer, StaleAmbientFrameIsDiscardedToo) {
   seq.configure();
   seq.activate();
   const FrameSet& set = seq.read();
-  expectValidSet(set);
-  EXPECT_EQ(set.frames[kLedCount].staleDiscarded, 1);
+  expect_valid_set(set);
+  EXPECT_EQ(set.frames[kLedCount].stale_discarded, 1);
 }
 
 TEST(Sequencer, TooManyStaleFramesFailsNamingTheLedAndSwitchesOff) {
   SequencerConfig seq;
-  seq.maxStaleFramesPerSlot = 2;
+  seq.max_stale_frames_per_slot = 2;
   Rig rig({}, seq);
   rig.start();
-  rig.camera.injectStaleFrames(3);
+  rig.camera.inject_stale_frames(3);
   try {
     rig.sequencer.read();
     FAIL() << "expected StaleFrames";
@@ -143,7 +143,7 @@ TEST(Sequencer, TooManyStaleFramesFailsNamingTheLedAndSwitchesOff) {
   }
   EXPECT_EQ(rig.ring.state(), 0) << "LED left on after an error";
   // The sequencer recovers on the next read().
-  expectValidSet(rig.sequencer.read());
+  expect_valid_set(rig.sequencer.read());
   EXPECT_EQ(rig.sequencer.stats().failures, 1u);
 }
 
@@ -151,7 +151,7 @@ TEST(Sequencer, CameraTimeoutPropagatesWithLedsOff) {
   Rig rig;
   rig.start();
   rig.sequencer.read();
-  rig.camera.injectTimeouts(1);
+  rig.camera.inject_timeouts(1);
   try {
     rig.sequencer.read();
     FAIL() << "expected StreamTimeout";
@@ -165,29 +165,29 @@ TEST(Sequencer, CameraTimeoutPropagatesWithLedsOff) {
 TEST(Sequencer, CameraDisconnectPropagatesThenRecovers) {
   Rig rig;
   rig.start();
-  rig.camera.injectDisconnect();
+  rig.camera.inject_disconnect();
   EXPECT_THROW(rig.sequencer.read(), HalError);
   EXPECT_EQ(rig.ring.state(), 0);
-  expectValidSet(rig.sequencer.read());
+  expect_valid_set(rig.sequencer.read());
   EXPECT_EQ(rig.camera.stats().reconnects, 1u);
 }
 
 TEST(Sequencer, ErrorAndDroppedFramesAreCountedButDoNotBreakTheSet) {
   Rig rig;
   rig.start();
-  rig.camera.injectErrorFrames(2);
-  rig.camera.injectDroppedFrames(3);
+  rig.camera.inject_error_frames(2);
+  rig.camera.inject_dropped_frames(3);
   const FrameSet& set = rig.sequencer.read();
-  expectValidSet(set);
-  EXPECT_EQ(rig.camera.stats().errorBuffers, 2u);
-  EXPECT_EQ(rig.camera.stats().droppedFrames, 3u);
+  expect_valid_set(set);
+  EXPECT_EQ(rig.camera.stats().error_buffers, 2u);
+  EXPECT_EQ(rig.camera.stats().dropped_frames, 3u);
   EXPECT_EQ(set.frames[1].info.sequence, set.frames[0].info.sequence + 1);
 }
 
 TEST(Sequencer, LightFailureSwitchesOffAndPropagates) {
   Rig rig;
   rig.start();
-  rig.ring.failNextSets(1);
+  rig.ring.fail_next_sets(1);
   try {
     rig.sequencer.read();
     FAIL() << "expected an I/O error";
@@ -200,7 +200,7 @@ TEST(Sequencer, LightFailureSwitchesOffAndPropagates) {
 
 TEST(Sequencer, BusyLineAtConfigureIsReported) {
   Rig rig;
-  rig.ring.failConfigureBusy(true);
+  rig.ring.fail_configure_busy(true);
   try {
     rig.sequencer.configure();
     FAIL() << "expected LineBusy";
@@ -228,13 +228,13 @@ TEST(Sequencer, SteadyStateReadDoesNotAllocate) {
   Rig rig(SimulatedCameraConfig{{64, 48, 8}});
   rig.start();
   rig.sequencer.read();  // warm-up
-  const std::uint64_t before = test::allocationCount();
+  const std::uint64_t before = test::allocation_count();
   for (int i = 0; i < 50; ++i) rig.sequencer.read();
-  const std::uint64_t after = test::allocationCount();
+  const std::uint64_t after = test::allocation_count();
   EXPECT_EQ(after - before, 0u);
   // The counter is live: an allocation in this binary is seen.
   auto* probe = new int(1);
-  EXPECT_GT(test::allocationCount(), after);
+  EXPECT_GT(test::allocation_count(), after);
   delete probe;
 }
 
@@ -265,7 +265,7 @@ TEST(PatternSceneRenderer, ImagesDifferByLitDirection) {
   EXPECT_LT(b.row(16)[30], b.row(16)[1]);
   auto tag = PatternSceneRenderer::decode(a);
   ASSERT_TRUE(tag);
-  EXPECT_EQ(tag->exposureIndex, 7u);
+  EXPECT_EQ(tag->exposure_index, 7u);
   Image tiny(ImageFormat{4, 4, 8});
   r.render(1, 0, tiny);
   EXPECT_FALSE(PatternSceneRenderer::decode(tiny));  // too narrow for a tag

@@ -30,12 +30,12 @@ void BM_SequencerFrameSetVivid(benchmark::State& state) {
   seq.configure();
   seq.activate();
   seq.read();
-  const std::uint64_t before = mfcd::hal::test::allocationCount();
+  const std::uint64_t before = mfcd::hal::test::allocation_count();
   for (auto _ : state) benchmark::DoNotOptimize(seq.read().sequence);
   state.counters["allocs_per_set"] = benchmark::Counter(
-      static_cast<double>(mfcd::hal::test::allocationCount() - before) / static_cast<double>(state.iterations()));
+      static_cast<double>(mfcd::hal::test::allocation_count() - before) / static_cast<double>(state.iterations()));
   state.counters["stale_per_set"] =
-      benchmark::Counter(static_cast<double>(seq.stats().staleDiscarded) / static_cast<double>(state.iterations() + 1));
+      benchmark::Counter(static_cast<double>(seq.stats().stale_discarded) / static_cast<double>(state.iterations() + 1));
 }
 BENCHMARK(BM_SequencerFrameSetVivid)->Iterations(10)->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime()->UseRealTime();
 

@@ -48,17 +48,17 @@ constexpr std::uint32_t kVividInjectStreamOnError = 0x00f0f045;
 constexpr std::uint32_t kVividInjectFatalError = 0x00f0f046;
 constexpr int kWidth = 320, kHeight = 180;  // one of vivid's webcam sizes
 
-bool inVm() { return std::getenv("MFC_HIL") != nullptr; }
+bool in_vm() { return std::getenv("MFC_HIL") != nullptr; }
 
 #define REQUIRE_DRIVER(present, what)                                            \
   do {                                                                           \
     if (!(present)) {                                                            \
-      if (inVm()) FAIL() << what << " missing inside the HIL VM";                \
+      if (in_vm()) FAIL() << what << " missing inside the HIL VM";                \
       GTEST_SKIP() << what << " not present (run the HIL tier: tools/mfc hil)"; \
     }                                                                            \
   } while (0)
 
-bool vividPresent() {
+bool vivid_present() {
   const int fd = ::open(kVideo, O_RDWR | O_CLOEXEC);
   if (fd < 0) return false;
   v4l2_capability cap{};
@@ -67,7 +67,7 @@ bool vividPresent() {
   return ok;
 }
 
-bool simChipPresent() {
+bool sim_chip_present() {
   gpiod_chip* chip = gpiod_chip_open_by_label(kChipLabel);
   if (!chip) return false;
   gpiod_chip_close(chip);
@@ -75,7 +75,7 @@ bool simChipPresent() {
 }
 
 // Sets a control through a separate file handle, as another program would.
-void vividControl(std::uint32_t id, std::int32_t value) {
+void vivid_control(std::uint32_t id, std::int32_t value) {
   const int fd = ::open(kVideo, O_RDWR | O_CLOEXEC);
   ASSERT_GE(fd, 0) << std::strerror(errno);
   v4l2_control c{id, value};
@@ -83,7 +83,7 @@ void vividControl(std::uint32_t id, std::int32_t value) {
   ::close(fd);
 }
 
-std::int32_t readControl(std::uint32_t id) {
+std::int32_t read_control(std::uint32_t id) {
   const int fd = ::open(kVideo, O_RDWR | O_CLOEXEC);
   v4l2_control c{id, 0};
   EXPECT_EQ(::ioctl(fd, VIDIOC_G_CTRL, &c), 0) << std::strerror(errno);
@@ -91,25 +91,25 @@ std::int32_t readControl(std::uint32_t id) {
   return c.value;
 }
 
-V4L2CameraConfig vividConfig(int bits = 8) {
+V4L2CameraConfig vivid_config(int bits = 8) {
   V4L2CameraConfig cfg;
   cfg.device = kVideo;
   cfg.width = kWidth;
   cfg.height = kHeight;
-  cfg.bitsPerPixel = bits;
-  cfg.frameRate = 30;
-  cfg.dequeueTimeout = std::chrono::milliseconds(1500);
-  cfg.reconnectBackoffMin = std::chrono::milliseconds(50);
+  cfg.bits_per_pixel = bits;
+  cfg.frame_rate = 30;
+  cfg.dequeue_timeout = std::chrono::milliseconds(1500);
+  cfg.reconnect_backoff_min = std::chrono::milliseconds(50);
   return cfg;
 }
 
 // gpio-sim's view of the lines: /sys/devices/platform/gpio-sim.N/<chip>/sim_gpioK/value.
 class SimLines {
 public:
-  explicit SimLines(const std::string& chipName) {
+  explicit SimLines(const std::string& chip_name) {
     for (int i = 0; i < kLedCount; ++i) {
       glob_t g{};
-      const std::string pattern = "/sys/devices/platform/gpio-sim.*/" + chipName + "/sim_gpio" + std::to_string(i) + "/value";
+      const std::string pattern = "/sys/devices/platform/gpio-sim.*/" + chip_name + "/sim_gpio" + std::to_string(i) + "/value";
       if (::glob(pattern.c_str(), 0, nullptr, &g) == 0 && g.gl_pathc == 1) fds_[static_cast<std::size_t>(i)] = ::open(g.gl_pathv[0], O_RDONLY | O_CLOEXEC);
       ::globfree(&g);
     }
@@ -137,7 +137,7 @@ private:
   std::array<int, kLedCount> fds_{-1, -1, -1, -1, -1, -1, -1, -1};
 };
 
-std::string chipNameOf(const char* label) {
+std::string chip_name_of(const char* label) {
   gpiod_chip* chip = gpiod_chip_open_by_label(label);
   if (!chip) return {};
   std::string name = gpiod_chip_name(chip);
@@ -150,18 +150,18 @@ std::string chipNameOf(const char* label) {
 class VividCamera : public ::testing::Test {
 protected:
   void SetUp() override {
-    REQUIRE_DRIVER(vividPresent(), "vivid at /dev/video0");
-    vividControl(kVividPercentDropped, 0);
+    REQUIRE_DRIVER(vivid_present(), "vivid at /dev/video0");
+    vivid_control(kVividPercentDropped, 0);
     // vivid computes end-of-frame stamps as stream start + n * period, which can lie ahead of the
     // moment the buffer is delivered; start-of-exposure stamps are taken when the frame is made.
-    vividControl(kVividTimestampSource, 1);
+    vivid_control(kVividTimestampSource, 1);
   }
 };
 
 TEST_F(VividCamera, StreamsGreyFramesWithMonotonicTimestampsAndSequence) {
   for (int bits : {8, 16}) {
     SCOPED_TRACE(std::to_string(bits) + "-bit");
-    V4L2Camera camera(vividConfig(bits));
+    V4L2Camera camera(vivid_config(bits));
     camera.configure();
     EXPECT_EQ(camera.format(), (ImageFormat{kWidth, kHeight, bits}));
     EXPECT_EQ(camera.driver(), "vivid");
@@ -170,11 +170,11 @@ TEST_F(VividCamera, StreamsGreyFramesWithMonotonicTimestampsAndSequence) {
     FrameInfo info, previous;
     for (int n = 0; n < 8; ++n) {
       camera.read(img, info);
-      const std::int64_t now = monotonicNowNs();
-      EXPECT_LE(info.timestampNs, now);
-      EXPECT_GT(info.timestampNs, now - 2'000'000'000) << "timestamp not on CLOCK_MONOTONIC";
+      const std::int64_t now = monotonic_now_ns();
+      EXPECT_LE(info.timestamp_ns, now);
+      EXPECT_GT(info.timestamp_ns, now - 2'000'000'000) << "timestamp not on CLOCK_MONOTONIC";
       if (n > 0) {
-        EXPECT_GT(info.timestampNs, previous.timestampNs);
+        EXPECT_GT(info.timestamp_ns, previous.timestamp_ns);
         EXPECT_GT(info.sequence, previous.sequence);
       }
       previous = info;
@@ -188,30 +188,30 @@ TEST_F(VividCamera, StreamsGreyFramesWithMonotonicTimestampsAndSequence) {
     }
     EXPECT_GT(hi - lo, bits == 8 ? 50 : 50 * 256);
     EXPECT_EQ(camera.stats().frames, 8u);
-    EXPECT_EQ(camera.exposureLeadNs(), 0) << "start-of-exposure stamps need no lead";
+    EXPECT_EQ(camera.exposure_lead_ns(), 0) << "start-of-exposure stamps need no lead";
     camera.deactivate();
   }
 }
 
 TEST_F(VividCamera, EndOfFrameStampsGiveAFramePeriodOfLead) {
-  vividControl(kVividTimestampSource, 0);
-  V4L2Camera camera(vividConfig());
+  vivid_control(kVividTimestampSource, 0);
+  V4L2Camera camera(vivid_config());
   camera.configure();
-  EXPECT_NEAR(static_cast<double>(camera.exposureLeadNs()), 1e9 / 30, 1e6) << "frame period at 30 fps";
-  vividControl(kVividTimestampSource, 1);
+  EXPECT_NEAR(static_cast<double>(camera.exposure_lead_ns()), 1e9 / 30, 1e6) << "frame period at 30 fps";
+  vivid_control(kVividTimestampSource, 1);
 }
 
 TEST_F(VividCamera, AppliesManualGainWhereTheDeviceHasIt) {
-  V4L2CameraConfig cfg = vividConfig();
+  V4L2CameraConfig cfg = vivid_config();
   cfg.gain = 42;
-  cfg.exposureUs = 5000;  // vivid has no exposure control: logged, not applied
+  cfg.exposure_us = 5000;  // vivid has no exposure control: logged, not applied
   {
     V4L2Camera camera(cfg);
     camera.configure();
-    EXPECT_TRUE(camera.gainApplied());
-    EXPECT_FALSE(camera.exposureApplied());
-    EXPECT_EQ(readControl(V4L2_CID_AUTOGAIN), 0);
-    EXPECT_EQ(readControl(V4L2_CID_GAIN), 42);
+    EXPECT_TRUE(camera.gain_applied());
+    EXPECT_FALSE(camera.exposure_applied());
+    EXPECT_EQ(read_control(V4L2_CID_AUTOGAIN), 0);
+    EXPECT_EQ(read_control(V4L2_CID_GAIN), 42);
   }
   cfg.gain = 1000;  // outside 0..255
   V4L2Camera bad(cfg);
@@ -221,11 +221,11 @@ TEST_F(VividCamera, AppliesManualGainWhereTheDeviceHasIt) {
   } catch (const HalError& e) {
     EXPECT_NE(std::string(e.what()).find("gain 1000"), std::string::npos) << e.what();
   }
-  vividControl(V4L2_CID_AUTOGAIN, 1);
+  vivid_control(V4L2_CID_AUTOGAIN, 1);
 }
 
 TEST_F(VividCamera, UnsupportedSizeNamesTheDeviceAndWhatItOffers) {
-  V4L2CameraConfig cfg = vividConfig();
+  V4L2CameraConfig cfg = vivid_config();
   cfg.width = 123;
   cfg.height = 77;
   V4L2Camera camera(cfg);
@@ -242,40 +242,40 @@ TEST_F(VividCamera, UnsupportedSizeNamesTheDeviceAndWhatItOffers) {
 }
 
 TEST_F(VividCamera, ErrorBuffersAreRequeuedAndStreamingContinues) {
-  V4L2Camera camera(vividConfig());
+  V4L2Camera camera(vivid_config());
   camera.configure();
   camera.activate();
   Image img(camera.format());
   FrameInfo info;
   camera.read(img, info);
-  vividControl(kVividInjectBufError, 1);
+  vivid_control(kVividInjectBufError, 1);
   for (int n = 0; n < 6; ++n) camera.read(img, info);
-  EXPECT_GE(camera.stats().errorBuffers, 1u);
+  EXPECT_GE(camera.stats().error_buffers, 1u);
   EXPECT_EQ(camera.stats().frames, 7u);
 }
 
 TEST_F(VividCamera, DroppedBuffersAreCountedFromSequenceGaps) {
-  V4L2Camera camera(vividConfig());
+  V4L2Camera camera(vivid_config());
   camera.configure();
   camera.activate();
   Image img(camera.format());
   FrameInfo info;
-  vividControl(kVividPercentDropped, 50);
+  vivid_control(kVividPercentDropped, 50);
   for (int n = 0; n < 12; ++n) camera.read(img, info);
-  vividControl(kVividPercentDropped, 0);
-  EXPECT_GT(camera.stats().droppedFrames, 0u);
+  vivid_control(kVividPercentDropped, 0);
+  EXPECT_GT(camera.stats().dropped_frames, 0u);
 }
 
 TEST_F(VividCamera, WatchdogReportsTimeoutAndStreamRecovers) {
-  V4L2CameraConfig cfg = vividConfig();
-  cfg.dequeueTimeout = std::chrono::milliseconds(400);
+  V4L2CameraConfig cfg = vivid_config();
+  cfg.dequeue_timeout = std::chrono::milliseconds(400);
   V4L2Camera camera(cfg);
   camera.configure();
   camera.activate();
   Image img(camera.format());
   FrameInfo info;
   camera.read(img, info);
-  vividControl(kVividPercentDropped, 100);  // vivid stops returning buffers
+  vivid_control(kVividPercentDropped, 100);  // vivid stops returning buffers
   try {
     for (int n = 0; n < 10; ++n) camera.read(img, info);  // at most the frames already queued
     FAIL() << "no timeout";
@@ -284,17 +284,17 @@ TEST_F(VividCamera, WatchdogReportsTimeoutAndStreamRecovers) {
     EXPECT_NE(std::string(e.what()).find(kVideo), std::string::npos) << e.what();
     EXPECT_NE(std::string(e.what()).find("400 ms"), std::string::npos) << e.what();
   }
-  vividControl(kVividPercentDropped, 0);
-  const std::int64_t before = info.timestampNs;
+  vivid_control(kVividPercentDropped, 0);
+  const std::int64_t before = info.timestamp_ns;
   camera.read(img, info);  // restarts the stream first
   EXPECT_EQ(camera.stats().timeouts, 1u);
-  EXPECT_GT(info.timestampNs, before);
+  EXPECT_GT(info.timestamp_ns, before);
 }
 
 TEST_F(VividCamera, StreamOnFailureNamesTheIoctlAndRetrySucceeds) {
-  V4L2Camera camera(vividConfig());
+  V4L2Camera camera(vivid_config());
   camera.configure();
-  vividControl(kVividInjectStreamOnError, 1);
+  vivid_control(kVividInjectStreamOnError, 1);
   try {
     camera.activate();
     FAIL() << "injected STREAMON error not reported";
@@ -309,13 +309,13 @@ TEST_F(VividCamera, StreamOnFailureNamesTheIoctlAndRetrySucceeds) {
 }
 
 TEST_F(VividCamera, FatalStreamingErrorIsReportedAndStreamRestarts) {
-  V4L2Camera camera(vividConfig());
+  V4L2Camera camera(vivid_config());
   camera.configure();
   camera.activate();
   Image img(camera.format());
   FrameInfo info;
   camera.read(img, info);
-  vividControl(kVividInjectFatalError, 1);
+  vivid_control(kVividInjectFatalError, 1);
   bool failed = false;
   for (int n = 0; n < 6 && !failed; ++n) {
     try {
@@ -331,13 +331,13 @@ TEST_F(VividCamera, FatalStreamingErrorIsReportedAndStreamRestarts) {
 }
 
 TEST_F(VividCamera, UnplugIsDetectedAndTheCameraReconnects) {
-  V4L2Camera camera(vividConfig());
+  V4L2Camera camera(vivid_config());
   camera.configure();
   camera.activate();
   Image img(camera.format());
   FrameInfo info;
   camera.read(img, info);
-  vividControl(kVividDisconnect, 1);  // emulates a USB unplug; back once every handle is closed
+  vivid_control(kVividDisconnect, 1);  // emulates a USB unplug; back once every handle is closed
   try {
     for (int n = 0; n < 10; ++n) camera.read(img, info);
     FAIL() << "disconnect not detected";
@@ -369,19 +369,19 @@ TEST_F(VividCamera, UnplugIsDetectedAndTheCameraReconnects) {
 class GpioSim : public ::testing::Test {
 protected:
   void SetUp() override {
-    REQUIRE_DRIVER(simChipPresent(), "gpio-sim chip 'mfc-leds'");
-    chipName_ = chipNameOf(kChipLabel);
-    lines_ = std::make_unique<SimLines>(chipName_);
-    ASSERT_TRUE(lines_->ok()) << "gpio-sim sysfs attributes for " << chipName_ << " not found";
+    REQUIRE_DRIVER(sim_chip_present(), "gpio-sim chip 'mfc-leds'");
+    chip_name_ = chip_name_of(kChipLabel);
+    lines_ = std::make_unique<SimLines>(chip_name_);
+    ASSERT_TRUE(lines_->ok()) << "gpio-sim sysfs attributes for " << chip_name_ << " not found";
   }
-  std::string chipName_;
+  std::string chip_name_;
   std::unique_ptr<SimLines> lines_;
 };
 
 TEST_F(GpioSim, DrivesEachLedAloneInOrderAndAllOffAtTheEnd) {
   GpiodLightRing ring({kChipLabel, {0, 1, 2, 3, 4, 5, 6, 7}, false, "mfcd-hil"});
   ring.configure();
-  EXPECT_EQ(ring.chipLabel(), kChipLabel);
+  EXPECT_EQ(ring.chip_label(), kChipLabel);
   EXPECT_EQ(lines_->read(), 0);
   ring.activate();
   for (int i = 0; i < kLedCount; ++i) {
@@ -397,7 +397,7 @@ TEST_F(GpioSim, DrivesEachLedAloneInOrderAndAllOffAtTheEnd) {
 
 TEST_F(GpioSim, ActiveLowAndOffsetMapping) {
   {
-    GpiodLightRing ring({chipName_, {7, 6, 5, 4, 3, 2, 1, 0}, true, "mfcd-hil"});  // by name this time
+    GpiodLightRing ring({chip_name_, {7, 6, 5, 4, 3, 2, 1, 0}, true, "mfcd-hil"});  // by name this time
     ring.configure();
     EXPECT_EQ(lines_->read(), 0xFF) << "active-low LEDs are off with the lines high";
     ring.activate();
@@ -472,15 +472,15 @@ TEST_F(GpioSim, LineHeldByAnotherProcessIsReportedThenRecovered) {
 // -------------------------------------------------------------------------- sequencer end to end
 
 TEST(HilSequencer, EightLedsInLockstepWithVividFrames) {
-  REQUIRE_DRIVER(vividPresent(), "vivid at /dev/video0");
-  REQUIRE_DRIVER(simChipPresent(), "gpio-sim chip 'mfc-leds'");
-  vividControl(kVividPercentDropped, 0);
-  vividControl(kVividTimestampSource, 1);  // see VividCamera::SetUp
-  const std::string chipName = chipNameOf(kChipLabel);
-  SimLines lines(chipName);
+  REQUIRE_DRIVER(vivid_present(), "vivid at /dev/video0");
+  REQUIRE_DRIVER(sim_chip_present(), "gpio-sim chip 'mfc-leds'");
+  vivid_control(kVividPercentDropped, 0);
+  vivid_control(kVividTimestampSource, 1);  // see VividCamera::SetUp
+  const std::string chip_name = chip_name_of(kChipLabel);
+  SimLines lines(chip_name);
   ASSERT_TRUE(lines.ok());
 
-  V4L2Camera camera(vividConfig());
+  V4L2Camera camera(vivid_config());
   GpiodLightRing ring({kChipLabel, {0, 1, 2, 3, 4, 5, 6, 7}, false, "mfcd-hil"});
   MfcSequencer sequencer(camera, ring);
   sequencer.configure();
@@ -494,17 +494,17 @@ TEST(HilSequencer, EightLedsInLockstepWithVividFrames) {
   std::vector<Edge> edges;
   edges.reserve(4096);
   std::atomic<bool> stop{false}, running{false};
-  std::int64_t maxGapNs = 0;
+  std::int64_t max_gap_ns = 0;
   // The eight sysfs reads are not one atomic snapshot: a mask counts only once two scans in a row
   // agree, which filters scans straddling a switch (LED pulses last a frame, switches microseconds).
   std::thread sampler([&] {
     LedMask last = lines.read(), candidate = last;
-    std::int64_t prev = monotonicNowNs();
+    std::int64_t prev = monotonic_now_ns();
     running = true;
     while (!stop.load(std::memory_order_relaxed)) {
       const LedMask m = lines.read();
-      const std::int64_t now = monotonicNowNs();
-      maxGapNs = std::max(maxGapNs, now - prev);
+      const std::int64_t now = monotonic_now_ns();
+      max_gap_ns = std::max(max_gap_ns, now - prev);
       prev = now;
       if (m == candidate && m != last && edges.size() < edges.capacity()) {
         edges.push_back({now, m});
@@ -517,17 +517,17 @@ TEST(HilSequencer, EightLedsInLockstepWithVividFrames) {
   constexpr int kSets = 4;  // the first one warms up and is not counted for allocations
   std::array<std::uint64_t, kSets> sequences{};
   std::array<std::array<std::int64_t, 4>, kSets * FrameSet::kSlots> timing{};  // on, off, timestamp, led
-  std::uint64_t allocsBefore = 0;
+  std::uint64_t allocs_before = 0;
   for (int s = 0; s < kSets; ++s) {
-    if (s == 1) allocsBefore = test::allocationCount();
+    if (s == 1) allocs_before = test::allocation_count();
     const FrameSet& set = sequencer.read();
     for (int k = 0; k < FrameSet::kSlots; ++k) {
       const SlotFrame& f = set.frames[static_cast<std::size_t>(k)];
-      timing[static_cast<std::size_t>(s * FrameSet::kSlots + k)] = {f.onNs, f.offNs, f.info.timestampNs, f.led};
+      timing[static_cast<std::size_t>(s * FrameSet::kSlots + k)] = {f.on_ns, f.off_ns, f.info.timestamp_ns, f.led};
     }
     sequences[static_cast<std::size_t>(s)] = set.sequence;
   }
-  const std::uint64_t allocs = test::allocationCount() - allocsBefore;
+  const std::uint64_t allocs = test::allocation_count() - allocs_before;
   stop = true;
   sampler.join();
   sequencer.deactivate();
@@ -535,7 +535,7 @@ TEST(HilSequencer, EightLedsInLockstepWithVividFrames) {
   EXPECT_EQ(allocs, 0u) << "steady-state FrameSet capture allocated";
 
   for (int s = 0; s < kSets; ++s) EXPECT_EQ(sequences[static_cast<std::size_t>(s)], static_cast<std::uint64_t>(s + 1));
-  const std::int64_t lead = camera.exposureLeadNs();
+  const std::int64_t lead = camera.exposure_lead_ns();
   for (const auto& [on, off, ts, led] : timing) {
     SCOPED_TRACE("LED " + std::to_string(led));
     EXPECT_GE(ts - lead, on) << "frame exposed before the LED went on";
@@ -545,25 +545,25 @@ TEST(HilSequencer, EightLedsInLockstepWithVividFrames) {
   // The lines did exactly: LED0, LED1, ..., LED7 per set, one LED at a time (the off gap between
   // two LEDs lasts microseconds and may fall between samples), and each LED was seen lit over its
   // frame's exposure. Debounced sampling delays an edge by at most two scan gaps.
-  std::vector<std::size_t> risesAt;
+  std::vector<std::size_t> rises_at;
   for (std::size_t e = 0; e < edges.size(); ++e) {
     EXPECT_LE(__builtin_popcount(edges[e].mask), 1) << "two LEDs on at once: mask 0x" << std::hex << int(edges[e].mask);
-    if (edges[e].mask) risesAt.push_back(e);
+    if (edges[e].mask) rises_at.push_back(e);
   }
-  ASSERT_EQ(risesAt.size(), static_cast<std::size_t>(kSets * kLedCount)) << "sampler missed or saw extra pulses";
-  for (std::size_t pulse = 0; pulse < risesAt.size(); ++pulse) {
-    const std::size_t e = risesAt[pulse];
+  ASSERT_EQ(rises_at.size(), static_cast<std::size_t>(kSets * kLedCount)) << "sampler missed or saw extra pulses";
+  for (std::size_t pulse = 0; pulse < rises_at.size(); ++pulse) {
+    const std::size_t e = rises_at[pulse];
     ASSERT_EQ(edges[e].mask, LedMask(1u << (pulse % kLedCount))) << "pulse " << pulse << " out of order";
     ASSERT_LT(e + 1, edges.size()) << "last LED never seen off";
     const std::int64_t rise = edges[e].t, fall = edges[e + 1].t;
     const auto& [on, off, ts, led] = timing[pulse / kLedCount * FrameSet::kSlots + pulse % kLedCount];
-    EXPECT_LE(rise, ts - lead + 2 * maxGapNs) << "LED " << led << " seen on only after its exposure began";
+    EXPECT_LE(rise, ts - lead + 2 * max_gap_ns) << "LED " << led << " seen on only after its exposure began";
     EXPECT_GE(fall, ts) << "LED " << led << " seen off before its frame was stamped";
   }
-  RecordProperty("sampler_max_gap_us", static_cast<int>(maxGapNs / 1000));
+  RecordProperty("sampler_max_gap_us", static_cast<int>(max_gap_ns / 1000));
   std::printf("sequencer: %d sets, %zu pulses, sampler max gap %.1f us, %llu stale frames discarded, %llu camera drops\n",
-              kSets, risesAt.size(), maxGapNs / 1e3, static_cast<unsigned long long>(sequencer.stats().staleDiscarded),
-              static_cast<unsigned long long>(camera.stats().droppedFrames));
+              kSets, rises_at.size(), max_gap_ns / 1e3, static_cast<unsigned long long>(sequencer.stats().stale_discarded),
+              static_cast<unsigned long long>(camera.stats().dropped_frames));
 }
 
 }  // namespace

@@ -17,8 +17,11 @@ STATUS, JOB_ECHO, PICK_X, SCORE, TEST_VECTOR, WORD_ORDER, MAP_VERSION = 8, 9, 20
 DONE, PICK_VALID, LOOK_WANTED = 1 << 2, 1 << 4, 1 << 6
 PICK_RANK, PICKS_LEFT, NEXT = 50, 51, 3
 LOOK_REASON, LOOK_X, LOOK = 55, 56, 5
-BLOCK = 80  # registers 0..79: the whole map (map version 4)
+GRIP_STATE, GRIP_OF_JOB, GRIP_X, CHECK_GRIP = 68, 69, 70, 6
+EXPECTED, POSE_ERROR, NOT_GRASPED = 1, 2, 3
+BLOCK = 96  # registers 0..95: the whole map (map version 5)
 SIM_LOOK_RECIPE = 90  # recipe 90 + k: the result asks for a second look for reason k
+SIM_GRIP_RECIPE = 80  # CHECK_GRIP with recipe 82: pose error, 83: not grasped, any other: expected
 
 
 def pick_for_job(job):  # tests/motion/sim_daemon.hpp
@@ -27,6 +30,14 @@ def pick_for_job(job):  # tests/motion/sim_daemon.hpp
 
 def look_pose_for_job(job):  # tests/motion/sim_daemon.hpp
     return [300.0 + job, -120.25, 615.5, 179.5, -12.75, float(job % 180) - 45.0]
+
+
+def grip_pose_for_job(job):  # tests/motion/sim_daemon.hpp: tool_T_part of the checked job's part
+    return [1.5, -0.75, 148.0 + job % 16, 0.25, -0.5, float(job % 90)]
+
+
+def sim_grip_errors(state):  # tests/motion/sim_daemon.hpp: translation mm, rotation degrees
+    return [6.25, 4.5] if state == POSE_ERROR else [0.5, 0.25]
 
 
 def to_float(first, second, order):
@@ -71,9 +82,11 @@ def run_pymodbus(binary):
         rr = client.read_holding_registers(0, BLOCK, slave=1)
         check(not rr.isError() and len(rr.registers) == BLOCK, f"{order}: whole map in one read of {BLOCK}")
         regs = rr.registers
-        check(regs[MAP_VERSION] == 4, f"{order}: map version 4")
-        rr = client.read_holding_registers(0, 64, slave=1)
-        check(not rr.isError() and len(rr.registers) == 64, f"{order}: a read of 64 (map version 3) still works")
+        check(regs[MAP_VERSION] == 5, f"{order}: map version 5")
+        for count, version in ((80, 4), (64, 3)):
+            rr = client.read_holding_registers(0, count, slave=1)
+            check(not rr.isError() and len(rr.registers) == count,
+                  f"{order}: a read of {count} (map version {version}) still works")
         expect = [0x47F1, 0x2000] if order == "ABCD" else [0x2000, 0x47F1]
         check(regs[TEST_VECTOR:TEST_VECTOR + 2] == expect, f"{order}: test vector registers {expect}")
         check(regs[WORD_ORDER] == (0 if order == "ABCD" else 1), f"{order}: word order register")
@@ -101,6 +114,7 @@ def run_pymodbus(binary):
                                         write_registers=[22, 3], slave=1)
         check(not rr.isError() and rr.registers == expect, f"{order}: FC 0x17 read/write")
         pymodbus_second_look(client, order)
+        pymodbus_gripper_check(client, order)
         client.close()
         server.close()
 
@@ -140,6 +154,45 @@ def pymodbus_second_look(client, order):
     check(rr.isError() and rr.exception_code == 3, f"{order}: LOOK without LOOK_WANTED -> exception 3")
 
 
+def grip_floats(regs, order):
+    return [to_float(regs[GRIP_X + 2 * i], regs[GRIP_X + 2 * i + 1], order) for i in range(8)]
+
+
+def pymodbus_gripper_check(client, order):
+    """CHECK_GRIP on the pick in the registers, in each of its three outcomes (map version 5)."""
+    wr = client.write_registers(0, [CHECK_GRIP, 25, SIM_GRIP_RECIPE + 2, 0], slave=1)
+    check(not wr.isError(), f"{order}: CHECK_GRIP job 25 on job 24's pick accepted")
+    regs = wait_for_echo(client, 25)
+    check(regs[JOB_ECHO] == 25 and regs[STATUS] & DONE and not regs[STATUS] & PICK_VALID,
+          f"{order}: check job 25: done, no pick: status {regs[STATUS]:#06x}")
+    check(regs[GRIP_STATE:GRIP_OF_JOB + 1] == [POSE_ERROR, 24], f"{order}: GRIP_STATE 2 (pose error) of job 24")
+    floats = grip_floats(regs, order)
+    check(floats == grip_pose_for_job(24) + sim_grip_errors(POSE_ERROR), f"{order}: tool_T_part and errors {floats}")
+    rr = client.write_registers(0, [NEXT], slave=1)
+    check(rr.isError() and rr.exception_code == 3, f"{order}: NEXT on a check's result -> exception 3")
+    rr = client.write_registers(0, [CHECK_GRIP, 26, 3, 0], slave=1)
+    check(rr.isError() and rr.exception_code == 3, f"{order}: CHECK_GRIP without a pick -> exception 3")
+
+    # The pick result and the check in one write: PICK_RESULT ok for job 26, then CHECK_GRIP 27.
+    check(not client.write_registers(0, [1, 26, 3, 0], slave=1).isError(), f"{order}: trigger job 26 accepted")
+    wait_for_echo(client, 26)
+    wr = client.write_registers(0, [CHECK_GRIP, 27, 3, 0, 1, 26], slave=1)
+    check(not wr.isError(), f"{order}: PICK_RESULT and CHECK_GRIP job 27 in one write accepted")
+    regs = wait_for_echo(client, 27)
+    check(regs[GRIP_STATE:GRIP_OF_JOB + 1] == [EXPECTED, 26], f"{order}: GRIP_STATE 1 (expected) of job 26")
+    floats = grip_floats(regs, order)
+    check(floats == grip_pose_for_job(26) + sim_grip_errors(EXPECTED), f"{order}: tool_T_part and errors {floats}")
+
+    check(not client.write_registers(0, [1, 28, 3, 0], slave=1).isError(), f"{order}: trigger job 28 accepted")
+    regs = wait_for_echo(client, 28)
+    check(regs[GRIP_STATE:BLOCK] == [0] * (BLOCK - GRIP_STATE), f"{order}: a TRIGGER's result: 68..95 read 0")
+    wr = client.write_registers(0, [CHECK_GRIP, 29, SIM_GRIP_RECIPE + 3, 0], slave=1)
+    check(not wr.isError(), f"{order}: CHECK_GRIP job 29 accepted")
+    regs = wait_for_echo(client, 29)
+    check(regs[GRIP_STATE:GRIP_OF_JOB + 1] == [NOT_GRASPED, 28] and regs[GRIP_X:GRIP_X + 16] == [0] * 16,
+          f"{order}: GRIP_STATE 3 (not grasped) of job 28, pose and errors 0.0")
+
+
 def run_mbpoll(binary):
     mbpoll = shutil.which("mbpoll")
     if not mbpoll:
@@ -161,6 +214,7 @@ def run_mbpoll(binary):
         if order == "ABCD":
             mbpoll_map_v3(mbpoll, server.port)
             mbpoll_map_v4(mbpoll, server.port)
+            mbpoll_map_v5(mbpoll, server.port)
         server.close()
 
 
@@ -235,6 +289,41 @@ def mbpoll_map_v4(mbpoll, port):
     check(code == 0 and wait_for_echo(42), "mbpoll: LOOK job 42 done")
     code, text, _ = run("-r", 0, "127.0.0.1", LOOK, 43, SIM_LOOK_RECIPE + 1, 0)
     check(code != 0 and "Illegal data value" in text, "mbpoll: LOOK without LOOK_WANTED -> illegal data value")
+
+
+def mbpoll_map_v5(mbpoll, port):
+    """CHECK_GRIP written, and its result read, by mbpoll (map version 5, ABCD)."""
+    base = [mbpoll, "-m", "tcp", "-p", str(port), "-a", "1", "-0", "-1"]
+
+    def run(*args):
+        out = subprocess.run(base + [str(a) for a in args], capture_output=True, text=True, timeout=20)
+        values = {}
+        for line in out.stdout.splitlines():
+            if line.startswith("["):
+                key, value = line.split(":", 1)
+                values[int(key.strip("[]"))] = value.strip()
+        return out.returncode, out.stdout + out.stderr, values
+
+    def wait_for_echo(job):
+        for _ in range(100):
+            if run("-r", JOB_ECHO, "-c", 1, "127.0.0.1")[2].get(JOB_ECHO) == str(job):
+                return True
+            time.sleep(0.02)
+        return False
+
+    # Job 42 (mbpoll_map_v4's LOOK) left a pick in the registers: check it.
+    code, _, _ = run("-r", 0, "127.0.0.1", CHECK_GRIP, 44, SIM_GRIP_RECIPE + 2, 0)
+    check(code == 0 and wait_for_echo(44), "mbpoll: CHECK_GRIP job 44 done")
+    _, _, regs = run("-r", GRIP_STATE, "-c", 2, "127.0.0.1")
+    check(regs.get(GRIP_STATE) == str(POSE_ERROR) and regs.get(GRIP_OF_JOB) == "42",
+          f"mbpoll: GRIP_STATE 2 of job 42: {regs}")
+    _, _, regs = run("-r", GRIP_X, "-c", 8, "-t", "4:float", "-B", "127.0.0.1")
+    floats = [float(regs.get(GRIP_X + 2 * i, "nan")) for i in range(8)]
+    check(floats == grip_pose_for_job(42) + sim_grip_errors(POSE_ERROR), f"mbpoll: tool_T_part and errors {floats}")
+    code, text, _ = run("-r", 0, "127.0.0.1", CHECK_GRIP, 45, SIM_GRIP_RECIPE + 2, 0)
+    check(code != 0 and "Illegal data value" in text, "mbpoll: CHECK_GRIP on a check's result -> illegal data value")
+    code, text, _ = run("-r", GRIP_STATE, "127.0.0.1", 1)
+    check(code != 0 and "Illegal data address" in text, "mbpoll: write to GRIP_STATE -> illegal data address")
 
 
 if __name__ == "__main__":

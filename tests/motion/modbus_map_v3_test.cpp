@@ -14,26 +14,15 @@
 
 using namespace mfcd::motion;
 using namespace std::chrono_literals;
+using test::eventually;
 using test::LibmodbusClient;
+using test::loopback_config;
 using test::ranked_pick;
 using test::reg_float;
 using test::SimulatedDaemon;
 using test::wait_for_echo;
 
 namespace {
-
-ModbusServerConfig loopback_config() {
-  ModbusServerConfig c;
-  c.bind_address = "127.0.0.1";
-  c.port = 0;
-  return c;
-}
-
-template <typename F>
-bool eventually(F done) {
-  for (int i = 0; i < 300 && !done(); ++i) std::this_thread::sleep_for(10ms);
-  return done();
-}
 
 constexpr std::uint16_t kNext = static_cast<std::uint16_t>(reg::Command::Next);
 constexpr std::uint16_t kSaveScene = static_cast<std::uint16_t>(reg::Command::SaveScene);

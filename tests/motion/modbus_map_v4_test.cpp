@@ -19,8 +19,10 @@
 
 using namespace mfcd::motion;
 using namespace std::chrono_literals;
+using test::eventually;
 using test::LibmodbusClient;
 using test::look_pose_for_job;
+using test::loopback_config;
 using test::pick_for_job;
 using test::RawClient;
 using test::reg_float;
@@ -28,20 +30,6 @@ using test::SimulatedDaemon;
 using test::wait_for_echo;
 
 namespace {
-
-ModbusServerConfig loopback_config(WordOrder order = WordOrder::ABCD) {
-  ModbusServerConfig c;
-  c.bind_address = "127.0.0.1";
-  c.port = 0;
-  c.word_order = order;
-  return c;
-}
-
-template <typename F>
-bool eventually(F done) {
-  for (int i = 0; i < 300 && !done(); ++i) std::this_thread::sleep_for(10ms);
-  return done();
-}
 
 constexpr std::uint16_t kLook = static_cast<std::uint16_t>(reg::Command::Look);
 constexpr std::uint16_t kNext = static_cast<std::uint16_t>(reg::Command::Next);
@@ -87,33 +75,24 @@ void expect_no_look(const std::vector<std::uint16_t>& block) {
 
 }  // namespace
 
-TEST(ModbusMapV4, VersionAndEightyRegisterBlock) {
+TEST(ModbusMapV4, VersionAndEightyRegisterRead) {
   ModbusServer server(loopback_config());
   server.start();
   LibmodbusClient plc(server.port());
-  EXPECT_EQ(reg::kBlockSize, 80);
-  EXPECT_EQ(plc.read(reg::kMapVersionReg, 1)[0], 4);
+  EXPECT_GE(plc.read(reg::kMapVersionReg, 1)[0], 4) << "later versions keep every version 4 address";
   const auto block = plc.read(0, 80);
-  EXPECT_EQ(block[reg::kMapVersionReg], 4);
   EXPECT_EQ(block[reg::kTestVector], 0x47F1);
   expect_no_look(block);
   EXPECT_EQ(std::vector<std::uint16_t>(block.begin() + 68, block.end()), std::vector<std::uint16_t>(12, 0))
-      << "68..79 reserved";
+      << "68..79 read 0 (map version 5: no gripper check result)";
   EXPECT_EQ(plc.read(0, 64).size(), 64u) << "a map version 3 PLC's read of 64 still works";
   EXPECT_EQ(plc.read(79, 1), std::vector<std::uint16_t>{0});
   std::vector<std::uint16_t> input(80);
-  EXPECT_EQ(modbus_read_input_registers(plc.ctx, 0, 80, input.data()), 80) << "FC 0x04 mirrors all 80";
+  EXPECT_EQ(modbus_read_input_registers(plc.ctx, 0, 80, input.data()), 80) << "FC 0x04 mirrors the first 80";
 
-  std::uint16_t two[2];
-  EXPECT_EQ(modbus_read_registers(plc.ctx, 79, 2, two), -1);
-  EXPECT_EQ(errno, EMBXILADD) << "a read reaching past 79";
-  EXPECT_EQ(modbus_read_registers(plc.ctx, 80, 1, two), -1);
-  EXPECT_EQ(errno, EMBXILADD);
-  EXPECT_EQ(modbus_read_input_registers(plc.ctx, 79, 2, two), -1);
-  EXPECT_EQ(errno, EMBXILADD);
   EXPECT_EQ(plc.write(reg::kLookReason, {1}), EMBXILADD) << "55..67 are read-only";
   EXPECT_EQ(plc.write(reg::kLookX, {0, 0}), EMBXILADD);
-  EXPECT_EQ(plc.write(68, {1}), EMBXILADD) << "reserved";
+  EXPECT_EQ(plc.write(68, {1}), EMBXILADD) << "read-only";
   EXPECT_EQ(plc.write(reg::kRobotPoseSeq, {1, 0}), EMBXILADD) << "the pose block still ends at 49";
 }
 

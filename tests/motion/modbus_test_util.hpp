@@ -2,6 +2,7 @@
 #pragma once
 
 #include "motion/float_codec.hpp"
+#include "motion/modbus_server.hpp"
 #include "motion/register_map.hpp"
 
 #include <arpa/inet.h>
@@ -21,6 +22,22 @@
 #include <vector>
 
 namespace mfcd::motion::test {
+
+// A server on 127.0.0.1 at a port the kernel picks (ModbusServer::port() tells which).
+inline ModbusServerConfig loopback_config(WordOrder order = WordOrder::ABCD) {
+  ModbusServerConfig c;
+  c.bind_address = "127.0.0.1";
+  c.port = 0;
+  c.word_order = order;
+  return c;
+}
+
+// Polls `done` every 10 ms for up to 3 s; its last answer.
+template <typename F>
+bool eventually(F done) {
+  for (int i = 0; i < 300 && !done(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  return done();
+}
 
 // A plain TCP socket for sending hand-made (often malformed) frames.
 class RawClient {

@@ -21,6 +21,8 @@ static RobotReport make_report(std::uint32_t n) {
   r.score = static_cast<float>(n & 0xffff) / 65536.0f;
   r.look_reason = static_cast<std::uint16_t>(n % 4);
   r.look_pose.rz_deg = static_cast<float>(n) * 0.25f;
+  r.grip_of_job = static_cast<std::uint16_t>(n * 5);
+  r.grip_rotation_deg = static_cast<float>(n) * 0.125f;
   return r;
 }
 
@@ -29,7 +31,8 @@ static bool consistent(const RobotReport& r) {
   const RobotReport want = make_report(n);
   return r.job_id == want.job_id && r.recipe_id == want.recipe_id && r.error_code == want.error_code &&
          r.objects_remaining == want.objects_remaining && r.pick.rz_deg == want.pick.rz_deg && r.score == want.score &&
-         r.look_reason == want.look_reason && r.look_pose.rz_deg == want.look_pose.rz_deg;
+         r.look_reason == want.look_reason && r.look_pose.rz_deg == want.look_pose.rz_deg &&
+         r.grip_of_job == want.grip_of_job && r.grip_rotation_deg == want.grip_rotation_deg;
 }
 
 TEST(Seqlock, ReadersNeverSeeATornReport) {

@@ -3,6 +3,7 @@
 #pragma once
 
 #include "motion/modbus_server.hpp"
+#include "motion/register_map.hpp"
 
 #include <poll.h>
 
@@ -36,6 +37,27 @@ inline PickPose look_pose_for_job(std::uint16_t job) {
   return {300.0f + job, -120.25f, 615.5f, 179.5f, -12.75f, static_cast<float>(job % 180) - 45.0f};
 }
 
+// Gripper check (map version 5): a CHECK_GRIP is answered with a grip result for the job it
+// checks and no pick: GripState PoseError for recipe kSimGripRecipe + 2, NotGrasped for
+// kSimGripRecipe + 3, Expected for any other; the part's pose in the tool frame is
+// grip_pose_for_job (0.0 when not grasped), the errors kSimGripErrors.
+inline constexpr std::uint16_t kSimGripRecipe = 80;
+inline PickPose grip_pose_for_job(std::uint16_t checked_job) {
+  return {1.5f,  -0.75f, 148.0f + static_cast<float>(checked_job % 16),
+          0.25f, -0.5f,  static_cast<float>(checked_job % 90)};
+}
+struct SimGripErrors {
+  float translation_mm, rotation_deg;
+};
+inline SimGripErrors sim_grip_errors(reg::GripState state) {
+  return state == reg::GripState::PoseError ? SimGripErrors{6.25f, 4.5f} : SimGripErrors{0.5f, 0.25f};
+}
+inline reg::GripState sim_grip_state(std::uint16_t recipe) {
+  if (recipe == kSimGripRecipe + 2) return reg::GripState::PoseError;
+  if (recipe == kSimGripRecipe + 3) return reg::GripState::NotGrasped;
+  return reg::GripState::Expected;
+}
+
 // Stands in for the daemon's cycle: consumes PLC commands from the server and publishes
 // results through the same API the daemon uses.
 class SimulatedDaemon {
@@ -51,14 +73,17 @@ class SimulatedDaemon {
     stop_ = true;
     thread_.join();
   }
-  std::atomic<int> triggers{0}, resets{0}, save_scenes{0}, nexts{0}, pick_results{0}, looks{0};
+  std::atomic<int> triggers{0}, resets{0}, save_scenes{0}, nexts{0}, pick_results{0}, looks{0}, checks{0};
   // The last NEXT and PICK_RESULT as the daemon received them; `order` records the kinds as
-  // they arrived (N = NEXT, R = PICK_RESULT), for checks of one write carrying both.
+  // they arrived, two bits each (1 = NEXT, 2 = PICK_RESULT, 3 = CHECK_GRIP), for checks of one
+  // write carrying two.
   std::atomic<std::uint16_t> next_rank{0}, result_job{0}, result_rank{0xffff}, result_outcome{0};
   std::atomic<std::uint32_t> order{0};
   std::atomic<std::uint16_t> last_mode{0xffff}, last_recipe{0xffff};
   // The last LOOK as the daemon received it.
   std::atomic<std::uint16_t> look_job{0}, look_of_job{0};
+  // The last CHECK_GRIP as the daemon received it.
+  std::atomic<std::uint16_t> check_job{0}, check_of_job{0}, check_rank{0xffff};
   std::atomic<bool> fail_next{false};
 
  private:
@@ -93,15 +118,24 @@ class SimulatedDaemon {
         }
         const bool save = cmd->kind == PlcCommand::Kind::SaveScene;
         const bool look = cmd->kind == PlcCommand::Kind::Look;
+        const bool check = cmd->kind == PlcCommand::Kind::CheckGrip;
         if (save)
           ++save_scenes;
         else if (look)
           ++looks;
+        else if (check)
+          ++checks;
         else
           ++triggers;
         if (look) {
           look_job = cmd->job_id;
           look_of_job = cmd->look_of_job;
+        }
+        if (check) {
+          check_job = cmd->job_id;
+          check_of_job = cmd->check_of_job;
+          check_rank = cmd->rank;
+          order = order * 4 + 3;
         }
         last_mode = cmd->mode;
         last_recipe = cmd->recipe_id;
@@ -121,11 +155,20 @@ class SimulatedDaemon {
           report_.score = 0.875f;
         }
         const auto reason = static_cast<std::uint16_t>(cmd->recipe_id - kSimLookRecipe);
-        const bool wants_look = !look && report_.error_code == 0 && reason >= 1 && reason <= 3;
+        const bool wants_look = !look && !check && report_.error_code == 0 && reason >= 1 && reason <= 3;
         report_.look_wanted = wants_look;
         report_.look_reason = wants_look ? reason : 0;
         report_.look_pose = wants_look ? look_pose_for_job(cmd->job_id) : PickPose{};
         if (wants_look) report_.pick_valid = 0;
+        // A check's result: the grip fields, no pick. Every other result: grip fields 0.
+        const auto grip = check && report_.error_code == 0 ? sim_grip_state(cmd->recipe_id) : reg::GripState::None;
+        const bool found = grip == reg::GripState::Expected || grip == reg::GripState::PoseError;
+        report_.grip_state = static_cast<std::uint16_t>(grip);
+        report_.grip_of_job = grip != reg::GripState::None ? cmd->check_of_job : 0;
+        report_.grip_pose = found ? grip_pose_for_job(cmd->check_of_job) : PickPose{};
+        report_.grip_translation_mm = found ? sim_grip_errors(grip).translation_mm : 0.0f;
+        report_.grip_rotation_deg = found ? sim_grip_errors(grip).rotation_deg : 0.0f;
+        if (check) report_.pick_valid = 0;
         report_.pick_rank = 0;
         report_.pick_count = report_.pick_valid ? kSimPicksPerJob : 0;
         for (std::uint16_t k = 0; k < report_.pick_count; ++k) report_.ranked[k] = ranked_pick(cmd->job_id, k);

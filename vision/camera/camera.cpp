@@ -1,11 +1,15 @@
 #include "vision/camera/camera.hpp"
+#include "motion/unique_fd.hpp"
 #include "vision/common/scalar_text.hpp"
 
+#include <fcntl.h>
+#include <unistd.h>
 #include <yaml-cpp/yaml.h>
 
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
+#include <cstring>
 #include <fstream>
 #include <iterator>
 #include <limits>
@@ -264,12 +268,12 @@ CameraConfig load_camera_config(const std::filesystem::path& file) {
   return c;
 }
 
-void save_camera_config(const CameraConfig& c, const std::filesystem::path& file) {
-  validate_camera_config(c, file.string());
-  // YAML whatever the file's extension (FileStorage would write XML or JSON for .xml, .json):
-  // load_camera_config reads YAML only.
-  cv::FileStorage fs(file.string(), cv::FileStorage::WRITE | cv::FileStorage::FORMAT_YAML);
-  if (!fs.isOpened()) throw std::runtime_error(file.string() + ": cannot write camera config");
+namespace {
+
+// The YAML text of a camera config. Made in memory: FileStorage writing a file checks none of
+// its writes, so a full disk would leave a truncated file without an error.
+std::string camera_config_yaml(const CameraConfig& c) {
+  cv::FileStorage fs(".yaml", cv::FileStorage::WRITE | cv::FileStorage::MEMORY | cv::FileStorage::FORMAT_YAML);
   fs << "image_width" << c.camera.image_size.width;
   fs << "image_height" << c.camera.image_size.height;
   fs << "camera_matrix" << cv::Mat(c.camera.K);
@@ -300,6 +304,29 @@ void save_camera_config(const CameraConfig& c, const std::filesystem::path& file
     fs << "views" << c.hand_eye->views;
     fs << "}";
   }
+  return fs.releaseAndGetString();
+}
+
+[[noreturn]] void write_failed(const std::filesystem::path& file, const char* what, int error) {
+  throw std::runtime_error(file.string() + ": " + what + ": " + std::strerror(error));
+}
+
+}  // namespace
+
+void save_camera_config(const CameraConfig& c, const std::filesystem::path& file) {
+  validate_camera_config(c, file.string());
+  // YAML whatever the file's extension: load_camera_config reads YAML only.
+  const std::string text = camera_config_yaml(c);
+  motion::UniqueFd fd(::open(file.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644));
+  if (!fd) write_failed(file, "cannot write camera config", errno);
+  for (size_t done = 0; done < text.size();) {
+    const ssize_t n = ::write(fd.get(), text.data() + done, text.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) write_failed(file, "cannot write camera config", n < 0 ? errno : EIO);
+    done += static_cast<size_t>(n);
+  }
+  // close() reports what a delayed write-back could not store (NFS, some FUSE file systems).
+  if (::close(fd.release()) != 0) write_failed(file, "cannot write camera config", errno);
 }
 
 }  // namespace mfcd::vision

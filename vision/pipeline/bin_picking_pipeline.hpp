@@ -15,6 +15,7 @@
 #include "vision/pipeline/confidence_fitted.hpp"
 #include "vision/pose/bin_floor.hpp"
 #include "vision/pose/grasp_visibility.hpp"
+#include "vision/pose/gripper_check.hpp"
 
 #include <opencv2/core.hpp>
 
@@ -59,8 +60,9 @@ struct PipelineConfig {
   int coarse_seeds = 6;             // per part type searched; 0 = the coarse stage only
   int keep_per_view = 1;
   int keep_separation_px = 8;
-  // With slide_step 1 the shared bound keeps exactly the hits searched without it.
-  bool share_search_bound = true;
+  // Off: the shared bound makes the hits depend on the threads' timing (docs/fdcm.md), and a
+  // cycle must give the same candidates on any thread count and load (a snapshot replays).
+  bool share_search_bound = false;
   // Search rounds: FDCM only (the baselines and evaluation tools search once); a round starts
   // only when the deadline leaves it the time the last one took.
   static constexpr int kMaxSearchRounds = 4;
@@ -180,7 +182,11 @@ struct HypothesisTrace {
 struct PipelineResult {
   std::vector<PoseCandidate> candidates;  // best first; capacity reserved once
   StageTimes times;
-  bool degraded = false;  // the deadline cut a stage short: best-so-far result
+  // The deadline cut a stage short (search views, fits, the leaders' checks, a candidate's
+  // alternative or edge-offset fit, refinement): best-so-far result. Not degraded, the result is
+  // the one an unlimited deadline gives, except that a later round or the escalation may have
+  // been skipped for time (they only add candidates; PipelineResult::rounds, escalated).
+  bool degraded = false;
   int edge_pixels = 0;
   int query_lines = 0;
   uint64_t hypotheses = 0;             // FDCM hypotheses evaluated by the search, all rounds
@@ -233,6 +239,15 @@ class BinPickingPipeline {
   // Its tolerance_mm replaces floor_tolerance_mm's. Throws std::invalid_argument naming the field
   // (BinFloor::validate); the floor is then unchanged. Not during process().
   void set_floor(const BinFloor& floor);
+
+  // The gripper check (paper Sec. 4.6, vision/pose/gripper_check.hpp) rendering with this
+  // pipeline's renderer, which is made now if no refinement has yet (in the calling thread, whose
+  // GL context it binds: the thread of process()). The check must not outlive the pipeline.
+  // Throws std::invalid_argument naming the parameter.
+  std::unique_ptr<GripperCheck> make_gripper_check(const GripperCheckParams& params);
+  // Part obj_id as that renderer knows it (for GripperCheck::check). Throws std::invalid_argument
+  // for an unknown obj_id.
+  PoseModel pose_model_of(int obj_id);
 
   // Part types loaded, as (obj_id, name).
   std::vector<std::pair<int, std::string>> parts() const;

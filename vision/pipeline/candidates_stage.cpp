@@ -64,12 +64,21 @@ void BinPickingPipeline::Impl::make_candidates(Clock::time_point deadline, Pipel
     c.inlier_fraction = v.fit.inlier_fraction;
     c.fit_cost_px = v.fit.mean_cost_px;
     c.box = h.box;
-    if (v.fit_score >= 0 && Clock::now() < deadline) find_alternative(static_cast<size_t>(&v - verified.data()), c);
+    // Past the deadline a fitted candidate goes without its alternative or its edge-offset fit:
+    // the cycle is then degraded.
+    const bool fitted = v.fit_score >= 0;
+    if (fitted && Clock::now() < deadline)
+      find_alternative(static_cast<size_t>(&v - verified.data()), c);
+    else if (fitted)
+      out.degraded = true;
     c.ambiguous = c.has_alternative && c.alternative_support < config.ambiguous_support;
     // Unfitted (the baselines): 1 at a perfect match, 0.5 at 2 px of combined cost.
-    c.score = v.fit_score >= 0 ? config.confidence.probability(c.evidence()) : 1.0 / (1.0 + v.combined / 2.0);
+    c.score = fitted ? config.confidence.probability(c.evidence()) : 1.0 / (1.0 + v.combined / 2.0);
     // (Past the deadline the candidate keeps the ranking fit's pose.)
-    if (v.fit_score >= 0 && config.edge_offset_correction && Clock::now() < deadline) {
+    const bool correct = fitted && config.edge_offset_correction;
+    const bool correct_in_time = correct && Clock::now() < deadline;
+    if (correct && !correct_in_time) out.degraded = true;
+    if (correct_in_time) {
       if (!final_prepared) final_fitter.share_prepared(fitter), final_prepared = true;
       const TemplateFitResult f = final_fitter.fit(part.db, v.view, v.fitted, camera.camera, fit_workspaces[0]);
       // The bin floor binds this fit as every other: one that slid through it keeps the ranked pose.

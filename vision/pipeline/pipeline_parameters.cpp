@@ -66,8 +66,9 @@ const PipelineParameter kParameters[] = {
     {"keep_separation_px", Type::integer, 0, 1000, "px", "least distance between placements kept of one view", true,
      MFC_FIELD(keep_separation_px)},
     {"share_search_bound", Type::boolean, 0, 1, "",
-     "search threads abandon a placement that cannot be among the cycle's best hits so far", true,
-     MFC_SWITCH(share_search_bound)},
+     "search threads abandon a placement that cannot be among the cycle's best hits so far (faster; the hits then "
+     "depend on the threads' timing)",
+     true, MFC_SWITCH(share_search_bound)},
     {"search_rounds", Type::integer, 1, PipelineConfig::kMaxSearchRounds, "",
      "search rounds per cycle: a later one searches again without the edges the best candidates explain", true,
      MFC_FIELD(search_rounds)},

@@ -273,8 +273,9 @@ struct BinPickingPipeline::Impl {
     // The first few views and fits run even past the deadline, so that a late cycle still gives
     // picks (the first round; a later round only adds candidates).
     bool minimum_past_deadline = true;
-    bool late = false;      // the search skipped views past its deadline
-    bool fit_late = false;  // the fit skipped hypotheses past the deadline
+    bool late = false;         // the search skipped views past its deadline
+    bool fit_late = false;     // the fit skipped hypotheses past the deadline
+    bool checks_late = false;  // the ranking skipped checks of leading hypotheses past the deadline
   };
   // The line search over every view of the selected parts into `hits`, best first, its bound
   // keeping the best `wanted` (fdcm_idt: FDCM's costs; null for the baselines).
@@ -284,9 +285,9 @@ struct BinPickingPipeline::Impl {
   void fit(Cycle& cycle, size_t first, const IntegralDistanceTransform* fdcm_idt);
   void trace(size_t first, int round, PipelineResult& out) const;
   void sort_verified(size_t first);
-  void rank(const Cycle& cycle, size_t first);
-  void check_spins(const Cycle& cycle, size_t first, int pool);  // rank()'s spin check
-  void query_without_best(int best);                             // into round_query
+  void rank(Cycle& cycle, size_t first);
+  void check_spins(Cycle& cycle, size_t first, int pool);  // rank()'s spin check
+  void query_without_best(int best);                       // into round_query
   // The cycle's stages in order (stage.hpp), made by the constructor.
   std::vector<std::unique_ptr<Stage>> stages;
   GraspVisibility grasp_visibility(int obj_id, const RigidPose& pose, const GraspFeature& feature) {
@@ -312,6 +313,8 @@ struct BinPickingPipeline::Impl {
   void make_candidates(Clock::time_point deadline, PipelineResult& out);
   // The best refine_candidates candidates refined until the deadline (refinement_stage.cpp).
   void refine(Clock::time_point deadline, PipelineResult& out);
+  // The renderer and refiner, made on first use in the calling thread (its GL context).
+  void ensure_renderer();
   // A search after the first (a later round's or escalation's): its best `wanted` new hits
   // verified, fitted (traced as `round`) and ranked with the hypotheses so far. It has no "always
   // searched" views or fits, so the deadline only makes it add fewer.

@@ -25,8 +25,8 @@ void BinPickingPipeline::Impl::sort_verified(size_t first) {
 }
 
 // Ranks the hypotheses from `first` on, and checks the best few of them against the floor and
-// turned over.
-void BinPickingPipeline::Impl::rank(const Cycle& cycle, size_t first) {
+// turned over. A check the deadline skips sets cycle.checks_late.
+void BinPickingPipeline::Impl::rank(Cycle& cycle, size_t first) {
   Impl& m = *this;
   sort_verified(first);
   if (!cycle.fdcm || !m.config.fit_hypotheses) return;
@@ -43,10 +43,15 @@ void BinPickingPipeline::Impl::rank(const Cycle& cycle, size_t first) {
   };
   // Each check runs on the best `n` hypotheses that have a fit, shared out among the threads,
   // until the deadline; then the hypotheses are ordered by their ranks again.
+  std::atomic<bool> late{false};
   auto check_leaders = [&](int n, auto&& check) {
     parallel_for(begin, begin + n, threads, 1, [&](int i) {
       Verified& v = m.verified[i];
-      if (v.fit_score <= 0 || Clock::now() > cycle.deadline) return;
+      if (v.fit_score <= 0) return;
+      if (Clock::now() > cycle.deadline) {
+        late.store(true, std::memory_order_relaxed);
+        return;
+      }
       check(i, v, m.parts[v.hit.part]);
     });
     if (n > 0) sort_verified(first);
@@ -125,10 +130,11 @@ void BinPickingPipeline::Impl::rank(const Cycle& cycle, size_t first) {
       v.take(f, std::max(v.fit_rank, fitted_rank(f, part.db, m.config)));
     }
   });
+  cycle.checks_late = cycle.checks_late || late.load();
   check_spins(cycle, first, rescored);
 }
 
-void BinPickingPipeline::Impl::check_spins(const Cycle& cycle, size_t first, int pool) {
+void BinPickingPipeline::Impl::check_spins(Cycle& cycle, size_t first, int pool) {
   Impl& m = *this;
   const int begin = static_cast<int>(first);
   const int leaders = std::min(kSpinCheckLeaders, pool);
@@ -136,9 +142,12 @@ void BinPickingPipeline::Impl::check_spins(const Cycle& cycle, size_t first, int
   auto& ws = m.fit_workspaces[0];
   for (int i = begin; i < begin + leaders; ++i) {
     Verified& v = m.verified[i];
-    if (v.fit_score <= 0 || Clock::now() > cycle.deadline) continue;
     const PartModel& part = m.parts[v.hit.part];
-    if (!part.plate_axis) continue;
+    if (v.fit_score <= 0 || !part.plate_axis) continue;
+    if (Clock::now() > cycle.deadline) {
+      cycle.checks_late = true;
+      continue;
+    }
     const cv::Vec3d axis = *part.plate_axis;
     auto normal = [&](const RigidPose& p) { return p.R * axis; };
     // The half turn about the normal, the plate's symmetry.
@@ -176,7 +185,10 @@ namespace {
 class RankingStage final : public Stage {
  public:
   RankingStage() : Stage("ranking", &StageTimes::pose_ms) {}
-  void run(BinPickingPipeline::Impl& m, CycleContext& c) override { m.rank(c.cycle, 0); }
+  void run(BinPickingPipeline::Impl& m, CycleContext& c) override {
+    m.rank(c.cycle, 0);
+    c.out->degraded = c.out->degraded || c.cycle.checks_late;
+  }
 };
 
 }  // namespace

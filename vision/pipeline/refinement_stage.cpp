@@ -6,8 +6,31 @@
 #include <cmath>
 #include <memory>
 #include <span>
+#include <stdexcept>
+#include <string>
 
 namespace mfcd::vision {
+
+void BinPickingPipeline::Impl::ensure_renderer() {
+  if (renderer) return;
+  renderer = std::make_unique<MfcRenderer>(camera);
+  for (const auto& part : parts) mesh_ids.push_back(renderer->add_mesh(part.db.mesh));
+  RefinerParams rp;
+  rp.max_iterations = config.refine_iterations;
+  refiner = std::make_unique<PoseRefiner>(*renderer, rp);
+}
+
+std::unique_ptr<GripperCheck> BinPickingPipeline::make_gripper_check(const GripperCheckParams& params) {
+  impl_->ensure_renderer();
+  return std::make_unique<GripperCheck>(*impl_->renderer, params);
+}
+
+PoseModel BinPickingPipeline::pose_model_of(int obj_id) {
+  impl_->ensure_renderer();
+  for (std::size_t k = 0; k < impl_->parts.size(); ++k)
+    if (impl_->parts[k].db.obj_id == obj_id) return pose_model(impl_->mesh_ids[k], impl_->parts[k].db.mesh);
+  throw std::invalid_argument("pipeline: no templates loaded for obj_id " + std::to_string(obj_id));
+}
 
 void BinPickingPipeline::Impl::refine(Clock::time_point deadline, PipelineResult& out) {
   // Multi-view refinement (paper Sec. 4.5; one view here: the cell's single MFC capture) of the
@@ -16,13 +39,7 @@ void BinPickingPipeline::Impl::refine(Clock::time_point deadline, PipelineResult
                          ? std::min<int>(config.refine_candidates, static_cast<int>(out.candidates.size()))
                          : 0;
   if (refine > 0 && Clock::now() < deadline) {
-    if (!renderer) {
-      renderer = std::make_unique<MfcRenderer>(camera);
-      for (const auto& part : parts) mesh_ids.push_back(renderer->add_mesh(part.db.mesh));
-      RefinerParams rp;
-      rp.max_iterations = config.refine_iterations;
-      refiner = std::make_unique<PoseRefiner>(*renderer, rp);
-    }
+    ensure_renderer();
     const RefinementView view{&edges, camera.camera, RigidTransform{}};
     refiner->prepare(std::span<const RefinementView>(&view, 1));
     for (int i = 0; i < refine; ++i) {

@@ -175,6 +175,8 @@ void BinPickingPipeline::Impl::add_search(const Cycle& cycle, const LineSet& que
   fit(later, first, &idt);
   if (config.trace) trace(first, round, out);
   rank(later, first);
+  // A round's hits only add candidates, but one ranked without its checks may be picked.
+  out.degraded = out.degraded || later.checks_late;
   sort_verified(0);
 }
 

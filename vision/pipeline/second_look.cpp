@@ -100,8 +100,12 @@ void SecondLook::fuse(const PipelineResult& first_result, const MfcFrames& secon
   const PinholeCamera& cam = a.camera.camera;
   TemplatePoseFit::Workspace& ws_a = a.fit_workspaces[0];
   TemplatePoseFit::Workspace& ws_b = b.fit_workspaces[0];
+  out.degraded = out.second.degraded;
   for (const Start& s : starts) {
-    if (std::chrono::steady_clock::now() >= deadline) break;
+    if (std::chrono::steady_clock::now() >= deadline) {
+      out.degraded = true;
+      break;
+    }
     const TemplateDatabase& db = a.part_of(s.obj_id).db;
     const TemplatePoseFit::TwoViewResult j = a.fitter.fit_two_views(db, s.pose, cam, b.fitter, motion, ws_a, ws_b);
     // Ranked as the single-view candidates are: every point of each image's view.

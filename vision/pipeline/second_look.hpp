@@ -58,6 +58,7 @@ struct SecondLookCandidate {
 struct SecondLookResult {
   std::vector<SecondLookCandidate> candidates;  // best first, one per part
   PipelineResult second;                        // the second frame set's own result (its camera's frame)
+  bool degraded = false;  // the deadline cut the second cycle or the fusion short: fewer candidates fused
 };
 
 class SecondLook {

@@ -1,5 +1,9 @@
 #include "vision/render/mfc_renderer.hpp"
 
+#include "vision/render/gl_matrices.hpp"
+#include "vision/render/render_shaders.hpp"
+#include "vision/render/shadow_footprint.hpp"
+
 #define GL_GLEXT_PROTOTYPES 1
 #include <EGL/egl.h>
 #include <EGL/eglext.h>
@@ -10,6 +14,7 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <random>
 #include <stdexcept>
 #include <string>
@@ -17,6 +22,8 @@
 namespace mfcd::vision {
 
 namespace {
+
+using namespace gl_matrices;
 
 constexpr int kFlashes = 8;
 
@@ -48,137 +55,6 @@ const char* egl_error_name(EGLint e) {
       return "EGL error";
   }
 }
-
-// Column-major 4x4 for glUniformMatrix4fv.
-using Mat4 = std::array<float, 16>;
-
-Mat4 to_gl(const cv::Matx44d& m) {
-  Mat4 out{};
-  for (int c = 0; c < 4; ++c)
-    for (int r = 0; r < 4; ++r) out[static_cast<size_t>(c * 4 + r)] = static_cast<float>(m(r, c));
-  return out;
-}
-
-// Camera frame -> clip space for a pinhole K, so that window pixel centres (x + 0.5, y + 0.5)
-// coincide with OpenCV pixel (x, y). Window row y = OpenCV row v (no flip): glReadPixels'
-// first row is image row 0. Depth is mapped to [near, far] in the usual OpenGL way.
-cv::Matx44d clip_from_camera(const cv::Matx33d& K, cv::Size size, double n, double f) {
-  const double W = size.width, H = size.height;
-  return {2 * K(0, 0) / W,
-          2 * K(0, 1) / W,
-          2 * (K(0, 2) + 0.5) / W - 1,
-          0,
-          0,
-          2 * K(1, 1) / H,
-          2 * (K(1, 2) + 0.5) / H - 1,
-          0,
-          0,
-          0,
-          (f + n) / (f - n),
-          -2 * f * n / (f - n),
-          0,
-          0,
-          1,
-          0};
-}
-
-cv::Matx44d model_matrix(const cv::Matx33d& R, const cv::Vec3d& t) {
-  return {R(0, 0), R(0, 1), R(0, 2), t[0], R(1, 0), R(1, 1), R(1, 2), t[1],
-          R(2, 0), R(2, 1), R(2, 2), t[2], 0,       0,       0,       1};
-}
-
-constexpr const char* kSceneVs = R"(#version 330 core
-layout(location = 0) in vec3 a_pos;
-layout(location = 1) in vec3 a_normal;
-uniform mat4 u_camera_from_model;
-uniform mat4 u_clip_from_camera;
-out vec3 v_pos;      // camera frame, mm
-out vec3 v_normal;   // camera frame
-out vec3 v_model;    // part frame, mm (for painted patterns)
-void main() {
-  vec4 p = u_camera_from_model * vec4(a_pos, 1.0);
-  v_pos = p.xyz;
-  v_normal = mat3(u_camera_from_model) * a_normal;
-  v_model = a_pos;
-  gl_Position = u_clip_from_camera * p;
-}
-)";
-
-constexpr const char* kSceneFs = R"(#version 330 core
-in vec3 v_pos;
-in vec3 v_normal;
-in vec3 v_model;
-layout(location = 0) out vec4 o_flash0123;
-layout(location = 1) out vec4 o_flash4567;
-layout(location = 2) out vec4 o_ambient_depth_id;
-uniform int u_shading;
-uniform float u_part_id;
-uniform vec3 u_led[8];
-uniform mat4 u_shadow_from_camera[8];   // camera frame -> shadow map [0,1]^3
-uniform sampler2DArrayShadow u_shadow;
-uniform float u_flash_dn;               // white matte facing an LED at the working distance
-uniform float u_working_distance;
-uniform float u_ambient_dn;
-uniform float u_room_dn;
-uniform vec3 u_room_dir;
-uniform float u_albedo, u_diffuse, u_specular, u_shininess;
-uniform int u_paint;                    // 0 none, 1 stripes, 2 checker
-uniform float u_paint_period, u_paint_albedo;
-uniform float u_normal_offset;
-
-float albedo() {
-  if (u_paint == 0) return u_albedo;
-  vec3 q = floor(v_model / u_paint_period);
-  float odd = (u_paint == 1) ? mod(q.x, 2.0) : mod(q.x + q.y + q.z, 2.0);
-  return odd > 0.5 ? u_paint_albedo : u_albedo;
-}
-
-void main() {
-  o_ambient_depth_id = vec4(0.0, v_pos.z, u_part_id, 0.0);
-  o_flash0123 = vec4(0.0);
-  o_flash4567 = vec4(0.0);
-  if (u_shading == 0) return;
-  vec3 n = normalize(v_normal);
-  vec3 view = normalize(-v_pos);
-  if (dot(n, view) < 0.0) n = -n;   // two-sided: open meshes and planes
-  float a = albedo();
-  float room = u_ambient_dn + u_room_dn * max(dot(n, normalize(u_room_dir)), 0.0);
-  o_ambient_depth_id.x = a * room;
-  float flash[8];
-  for (int i = 0; i < 8; ++i) {
-    vec3 to_led = u_led[i] - v_pos;
-    float d = length(to_led);
-    vec3 l = to_led / d;
-    float ndl = dot(n, l);
-    float value = 0.0;
-    if (ndl > 0.0) {
-      vec3 h = normalize(l + view);
-      float spec = u_specular * pow(max(dot(n, h), 0.0), u_shininess);
-      float falloff = (u_working_distance * u_working_distance) / (d * d);
-      // Offset along the normal (scaled with distance) against self-shadowing acne.
-      vec4 s = u_shadow_from_camera[i] * vec4(v_pos + n * u_normal_offset * d, 1.0);
-      vec3 sc = s.xyz / s.w;
-      float lit = 1.0;
-      if (all(greaterThanEqual(sc.xy, vec2(0.0))) && all(lessThanEqual(sc.xy, vec2(1.0))))
-        lit = texture(u_shadow, vec4(sc.xy, float(i), sc.z));
-      value = u_flash_dn * falloff * lit * (u_diffuse * a * ndl + spec * ndl);
-    }
-    flash[i] = value;
-  }
-  o_flash0123 = vec4(flash[0], flash[1], flash[2], flash[3]);
-  o_flash4567 = vec4(flash[4], flash[5], flash[6], flash[7]);
-}
-)";
-
-constexpr const char* kShadowVs = R"(#version 330 core
-layout(location = 0) in vec3 a_pos;
-uniform mat4 u_clip_from_model;
-void main() { gl_Position = u_clip_from_model * vec4(a_pos, 1.0); }
-)";
-
-constexpr const char* kShadowFs = R"(#version 330 core
-void main() {}
-)";
 
 GLuint compile(GLenum type, const char* src) {
   GLuint s = glCreateShader(type);
@@ -217,7 +93,7 @@ GLuint link(const char* vs, const char* fs) {
 struct MfcRenderer::Gl {
   EGLDisplay display = EGL_NO_DISPLAY;
   EGLContext context = EGL_NO_CONTEXT;
-  GLuint scene_program = 0, shadow_program = 0;
+  GLuint scene_program = 0, depth_program = 0, shadow_program = 0;
   GLuint shadow_tex = 0, shadow_fbo = 0;
   GLuint fbo = 0, depth_rb = 0;
   std::array<GLuint, 3> color_tex{};
@@ -225,6 +101,7 @@ struct MfcRenderer::Gl {
   struct GpuMesh {
     GLuint vao = 0, vbo = 0;
     GLsizei vertex_count = 0;
+    cv::Vec3f lo, hi;  // bounding box in the mesh's own frame, mm
   };
   std::vector<GpuMesh> meshes;
 
@@ -260,8 +137,9 @@ MfcRenderer::MfcRenderer(const CameraConfig& config, const RenderOptions& option
     gl_fail(std::string("cannot create an OpenGL 3.3 core context (") + egl_error_name(eglGetError()) + ")");
   gl_->make_current();
 
-  gl_->scene_program = link(kSceneVs, kSceneFs);
-  gl_->shadow_program = link(kShadowVs, kShadowFs);
+  gl_->scene_program = link(shaders::kSceneVs, shaders::kSceneFs);
+  gl_->depth_program = link(shaders::kSceneVs, shaders::kDepthFs);
+  gl_->shadow_program = link(shaders::kShadowVs, shaders::kShadowFs);
 
   const int S = options_.shadow_map_size;
   glGenTextures(1, &gl_->shadow_tex);
@@ -291,6 +169,7 @@ MfcRenderer::~MfcRenderer() {
     glDeleteFramebuffers(1, &gl_->shadow_fbo);
     glDeleteTextures(1, &gl_->shadow_tex);
     glDeleteProgram(gl_->scene_program);
+    glDeleteProgram(gl_->depth_program);
     glDeleteProgram(gl_->shadow_program);
     eglMakeCurrent(gl_->display, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
     eglDestroyContext(gl_->display, gl_->context);
@@ -352,6 +231,9 @@ int MfcRenderer::add_mesh(const Mesh& mesh, double crease_deg) {
   glVertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, 6 * sizeof(float), reinterpret_cast<void*>(3 * sizeof(float)));
   glBindVertexArray(0);
   g.vertex_count = static_cast<GLsizei>(nt * 3);
+  g.lo = g.hi = mesh.vertices.front();
+  for (const cv::Vec3f& v : mesh.vertices)
+    for (int a = 0; a < 3; ++a) g.lo[a] = std::min(g.lo[a], v[a]), g.hi[a] = std::max(g.hi[a], v[a]);
   if (glGetError() != GL_NO_ERROR) gl_fail("cannot upload mesh '" + mesh.name + "'");
   gl_->meshes.push_back(g);
   return static_cast<int>(gl_->meshes.size() - 1);
@@ -362,140 +244,176 @@ void MfcRenderer::set_camera(const PinholeCamera& camera) {
   camera_ = camera;
 }
 
-void MfcRenderer::draw_scene(std::span<const ScenePart> parts, bool shading) {
+void MfcRenderer::ensure_targets() {
   Gl& g = *gl_;
   const cv::Size size = camera_.image_size;
-  if (g.fbo_size != size) {
-    if (g.fbo) {
-      glDeleteTextures(3, g.color_tex.data());
-      glDeleteRenderbuffers(1, &g.depth_rb);
-      glDeleteFramebuffers(1, &g.fbo);
-    }
-    glGenFramebuffers(1, &g.fbo);
-    glBindFramebuffer(GL_FRAMEBUFFER, g.fbo);
-    glGenTextures(3, g.color_tex.data());
-    for (int i = 0; i < 3; ++i) {
-      glBindTexture(GL_TEXTURE_2D, g.color_tex[static_cast<size_t>(i)]);
-      glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA32F, size.width, size.height, 0, GL_RGBA, GL_FLOAT, nullptr);
-      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
-      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
-      glFramebufferTexture2D(GL_FRAMEBUFFER, static_cast<GLenum>(GL_COLOR_ATTACHMENT0 + i), GL_TEXTURE_2D,
-                             g.color_tex[static_cast<size_t>(i)], 0);
-    }
-    glGenRenderbuffers(1, &g.depth_rb);
-    glBindRenderbuffer(GL_RENDERBUFFER, g.depth_rb);
-    glRenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT32F, size.width, size.height);
-    glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, g.depth_rb);
-    if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
-      gl_fail("float render target incomplete (" + std::to_string(size.width) + "x" + std::to_string(size.height) +
-              ")");
-    g.fbo_size = size;
+  if (g.fbo_size == size) return;
+  if (g.fbo) {
+    glDeleteTextures(3, g.color_tex.data());
+    glDeleteRenderbuffers(1, &g.depth_rb);
+    glDeleteFramebuffers(1, &g.fbo);
   }
+  glGenFramebuffers(1, &g.fbo);
+  glBindFramebuffer(GL_FRAMEBUFFER, g.fbo);
+  glGenTextures(3, g.color_tex.data());
+  for (int i = 0; i < 3; ++i) {
+    glBindTexture(GL_TEXTURE_2D, g.color_tex[static_cast<size_t>(i)]);
+    glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA32F, size.width, size.height, 0, GL_RGBA, GL_FLOAT, nullptr);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+    glFramebufferTexture2D(GL_FRAMEBUFFER, static_cast<GLenum>(GL_COLOR_ATTACHMENT0 + i), GL_TEXTURE_2D,
+                           g.color_tex[static_cast<size_t>(i)], 0);
+  }
+  glGenRenderbuffers(1, &g.depth_rb);
+  glBindRenderbuffer(GL_RENDERBUFFER, g.depth_rb);
+  glRenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT32F, size.width, size.height);
+  glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, g.depth_rb);
+  if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+    gl_fail("float render target incomplete (" + std::to_string(size.width) + "x" + std::to_string(size.height) + ")");
+  g.fbo_size = size;
+}
+
+std::pair<double, double> MfcRenderer::depth_range(std::span<const ScenePart> parts) const {
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for (const auto& p : parts) {
+    const auto& gm = gl_->meshes[static_cast<size_t>(p.mesh_id)];
+    for (int k = 0; k < 8; ++k) {
+      const cv::Vec3d c((k & 1) ? gm.hi[0] : gm.lo[0], (k & 2) ? gm.hi[1] : gm.lo[1], (k & 4) ? gm.hi[2] : gm.lo[2]);
+      const double z = (p.R * c + p.t_mm)[2];
+      lo = std::min(lo, z), hi = std::max(hi, z);
+    }
+  }
+  return {std::max(lo, camera_near_mm()), std::min(hi, camera_far_mm())};
+}
+
+void MfcRenderer::draw_shadow_maps(std::span<const ScenePart> parts, std::span<cv::Matx44d, 8> unit_from_camera) {
+  Gl& g = *gl_;
+  // One perspective shadow map per LED, looking along +z from the LED. Its field of view
+  // covers the camera's frustum from the near plane on, whatever the LED's offset.
+  const double wd = config_.working_distance_mm;
+  const double n = wd * options_.shadow_near_fraction, f = wd * options_.shadow_far_fraction;
+  // The frustum comes from the configured full-frame camera, not a cropped one, so that
+  // a window render sees exactly the same shadows as the full frame.
+  const PinholeCamera& full = config_.camera;
+  const double W = full.image_size.width, H = full.image_size.height;
+  const double tan_x = std::max(full.cx() + 0.5, W - 0.5 - full.cx()) / full.fx();
+  const double tan_y = std::max(full.cy() + 0.5, H - 0.5 - full.cy()) / full.fy();
+  const int S = options_.shadow_map_size;
+  glUseProgram(g.shadow_program);
+  glBindFramebuffer(GL_FRAMEBUFFER, g.shadow_fbo);
+  glDrawBuffer(GL_NONE);
+  glReadBuffer(GL_NONE);
+  glViewport(0, 0, S, S);
+  glEnable(GL_DEPTH_CLAMP);
+  glEnable(GL_POLYGON_OFFSET_FILL);
+  glPolygonOffset(1.5f, 4.0f);
+  glEnable(GL_SCISSOR_TEST);
+  const GLint u_clip = glGetUniformLocation(g.shadow_program, "u_clip_from_model");
+  // Only the texels this render can read are filled (shadow_footprint.hpp): every visible
+  // surface lies within the parts' depth range.
+  const auto [z_near, z_far] = depth_range(parts);
+  for (int i = 0; i < kFlashes; ++i) {
+    const cv::Vec3d L = config_.flashes.positions_mm[static_cast<size_t>(i)];
+    const double reach = std::hypot(L[0], L[1]) / n;
+    const double fs = (S / 2.0) / (std::max(tan_x, tan_y) + reach);
+    const cv::Matx33d Ks(fs, 0, S / 2.0 - 0.5, 0, fs, S / 2.0 - 0.5, 0, 0, 1);
+    const cv::Matx44d led_from_camera(1, 0, 0, -L[0], 0, 1, 0, -L[1], 0, 0, 1, -L[2], 0, 0, 0, 1);
+    const cv::Matx44d clip = clip_from_camera(Ks, {S, S}, n, f) * led_from_camera;
+    const cv::Matx44d to_unit(0.5, 0, 0, 0.5, 0, 0.5, 0, 0.5, 0, 0, 0.5, 0.5, 0, 0, 0, 1);
+    unit_from_camera[static_cast<size_t>(i)] = to_unit * clip;
+    const ShadowFootprintQuery footprint{.unit_from_camera = unit_from_camera[static_cast<size_t>(i)],
+                                         .map_size = S,
+                                         .z_near_mm = z_near,
+                                         .z_far_mm = z_far,
+                                         .led_mm = L,
+                                         .offset_per_mm = normal_offset()};
+    const cv::Rect fill = options_.fill_whole_shadow_maps ? cv::Rect(0, 0, S, S) : shadow_footprint(footprint, camera_);
+    glFramebufferTextureLayer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, g.shadow_tex, 0, i);
+    glScissor(fill.x, fill.y, fill.width, fill.height);
+    glClear(GL_DEPTH_BUFFER_BIT);
+    if (fill.empty()) continue;
+    for (const auto& p : parts) {
+      if (!p.casts_shadows) continue;
+      const Mat4 m = to_gl(clip * model_matrix(p.R, p.t_mm));
+      glUniformMatrix4fv(u_clip, 1, GL_FALSE, m.data());
+      const auto& gm = g.meshes[static_cast<size_t>(p.mesh_id)];
+      glBindVertexArray(gm.vao);
+      glDrawArrays(GL_TRIANGLES, 0, gm.vertex_count);
+    }
+  }
+  glDisable(GL_SCISSOR_TEST);
+  glDisable(GL_POLYGON_OFFSET_FILL);
+  glDisable(GL_DEPTH_CLAMP);
+}
+
+void MfcRenderer::set_lights(unsigned prog, std::span<const cv::Matx44d, 8> unit_from_camera) {
+  auto loc = [prog](const char* name) { return glGetUniformLocation(prog, name); };
+  for (int i = 0; i < kFlashes; ++i) {
+    const cv::Vec3d L = config_.flashes.positions_mm[static_cast<size_t>(i)];
+    char name[64];
+    std::snprintf(name, sizeof name, "u_led[%d]", i);
+    glUniform3f(loc(name), static_cast<float>(L[0]), static_cast<float>(L[1]), static_cast<float>(L[2]));
+    const Mat4 s = to_gl(unit_from_camera[static_cast<size_t>(i)]);
+    std::snprintf(name, sizeof name, "u_shadow_from_camera[%d]", i);
+    glUniformMatrix4fv(loc(name), 1, GL_FALSE, s.data());
+  }
+  glActiveTexture(GL_TEXTURE0);
+  glBindTexture(GL_TEXTURE_2D_ARRAY, gl_->shadow_tex);
+  glUniform1i(loc("u_shadow"), 0);
+  const Illumination& li = options_.light;
+  glUniform1f(loc("u_flash_dn"), li.flash_dn);
+  glUniform1f(loc("u_working_distance"), static_cast<float>(config_.working_distance_mm));
+  glUniform1f(loc("u_ambient_dn"), li.ambient_dn);
+  glUniform1f(loc("u_room_dn"), li.room_dn);
+  const cv::Vec3d rd = cv::normalize(li.room_direction);
+  glUniform3f(loc("u_room_dir"), static_cast<float>(rd[0]), static_cast<float>(rd[1]), static_cast<float>(rd[2]));
+  glUniform1f(loc("u_normal_offset"), static_cast<float>(normal_offset()));
+}
+
+void MfcRenderer::draw_scene(std::span<const ScenePart> parts, bool shading) {
+  Gl& g = *gl_;
+  ensure_targets();
   for (const auto& p : parts)
     if (p.mesh_id < 0 || p.mesh_id >= static_cast<int>(g.meshes.size()))
       gl_fail("scene part refers to unknown mesh id " + std::to_string(p.mesh_id));
   if (parts.size() > 255) gl_fail("at most 255 parts per scene");
 
-  const double wd = config_.working_distance_mm;
-  std::array<cv::Matx44d, kFlashes> shadow_clip_from_camera;
+  std::array<cv::Matx44d, kFlashes> unit_from_camera;
   glDisable(GL_CULL_FACE);
   glEnable(GL_DEPTH_TEST);
   glDepthFunc(GL_LESS);
-  if (shading) {
-    // One perspective shadow map per LED, looking along +z from the LED. Its field of view
-    // covers the camera's frustum from the near plane on, whatever the LED's offset.
-    const double n = wd * options_.shadow_near_fraction, f = wd * options_.shadow_far_fraction;
-    // The frustum comes from the configured full-frame camera, not a cropped one, so that
-    // a window render sees exactly the same shadows as the full frame.
-    const PinholeCamera& full = config_.camera;
-    const double W = full.image_size.width, H = full.image_size.height;
-    const double tan_x = std::max(full.cx() + 0.5, W - 0.5 - full.cx()) / full.fx();
-    const double tan_y = std::max(full.cy() + 0.5, H - 0.5 - full.cy()) / full.fy();
-    const int S = options_.shadow_map_size;
-    glUseProgram(g.shadow_program);
-    glBindFramebuffer(GL_FRAMEBUFFER, g.shadow_fbo);
-    glDrawBuffer(GL_NONE);
-    glReadBuffer(GL_NONE);
-    glViewport(0, 0, S, S);
-    glEnable(GL_DEPTH_CLAMP);
-    glEnable(GL_POLYGON_OFFSET_FILL);
-    glPolygonOffset(1.5f, 4.0f);
-    const GLint u_clip = glGetUniformLocation(g.shadow_program, "u_clip_from_model");
-    for (int i = 0; i < kFlashes; ++i) {
-      const cv::Vec3d L = config_.flashes.positions_mm[static_cast<size_t>(i)];
-      const double reach = std::hypot(L[0], L[1]) / n;
-      const double fs = (S / 2.0) / (std::max(tan_x, tan_y) + reach);
-      const cv::Matx33d Ks(fs, 0, S / 2.0 - 0.5, 0, fs, S / 2.0 - 0.5, 0, 0, 1);
-      const cv::Matx44d led_from_camera(1, 0, 0, -L[0], 0, 1, 0, -L[1], 0, 0, 1, -L[2], 0, 0, 0, 1);
-      const cv::Matx44d clip = clip_from_camera(Ks, {S, S}, n, f) * led_from_camera;
-      const cv::Matx44d to_unit(0.5, 0, 0, 0.5, 0, 0.5, 0, 0.5, 0, 0, 0.5, 0.5, 0, 0, 0, 1);
-      shadow_clip_from_camera[static_cast<size_t>(i)] = to_unit * clip;
-      glFramebufferTextureLayer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, g.shadow_tex, 0, i);
-      glClear(GL_DEPTH_BUFFER_BIT);
-      for (const auto& p : parts) {
-        if (!p.casts_shadows) continue;
-        const Mat4 m = to_gl(clip * model_matrix(p.R, p.t_mm));
-        glUniformMatrix4fv(u_clip, 1, GL_FALSE, m.data());
-        const auto& gm = g.meshes[static_cast<size_t>(p.mesh_id)];
-        glBindVertexArray(gm.vao);
-        glDrawArrays(GL_TRIANGLES, 0, gm.vertex_count);
-      }
-    }
-    glDisable(GL_POLYGON_OFFSET_FILL);
-    glDisable(GL_DEPTH_CLAMP);
-  }
+  if (shading) draw_shadow_maps(parts, unit_from_camera);
 
   glBindFramebuffer(GL_FRAMEBUFFER, g.fbo);
-  const GLenum bufs[3] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1, GL_COLOR_ATTACHMENT2};
-  glDrawBuffers(3, bufs);
+  // Without shading only the ambient/depth/index attachment is drawn (and cleared).
+  const GLenum shaded[3] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1, GL_COLOR_ATTACHMENT2};
+  const GLenum depth_only[3] = {GL_NONE, GL_NONE, GL_COLOR_ATTACHMENT2};
+  glDrawBuffers(3, shading ? shaded : depth_only);
+  const cv::Size size = camera_.image_size;
   glViewport(0, 0, size.width, size.height);
   glClearColor(0, 0, 0, 0);
   glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
-  const GLuint prog = g.scene_program;
+  const GLuint prog = shading ? g.scene_program : g.depth_program;
   glUseProgram(prog);
   auto loc = [prog](const char* name) { return glGetUniformLocation(prog, name); };
-  // Near/far of the camera pass only bound what is drawn; depth itself is written as
-  // camera-frame z in float, so its precision does not depend on them.
-  const Mat4 clip = to_gl(clip_from_camera(camera_.K, size, 1.0, wd * 20));
+  const Mat4 clip = to_gl(clip_from_camera(camera_.K, size, camera_near_mm(), camera_far_mm()));
   glUniformMatrix4fv(loc("u_clip_from_camera"), 1, GL_FALSE, clip.data());
-  glUniform1i(loc("u_shading"), shading ? 1 : 0);
-  if (shading) {
-    for (int i = 0; i < kFlashes; ++i) {
-      const cv::Vec3d L = config_.flashes.positions_mm[static_cast<size_t>(i)];
-      char name[64];
-      std::snprintf(name, sizeof name, "u_led[%d]", i);
-      glUniform3f(loc(name), static_cast<float>(L[0]), static_cast<float>(L[1]), static_cast<float>(L[2]));
-      const Mat4 s = to_gl(shadow_clip_from_camera[static_cast<size_t>(i)]);
-      std::snprintf(name, sizeof name, "u_shadow_from_camera[%d]", i);
-      glUniformMatrix4fv(loc(name), 1, GL_FALSE, s.data());
-    }
-    glActiveTexture(GL_TEXTURE0);
-    glBindTexture(GL_TEXTURE_2D_ARRAY, g.shadow_tex);
-    glUniform1i(loc("u_shadow"), 0);
-    const Illumination& li = options_.light;
-    glUniform1f(loc("u_flash_dn"), li.flash_dn);
-    glUniform1f(loc("u_working_distance"), static_cast<float>(wd));
-    glUniform1f(loc("u_ambient_dn"), li.ambient_dn);
-    glUniform1f(loc("u_room_dn"), li.room_dn);
-    const cv::Vec3d rd = cv::normalize(li.room_direction);
-    glUniform3f(loc("u_room_dir"), static_cast<float>(rd[0]), static_cast<float>(rd[1]), static_cast<float>(rd[2]));
-    // The shadow map texel seen from the LED spans about d / fs mm at distance d; moving
-    // the lookup point that far along the normal removes acne without visible light leaks.
-    glUniform1f(loc("u_normal_offset"), 1.5f / static_cast<float>(options_.shadow_map_size));
-  }
+  if (shading) set_lights(prog, unit_from_camera);
   for (size_t k = 0; k < parts.size(); ++k) {
     const ScenePart& p = parts[k];
     const Mat4 m = to_gl(model_matrix(p.R, p.t_mm));
     glUniformMatrix4fv(loc("u_camera_from_model"), 1, GL_FALSE, m.data());
     glUniform1f(loc("u_part_id"), static_cast<float>(k + 1));
-    const Material& mat = p.material;
-    glUniform1f(loc("u_albedo"), mat.albedo);
-    glUniform1f(loc("u_diffuse"), mat.diffuse);
-    glUniform1f(loc("u_specular"), mat.specular);
-    glUniform1f(loc("u_shininess"), mat.shininess);
-    glUniform1i(loc("u_paint"), static_cast<int>(mat.paint));
-    glUniform1f(loc("u_paint_period"), mat.paint_period_mm);
-    glUniform1f(loc("u_paint_albedo"), mat.paint_albedo);
+    if (shading) {
+      const Material& mat = p.material;
+      glUniform1f(loc("u_albedo"), mat.albedo);
+      glUniform1f(loc("u_diffuse"), mat.diffuse);
+      glUniform1f(loc("u_specular"), mat.specular);
+      glUniform1f(loc("u_shininess"), mat.shininess);
+      glUniform1i(loc("u_paint"), static_cast<int>(mat.paint));
+      glUniform1f(loc("u_paint_period"), mat.paint_period_mm);
+      glUniform1f(loc("u_paint_albedo"), mat.paint_albedo);
+    }
     const auto& gm = g.meshes[static_cast<size_t>(p.mesh_id)];
     glBindVertexArray(gm.vao);
     glDrawArrays(GL_TRIANGLES, 0, gm.vertex_count);

@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <memory>
 #include <span>
+#include <utility>
 #include <vector>
 
 namespace mfcd::vision {
@@ -72,6 +73,9 @@ struct RenderOptions {
   // than the near plane still cast shadows (depth clamp); farther than far ones do not.
   double shadow_near_fraction = 0.4;
   double shadow_far_fraction = 4.0;
+  // A render fills only the texels of each map that its window can read (the same values as
+  // a whole fill; shadow_footprint.hpp). True fills every texel: the reference for tests.
+  bool fill_whole_shadow_maps = false;
   Illumination light;
   SensorNoise noise;
 };
@@ -114,7 +118,19 @@ class MfcRenderer {
 
  private:
   struct Gl;
+  void ensure_targets();
+  // Camera-frame depth range (mm) of the parts' bounding boxes, within the camera pass's.
+  std::pair<double, double> depth_range(std::span<const ScenePart> parts) const;
+  void draw_shadow_maps(std::span<const ScenePart> parts, std::span<cv::Matx44d, 8> unit_from_camera);
+  void set_lights(unsigned program, std::span<const cv::Matx44d, 8> unit_from_camera);
   void draw_scene(std::span<const ScenePart> parts, bool shading);
+  // Near and far planes of the camera pass: they only bound what is drawn, as depth is
+  // written as camera-frame z in float.
+  double camera_near_mm() const { return 1.0; }
+  double camera_far_mm() const { return config_.working_distance_mm * 20; }
+  // How far a shadow lookup moves along the surface normal against acne, in mm per mm of
+  // distance to the LED: about a texel, as a texel seen from the LED spans d / fs mm at d.
+  double normal_offset() const { return 1.5 / options_.shadow_map_size; }
   CameraConfig config_;
   PinholeCamera camera_;
   RenderOptions options_;

@@ -98,12 +98,12 @@ TEST(FrameUndistorter, IntoAPreallocatedImageNothingIsAllocated) {
   }
   for (int k = 0; k < 9; ++k) u.apply(src[static_cast<size_t>(k)], dst[static_cast<size_t>(k)]);  // warm-up
   const int kRounds = 20;
-  const std::uint64_t before = mfcd::hal::test::allocationCount();
+  const std::uint64_t before = mfcd::hal::test::allocation_count();
   const auto t0 = std::chrono::steady_clock::now();
   for (int r = 0; r < kRounds; ++r)
     for (int k = 0; k < 9; ++k) u.apply(src[static_cast<size_t>(k)], dst[static_cast<size_t>(k)]);
   const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() / kRounds;
-  const std::uint64_t after = mfcd::hal::test::allocationCount();
+  const std::uint64_t after = mfcd::hal::test::allocation_count();
   EXPECT_EQ(after - before, 0u);
   std::printf("undistortion: %.2f ms per frame set (9 images, 640x480, 8 bits)\n", ms);
   // For the record: cv::remap on the same maps, which allocates on every call.
@@ -112,7 +112,7 @@ TEST(FrameUndistorter, IntoAPreallocatedImageNothingIsAllocated) {
   cv::initUndistortRectifyMap(cv::Mat(cam.K), cv::Mat(cam.distortion), cv::noArray(), cv::Mat(cam.K), cam.image_size,
                               CV_32FC1, mapx, mapy);
   cv::convertMaps(mapx, mapy, map1, map2, CV_16SC2, false);
-  const std::uint64_t cv_before = mfcd::hal::test::allocationCount();
+  const std::uint64_t cv_before = mfcd::hal::test::allocation_count();
   const auto t1 = std::chrono::steady_clock::now();
   for (int r = 0; r < kRounds; ++r)
     for (int k = 0; k < 9; ++k)
@@ -121,5 +121,5 @@ TEST(FrameUndistorter, IntoAPreallocatedImageNothingIsAllocated) {
   const double cv_ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t1).count() / kRounds;
   std::printf("cv::remap: %.2f ms per frame set, %.1f allocations per image\n", cv_ms,
-              double(mfcd::hal::test::allocationCount() - cv_before) / (kRounds * 9));
+              double(mfcd::hal::test::allocation_count() - cv_before) / (kRounds * 9));
 }

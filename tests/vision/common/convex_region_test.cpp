@@ -129,7 +129,7 @@ TEST(ConvexRegion, ReusedBuildsWithoutAllocating) {
   for (int trial = 0; trial < 50; ++trial) sets.push_back(random_points(rng, trial));
   ConvexRegion region;
   for (const auto& s : sets) region.build(s);  // grow the buffers
-  const auto before = mfcd::hal::test::allocationCount();
+  const auto before = mfcd::hal::test::allocation_count();
   for (const auto& s : sets) region.build(s);
-  EXPECT_EQ(mfcd::hal::test::allocationCount() - before, 0u);
+  EXPECT_EQ(mfcd::hal::test::allocation_count() - before, 0u);
 }

@@ -65,9 +65,9 @@ TEST(ParallelFor, SteadyStateAllocatesNothing) {
   std::vector<double> out(256);
   auto body = [&](int i) { out[static_cast<size_t>(i)] = i * 0.5; };
   parallel_for(0, 256, 2, 4, body);  // the OpenMP runtime's thread pool is made here
-  const auto before = hal::test::allocationCount();
+  const auto before = hal::test::allocation_count();
   for (int k = 0; k < 10; ++k) parallel_for(0, 256, 2, 4, body);
-  EXPECT_EQ(hal::test::allocationCount() - before, 0u);
+  EXPECT_EQ(hal::test::allocation_count() - before, 0u);
   EXPECT_EQ(out[255], 127.5);
 }
 

@@ -331,9 +331,9 @@ TEST(LineFitter, ReusedGivesFitLinesResultWithoutAllocating) {
     EXPECT_FALSE(out.set.lines.empty());
   }
   const uchar* storage = out.channelMap.data;
-  const auto before = mfcd::hal::test::allocationCount();
+  const auto before = mfcd::hal::test::allocation_count();
   for (size_t k = 0; k < images.size(); ++k) fitter.fit(images[k], &directions[k], out);
-  EXPECT_EQ(mfcd::hal::test::allocationCount() - before, 0u);
+  EXPECT_EQ(mfcd::hal::test::allocation_count() - before, 0u);
   EXPECT_EQ(out.channelMap.data, storage);
   EXPECT_TRUE(same(out, fitLines(images.back(), {}, &directions.back())));
 }

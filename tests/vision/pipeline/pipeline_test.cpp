@@ -69,6 +69,32 @@ RenderedPart render_part(const fs::path& tdb, const CameraConfig& cam, double an
   return out;
 }
 
+// The six development parts side by side on a floor, two rows of three 150 px apart (their
+// outlines come close, as in a bin), each at an upper view's pose; the files of their templates.
+struct SixParts {
+  std::vector<fs::path> files;
+  MfcRender render;
+};
+
+SixParts render_six_parts(const CameraConfig& cam) {
+  const std::vector<std::string> names = {"breaker", "diamond", "ellipse", "tnut", "knob", "wheel"};
+  MfcRenderer renderer(cam);
+  SixParts out;
+  std::vector<ScenePart> scene;
+  double floor_mm = 0;
+  for (size_t k = 0; k < names.size(); ++k) {
+    out.files.push_back(kTemplates / (names[k] + ".tdb"));
+    const TemplateDatabase db = load_template_database(out.files.back());
+    const cv::Point2d at(170 + 150 * double(k % 3), 170 + 140 * double(k / 3));
+    const RigidPose pose = upper_view_pose(db, cam, 0.9 * double(k) + 0.3, at);
+    scene.push_back({renderer.add_mesh(db.mesh), pose.R, pose.t_mm, Material::matte(0.6f)});
+    floor_mm = std::max(floor_mm, (pose.R * db.center_mm + pose.t_mm)[2] + db.diameter_mm / 2 + 10);
+  }
+  scene.push_back({renderer.add_mesh(make_plane(600)), cv::Matx33d::eye(), {0, 0, floor_mm}, Material::matte(0.5f)});
+  renderer.render(scene, out.render, 11);
+  return out;
+}
+
 // The Table 1 criterion: centre within 5 mm, rotation within 10 degrees (symmetry-aware).
 void expect_within_bounds(const PoseCandidate& c, const RenderedPart& scene) {
   EXPECT_LE(cv::norm(c.R_m2c * scene.db.center_mm + c.t_m2c_mm - scene.centre), 5.0);
@@ -403,6 +429,48 @@ TEST(Pipeline, DeadlineCutsTheSearchAndTheFitShort) {
   for (const auto& c : late.candidates) EXPECT_GT(c.t_m2c_mm[2], 100.0);
 }
 
+// Whatever the deadline, a cycle that is not flagged degraded is the cycle an unlimited deadline
+// gives, bit for bit: every step the deadline can skip (search views, fits, the leaders'
+// checks, alternatives, the edge-offset fit) flags the cycle when it does. Budgets from a
+// twentieth of a full cycle to well past its end, on six part types (escalation off: like a later round it
+// only adds candidates, and its skipping is by design not a degradation).
+TEST(Pipeline, ACycleNotDegradedIsTheFullCycle) {
+  const CameraConfig cam = sim_camera();
+  const SixParts six = render_six_parts(cam);
+  PipelineConfig pc;
+  pc.template_files = six.files;
+  pc.escalate_below = 0;
+  BinPickingPipeline pipeline(cam, pc);
+  PipelineResult full, cut;
+  pipeline.process(six.render.frames, 0, std::chrono::steady_clock::now() + std::chrono::seconds(60), full);
+  ASSERT_FALSE(full.degraded);
+  ASSERT_GE(full.candidates.size(), 4u);
+  int degraded = 0, whole = 0;
+  std::vector<double> fractions;
+  for (int k = 1; k <= 24; ++k) fractions.push_back(0.05 * k);
+  fractions.insert(fractions.end(), {3.0, 10.0});  // whole even when load slows the machine down
+  for (const double fraction : fractions) {
+    const double budget_ms = full.times.total_ms * fraction;
+    pipeline.process(
+        six.render.frames, 0,
+        std::chrono::steady_clock::now() + std::chrono::microseconds(static_cast<int64_t>(budget_ms * 1e3)), cut);
+    if (cut.degraded) {
+      ++degraded;
+      continue;
+    }
+    ++whole;
+    ASSERT_EQ(cut.candidates.size(), full.candidates.size()) << budget_ms << " ms";
+    for (size_t i = 0; i < cut.candidates.size(); ++i) {
+      EXPECT_EQ(cut.candidates[i].t_m2c_mm, full.candidates[i].t_m2c_mm) << budget_ms << " ms, candidate " << i;
+      EXPECT_EQ(cut.candidates[i].R_m2c, full.candidates[i].R_m2c) << budget_ms << " ms, candidate " << i;
+      EXPECT_EQ(cut.candidates[i].score, full.candidates[i].score) << budget_ms << " ms, candidate " << i;
+    }
+  }
+  // Both kinds occur: the budgets reach from well inside the cycle to past its end.
+  EXPECT_GT(degraded, 0);
+  EXPECT_GT(whole, 0);
+}
+
 // The coarse-to-fine view search (every 4th view, then the views around the best coarse hits)
 // and the search bound shared by the threads, against their slow twins: every view searched and
 // no shared bound. The part is found the same, in fewer views; the shared bound changes nothing.
@@ -442,33 +510,37 @@ TEST(Pipeline, CoarseToFineViewsAndSharedBoundAgainstTheFullSearch) {
 }
 
 // PipelineConfig::threads runs the whole cycle, and the result does not depend on it: one, two
-// and three threads give the same candidates. The caller's own OpenMP setting is left as it was.
+// and three threads give the same candidates, bit for bit, on a scene of all six part types
+// searched together (what a snapshot replay relies on: mfc-detect must find the cycle's
+// candidates again whatever the threads' timing). The caller's own OpenMP setting is left as
+// it was.
 TEST(Pipeline, ThreadCountChangesNothingButTheThreads) {
-  const std::vector<fs::path> files = {kTemplates / "tnut.tdb", kTemplates / "breaker.tdb"};
   const CameraConfig cam = sim_camera();
-  const MfcRender render = render_part(files[0], cam, 2.2, {280, 220}, 9).render;
+  const SixParts six = render_six_parts(cam);
   const int callers = omp_get_max_threads();
   omp_set_num_threads(2);
   std::vector<PipelineResult> results;
   for (int threads : {1, 2, 3}) {
     PipelineConfig pc;
-    pc.template_files = files;
+    pc.template_files = six.files;
     pc.threads = threads;
-    results.push_back(process_once(cam, pc, render.frames));
+    results.push_back(process_once(cam, pc, six.render.frames));
     EXPECT_EQ(omp_get_max_threads(), 2) << "after a cycle on " << threads << " threads";
   }
   omp_set_num_threads(callers);
-  ASSERT_FALSE(results[0].candidates.empty());
+  ASSERT_GE(results[0].candidates.size(), 4u);
   for (size_t k = 1; k < results.size(); ++k) {
     const PipelineResult& r = results[k];
     EXPECT_EQ(r.query_lines, results[0].query_lines) << k + 1 << " threads";
     EXPECT_EQ(r.views_searched, results[0].views_searched) << k + 1 << " threads";
+    EXPECT_EQ(r.hypotheses, results[0].hypotheses) << k + 1 << " threads";
     ASSERT_EQ(r.candidates.size(), results[0].candidates.size()) << k + 1 << " threads";
     for (size_t i = 0; i < r.candidates.size(); ++i) {
-      EXPECT_EQ(r.candidates[i].obj_id, results[0].candidates[i].obj_id);
-      EXPECT_EQ(r.candidates[i].view, results[0].candidates[i].view);
-      EXPECT_EQ(r.candidates[i].t_m2c_mm, results[0].candidates[i].t_m2c_mm);
-      EXPECT_EQ(r.candidates[i].R_m2c, results[0].candidates[i].R_m2c);
+      EXPECT_EQ(r.candidates[i].obj_id, results[0].candidates[i].obj_id) << k + 1 << " threads, candidate " << i;
+      EXPECT_EQ(r.candidates[i].view, results[0].candidates[i].view) << k + 1 << " threads, candidate " << i;
+      EXPECT_EQ(r.candidates[i].t_m2c_mm, results[0].candidates[i].t_m2c_mm) << k + 1 << " threads, candidate " << i;
+      EXPECT_EQ(r.candidates[i].R_m2c, results[0].candidates[i].R_m2c) << k + 1 << " threads, candidate " << i;
+      EXPECT_EQ(r.candidates[i].score, results[0].candidates[i].score) << k + 1 << " threads, candidate " << i;
     }
   }
 }
@@ -505,9 +577,9 @@ TEST(Pipeline, FramePathDoesNotAllocateInSteadyState) {
     pipeline.process(renders[i % 2].frames, 0, std::chrono::steady_clock::now() + std::chrono::seconds(30), result);
   };
   for (int i = 0; i < 8; ++i) cycle(i);
-  const auto before = mfcd::hal::test::allocationCount();
+  const auto before = mfcd::hal::test::allocation_count();
   for (int i = 0; i < 6; ++i) cycle(i);
-  const auto allocations = mfcd::hal::test::allocationCount() - before;
+  const auto allocations = mfcd::hal::test::allocation_count() - before;
   EXPECT_EQ(allocations, 0u) << "heap allocations in 6 steady-state cycles";
   ASSERT_FALSE(result.candidates.empty());
   EXPECT_TRUE(result.escalated);

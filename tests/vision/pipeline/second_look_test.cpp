@@ -82,6 +82,7 @@ TEST(SecondLook, PlacesADiamondOnItsRimNearerTheTruthThanOneView) {
     SecondLookResult fused;
     look.fuse(first, scene.render(k, motion).frames, motion, 0, far_deadline(), fused);
     ASSERT_FALSE(fused.candidates.empty()) << "render " << k;
+    EXPECT_FALSE(fused.degraded) << "render " << k;
     double dt1, dr1, dt2, dr2;
     right_one += right(first.candidates.front().R_m2c, first.candidates.front().t_m2c_mm, dt1, dr1);
     const SecondLookCandidate& best = fused.candidates.front();
@@ -128,4 +129,13 @@ TEST(SecondLook, PlacesADiamondOnItsRimNearerTheTruthThanOneView) {
   EXPECT_EQ(right_fused, renders);
   EXPECT_LT(dt_fused, 0.75 * dt_one);
   EXPECT_LT(dr_fused, 0.75 * dr_one);
+  // Past its deadline the fusion stops where it is and says so (the daemon reports the cycle
+  // degraded from this flag).
+  PipelineResult first;
+  look.first().process(scene.render(0).frames, 0, far_deadline(), first);
+  const RigidTransform motion = look.suggest_motion(first.candidates.front());
+  SecondLookResult late;
+  look.fuse(first, scene.render(0, motion).frames, motion, 0,
+            std::chrono::steady_clock::now() - std::chrono::seconds(1), late);
+  EXPECT_TRUE(late.degraded);
 }

@@ -1,6 +1,7 @@
 // Rendering checked against analytic ray casting of the same shapes: depth within 0.1 mm,
 // silhouettes within 1 px, LED shadows where the light ray is blocked.
 #include "vision/render/mfc_renderer.hpp"
+#include "vision/render/shadow_footprint.hpp"
 
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
@@ -256,6 +257,95 @@ TEST(MfcRenderer, ABackgroundLeftOutOfTheShadowMapsChangesNoPixel) {
   EXPECT_GT(cv::norm(casting.flash_linear[0], not_casting.flash_linear[0], cv::NORM_INF), 50.0);
 }
 
+// Filling only the texels a window can read gives every pixel the value a whole fill gives,
+// bit for bit: in small and large windows, at the frame's corner, with a caster outside the
+// window whose shadow falls into it, and after a full-frame render of another scene left other texels behind.
+TEST(MfcRenderer, WindowShadowFillEqualsWholeFill) {
+  RenderOptions clipped_opt, whole_opt;
+  clipped_opt.noise.enabled = whole_opt.noise.enabled = false;
+  whole_opt.fill_whole_shadow_maps = true;
+  MfcRenderer clipped(sim_config(), clipped_opt), whole(sim_config(), whole_opt);
+  auto scene = [](MfcRenderer& r) {
+    return std::vector<ScenePart>{
+        {r.add_mesh(make_plane(800)), cv::Matx33d::eye(), {0, 0, 330}, Material::matte(0.6f), false},
+        {r.add_mesh(make_box(40, 30, 30)), rotation(0.4, -0.3, 0.5), {-10, 5, 310}, Material::matte(0.8f)},
+        {r.add_mesh(make_cylinder(6, 60, 48)), rotation(0.2, 0.1, 0), {45, -20, 290}, Material::shiny()}};
+  };
+  const auto a = scene(clipped), b = scene(whole);
+  // Another scene: a plane that casts shadows in front of everything fills every texel with a
+  // depth nearer than any of the scene's, so a window pixel that read a texel left behind would
+  // be in shadow where the whole fill lights it.
+  std::vector<ScenePart> other = a;
+  other[0].t_mm = {0, 0, 200};
+  other[0].casts_shadows = true;
+  other[1].t_mm = {30, -25, 250};
+  other[1].R = rotation(-0.6, 0.2, 1.1);
+  other[2].t_mm = {-40, 30, 240};
+  MfcRender out_a, out_b;
+  const cv::Rect windows[] = {{250, 190, 60, 50}, {300, 200, 40, 40}, {0, 0, 90, 70}, {150, 100, 340, 280}};
+  int windows_with_shadows = 0;
+  for (const cv::Rect& win : windows) {
+    clipped.set_camera(clipped.config().camera);
+    clipped.render(other, out_a);  // a full frame of the other scene before every window
+    clipped.set_camera(clipped.config().camera.cropped(win));
+    whole.set_camera(whole.config().camera.cropped(win));
+    clipped.render(a, out_a);
+    whole.render(b, out_b);
+    int shadowed = 0;
+    for (size_t i = 0; i < 8; ++i) {
+      EXPECT_EQ(cv::norm(out_a.flash_linear[i], out_b.flash_linear[i], cv::NORM_INF), 0.0) << win << " LED " << i;
+      shadowed += cv::countNonZero(out_b.flash_linear[i] - out_b.ambient_linear < 5.0f);
+    }
+    windows_with_shadows += shadowed > 0;
+  }
+  EXPECT_EQ(windows_with_shadows, 3);  // all but the corner's
+}
+
+TEST(ShadowFootprint, HoldsEveryLookupOfTheWindowAndIsSmallerThanTheMap) {
+  // An LED 30 mm off axis, a map of 1024 texels over a 60 degree field from 120 mm on.
+  const int S = 1024;
+  const double fs = (S / 2.0) / (std::tan(30.0 * CV_PI / 180) + 30.0 / 120.0);
+  const cv::Vec3d L(30, 0, 0);
+  const cv::Matx44d unit_from_led(fs / S, 0, (S / 2.0) / S, 0, 0, fs / S, (S / 2.0) / S, 0, 0, 0, 0.5, 0.5, 0, 0, 1, 0);
+  const cv::Matx44d led_from_camera(1, 0, 0, -L[0], 0, 1, 0, -L[1], 0, 0, 1, -L[2], 0, 0, 0, 1);
+  const PinholeCamera full = sim_config().camera;
+  const PinholeCamera cam = full.cropped({280, 200, 80, 60});
+  const ShadowFootprintQuery q{.unit_from_camera = unit_from_led * led_from_camera,
+                               .map_size = S,
+                               .z_near_mm = 280,
+                               .z_far_mm = 340,
+                               .led_mm = L,
+                               .offset_per_mm = 1.5 / S};
+  const cv::Rect box = shadow_footprint(q, cam);
+  EXPECT_LT(box.area(), S * S / 16);
+  // Sampled points of the window's frustum in that range, moved by the largest offset, and
+  // the 2x2 texels linear filtering reads around them, all fall in the box.
+  const cv::Matx33d Kinv = cam.K.inv();
+  const double offset = 1.5 / S * (340 * 1.2 + 30);
+  int checked = 0;
+  for (double u = -0.5; u <= cam.image_size.width - 0.5; u += 8)
+    for (double v = -0.5; v <= cam.image_size.height - 0.5; v += 6)
+      for (double z : {280.0, 310.0, 340.0})
+        for (double e : {-offset, offset}) {
+          const cv::Vec3d P = Kinv * cv::Vec3d(u, v, 1) * z + cv::Vec3d(e, -e, e);
+          const cv::Vec4d s = q.unit_from_camera * cv::Vec4d(P[0], P[1], P[2], 1);
+          const double x = s[0] / s[3] * S - 0.5, y = s[1] / s[3] * S - 0.5;
+          for (double tx : {std::floor(x), std::floor(x) + 1})
+            for (double ty : {std::floor(y), std::floor(y) + 1})
+              EXPECT_TRUE(box.contains(cv::Point(static_cast<int>(tx), static_cast<int>(ty))))
+                  << "texel " << tx << "," << ty << " outside " << box;
+          ++checked;
+        }
+  EXPECT_GT(checked, 100);
+  // A depth range reaching behind the LED, or none, fills the whole map.
+  ShadowFootprintQuery behind = q;
+  behind.z_near_mm = -10;
+  EXPECT_EQ(shadow_footprint(behind, cam), cv::Rect(0, 0, S, S));
+  ShadowFootprintQuery empty = q;
+  empty.z_far_mm = 100;
+  EXPECT_EQ(shadow_footprint(empty, cam), cv::Rect(0, 0, S, S));
+}
+
 TEST(MfcRenderer, SeveralPartsOccludeAndAreIndexed) {
   MfcRenderer r(sim_config());
   const int cube = r.add_mesh(make_box(30, 30, 30));
@@ -358,9 +448,9 @@ TEST(MfcRenderer, NoiseIsOneDrawPerImageAndARepeatedRenderDoesNotAllocate) {
   for (size_t i = 0; i < 8; ++i) expect_capture(out.flash_linear[i], out.frames.flash[i], "flash");
   expect_capture(out.ambient_linear, out.frames.ambient, "ambient");
 
-  const auto before = mfcd::hal::test::allocationCount();
+  const auto before = mfcd::hal::test::allocation_count();
   r.render(std::span(&floor, 1), out, 8);
-  EXPECT_EQ(mfcd::hal::test::allocationCount() - before, 0u);
+  EXPECT_EQ(mfcd::hal::test::allocation_count() - before, 0u);
 }
 
 // Shading: Lambert with inverse-square falloff. A white matte floor facing the camera at

@@ -109,12 +109,12 @@ TEST(OrientedTemplate, ReservedForAStretchNeverGrows) {
     OrientedTemplate out;
     std::vector<DigitalSegment> scratch;
     reserveOrientedTemplate(set, max_stretch, out, scratch);
-    const auto before = mfcd::hal::test::allocationCount();
+    const auto before = mfcd::hal::test::allocation_count();
     for (int k = 0; k < 20; ++k) {
       // scale * max(aspect, 1) <= max_stretch: the warp's largest singular value
       const double aspect = uaspect(rng), scale = max_stretch * us(rng) / std::max(1.0, aspect);
       orientTemplate(set, trial, Warp{ua(rng), scale, aspect}, out, scratch);
     }
-    EXPECT_EQ(mfcd::hal::test::allocationCount() - before, 0u) << "trial " << trial;
+    EXPECT_EQ(mfcd::hal::test::allocation_count() - before, 0u) << "trial " << trial;
   }
 }

@@ -4,7 +4,7 @@
 // exposure per read(): the camera runs with TriggerMode=On, TriggerSource=Software on FrameStart,
 // and read() sends TriggerSoftware and waits for that frame, so every frame of a FrameSet was
 // exposed after its LED was switched. Buffers are allocated and pushed to the Aravis stream once
-// at configure(); read() pops one, converts it (convertToGrey, as V4L2Camera does) and pushes it
+// at configure(); read() pops one, converts it (convert_to_grey, as V4L2Camera does) and pushes it
 // back. Frame timeout → StreamTimeout (the acquisition is restarted on the next read()); the camera
 // not answering (GVCP timeout, heartbeat lost) → DeviceGone, the connection released (in the
 // background), reopened from later read()s with exponential backoff (100 ms doubling to 5 s), as
@@ -22,7 +22,7 @@
 
 #include "mfcd/hal/camera.hpp"
 #include "mfcd/hal/light_ring.hpp"   // kLedCount
-#include "mfcd/hal/v4l2_camera.hpp"  // SourceFormat, convertToGrey
+#include "mfcd/hal/v4l2_camera.hpp"  // SourceFormat, convert_to_grey
 
 namespace mfcd::hal {
 
@@ -88,7 +88,7 @@ class AravisCamera final : public Camera {
   ImageFormat format() const override { return format_; }
   // Frames are stamped with CLOCK_MONOTONIC just before their software trigger was sent: the
   // exposure cannot start earlier, so the stamp is a start-of-exposure bound and the lead is 0.
-  std::int64_t exposureLeadNs() const override { return 0; }
+  std::int64_t exposure_lead_ns() const override { return 0; }
   const CameraStats& stats() const override { return stats_; }
   std::string describe() const override;  // "Aravis Aravis-Fake-MFC1 (Aravis Fake)"
 

@@ -19,7 +19,7 @@ enum class ErrorCode {
   Io,                 // any other system-call failure
 };
 
-const char* toString(ErrorCode code) noexcept;
+const char* to_string(ErrorCode code) noexcept;
 
 class HalError : public std::runtime_error {
  public:

@@ -16,7 +16,7 @@ namespace mfcd::hal {
 struct GpiodLightRingConfig {
   std::string chip = "mfc-leds";                                    // name, label, path or number
   std::array<unsigned, kLedCount> offsets{0, 1, 2, 3, 4, 5, 6, 7};  // LED i → line offset
-  bool activeLow = false;                                           // LED lit when the line is driven low
+  bool active_low = false;                                          // LED lit when the line is driven low
   std::string consumer = "mfcd";
 };
 
@@ -34,16 +34,16 @@ class GpiodLightRing final : public LightRing {
   LedMask state() const override { return mask_; }
   std::string describe() const override;
 
-  const std::string& chipName() const { return chipName_; }    // "gpiochip3"
-  const std::string& chipLabel() const { return chipLabel_; }  // "mfc-leds"
+  const std::string& chip_name() const { return chip_name_; }    // "gpiochip3"
+  const std::string& chip_label() const { return chip_label_; }  // "mfc-leds"
 
  private:
   void release() noexcept;
-  bool allOff() noexcept;
+  bool all_off() noexcept;
   GpiodLightRingConfig config_;
   gpiod_chip* chip_ = nullptr;
   gpiod_line_bulk* bulk_ = nullptr;  // owned (heap: struct gpiod_line_bulk is large)
-  std::string chipName_, chipLabel_;
+  std::string chip_name_, chip_label_;
   bool active_ = false;
   LedMask mask_ = 0;
 };

@@ -10,11 +10,11 @@ namespace mfcd::hal {
 struct ImageFormat {
   int width = 0;
   int height = 0;
-  int bitsPerPixel = 8;  // 8 or 16
+  int bits_per_pixel = 8;  // 8 or 16
   bool operator==(const ImageFormat&) const = default;
-  std::size_t bytesPerPixel() const { return bitsPerPixel == 16 ? 2 : 1; }
-  std::size_t strideBytes() const { return static_cast<std::size_t>(width) * bytesPerPixel(); }
-  std::size_t sizeBytes() const { return strideBytes() * static_cast<std::size_t>(height); }
+  std::size_t bytes_per_pixel() const { return bits_per_pixel == 16 ? 2 : 1; }
+  std::size_t stride_bytes() const { return static_cast<std::size_t>(width) * bytes_per_pixel(); }
+  std::size_t size_bytes() const { return stride_bytes() * static_cast<std::size_t>(height); }
 };
 
 class Image {
@@ -23,14 +23,14 @@ class Image {
   explicit Image(const ImageFormat& format) { allocate(format); }
   void allocate(const ImageFormat& format) {
     format_ = format;
-    data_.assign(format.sizeBytes(), 0);
+    data_.assign(format.size_bytes(), 0);
   }
   const ImageFormat& format() const { return format_; }
   std::uint8_t* data() { return data_.data(); }
   const std::uint8_t* data() const { return data_.data(); }
-  std::size_t sizeBytes() const { return data_.size(); }
-  std::uint8_t* row(int y) { return data_.data() + static_cast<std::size_t>(y) * format_.strideBytes(); }
-  const std::uint8_t* row(int y) const { return data_.data() + static_cast<std::size_t>(y) * format_.strideBytes(); }
+  std::size_t size_bytes() const { return data_.size(); }
+  std::uint8_t* row(int y) { return data_.data() + static_cast<std::size_t>(y) * format_.stride_bytes(); }
+  const std::uint8_t* row(int y) const { return data_.data() + static_cast<std::size_t>(y) * format_.stride_bytes(); }
 
  private:
   ImageFormat format_;

@@ -21,11 +21,11 @@ class RenderedCellScene final : public SceneRenderer {
   RenderedCellScene(vision::MfcRenderer& renderer, std::vector<vision::ScenePart> parts);
 
   // Replaces the bin contents; the next exposure re-renders. Not for the frame path (allocates).
-  void setParts(std::vector<vision::ScenePart> parts);
-  const vision::MfcRender& lastRender() const { return render_; }
+  void set_parts(std::vector<vision::ScenePart> parts);
+  const vision::MfcRender& last_render() const { return render_; }
   std::uint64_t renders() const { return renders_; }
 
-  void render(LedMask lit, std::uint64_t exposureIndex, Image& out) override;
+  void render(LedMask lit, std::uint64_t exposure_index, Image& out) override;
 
  private:
   vision::MfcRenderer& renderer_;

@@ -18,10 +18,10 @@ inline constexpr int kAmbientLed = -1;
 struct SlotFrame {
   Image image;
   FrameInfo info;
-  int led = kAmbientLed;   // 0..7, or kAmbientLed
-  std::int64_t onNs = 0;   // LED switched on (ambient: all LEDs confirmed off)
-  std::int64_t offNs = 0;  // LED switched off (ambient: frame accepted)
-  int staleDiscarded = 0;  // frames thrown away for this slot
+  int led = kAmbientLed;    // 0..7, or kAmbientLed
+  std::int64_t on_ns = 0;   // LED switched on (ambient: all LEDs confirmed off)
+  std::int64_t off_ns = 0;  // LED switched off (ambient: frame accepted)
+  int stale_discarded = 0;  // frames thrown away for this slot
 };
 
 struct FrameSet {
@@ -31,13 +31,13 @@ struct FrameSet {
 };
 
 struct SequencerConfig {
-  int maxStaleFramesPerSlot = 4;  // a slot fails after this many stale frames in a row
-  std::int64_t settleNs = 0;      // LED rise/fall time: exposure must start this long after a switch
+  int max_stale_frames_per_slot = 4;  // a slot fails after this many stale frames in a row
+  std::int64_t settle_ns = 0;         // LED rise/fall time: exposure must start this long after a switch
 };
 
 struct SequencerStats {
-  std::uint64_t frameSets = 0;
-  std::uint64_t staleDiscarded = 0;
+  std::uint64_t frame_sets = 0;
+  std::uint64_t stale_discarded = 0;
   std::uint64_t failures = 0;
 };
 
@@ -58,7 +58,7 @@ class MfcSequencer {
   const SequencerStats& stats() const { return stats_; }
 
  private:
-  void captureSlot(SlotFrame& slot, std::int64_t windowStartNs);
+  void capture_slot(SlotFrame& slot, std::int64_t window_start_ns);
   Camera& camera_;
   LightRing& lights_;
   SequencerConfig config_;

@@ -18,9 +18,9 @@ namespace mfcd::hal {
 class LedStateSource {
  public:
   virtual ~LedStateSource() = default;
-  virtual LedMask litMask() const = 0;
-  virtual LedMask previousMask() const = 0;
-  virtual std::int64_t lastChangeNs() const = 0;
+  virtual LedMask lit_mask() const = 0;
+  virtual LedMask previous_mask() const = 0;
+  virtual std::int64_t last_change_ns() const = 0;
 };
 
 // Produces the image the camera would see with `lit` LEDs on. The CAD-based cell renderer
@@ -28,7 +28,7 @@ class LedStateSource {
 class SceneRenderer {
  public:
   virtual ~SceneRenderer() = default;
-  virtual void render(LedMask lit, std::uint64_t exposureIndex, Image& out) = 0;
+  virtual void render(LedMask lit, std::uint64_t exposure_index, Image& out) = 0;
 };
 
 // Deterministic test scene: the first row carries a tag (magic, lit mask, exposure index) and the
@@ -38,9 +38,9 @@ class PatternSceneRenderer final : public SceneRenderer {
  public:
   struct Tag {
     LedMask lit;
-    std::uint64_t exposureIndex;
+    std::uint64_t exposure_index;
   };
-  void render(LedMask lit, std::uint64_t exposureIndex, Image& out) override;
+  void render(LedMask lit, std::uint64_t exposure_index, Image& out) override;
   static std::optional<Tag> decode(const Image& image);
   static constexpr int kTagPixels = 10;  // images must be at least this wide
 };
@@ -55,20 +55,20 @@ class SimulatedLightRing final : public LightRing, public LedStateSource {
   LedMask state() const override { return mask_; }
   std::string describe() const override { return "simulated light ring " + name_; }
 
-  LedMask litMask() const override { return mask_; }
-  LedMask previousMask() const override { return previous_; }
-  std::int64_t lastChangeNs() const override { return changedNs_; }
+  LedMask lit_mask() const override { return mask_; }
+  LedMask previous_mask() const override { return previous_; }
+  std::int64_t last_change_ns() const override { return changed_ns_; }
 
   // Fault injection, below the interface.
-  void failNextSets(int count) { failSets_ = count; }           // set() fails (after forcing all-off)
-  void failConfigureBusy(bool busy) { configureBusy_ = busy; }  // configure() reports a busy line
+  void fail_next_sets(int count) { fail_sets_ = count; }           // set() fails (after forcing all-off)
+  void fail_configure_busy(bool busy) { configure_busy_ = busy; }  // configure() reports a busy line
 
   // Every set() with its time, kept in preallocated storage (no allocation on the frame path).
   struct Event {
-    std::int64_t timeNs;
+    std::int64_t time_ns;
     LedMask mask;
   };
-  void recordHistory(std::size_t capacity) {
+  void record_history(std::size_t capacity) {
     history_.clear();
     history_.reserve(capacity);
   }
@@ -79,9 +79,9 @@ class SimulatedLightRing final : public LightRing, public LedStateSource {
   std::string name_;
   bool configured_ = false, active_ = false;
   LedMask mask_ = 0, previous_ = 0;
-  std::int64_t changedNs_ = 0;
-  int failSets_ = 0;
-  bool configureBusy_ = false;
+  std::int64_t changed_ns_ = 0;
+  int fail_sets_ = 0;
+  bool configure_busy_ = false;
   std::vector<Event> history_;
 };
 
@@ -90,7 +90,7 @@ struct SimulatedCameraConfig {
   std::string name = "sim-camera";
   // Exposure time: read() "exposes" for this long (sleeps) and stamps the end of it, like a
   // camera with end-of-frame timestamps. 0 = instantaneous (benchmarks).
-  std::int64_t exposureNs = 0;
+  std::int64_t exposure_ns = 0;
 };
 
 class SimulatedCamera final : public Camera {
@@ -102,16 +102,16 @@ class SimulatedCamera final : public Camera {
   void deactivate() override;
   void read(Image& out, FrameInfo& info) override;
   ImageFormat format() const override { return config_.format; }
-  std::int64_t exposureLeadNs() const override { return config_.exposureNs; }
+  std::int64_t exposure_lead_ns() const override { return config_.exposure_ns; }
   const CameraStats& stats() const override { return stats_; }
   std::string describe() const override { return "simulated camera " + config_.name; }
 
   // Fault injection, below the interface. Each applies to the next `count` frames.
-  void injectTimeouts(int count) { timeouts_ = count; }        // read() throws StreamTimeout
-  void injectStaleFrames(int count) { stale_ = count; }        // frame exposed before the last LED change
-  void injectErrorFrames(int count) { errorFrames_ = count; }  // driver error buffers: skipped, counted
-  void injectDroppedFrames(int count) { dropped_ = count; }    // sequence gap of `count` before next frame
-  void injectDisconnect() { disconnected_ = true; }            // next read() throws DeviceGone, then reconnects
+  void inject_timeouts(int count) { timeouts_ = count; }          // read() throws StreamTimeout
+  void inject_stale_frames(int count) { stale_ = count; }         // frame exposed before the last LED change
+  void inject_error_frames(int count) { error_frames_ = count; }  // driver error buffers: skipped, counted
+  void inject_dropped_frames(int count) { dropped_ = count; }     // sequence gap of `count` before next frame
+  void inject_disconnect() { disconnected_ = true; }              // next read() throws DeviceGone, then reconnects
 
  private:
   SimulatedCameraConfig config_;
@@ -122,8 +122,8 @@ class SimulatedCamera final : public Camera {
   std::uint32_t sequence_ = 0;
   std::uint64_t exposures_ = 0;
   CameraStats stats_;
-  int timeouts_ = 0, stale_ = 0, errorFrames_ = 0, dropped_ = 0;
-  bool disconnected_ = false, reconnectPending_ = false;
+  int timeouts_ = 0, stale_ = 0, error_frames_ = 0, dropped_ = 0;
+  bool disconnected_ = false, reconnect_pending_ = false;
 };
 
 }  // namespace mfcd::hal

@@ -17,21 +17,21 @@ struct V4L2CameraConfig {
   std::string device = "/dev/video0";
   int width = 640;
   int height = 480;
-  int bitsPerPixel = 8;           // output depth: 8 or 16
-  int frameRate = 0;              // frames per second to ask for (VIDIOC_S_PARM); 0 = device default
-  std::optional<int> exposureUs;  // manual exposure, if the device has the control
-  std::optional<int> gain;        // manual gain, if the device has the control
-  int bufferCount = 4;
-  std::chrono::milliseconds dequeueTimeout{1000};
-  std::chrono::milliseconds reconnectBackoffMin{100};
-  std::chrono::milliseconds reconnectBackoffMax{5000};
+  int bits_per_pixel = 8;          // output depth: 8 or 16
+  int frame_rate = 0;              // frames per second to ask for (VIDIOC_S_PARM); 0 = device default
+  std::optional<int> exposure_us;  // manual exposure, if the device has the control
+  std::optional<int> gain;         // manual gain, if the device has the control
+  int buffer_count = 4;
+  std::chrono::milliseconds dequeue_timeout{1000};
+  std::chrono::milliseconds reconnect_backoff_min{100};
+  std::chrono::milliseconds reconnect_backoff_max{5000};
 };
 
 // Pixel formats the camera can convert (fourcc values from videodev2.h).
 enum class SourceFormat { Grey, Y16, Yuyv };
 
 // Conversion of one frame into grey; exposed for the reference tests.
-void convertToGrey(SourceFormat source, const std::uint8_t* src, std::size_t srcStride, Image& out);
+void convert_to_grey(SourceFormat source, const std::uint8_t* src, std::size_t src_stride, Image& out);
 
 class V4L2Camera final : public Camera {
  public:
@@ -45,14 +45,14 @@ class V4L2Camera final : public Camera {
   void deactivate() override;
   void read(Image& out, FrameInfo& info) override;
   ImageFormat format() const override { return format_; }
-  std::int64_t exposureLeadNs() const override { return exposureLeadNs_; }
+  std::int64_t exposure_lead_ns() const override { return exposure_lead_ns_; }
   const CameraStats& stats() const override { return stats_; }
   std::string describe() const override;
 
-  SourceFormat sourceFormat() const { return source_; }
+  SourceFormat source_format() const { return source_; }
   const std::string& driver() const { return driver_; }
-  bool exposureApplied() const { return exposureApplied_; }
-  bool gainApplied() const { return gainApplied_; }
+  bool exposure_applied() const { return exposure_applied_; }
+  bool gain_applied() const { return gain_applied_; }
 
  private:
   static constexpr int kMaxBuffers = 16;
@@ -62,13 +62,13 @@ class V4L2Camera final : public Camera {
   };
   void open();
   void negotiate();
-  void applyControls();
-  void allocateBuffers();
-  void releaseBuffers();
+  void apply_controls();
+  void allocate_buffers();
+  void release_buffers();
   void close() noexcept;
-  void streamOn();
-  void streamOff() noexcept;
-  void tryReconnect();
+  void stream_on();
+  void stream_off() noexcept;
+  void try_reconnect();
   [[noreturn]] void fail(int err, const char* what);
 
   V4L2CameraConfig config_;
@@ -76,17 +76,17 @@ class V4L2Camera final : public Camera {
   std::string driver_, card_;
   ImageFormat format_;
   SourceFormat source_ = SourceFormat::Grey;
-  std::size_t srcStride_ = 0;
-  std::int64_t exposureLeadNs_ = 0;
+  std::size_t src_stride_ = 0;
+  std::int64_t exposure_lead_ns_ = 0;
   std::array<Mapping, kMaxBuffers> buffers_{};
-  int bufferCount_ = 0;
+  int buffer_count_ = 0;
   bool configured_ = false, active_ = false, streaming_ = false;
-  bool gone_ = false, restartStream_ = false;
-  bool haveSequence_ = false;
-  std::uint32_t lastSequence_ = 0;
-  std::int64_t nextReconnectNs_ = 0;
+  bool gone_ = false, restart_stream_ = false;
+  bool have_sequence_ = false;
+  std::uint32_t last_sequence_ = 0;
+  std::int64_t next_reconnect_ns_ = 0;
   std::chrono::milliseconds backoff_{0};
-  bool exposureApplied_ = false, gainApplied_ = false;
+  bool exposure_applied_ = false, gain_applied_ = false;
   CameraStats stats_;
 };
 
