@@ -2,7 +2,6 @@
 
 #include <fcntl.h>
 #include <grp.h>
-#include <poll.h>
 #include <pwd.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
@@ -12,6 +11,7 @@
 #include <algorithm>
 #include <cerrno>
 #include <cstring>
+#include <optional>
 #include <stdexcept>
 #include <system_error>
 
@@ -63,21 +63,25 @@ bool peer_allowed(int fd, uid_t& uid_out) {
   return false;
 }
 
-bool send_line(int fd, const json& j) {
-  const std::string line = j.dump(-1, ' ', false, json::error_handler_t::replace) + "\n";
+std::string line_of(const json& j) { return j.dump(-1, ' ', false, json::error_handler_t::replace) + "\n"; }
+
+// Sends what the socket takes now without waiting: the bytes sent, or nullopt when the socket
+// failed (the peer is gone).
+std::optional<std::size_t> send_some(int fd, std::string_view bytes) {
   std::size_t sent = 0;
-  for (int tries = 0; sent < line.size() && tries < 100; ++tries) {
-    const ssize_t n = ::send(fd, line.data() + sent, line.size() - sent, MSG_NOSIGNAL | MSG_DONTWAIT);
+  while (sent < bytes.size()) {
+    const ssize_t n = ::send(fd, bytes.data() + sent, bytes.size() - sent, MSG_NOSIGNAL | MSG_DONTWAIT);
     if (n > 0) {
       sent += static_cast<std::size_t>(n);
+    } else if (n < 0 && errno == EINTR) {
+      continue;
     } else if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) {
-      pollfd p{fd, POLLOUT, 0};
-      ::poll(&p, 1, 10);
+      break;
     } else {
-      return false;
+      return std::nullopt;
     }
   }
-  return sent == line.size();
+  return sent;
 }
 
 }  // namespace
@@ -113,6 +117,9 @@ void ControlServer::open(const fs::path& path) {
 }
 
 void ControlServer::close() {
+  // What is queued gets one last try (a "mfcd is stopping" reply, say), without waiting.
+  for (const Client& c : clients_)
+    if (!c.hung_up && !c.out.empty()) send_some(c.fd.get(), c.out);
   while (!clients_.empty()) drop(clients_.back().id);
   if (listener_) {
     loop_.remove(listener_.get());
@@ -124,7 +131,7 @@ void ControlServer::close() {
 
 void ControlServer::refuse(motion::UniqueFd fd, const char* why) {
   ++refused_;
-  send_line(fd.get(), {{"ok", false}, {"error", why}});
+  send_some(fd.get(), line_of({{"ok", false}, {"error", why}}));  // a new socket takes one short line
 }
 
 void ControlServer::accept_clients() {
@@ -155,11 +162,16 @@ void ControlServer::accept_clients() {
     }
     const ClientId id = next_id_++;
     loop_.add(fd.get(), [this, id] { read_client(id); });
-    clients_.push_back({std::move(fd), {}, uid, id});
+    clients_.push_back({std::move(fd), {}, {}, uid, id, false});
   }
 }
 
 ControlServer::Client* ControlServer::find(ClientId id) {
+  const auto it = std::find_if(clients_.begin(), clients_.end(), [id](const Client& c) { return c.id == id; });
+  return it == clients_.end() ? nullptr : &*it;
+}
+
+const ControlServer::Client* ControlServer::find(ClientId id) const {
   const auto it = std::find_if(clients_.begin(), clients_.end(), [id](const Client& c) { return c.id == id; });
   return it == clients_.end() ? nullptr : &*it;
 }
@@ -174,7 +186,55 @@ void ControlServer::drop(ClientId id) {
 
 bool ControlServer::reply(ClientId client, const json& j) {
   Client* c = find(client);
-  return c && send_line(c->fd.get(), j);
+  if (!c || c->hung_up) return false;
+  const std::string line = line_of(j);
+  if (!c->out.empty()) {  // behind what is queued, to keep the order
+    if (c->out.size() + line.size() > kMaxQueued) {
+      hang_up(*c, "it leaves its replies unread");
+      return false;
+    }
+    c->out += line;
+    return true;
+  }
+  const std::optional<std::size_t> sent = send_some(c->fd.get(), line);
+  if (!sent) {
+    hang_up(*c, "its socket failed");
+    return false;
+  }
+  if (*sent < line.size()) {
+    c->out.assign(line, *sent);
+    loop_.on_writable(c->fd.get(), [this, client] { write_client(client); });
+  }
+  return true;
+}
+
+std::size_t ControlServer::queued(ClientId client) const {
+  const Client* c = find(client);
+  return c ? c->out.size() : 0;
+}
+
+void ControlServer::write_client(ClientId id) {
+  Client* c = find(id);
+  if (!c || c->hung_up) return;
+  const std::optional<std::size_t> sent = send_some(c->fd.get(), c->out);
+  if (!sent) {
+    hang_up(*c, "its socket failed");
+    return;
+  }
+  c->out.erase(0, *sent);
+  if (c->out.empty()) loop_.on_writable(c->fd.get(), {});
+}
+
+// Shuts the socket both ways: the peer sees the end, and the socket reads as ended, so the
+// loop's next round calls read_client, which drops the client at a point where that is safe.
+void ControlServer::hang_up(Client& c, const char* why) {
+  logf(LogLevel::Warning, "control socket: dropping client %llu: %s (%zu bytes of replies unsent)",
+       static_cast<unsigned long long>(c.id), why, c.out.size());
+  c.hung_up = true;
+  c.out.clear();
+  c.out.shrink_to_fit();
+  ::shutdown(c.fd.get(), SHUT_RDWR);
+  loop_.on_writable(c.fd.get(), {});
 }
 
 void ControlServer::read_client(ClientId id) {
@@ -182,6 +242,10 @@ void ControlServer::read_client(ClientId id) {
   for (;;) {
     Client* c = find(id);
     if (!c) return;
+    if (c->hung_up) {
+      drop(id);
+      return;
+    }
     const ssize_t n = ::recv(c->fd.get(), buf, sizeof buf, 0);
     if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) break;
     if (n < 0 && errno == EINTR) continue;
@@ -200,6 +264,10 @@ void ControlServer::read_client(ClientId id) {
   for (;;) {
     Client* c = find(id);
     if (!c) return;
+    if (c->hung_up) {  // a reply dropped it: its other requests are not run
+      drop(id);
+      return;
+    }
     const std::size_t nl = c->in.find('\n');
     if (nl == std::string::npos) return;
     const std::string line = c->in.substr(0, nl);

@@ -2,8 +2,11 @@
 // The control socket (mfcd-ctl): a Unix stream socket, mode 0660, for root, the daemon's user and
 // members of its group (SO_PEERCRED); one JSON object per line each way. Requests are dispatched
 // through a command table the daemon fills; a request that throws is answered with its error and
-// never reaches the main loop. Bounded: at most kMaxClients at once, lines up to kMaxLine bytes,
-// and descriptor exhaustion (EMFILE) refuses the newcomer instead of spinning on the listener.
+// never reaches the main loop. Replies never block the loop: what the socket does not take is
+// queued and sent when the client's socket is writable. Bounded: at most kMaxClients at once,
+// lines up to kMaxLine bytes, kMaxQueued bytes of replies left unread (a client that leaves more
+// is dropped), and descriptor exhaustion (EMFILE) refuses the newcomer instead of spinning on
+// the listener.
 #include <sys/types.h>
 
 #include <cstdint>
@@ -42,6 +45,7 @@ class ControlServer {
   using Handler = std::function<void(ClientId, const RequestArgs&)>;
   static constexpr std::size_t kMaxClients = 16;
   static constexpr std::size_t kMaxLine = 65536;
+  static constexpr std::size_t kMaxQueued = std::size_t{1} << 20;  // bytes of unread replies per client
 
   explicit ControlServer(EventLoop& loop) : loop_(loop) {}
   ~ControlServer() { close(); }
@@ -59,9 +63,14 @@ class ControlServer {
   // Called when a client disconnects (or is dropped), so what waits for it can be forgotten.
   void on_disconnect(std::function<void(ClientId)> callback) { on_disconnect_ = std::move(callback); }
 
-  // Sends one JSON line; invalid UTF-8 in strings is replaced (U+FFFD). False when the client is
-  // gone. A client that does not read its answers loses them rather than stall the loop.
+  // Sends one JSON line, or queues what the socket does not take; invalid UTF-8 in strings is
+  // replaced (U+FFFD). False when the client is gone or is being dropped: its socket failed, or
+  // this reply would leave more than kMaxQueued bytes unread. A dropped client is shut down here
+  // and removed (with on_disconnect) by the loop's next round, never inside this call: callers
+  // may be iterating what on_disconnect changes.
   bool reply(ClientId client, const nlohmann::json& j);
+  // Bytes of replies queued for the client (0 when all were sent or it is gone).
+  std::size_t queued(ClientId client) const;
   // Parses and dispatches one request line as if `client` had sent it (what read() does).
   void handle_line(ClientId client, std::string_view line);
   std::size_t clients() const { return clients_.size(); }
@@ -71,13 +80,18 @@ class ControlServer {
   struct Client {
     motion::UniqueFd fd;
     std::string in;
+    std::string out;  // reply bytes the socket has not taken yet, in order
     uid_t uid = 0;
     ClientId id = 0;
+    bool hung_up = false;  // shut down; the next loop round drops it
   };
   void accept_clients();
   void read_client(ClientId id);
+  void write_client(ClientId id);
+  void hang_up(Client& c, const char* why);
   void drop(ClientId id);
   Client* find(ClientId id);
+  const Client* find(ClientId id) const;
   void refuse(motion::UniqueFd fd, const char* why);
 
   EventLoop& loop_;

@@ -1,8 +1,8 @@
 #pragma once
 // The main thread's poll() loop: sources register a descriptor and what to do when it is
-// readable, instead of the loop knowing every descriptor by index. Callbacks may add and
-// remove sources (a control client closing, a cell rebuilt by a reload); a source removed
-// during a round is not called for the rest of it.
+// readable (and, while they have output waiting, writable), instead of the loop knowing every
+// descriptor by index. Callbacks may add and remove sources (a control client closing, a cell
+// rebuilt by a reload); a source removed during a round is not called for the rest of it.
 #include <functional>
 #include <vector>
 
@@ -17,6 +17,9 @@ class EventLoop {
   // Watches fd for readability (and errors). Registering an fd again replaces its callback.
   // A negative fd is ignored.
   void add(int fd, Callback on_readable);
+  // While on_writable is set, also watches fd (already added) for writability; an empty
+  // callback stops that. Ignored for an fd not added.
+  void on_writable(int fd, Callback on_writable);
   void remove(int fd);
   bool watches(int fd) const;
   std::size_t size() const { return sources_.size(); }
@@ -30,7 +33,9 @@ class EventLoop {
   struct Source {
     int fd;
     Callback on_readable;
+    Callback on_writable;  // empty: not watched for writability
   };
+  Source* find(int fd);
   std::vector<Source> sources_;
   std::vector<pollfd> fds_;  // this round's poll set, rebuilt from sources_
 };

@@ -1,6 +1,6 @@
 // ControlServer on a real Unix socket in a temporary directory, driven through a real EventLoop:
-// the command table, the exception barrier, invalid UTF-8, line and client limits, and
-// descriptor exhaustion (a real EMFILE).
+// the command table, the exception barrier, invalid UTF-8, line and client limits, replies to
+// clients that read late or never, and descriptor exhaustion (a real EMFILE).
 #include <gtest/gtest.h>
 
 #include <sys/resource.h>
@@ -8,6 +8,7 @@
 #include <sys/un.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <filesystem>
 #include <stdexcept>
 #include <string>
@@ -33,6 +34,58 @@ class Peer {
   }
   bool connected() const { return connected_; }
   void send(const std::string& bytes) { ::send(fd_.get(), bytes.data(), bytes.size(), MSG_NOSIGNAL); }
+  // Sends all of `bytes`, running the server's loop while the socket is full, as a client that
+  // writes faster than mfcd reads. False when the server closed the connection first.
+  bool send_pumping(EventLoop& loop, const std::string& bytes) {
+    for (std::size_t sent = 0; sent < bytes.size();) {
+      const ssize_t n = ::send(fd_.get(), bytes.data() + sent, bytes.size() - sent, MSG_NOSIGNAL | MSG_DONTWAIT);
+      if (n > 0) {
+        sent += static_cast<std::size_t>(n);
+      } else if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) {
+        loop.run_once(10);
+      } else {
+        return false;
+      }
+    }
+    return true;
+  }
+  // Everything the server sent until it closed the connection, running its loop meanwhile.
+  std::string read_to_end(EventLoop& loop) {
+    std::string out;
+    char buf[65536];
+    for (int idle = 0; idle < 100;) {
+      loop.run_once(10);
+      const ssize_t n = ::recv(fd_.get(), buf, sizeof buf, MSG_DONTWAIT);
+      if (n == 0) return out;
+      if (n > 0) {
+        out.append(buf, static_cast<std::size_t>(n));
+        idle = 0;
+      } else {
+        ++idle;
+      }
+    }
+    ADD_FAILURE() << "the server did not close the connection";
+    return out;
+  }
+  // `count` reply lines, running the loop while they are not all there.
+  std::vector<std::string> lines(EventLoop& loop, std::size_t count) {
+    std::vector<std::string> out;
+    std::string partial;
+    char buf[65536];
+    for (int idle = 0; out.size() < count && idle < 100;) {
+      const ssize_t n = ::recv(fd_.get(), buf, sizeof buf, MSG_DONTWAIT);
+      if (n <= 0) {
+        ++idle;
+        loop.run_once(10);
+        continue;
+      }
+      idle = 0;
+      partial.append(buf, static_cast<std::size_t>(n));
+      for (std::size_t nl; (nl = partial.find('\n')) != std::string::npos; partial.erase(0, nl + 1))
+        out.push_back(partial.substr(0, nl));
+    }
+    return out;
+  }
   // One reply line, or "" when the server closed without one (nothing within the loop's rounds).
   std::string line(EventLoop& loop) {
     std::string out;
@@ -196,6 +249,73 @@ TEST_F(ControlServerTest, OutOfDescriptorsRefusesTheNewcomerWithoutSpinning) {
                        "\n")["text"],
             "back")
       << "the spare descriptor is back";
+}
+
+// A client that sends requests and reads nothing: its replies fill its socket, then a queue; past
+// kMaxQueued it is dropped. Meanwhile the loop never waits on it (the requests of one burst are
+// all read and answered in rounds that do not block), and another client is answered.
+TEST_F(ControlServerTest, AClientThatNeverReadsIsDroppedAndOthersAreStillAnswered) {
+  Peer quiet(path_);
+  Peer other(path_);
+  ASSERT_TRUE(quiet.connected());
+  loop_.run_once(20);
+  ASSERT_EQ(server_.clients(), 2u);
+  // Each reply is ~540 bytes: 4,000 of them are about twice kMaxQueued.
+  const std::string request = R"({"cmd":"echo","text":")" + std::string(500, 'q') + "\"}\n";
+  std::string burst;
+  for (int i = 0; i < 4000; ++i) burst += request;
+  EXPECT_FALSE(quiet.send_pumping(loop_, burst)) << "the server closes a client that leaves its replies unread";
+  EXPECT_EQ(ask(other, R"({"cmd":"echo","text":"still answered"})"
+                       "\n")["text"],
+            "still answered");
+  EXPECT_EQ(server_.clients(), 1u);
+  ASSERT_EQ(disconnected_.size(), 1u);
+  // What reached the quiet client before it was dropped is whole lines, in order.
+  const std::string got = quiet.read_to_end(loop_);
+  ASSERT_FALSE(got.empty());
+  EXPECT_EQ(got.back(), '\n');
+  EXPECT_EQ(json::parse(got.substr(0, got.find('\n')))["ok"], true);
+}
+
+// A client that reads late gets every reply, in order: what its socket did not take waits in the
+// queue and goes out as the socket drains.
+TEST_F(ControlServerTest, RepliesASlowClientCannotTakeYetAreQueuedAndAllArriveInOrder) {
+  Peer slow(path_);
+  ASSERT_TRUE(slow.connected());
+  constexpr int kRequests = 3000;  // ~100 kB of replies: more than the socket holds, well under kMaxQueued
+  std::string burst;
+  for (int i = 0; i < kRequests; ++i) burst += R"({"cmd":"echo","text":")" + std::to_string(i) + "\"}\n";
+  ASSERT_TRUE(slow.send_pumping(loop_, burst));
+  for (int i = 0; i < 5; ++i) loop_.run_once(10);
+  EXPECT_GT(server_.queued(1), 0u) << "the socket filled, so replies were queued";
+  const std::vector<std::string> replies = slow.lines(loop_, kRequests);
+  ASSERT_EQ(replies.size(), static_cast<std::size_t>(kRequests));
+  for (int i = 0; i < kRequests; ++i)
+    ASSERT_EQ(json::parse(replies[static_cast<std::size_t>(i)])["text"], std::to_string(i)) << "reply " << i;
+  EXPECT_EQ(server_.queued(1), 0u);
+  EXPECT_EQ(server_.clients(), 1u);
+  EXPECT_TRUE(disconnected_.empty());
+}
+
+TEST(EventLoop, CallsTheWritableCallbackOnlyWhileItIsSet) {
+  int p[2];
+  ASSERT_EQ(::pipe(p), 0);
+  UniqueFd r(p[0]), w(p[1]);
+  EventLoop loop;
+  int readable = 0, writable = 0;
+  loop.add(w.get(), [&] { ++readable; });
+  ASSERT_TRUE(loop.run_once(0));
+  EXPECT_EQ(writable, 0) << "not watched for writability yet";
+  loop.on_writable(w.get(), [&] {
+    ++writable;
+    loop.on_writable(w.get(), {});  // done: stop watching
+  });
+  ASSERT_TRUE(loop.run_once(100));
+  ASSERT_TRUE(loop.run_once(0));
+  EXPECT_EQ(writable, 1);
+  EXPECT_EQ(readable, 0) << "an empty pipe's write end is writable, not readable";
+  loop.on_writable(r.get(), [&] { ++writable; });  // not added: ignored
+  EXPECT_EQ(loop.size(), 1u);
 }
 
 TEST(EventLoop, CallsReadySourcesInOrderAndSkipsOnesRemovedInTheRound) {
