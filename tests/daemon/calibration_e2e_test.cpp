@@ -7,7 +7,6 @@
 // The robot pose also comes from the PLC: a real libmodbus client writes the map-v2 pose block.
 #include <gtest/gtest.h>
 #include <modbus/modbus.h>
-#include <sys/mount.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -408,20 +407,18 @@ class CalibrationFullDisk : public CalibrationE2E {
   void SetUp() override {
     proc_ = std::make_unique<DaemonProcess>("calib-full");
     small_ = proc_->dir() / "small";
-    fs::create_directories(small_);
     // 64 kB: the camera file (~3 kB) and a filler that takes every other block.
-    if (::geteuid() != 0 || ::mount("tmpfs", small_.c_str(), "tmpfs", 0, "size=64k") != 0)
-      GTEST_SKIP() << "needs root to mount a small tmpfs (CI runs as root)";
-    mounted_ = true;
+    disk_ = std::make_unique<SmallDisk>(small_, "64k");
+    if (!disk_->mounted()) GTEST_SKIP() << SmallDisk::kSkipReason;
     start(small_);
   }
   void TearDown() override {
-    if (!mounted_) return;
+    if (!disk_ || !disk_->mounted()) return;
     // The daemon stops before its camera file's disk goes, and that goes before the test
     // directory is removed (a mount point cannot be).
     proc_->signal(SIGTERM);
     proc_->wait(15000);
-    ::umount2(small_.c_str(), MNT_DETACH);
+    disk_.reset();
   }
   // Writes zeros into `filler` until the disk refuses: no block is left.
   void fill() const {
@@ -437,7 +434,7 @@ class CalibrationFullDisk : public CalibrationE2E {
     return names;
   }
   fs::path small_;
-  bool mounted_ = false;
+  std::unique_ptr<SmallDisk> disk_;
 };
 
 TEST_F(CalibrationFullDisk, ApplyFailsWithTheReasonChangesNothingAndSucceedsOnceThereIsSpace) {

@@ -5,6 +5,7 @@
 #include <poll.h>
 #include <signal.h>
 #include <spawn.h>
+#include <sys/mount.h>
 #include <sys/socket.h>
 #include <sys/un.h>
 #include <sys/wait.h>
@@ -53,6 +54,29 @@ inline std::string sim_cell_config(const fs::path& dir, int budget_ms = 1000, co
     << "snapshots:\n  directory: " << (dir / "snapshots").string() << "\n  quota_mb: 50\n  on_failure: false\n";
   return s.str();
 }
+
+// A small tmpfs mounted at `dir` (created) for a full-disk test; unmounted (lazily) when this
+// goes. Mounting needs root, as CI runs: without it mounted() is false and the test skips with
+// kSkipReason.
+class SmallDisk {
+ public:
+  static constexpr const char* kSkipReason = "needs root to mount a small tmpfs (CI runs as root)";
+  SmallDisk(const fs::path& dir, const std::string& size) : dir_(dir) {
+    fs::create_directories(dir_);
+    mounted_ = ::geteuid() == 0 && ::mount("tmpfs", dir_.c_str(), "tmpfs", 0, ("size=" + size).c_str()) == 0;
+  }
+  ~SmallDisk() {
+    if (mounted_) ::umount2(dir_.c_str(), MNT_DETACH);
+  }
+  SmallDisk(const SmallDisk&) = delete;
+  SmallDisk& operator=(const SmallDisk&) = delete;
+  bool mounted() const { return mounted_; }
+  const fs::path& dir() const { return dir_; }
+
+ private:
+  fs::path dir_;
+  bool mounted_ = false;
+};
 
 // Sends raw bytes (one request line and its newline) and returns the reply line, without its
 // newline; empty when the daemon does not answer.

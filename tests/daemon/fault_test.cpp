@@ -2,9 +2,6 @@
 // with a clear error while the cell goes on.
 #include <gtest/gtest.h>
 
-#include <sys/mount.h>
-#include <unistd.h>
-
 #include "daemon_process.hpp"
 
 using namespace mfcd::daemon::test;
@@ -12,15 +9,10 @@ using namespace std::chrono_literals;
 
 TEST(DaemonFaults, AFullDiskFailsTheSnapshotWithTheReasonAndLeavesNoHalfSnapshot) {
   DaemonProcess proc("enospc");
-  const fs::path small = proc.dir() / "small";
-  fs::create_directories(small);
-  // A 64 kB tmpfs: far too small for one snapshot (9 PNGs of 640 x 480), larger than its quota check.
-  if (::geteuid() != 0 || ::mount("tmpfs", small.c_str(), "tmpfs", 0, "size=64k") != 0)
-    GTEST_SKIP() << "needs root to mount a small tmpfs (CI runs as root)";
-  struct Unmount {
-    fs::path p;
-    ~Unmount() { ::umount2(p.c_str(), MNT_DETACH); }
-  } unmount{small};
+  // 64 kB: far too small for one snapshot (9 PNGs of 640 x 480), larger than its quota check.
+  const SmallDisk disk(proc.dir() / "small", "64k");
+  if (!disk.mounted()) GTEST_SKIP() << SmallDisk::kSkipReason;
+  const fs::path& small = disk.dir();
   std::string config = sim_cell_config(proc.dir());
   const std::string from = "snapshots:\n  directory: " + (proc.dir() / "snapshots").string();
   config.replace(config.find(from), from.size(), "snapshots:\n  directory: " + small.string());
