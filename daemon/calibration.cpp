@@ -92,8 +92,8 @@ json invalidated_recipes(const fs::path& camera_file, const std::vector<RecipeCo
 }
 
 CalibrationService::CalibrationService() {
-  done_fd_ = ::eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK);
-  if (done_fd_ < 0) throw std::system_error(errno, std::generic_category(), "eventfd");
+  done_fd_.reset(::eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK));
+  if (!done_fd_) throw std::system_error(errno, std::generic_category(), "eventfd");
   worker_ = std::thread([this] { worker_main(); });
 }
 
@@ -104,7 +104,6 @@ CalibrationService::~CalibrationService() {
   }
   wake_.notify_all();
   if (worker_.joinable()) worker_.join();
-  ::close(done_fd_);
 }
 
 void CalibrationService::worker_main() {
@@ -141,7 +140,7 @@ void CalibrationService::post(ClientId client, std::string what, std::function<D
         done_.emplace_back(std::move(d), std::move(state));
       }
       const std::uint64_t one = 1;
-      [[maybe_unused]] ssize_t n = ::write(done_fd_, &one, sizeof one);
+      [[maybe_unused]] ssize_t n = ::write(done_fd_.get(), &one, sizeof one);
     });
   }
   wake_.notify_one();
@@ -149,7 +148,7 @@ void CalibrationService::post(ClientId client, std::string what, std::function<D
 
 std::vector<CalibrationService::Done> CalibrationService::take_done() {
   std::uint64_t v;
-  [[maybe_unused]] ssize_t n = ::read(done_fd_, &v, sizeof v);
+  [[maybe_unused]] ssize_t n = ::read(done_fd_.get(), &v, sizeof v);
   std::vector<std::pair<Done, json>> done;
   {
     std::lock_guard lock(mutex_);

@@ -24,6 +24,7 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 
+#include "base/unique_fd.hpp"
 #include "daemon/config.hpp"
 #include "vision/calib/session.hpp"
 
@@ -49,7 +50,7 @@ class CalibrationService {
   CalibrationService& operator=(const CalibrationService&) = delete;
 
   // --- main thread ---
-  int completion_fd() const { return done_fd_; }
+  int completion_fd() const { return done_fd_.get(); }
   std::vector<Done> take_done();  // drains completion_fd()
   bool busy() const { return pending_ > 0; }
   const std::string& working() const { return working_; }  // the job running, when busy
@@ -95,7 +96,7 @@ class CalibrationService {
   std::deque<std::function<void()>> jobs_;
   std::vector<std::pair<Done, nlohmann::json>> done_;  // reply + session state after the job
   bool stop_ = false;
-  int done_fd_ = -1;
+  UniqueFd done_fd_;
   std::thread worker_;
 };
 

@@ -21,9 +21,9 @@ namespace mfcd::daemon {
 
 namespace {
 
-int make_event_fd() {
-  const int fd = ::eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK);
-  if (fd < 0) throw std::system_error(errno, std::generic_category(), "eventfd");
+UniqueFd make_event_fd() {
+  UniqueFd fd(::eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK));
+  if (!fd) throw std::system_error(errno, std::generic_category(), "eventfd");
   return fd;
 }
 void signal_fd(int fd) noexcept {
@@ -55,10 +55,7 @@ Cell::Cell(DaemonConfig config, VisionStageFactory vision, FrameSourceFactory so
 }
 
 Cell::~Cell() {
-  stop();
-  ::close(acq_wake_);
-  ::close(vision_wake_);
-  ::close(result_fd_);
+  stop();  // the threads are gone before the members close their descriptors
 }
 
 void Cell::start() {
@@ -86,20 +83,20 @@ void Cell::start() {
 
 void Cell::stop() noexcept {
   stop_ = true;
-  signal_fd(acq_wake_);
-  signal_fd(vision_wake_);
+  signal_fd(acq_wake_.get());
+  signal_fd(vision_wake_.get());
   if (acquisition_.joinable()) acquisition_.join();
   if (vision_.joinable()) vision_.join();
 }
 
 bool Cell::submit(const CycleRequest& request) noexcept {
   if (!requests_.push(request)) return false;
-  signal_fd(acq_wake_);
+  signal_fd(acq_wake_.get());
   return true;
 }
 
 CycleResult* Cell::begin_result() noexcept {
-  drain_fd(result_fd_);  // before looking, so a result queued after this is never without a wake-up
+  drain_fd(result_fd_.get());  // before looking, so a result queued after this is never without a wake-up
   return results_.begin_read();
 }
 
@@ -152,7 +149,7 @@ void Cell::acquisition_main(std::promise<void>& ready) {
   ready.set_value();
 
   while (!stop_.load()) {
-    wait_fd(acq_wake_, 200);
+    wait_fd(acq_wake_.get(), 200);
     acq_beat_.fetch_add(1, std::memory_order_relaxed);
     while (!stop_.load()) {
       const auto request = requests_.pop();
@@ -212,7 +209,7 @@ void Cell::acquisition_main(std::promise<void>& ready) {
       slot->truth.count = 0;
       if (sim) sim->truth(slot->truth);
       frames_.end_write();
-      signal_fd(vision_wake_);
+      signal_fd(vision_wake_.get());
     }
   }
   source_->deactivate();  // LEDs off, streaming stopped
@@ -240,13 +237,13 @@ void Cell::vision_main(std::promise<void>& ready) {
   ready.set_value();
 
   while (!stop_.load()) {
-    wait_fd(vision_wake_, 200);
+    wait_fd(vision_wake_.get(), 200);
     vision_beat_.fetch_add(1, std::memory_order_relaxed);
     while (FrameSlot* slot = frames_.begin_read()) {
       CycleResult* out = results_.begin_write();
       if (!out) {  // main thread not consuming: wait rather than drop a cycle's answer
         if (stop_.load()) return;
-        wait_fd(vision_wake_, 10);
+        wait_fd(vision_wake_.get(), 10);
         continue;
       }
       if (slot->request.kind == CycleRequest::Kind::CalibrationCapture ||
@@ -256,7 +253,7 @@ void Cell::vision_main(std::promise<void>& ready) {
         else
           hand_over_calibration_image(*slot, *out);
         results_.end_write();
-        signal_fd(result_fd_);
+        signal_fd(result_fd_.get());
         frames_.end_read();
         continue;
       }
@@ -268,7 +265,7 @@ void Cell::vision_main(std::promise<void>& ready) {
                             : nullptr;
       retained_.keep_result(*out);  // before the result leaves: the slot is the main thread's then
       results_.end_write();
-      signal_fd(result_fd_);
+      signal_fd(result_fd_.get());
       // Kept after the result has left: a pick reported failed later is saved from here.
       retained_.keep_frames(*slot, retained_.result().error == CycleError::None ? stage_->last_edges() : nullptr);
       if (config_.web.enabled && slot->ok) web_frames_.publish(retained_.slot(), retained_.result(), retained_.edges());
@@ -401,7 +398,7 @@ bool Cell::request_snapshot(std::uint64_t cycle, const char* reason) noexcept {
   r->cycle = cycle;
   copy_message(r->reason, sizeof r->reason, reason);
   snapshot_requests_.end_write();
-  signal_fd(vision_wake_);
+  signal_fd(vision_wake_.get());
   return true;
 }
 
@@ -439,11 +436,11 @@ void Cell::write_snapshot(const char* reason) {
 
 void Cell::post_result(const CycleResult& result) {
   CycleResult* out = nullptr;
-  while (!(out = results_.begin_write()) && !stop_.load()) wait_fd(vision_wake_, 10);
+  while (!(out = results_.begin_write()) && !stop_.load()) wait_fd(vision_wake_.get(), 10);
   if (!out) return;
   *out = result;
   results_.end_write();
-  signal_fd(result_fd_);
+  signal_fd(result_fd_.get());
 }
 
 }  // namespace mfcd::daemon

@@ -17,6 +17,7 @@
 #include <thread>
 #include <vector>
 
+#include "base/unique_fd.hpp"
 #include "daemon/config.hpp"
 #include "daemon/cycle.hpp"
 #include "daemon/frame_source.hpp"
@@ -49,7 +50,7 @@ class Cell {
 
   // --- main thread ---
   bool submit(const CycleRequest& request) noexcept;  // false when the request queue is full
-  int result_fd() const { return result_fd_; }        // readable when results are queued
+  int result_fd() const { return result_fd_.get(); }       // readable when results are queued
   CycleResult* begin_result() noexcept;               // drains the eventfd; nullptr when none
   void end_result() noexcept { results_.end_read(); }
 
@@ -117,7 +118,7 @@ class Cell {
     char reason[64] = {};
   };
   motion::SpscRing<SnapshotRequest, 8> snapshot_requests_;  // main -> vision
-  int acq_wake_ = -1, vision_wake_ = -1, result_fd_ = -1;
+  UniqueFd acq_wake_, vision_wake_, result_fd_;
   std::atomic<bool> stop_{false};
   std::thread acquisition_, vision_;
 

@@ -89,7 +89,7 @@ std::optional<std::size_t> send_some(int fd, std::string_view bytes) {
 void ControlServer::open(const fs::path& path) {
   std::error_code ec;
   fs::create_directories(path.parent_path(), ec);
-  motion::UniqueFd fd(::socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0));
+  UniqueFd fd(::socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0));
   if (!fd) throw std::system_error(errno, std::generic_category(), "control socket");
   sockaddr_un addr{};
   addr.sun_family = AF_UNIX;
@@ -99,7 +99,7 @@ void ControlServer::open(const fs::path& path) {
   std::strncpy(addr.sun_path, path.c_str(), sizeof addr.sun_path - 1);
   // A leftover socket file from a crash is removed; a live one means another mfcd is running.
   if (fs::exists(path)) {
-    motion::UniqueFd probe(::socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0));
+    UniqueFd probe(::socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0));
     if (probe && ::connect(probe.get(), reinterpret_cast<sockaddr*>(&addr), sizeof addr) == 0)
       throw std::runtime_error("control socket " + path.string() + ": another mfcd is listening there");
     ::unlink(path.c_str());
@@ -129,21 +129,21 @@ void ControlServer::close() {
   reserve_.reset();
 }
 
-void ControlServer::refuse(motion::UniqueFd fd, const char* why) {
+void ControlServer::refuse(UniqueFd fd, const char* why) {
   ++refused_;
   send_some(fd.get(), line_of({{"ok", false}, {"error", why}}));  // a new socket takes one short line
 }
 
 void ControlServer::accept_clients() {
   for (;;) {
-    motion::UniqueFd fd(::accept4(listener_.get(), nullptr, nullptr, SOCK_CLOEXEC | SOCK_NONBLOCK));
+    UniqueFd fd(::accept4(listener_.get(), nullptr, nullptr, SOCK_CLOEXEC | SOCK_NONBLOCK));
     if (!fd) {
       if (errno != EMFILE && errno != ENFILE) return;
       // Out of descriptors: the pending connection would keep the listener readable and the
       // loop spinning. Give up the spare descriptor, take the connection and refuse it.
       logf(LogLevel::Warning, "control socket: out of file descriptors (%s); refusing a client", std::strerror(errno));
       reserve_.reset();
-      motion::UniqueFd pending(::accept4(listener_.get(), nullptr, nullptr, SOCK_CLOEXEC | SOCK_NONBLOCK));
+      UniqueFd pending(::accept4(listener_.get(), nullptr, nullptr, SOCK_CLOEXEC | SOCK_NONBLOCK));
       if (pending) refuse(std::move(pending), "mfcd is out of file descriptors; try again later");
       reserve_.reset(::open("/dev/null", O_RDONLY | O_CLOEXEC));
       return;

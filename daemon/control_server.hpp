@@ -20,7 +20,7 @@
 #include <nlohmann/json.hpp>
 
 #include "daemon/event_loop.hpp"
-#include "motion/unique_fd.hpp"
+#include "base/unique_fd.hpp"
 
 namespace mfcd::daemon {
 
@@ -78,7 +78,7 @@ class ControlServer {
 
  private:
   struct Client {
-    motion::UniqueFd fd;
+    UniqueFd fd;
     std::string in;
     std::string out;  // reply bytes the socket has not taken yet, in order
     uid_t uid = 0;
@@ -92,12 +92,12 @@ class ControlServer {
   void drop(ClientId id);
   Client* find(ClientId id);
   const Client* find(ClientId id) const;
-  void refuse(motion::UniqueFd fd, const char* why);
+  void refuse(UniqueFd fd, const char* why);
 
   EventLoop& loop_;
   std::filesystem::path path_;
-  motion::UniqueFd listener_;
-  motion::UniqueFd reserve_;  // a spare descriptor, given up to accept-and-refuse at EMFILE
+  UniqueFd listener_;
+  UniqueFd reserve_;  // a spare descriptor, given up to accept-and-refuse at EMFILE
   std::vector<Client> clients_;
   std::map<std::string, Handler, std::less<>> commands_;
   std::function<void(ClientId)> on_disconnect_;

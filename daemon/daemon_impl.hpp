@@ -26,7 +26,7 @@
 #include "daemon/robot_link.hpp"
 #include "daemon/web_server.hpp"
 #include "daemon/web_view.hpp"
-#include "motion/unique_fd.hpp"
+#include "base/unique_fd.hpp"
 
 namespace mfcd::daemon {
 
@@ -154,7 +154,7 @@ class Daemon {
   bool reload_pending_ = false, stopping_ = false, cell_ok_ = false;
   Clock::time_point stop_requested_{};
 
-  motion::UniqueFd signal_fd_, timer_fd_;
+  UniqueFd signal_fd_, timer_fd_;
 
   // mfcd-ctl calibrate: the session runs on the service's worker; a capture in flight waits here
   // for its frame set.

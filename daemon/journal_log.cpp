@@ -120,12 +120,8 @@ JournalSink::JournalSink(const char* socket_path) {
   addr_.sun_family = AF_UNIX;
   std::memcpy(addr_.sun_path, socket_path, len + 1);
   addr_len_ = static_cast<socklen_t>(offsetof(sockaddr_un, sun_path) + len + 1);
-  fd_ = ::socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0);
-  if (fd_ < 0) throw std::runtime_error(std::string("journal socket: ") + std::strerror(errno));
-}
-
-JournalSink::~JournalSink() {
-  if (fd_ >= 0) ::close(fd_);
+  fd_.reset(::socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0));
+  if (!fd_) throw std::runtime_error(std::string("journal socket: ") + std::strerror(errno));
 }
 
 bool JournalSink::send(const JournalFields& entry) const {
@@ -136,7 +132,7 @@ bool JournalSink::send(const JournalFields& entry) const {
     return false;
   }
   const ssize_t sent =
-      ::sendto(fd_, datagram, n, MSG_DONTWAIT | MSG_NOSIGNAL, reinterpret_cast<const sockaddr*>(&addr_), addr_len_);
+      ::sendto(fd_.get(), datagram, n, MSG_DONTWAIT | MSG_NOSIGNAL, reinterpret_cast<const sockaddr*>(&addr_), addr_len_);
   return sent == static_cast<ssize_t>(n);
 }
 

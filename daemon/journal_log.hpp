@@ -24,6 +24,7 @@
 #include <cstddef>
 #include <string_view>
 
+#include "base/unique_fd.hpp"
 #include "daemon/log.hpp"
 
 namespace mfcd::daemon {
@@ -111,7 +112,6 @@ class JournalSink {
   // `socket_path`: kJournalSocket, or a socket a test bound. Throws std::runtime_error when the
   // path does not fit sockaddr_un or no socket can be made.
   explicit JournalSink(const char* socket_path = kJournalSocket);
-  ~JournalSink();
   JournalSink(const JournalSink&) = delete;
   JournalSink& operator=(const JournalSink&) = delete;
 
@@ -120,7 +120,7 @@ class JournalSink {
   bool send(const JournalFields& entry) const;
 
  private:
-  int fd_ = -1;
+  UniqueFd fd_;
   sockaddr_un addr_{};
   socklen_t addr_len_ = 0;
 };

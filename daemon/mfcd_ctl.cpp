@@ -16,6 +16,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "base/unique_fd.hpp"
 #include "tools/common/cli.hpp"
 
 namespace {
@@ -46,7 +47,8 @@ struct Connection {
 // Sends one request line and returns the answer; nullopt (message printed) on connection trouble.
 std::optional<nlohmann::json> round_trip(const Connection& conn, const nlohmann::json& req) {
   const std::string& socket_path = conn.socket_path;
-  const int fd = ::socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  const mfcd::UniqueFd connection(::socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0));
+  const int fd = connection.get();
   sockaddr_un addr{};
   addr.sun_family = AF_UNIX;
   if (socket_path.size() >= sizeof addr.sun_path) {
@@ -57,13 +59,11 @@ std::optional<nlohmann::json> round_trip(const Connection& conn, const nlohmann:
   if (::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0) {
     std::fprintf(stderr, "mfcd-ctl: cannot connect to %s: %s (is mfcd running? -s sets the socket)\n",
                  socket_path.c_str(), std::strerror(errno));
-    ::close(fd);
     return std::nullopt;
   }
   const std::string line = req.dump() + "\n";
   if (::send(fd, line.data(), line.size(), MSG_NOSIGNAL) != static_cast<ssize_t>(line.size())) {
     std::fprintf(stderr, "mfcd-ctl: send to %s: %s\n", socket_path.c_str(), std::strerror(errno));
-    ::close(fd);
     return std::nullopt;
   }
   std::string in;
@@ -72,18 +72,15 @@ std::optional<nlohmann::json> round_trip(const Connection& conn, const nlohmann:
     pollfd p{fd, POLLIN, 0};
     if (::poll(&p, 1, conn.timeout_s * 1000) <= 0) {
       std::fprintf(stderr, "mfcd-ctl: no answer from %s within %d s\n", socket_path.c_str(), conn.timeout_s);
-      ::close(fd);
       return std::nullopt;
     }
     const ssize_t n = ::recv(fd, buf, sizeof buf, 0);
     if (n <= 0) {
       std::fprintf(stderr, "mfcd-ctl: %s closed the connection\n", socket_path.c_str());
-      ::close(fd);
       return std::nullopt;
     }
     in.append(buf, static_cast<std::size_t>(n));
   }
-  ::close(fd);
   try {
     return nlohmann::json::parse(in.substr(0, in.find('\n')));
   } catch (const std::exception& e) {

@@ -31,7 +31,7 @@
 #include <httplib.h>
 
 #include "motion/ip_allow_list.hpp"
-#include "motion/unique_fd.hpp"
+#include "base/unique_fd.hpp"
 
 namespace mfcd::daemon {
 
@@ -292,7 +292,7 @@ class WebServer::Http final : public httplib::Server {
  private:
   bool process_and_close_socket(socket_t sock) override {
     const Clock::time_point started = Clock::now();
-    motion::UniqueFd fd(sock);
+    UniqueFd fd(sock);
     ::fcntl(sock, F_SETFD, FD_CLOEXEC);  // cpp-httplib's accept() does not ask for it
     {
       std::lock_guard lock(mutex_);
@@ -446,7 +446,7 @@ void WebServer::start() {
     const fs::path path = data_.snapshot_file(snapshot, file);
     if (path.empty()) return send_error(res, 404, "no file " + file + " in snapshot " + snapshot);
     // Opened once and read by descriptor: the quota may delete the snapshot while it is sent.
-    auto fd = std::make_shared<motion::UniqueFd>(::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NOFOLLOW));
+    auto fd = std::make_shared<UniqueFd>(::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NOFOLLOW));
     struct stat st {};
     if (!*fd || ::fstat(fd->get(), &st) != 0 || !S_ISREG(st.st_mode))
       return send_error(res, 404, "no file " + file + " in snapshot " + snapshot);

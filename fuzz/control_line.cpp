@@ -28,7 +28,7 @@ using nlohmann::json;
 struct Rig {
   EventLoop loop;
   ControlServer server{loop};
-  mfcd::motion::UniqueFd peer;
+  mfcd::UniqueFd peer;
   ControlServer::ClientId client = 1;
   std::string in;           // reply bytes received, not yet a whole line
   std::size_t replies = 0;  // whole reply lines received

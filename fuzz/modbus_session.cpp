@@ -22,6 +22,7 @@
 namespace {
 
 using namespace mfcd::motion;
+using mfcd::UniqueFd;
 
 UniqueFd connect_to(std::uint16_t port) {
   UniqueFd fd(::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0));

@@ -13,6 +13,7 @@
 #include <cerrno>
 #include <cstring>
 #include <stdexcept>
+#include <utility>
 
 namespace mfcd::motion {
 
@@ -44,16 +45,14 @@ const char* to_string(CanLinkState state) noexcept {
 
 CanPublisher::CanPublisher(CanConfig config) : config_(std::move(config)) {
   if (std::string e = config_.validate(); !e.empty()) throw std::invalid_argument(e);
-  wake_fd_ = ::eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK);
-  stop_fd_ = ::eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK);
-  if (wake_fd_ < 0 || stop_fd_ < 0)
+  wake_fd_.reset(::eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK));
+  stop_fd_.reset(::eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK));
+  if (!wake_fd_ || !stop_fd_)
     throw std::runtime_error(std::string("can: cannot create eventfd: ") + std::strerror(errno));
 }
 
 CanPublisher::~CanPublisher() {
-  stop();
-  ::close(wake_fd_);
-  ::close(stop_fd_);
+  stop();  // the thread is gone before the members close their descriptors
 }
 
 void CanPublisher::start() {
@@ -63,17 +62,17 @@ void CanPublisher::start() {
 void CanPublisher::stop() {
   if (!thread_.joinable()) return;
   const std::uint64_t one = 1;
-  [[maybe_unused]] ssize_t n = ::write(stop_fd_, &one, sizeof(one));
+  [[maybe_unused]] ssize_t n = ::write(stop_fd_.get(), &one, sizeof(one));
   thread_.join();
   std::uint64_t drain;
-  n = ::read(stop_fd_, &drain, sizeof(drain));
+  n = ::read(stop_fd_.get(), &drain, sizeof(drain));
   close_link();
 }
 
 void CanPublisher::publish(const RobotReport& report) noexcept {
   report_.publish(report);
   const std::uint64_t one = 1;
-  [[maybe_unused]] ssize_t n = ::write(wake_fd_, &one, sizeof(one));  // non-blocking eventfd
+  [[maybe_unused]] ssize_t n = ::write(wake_fd_.get(), &one, sizeof(one));  // non-blocking eventfd
 }
 
 std::string CanPublisher::last_error() const {
@@ -106,8 +105,9 @@ bool CanPublisher::open_link() {
     set_error(where + std::strerror(errno));
     return false;
   }
-  const int fd = ::socket(PF_CAN, SOCK_RAW | SOCK_NONBLOCK | SOCK_CLOEXEC, CAN_RAW);
-  if (fd < 0) {
+  UniqueFd can_socket(::socket(PF_CAN, SOCK_RAW | SOCK_NONBLOCK | SOCK_CLOEXEC, CAN_RAW));
+  const int fd = can_socket.get();
+  if (!can_socket) {
     const int err = errno;
     // RestrictAddressFamilies= in the systemd unit refuses AF_CAN unless the can.conf drop-in
     // is installed (docs/operations.md, "systemd").
@@ -124,34 +124,31 @@ bool CanPublisher::open_link() {
   addr.can_ifindex = static_cast<int>(index);
   if (::bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof(addr)) < 0) {
     set_error(where + "cannot bind: " + std::strerror(errno));
-    ::close(fd);
     return false;
   }
   ifreq ifr{};
   std::strncpy(ifr.ifr_name, config_.interface.c_str(), IFNAMSIZ - 1);
   if (::ioctl(fd, SIOCGIFFLAGS, &ifr) == 0 && !(ifr.ifr_flags & IFF_UP)) {
     set_error(where + std::strerror(ENETDOWN));
-    ::close(fd);
     return false;
   }
-  socket_fd_ = fd;
+  socket_fd_ = std::move(can_socket);
   set_error({});
   set_state(CanLinkState::Up);
   return true;
 }
 
 void CanPublisher::close_link() {
-  if (socket_fd_ >= 0) ::close(socket_fd_);
-  socket_fd_ = -1;
+  socket_fd_.reset();
   set_state(CanLinkState::Down);
 }
 
 bool CanPublisher::send(const can_frame& frame) {
-  if (socket_fd_ < 0 || state_.load() == CanLinkState::BusOff) {
+  if (!socket_fd_ || state_.load() == CanLinkState::BusOff) {
     dropped_.fetch_add(1);
     return false;
   }
-  if (::write(socket_fd_, &frame, sizeof(frame)) == static_cast<ssize_t>(sizeof(frame))) {
+  if (::write(socket_fd_.get(), &frame, sizeof(frame)) == static_cast<ssize_t>(sizeof(frame))) {
     sent_.fetch_add(1);
     return true;
   }
@@ -174,7 +171,7 @@ bool CanPublisher::send(const can_frame& frame) {
 void CanPublisher::drain_errors() {
   can_frame f;
   for (;;) {
-    const ssize_t n = ::read(socket_fd_, &f, sizeof(f));
+    const ssize_t n = ::read(socket_fd_.get(), &f, sizeof(f));
     if (n < 0) {
       if (errno == ENETDOWN || errno == ENODEV) {
         set_error("can interface '" + config_.interface + "': " + std::strerror(errno));
@@ -215,7 +212,7 @@ void CanPublisher::run() {
 
   for (;;) {
     const Clock::time_point now = Clock::now();
-    if (socket_fd_ < 0 && now >= next_retry) {
+    if (!socket_fd_ && now >= next_retry) {
       if (!open_link()) next_retry = now + config_.retry_interval;
     } else if (state_.load() == CanLinkState::BusOff && now >= next_retry) {
       // Bus-off recovery belongs to the driver (restart-ms); probe whether it is back.
@@ -266,22 +263,22 @@ void CanPublisher::run() {
       }
     }
 
-    pollfd fds[3] = {{stop_fd_, POLLIN, 0}, {wake_fd_, POLLIN, 0}, {socket_fd_, POLLIN, 0}};
+    pollfd fds[3] = {{stop_fd_.get(), POLLIN, 0}, {wake_fd_.get(), POLLIN, 0}, {socket_fd_.get(), POLLIN, 0}};
     Clock::time_point deadline = next_beat;
-    if (socket_fd_ < 0 || state_.load() == CanLinkState::BusOff) deadline = std::min(deadline, next_retry);
+    if (!socket_fd_ || state_.load() == CanLinkState::BusOff) deadline = std::min(deadline, next_retry);
     // A status or pick that could not be sent is retried at the latest after retry_interval.
     const bool pick_unsent = report.pick_valid && report.job_id != 0 &&
                              (report.job_id != last_pick_job || report.pick_rank != last_pick_rank);
-    if (socket_fd_ >= 0 && (!status_known || pick_unsent)) deadline = std::min(deadline, now + config_.retry_interval);
+    if (socket_fd_ && (!status_known || pick_unsent)) deadline = std::min(deadline, now + config_.retry_interval);
     const auto wait = std::chrono::ceil<std::chrono::milliseconds>(deadline - Clock::now()).count();
-    const int ready = ::poll(fds, socket_fd_ >= 0 ? 3 : 2, static_cast<int>(std::max<long>(wait, 0)));
+    const int ready = ::poll(fds, socket_fd_ ? 3 : 2, static_cast<int>(std::max<long>(wait, 0)));
     if (ready <= 0) continue;
     if (fds[0].revents) return;
     if (fds[1].revents) {
       std::uint64_t count;
-      [[maybe_unused]] ssize_t n = ::read(wake_fd_, &count, sizeof(count));
+      [[maybe_unused]] ssize_t n = ::read(wake_fd_.get(), &count, sizeof(count));
     }
-    if (socket_fd_ >= 0 && fds[2].revents) drain_errors();
+    if (socket_fd_ && fds[2].revents) drain_errors();
   }
 }
 

@@ -8,6 +8,7 @@
 // link is retried every retry_interval.
 #pragma once
 
+#include "base/unique_fd.hpp"
 #include "motion/can_frames.hpp"
 #include "motion/robot_report.hpp"
 #include "motion/seqlock.hpp"
@@ -84,9 +85,9 @@ class CanPublisher {
 
   CanConfig config_;
   SeqlockSnapshot<RobotReport> report_;
-  int wake_fd_ = -1;  // publish() -> thread
-  int stop_fd_ = -1;
-  int socket_fd_ = -1;
+  UniqueFd wake_fd_;  // publish() -> thread
+  UniqueFd stop_fd_;
+  UniqueFd socket_fd_;
   std::thread thread_;
   std::atomic<CanLinkState> state_{CanLinkState::Down};
   std::atomic<std::int64_t> health_until_ns_{std::numeric_limits<std::int64_t>::max()};

@@ -21,7 +21,7 @@
 #include "motion/robot_report.hpp"
 #include "motion/seqlock.hpp"
 #include "motion/spsc_ring.hpp"
-#include "motion/unique_fd.hpp"
+#include "base/unique_fd.hpp"
 
 #include <atomic>
 #include <chrono>

@@ -78,8 +78,8 @@ void V4L2Camera::open() {
                        "(v4l2-ctl --list-devices)");
   if (!S_ISCHR(st.st_mode))
     throw HalError(ErrorCode::DeviceMissing, "V4L2 " + config_.device + ": not a character device; check the path");
-  fd_ = ::open(config_.device.c_str(), O_RDWR | O_NONBLOCK | O_CLOEXEC);
-  if (fd_ < 0) {
+  fd_.reset(::open(config_.device.c_str(), O_RDWR | O_NONBLOCK | O_CLOEXEC));
+  if (!fd_) {
     const int err = errno;
     if (err == EACCES)
       throw HalError(ErrorCode::Io, "V4L2 " + config_.device +
@@ -87,7 +87,7 @@ void V4L2Camera::open() {
     fail(err, "open");
   }
   v4l2_capability cap{};
-  if (xioctl(fd_, VIDIOC_QUERYCAP, &cap) < 0) fail(errno, "VIDIOC_QUERYCAP");
+  if (xioctl(fd_.get(), VIDIOC_QUERYCAP, &cap) < 0) fail(errno, "VIDIOC_QUERYCAP");
   driver_ = reinterpret_cast<const char*>(cap.driver);
   card_ = reinterpret_cast<const char*>(cap.card);
   const std::uint32_t caps = (cap.capabilities & V4L2_CAP_DEVICE_CAPS) ? cap.device_caps : cap.capabilities;
@@ -113,7 +113,7 @@ void V4L2Camera::negotiate() {
     v4l2_fmtdesc desc{};
     desc.index = i;
     desc.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
-    if (xioctl(fd_, VIDIOC_ENUM_FMT, &desc) < 0) break;
+    if (xioctl(fd_.get(), VIDIOC_ENUM_FMT, &desc) < 0) break;
     if (!offered.empty()) offered += ' ';
     offered += fourcc_to_string(desc.pixelformat);
     for (int k = 0; k < 3; ++k)
@@ -133,7 +133,7 @@ void V4L2Camera::negotiate() {
   fmt.fmt.pix.height = static_cast<std::uint32_t>(config_.height);
   fmt.fmt.pix.pixelformat = fourcc_of(source_);
   fmt.fmt.pix.field = V4L2_FIELD_NONE;
-  if (xioctl(fd_, VIDIOC_S_FMT, &fmt) < 0) {
+  if (xioctl(fd_.get(), VIDIOC_S_FMT, &fmt) < 0) {
     if (errno == EBUSY)
       throw HalError(ErrorCode::Io,
                      describe() + ": VIDIOC_S_FMT: device busy; check that no other program is streaming from it");
@@ -157,7 +157,7 @@ void V4L2Camera::negotiate() {
   parm.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
   if (config_.frame_rate > 0) {
     parm.parm.capture.timeperframe = {1, static_cast<std::uint32_t>(config_.frame_rate)};
-    if (xioctl(fd_, VIDIOC_S_PARM, &parm) < 0 || parm.parm.capture.timeperframe.numerator == 0 ||
+    if (xioctl(fd_.get(), VIDIOC_S_PARM, &parm) < 0 || parm.parm.capture.timeperframe.numerator == 0 ||
         parm.parm.capture.timeperframe.denominator / parm.parm.capture.timeperframe.numerator !=
             static_cast<std::uint32_t>(config_.frame_rate))
       syslog(LOG_WARNING, "mfcd hal: %s does not run at %d fps at this size; using what it offers", describe().c_str(),
@@ -166,7 +166,7 @@ void V4L2Camera::negotiate() {
     parm.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
   }
   exposure_lead_ns_ = 0;
-  if (xioctl(fd_, VIDIOC_G_PARM, &parm) == 0 && parm.parm.capture.timeperframe.denominator != 0)
+  if (xioctl(fd_.get(), VIDIOC_G_PARM, &parm) == 0 && parm.parm.capture.timeperframe.denominator != 0)
     exposure_lead_ns_ = static_cast<std::int64_t>(parm.parm.capture.timeperframe.numerator) * 1'000'000'000 /
                         parm.parm.capture.timeperframe.denominator;
 }
@@ -175,11 +175,11 @@ void V4L2Camera::apply_controls() {
   auto has = [&](std::uint32_t id, v4l2_queryctrl& q) {
     q = {};
     q.id = id;
-    return xioctl(fd_, VIDIOC_QUERYCTRL, &q) == 0 && !(q.flags & V4L2_CTRL_FLAG_DISABLED);
+    return xioctl(fd_.get(), VIDIOC_QUERYCTRL, &q) == 0 && !(q.flags & V4L2_CTRL_FLAG_DISABLED);
   };
   auto set = [&](std::uint32_t id, std::int32_t value, const char* name) {
     v4l2_control c{id, value};
-    if (xioctl(fd_, VIDIOC_S_CTRL, &c) < 0)
+    if (xioctl(fd_.get(), VIDIOC_S_CTRL, &c) < 0)
       throw HalError(ErrorCode::Io, describe() + ": setting " + name + " to " + std::to_string(value) + ": " +
                                         std::strerror(errno) + "; check the range with v4l2-ctl -d " + config_.device +
                                         " -L");
@@ -216,7 +216,7 @@ void V4L2Camera::allocate_buffers() {
   req.count = static_cast<std::uint32_t>(std::clamp(config_.buffer_count, 2, kMaxBuffers));
   req.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
   req.memory = V4L2_MEMORY_MMAP;
-  if (xioctl(fd_, VIDIOC_REQBUFS, &req) < 0) fail(errno, "VIDIOC_REQBUFS (mmap streaming)");
+  if (xioctl(fd_.get(), VIDIOC_REQBUFS, &req) < 0) fail(errno, "VIDIOC_REQBUFS (mmap streaming)");
   if (req.count < 2)
     throw HalError(ErrorCode::Io, describe() + ": driver granted only " + std::to_string(req.count) +
                                       " buffer(s); check available memory (CMA) for the camera");
@@ -226,13 +226,13 @@ void V4L2Camera::allocate_buffers() {
     b.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
     b.memory = V4L2_MEMORY_MMAP;
     b.index = static_cast<std::uint32_t>(i);
-    if (xioctl(fd_, VIDIOC_QUERYBUF, &b) < 0) fail(errno, "VIDIOC_QUERYBUF");
+    if (xioctl(fd_.get(), VIDIOC_QUERYBUF, &b) < 0) fail(errno, "VIDIOC_QUERYBUF");
     if (i == 0 && (b.flags & V4L2_BUF_FLAG_TSTAMP_SRC_MASK) == V4L2_BUF_FLAG_TSTAMP_SRC_SOE)
       exposure_lead_ns_ = 0;  // stamped at start of exposure: no lead
     if ((b.flags & V4L2_BUF_FLAG_TIMESTAMP_MASK) != V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC)
       syslog(LOG_WARNING, "mfcd hal: %s does not stamp buffers with CLOCK_MONOTONIC; LED windows cannot be verified",
              describe().c_str());
-    void* p = ::mmap(nullptr, b.length, PROT_READ | PROT_WRITE, MAP_SHARED, fd_, b.m.offset);
+    void* p = ::mmap(nullptr, b.length, PROT_READ | PROT_WRITE, MAP_SHARED, fd_.get(), b.m.offset);
     if (p == MAP_FAILED) fail(errno, "mmap of a capture buffer");
     buffers_[static_cast<std::size_t>(i)] = {p, b.length};
   }
@@ -247,19 +247,18 @@ void V4L2Camera::release_buffers() {
     if (m.data) ::munmap(m.data, m.length);
     m = {};
   }
-  if (buffer_count_ > 0 && fd_ >= 0) {
+  if (buffer_count_ > 0 && fd_) {
     v4l2_requestbuffers req{};
     req.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
     req.memory = V4L2_MEMORY_MMAP;
-    xioctl(fd_, VIDIOC_REQBUFS, &req);  // count 0 frees the driver's buffers; failure is harmless here
+    xioctl(fd_.get(), VIDIOC_REQBUFS, &req);  // count 0 frees the driver's buffers; failure is harmless here
   }
   buffer_count_ = 0;
 }
 
 void V4L2Camera::close() noexcept {
   release_buffers();
-  if (fd_ >= 0) ::close(fd_);
-  fd_ = -1;
+  fd_.reset();
   streaming_ = false;
 }
 
@@ -286,12 +285,12 @@ void V4L2Camera::stream_on() {
     b.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
     b.memory = V4L2_MEMORY_MMAP;
     b.index = static_cast<std::uint32_t>(i);
-    if (xioctl(fd_, VIDIOC_QBUF, &b) < 0) fail(errno, "VIDIOC_QBUF");
+    if (xioctl(fd_.get(), VIDIOC_QBUF, &b) < 0) fail(errno, "VIDIOC_QBUF");
   }
   int type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
-  if (xioctl(fd_, VIDIOC_STREAMON, &type) < 0) {
+  if (xioctl(fd_.get(), VIDIOC_STREAMON, &type) < 0) {
     const int err = errno;
-    xioctl(fd_, VIDIOC_STREAMOFF, &type);  // hand the queued buffers back
+    xioctl(fd_.get(), VIDIOC_STREAMOFF, &type);  // hand the queued buffers back
     fail(err, "VIDIOC_STREAMON");
   }
   streaming_ = true;
@@ -299,9 +298,9 @@ void V4L2Camera::stream_on() {
 }
 
 void V4L2Camera::stream_off() noexcept {
-  if (!streaming_ || fd_ < 0) return;
+  if (!streaming_ || !fd_) return;
   int type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
-  xioctl(fd_, VIDIOC_STREAMOFF, &type);  // also dequeues every buffer
+  xioctl(fd_.get(), VIDIOC_STREAMOFF, &type);  // also dequeues every buffer
   streaming_ = false;
 }
 
@@ -370,7 +369,7 @@ void V4L2Camera::read(Image& out, FrameInfo& info) {
   const std::int64_t deadline = monotonic_now_ns() + std::chrono::nanoseconds(config_.dequeue_timeout).count();
   for (;;) {
     const std::int64_t remaining = deadline - monotonic_now_ns();
-    pollfd p{fd_, POLLIN, 0};
+    pollfd p{fd_.get(), POLLIN, 0};
     const int r = remaining > 0 ? ::poll(&p, 1, static_cast<int>((remaining + 999'999) / 1'000'000)) : 0;
     if (r < 0) {
       if (errno == EINTR) continue;
@@ -386,7 +385,7 @@ void V4L2Camera::read(Image& out, FrameInfo& info) {
     v4l2_buffer b{};
     b.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
     b.memory = V4L2_MEMORY_MMAP;
-    if (xioctl(fd_, VIDIOC_DQBUF, &b) < 0) {
+    if (xioctl(fd_.get(), VIDIOC_DQBUF, &b) < 0) {
       if (errno == EAGAIN) continue;
       if (errno == ENODEV || errno == ENXIO) mark_gone("VIDIOC_DQBUF");
       if (errno == EIO || errno == EPIPE) {  // queue in error state: the stream must be restarted
@@ -396,7 +395,7 @@ void V4L2Camera::read(Image& out, FrameInfo& info) {
       fail(errno, "VIDIOC_DQBUF");
     }
     const auto requeue = [&] {
-      if (xioctl(fd_, VIDIOC_QBUF, &b) < 0) {
+      if (xioctl(fd_.get(), VIDIOC_QBUF, &b) < 0) {
         if (errno == ENODEV || errno == ENXIO) mark_gone("VIDIOC_QBUF");
         fail(errno, "VIDIOC_QBUF");
       }

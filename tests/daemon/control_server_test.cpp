@@ -18,7 +18,7 @@
 #include "daemon/event_loop.hpp"
 
 using namespace mfcd::daemon;
-using mfcd::motion::UniqueFd;
+using mfcd::UniqueFd;
 using nlohmann::json;
 namespace fs = std::filesystem;
 

@@ -48,11 +48,11 @@
 
 #include "daemon_process.hpp"
 #include "motion/register_map.hpp"
-#include "motion/unique_fd.hpp"
+#include "base/unique_fd.hpp"
 
 using namespace mfcd::daemon::test;
 namespace reg = mfcd::motion::reg;
-using mfcd::motion::UniqueFd;
+using mfcd::UniqueFd;
 using Clock = std::chrono::steady_clock;
 using namespace std::chrono_literals;
 

@@ -37,7 +37,7 @@
 
 #include "daemon_process.hpp"
 #include "motion/register_map.hpp"
-#include "motion/unique_fd.hpp"
+#include "base/unique_fd.hpp"
 
 using namespace mfcd::daemon::test;
 namespace reg = mfcd::motion::reg;
@@ -268,7 +268,7 @@ long churn_loop(int port, int cycles, const std::atomic<bool>& stop) {
         modbus_free(ctx);
       }
     } else {
-      mfcd::motion::UniqueFd fd(::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0));
+      mfcd::UniqueFd fd(::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0));
       sockaddr_in dst{};
       dst.sin_family = AF_INET;
       dst.sin_port = htons(static_cast<std::uint16_t>(port));

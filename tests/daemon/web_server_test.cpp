@@ -28,11 +28,11 @@
 #include <httplib.h>
 
 #include "daemon/web_server.hpp"
-#include "motion/unique_fd.hpp"
+#include "base/unique_fd.hpp"
 
 using namespace mfcd::daemon;
 using namespace std::chrono_literals;
-using mfcd::motion::UniqueFd;
+using mfcd::UniqueFd;
 using nlohmann::json;
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;

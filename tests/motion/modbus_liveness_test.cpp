@@ -15,6 +15,7 @@
 #include <thread>
 
 using namespace mfcd::motion;
+using mfcd::UniqueFd;
 using namespace std::chrono_literals;
 using test::make_adu;
 using test::RawClient;

@@ -8,6 +8,8 @@
 #include <cstring>
 #include <stdexcept>
 
+#include "base/unique_fd.hpp"
+
 namespace mfcd::vision::calib {
 
 namespace fs = std::filesystem;
@@ -19,15 +21,9 @@ namespace {
 }
 
 void fsync_path(const fs::path& p, bool directory) {
-  const int fd = ::open(p.c_str(), (directory ? O_RDONLY | O_DIRECTORY : O_RDONLY) | O_CLOEXEC);
-  if (fd < 0) sys_fail(p, "cannot open to fsync");
-  if (::fsync(fd) != 0) {
-    const int e = errno;
-    ::close(fd);
-    errno = e;
-    sys_fail(p, "fsync failed");
-  }
-  ::close(fd);
+  const UniqueFd fd(::open(p.c_str(), (directory ? O_RDONLY | O_DIRECTORY : O_RDONLY) | O_CLOEXEC));
+  if (!fd) sys_fail(p, "cannot open to fsync");
+  if (::fsync(fd.get()) != 0) sys_fail(p, "fsync failed");  // errno is read before fd closes
 }
 
 fs::path directory_of(const fs::path& file) {

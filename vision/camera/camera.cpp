@@ -1,5 +1,5 @@
 #include "vision/camera/camera.hpp"
-#include "motion/unique_fd.hpp"
+#include "base/unique_fd.hpp"
 #include "vision/common/scalar_text.hpp"
 
 #include <fcntl.h>
@@ -317,7 +317,7 @@ void save_camera_config(const CameraConfig& c, const std::filesystem::path& file
   validate_camera_config(c, file.string());
   // YAML whatever the file's extension: load_camera_config reads YAML only.
   const std::string text = camera_config_yaml(c);
-  motion::UniqueFd fd(::open(file.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644));
+  UniqueFd fd(::open(file.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644));
   if (!fd) write_failed(file, "cannot write camera config", errno);
   for (size_t done = 0; done < text.size();) {
     const ssize_t n = ::write(fd.get(), text.data() + done, text.size() - done);

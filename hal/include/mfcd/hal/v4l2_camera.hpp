@@ -9,6 +9,7 @@
 #include <optional>
 #include <string>
 
+#include "base/unique_fd.hpp"
 #include "mfcd/hal/camera.hpp"
 
 namespace mfcd::hal {
@@ -72,7 +73,7 @@ class V4L2Camera final : public Camera {
   [[noreturn]] void fail(int err, const char* what);
 
   V4L2CameraConfig config_;
-  int fd_ = -1;
+  UniqueFd fd_;
   std::string driver_, card_;
   ImageFormat format_;
   SourceFormat source_ = SourceFormat::Grey;

@@ -1,13 +1,13 @@
 // A move-only owner of one file descriptor: closed exactly once, on destruction or reset().
-// Every descriptor the robot link and the daemon open is held by one, so no path (early
-// return, exception, eviction) can leak or double-close it.
+// Every descriptor the project opens is held by one, so no path (early return, exception,
+// eviction) can leak or double-close it.
 #pragma once
 
 #include <unistd.h>
 
 #include <utility>
 
-namespace mfcd::motion {
+namespace mfcd {
 
 class UniqueFd {
  public:
@@ -39,4 +39,4 @@ class UniqueFd {
   int fd_ = -1;
 };
 
-}  // namespace mfcd::motion
+}  // namespace mfcd
