@@ -50,7 +50,7 @@ class Cell {
 
   // --- main thread ---
   bool submit(const CycleRequest& request) noexcept;  // false when the request queue is full
-  int result_fd() const { return result_fd_.get(); }       // readable when results are queued
+  int result_fd() const { return result_fd_.get(); }  // readable when results are queued
   CycleResult* begin_result() noexcept;               // drains the eventfd; nullptr when none
   void end_result() noexcept { results_.end_read(); }
 

@@ -19,8 +19,8 @@
 
 #include <nlohmann/json.hpp>
 
-#include "daemon/event_loop.hpp"
 #include "base/unique_fd.hpp"
+#include "daemon/event_loop.hpp"
 
 namespace mfcd::daemon {
 

@@ -16,6 +16,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "base/unique_fd.hpp"
 #include "daemon/calibration.hpp"
 #include "daemon/cell.hpp"
 #include "daemon/config.hpp"
@@ -26,7 +27,6 @@
 #include "daemon/robot_link.hpp"
 #include "daemon/web_server.hpp"
 #include "daemon/web_view.hpp"
-#include "base/unique_fd.hpp"
 
 namespace mfcd::daemon {
 

@@ -131,8 +131,8 @@ bool JournalSink::send(const JournalFields& entry) const {
     errno = EINVAL;  // an empty entry
     return false;
   }
-  const ssize_t sent =
-      ::sendto(fd_.get(), datagram, n, MSG_DONTWAIT | MSG_NOSIGNAL, reinterpret_cast<const sockaddr*>(&addr_), addr_len_);
+  const ssize_t sent = ::sendto(fd_.get(), datagram, n, MSG_DONTWAIT | MSG_NOSIGNAL,
+                                reinterpret_cast<const sockaddr*>(&addr_), addr_len_);
   return sent == static_cast<ssize_t>(n);
 }
 

@@ -30,8 +30,8 @@
 // classes' layout), so the defines come from its pkg-config file (daemon/CMakeLists.txt), not here.
 #include <httplib.h>
 
-#include "motion/ip_allow_list.hpp"
 #include "base/unique_fd.hpp"
+#include "motion/ip_allow_list.hpp"
 
 namespace mfcd::daemon {
 

@@ -17,11 +17,11 @@
 // renews its health lease, so a hung main or vision thread shows as a frozen HEARTBEAT.
 #pragma once
 
+#include "base/unique_fd.hpp"
 #include "motion/float_codec.hpp"
 #include "motion/robot_report.hpp"
 #include "motion/seqlock.hpp"
 #include "motion/spsc_ring.hpp"
-#include "base/unique_fd.hpp"
 
 #include <atomic>
 #include <chrono>

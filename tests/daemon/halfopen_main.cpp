@@ -46,9 +46,9 @@
 #include <thread>
 #include <vector>
 
+#include "base/unique_fd.hpp"
 #include "daemon_process.hpp"
 #include "motion/register_map.hpp"
-#include "base/unique_fd.hpp"
 
 using namespace mfcd::daemon::test;
 namespace reg = mfcd::motion::reg;

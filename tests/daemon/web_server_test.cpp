@@ -27,8 +27,8 @@
 
 #include <httplib.h>
 
-#include "daemon/web_server.hpp"
 #include "base/unique_fd.hpp"
+#include "daemon/web_server.hpp"
 
 using namespace mfcd::daemon;
 using namespace std::chrono_literals;
