@@ -256,8 +256,10 @@ def mbpoll_map_v3(mbpoll, port):
     check(code != 0 and "Illegal data value" in text, "mbpoll: NEXT with no pick left -> illegal data value")
 
 
-def mbpoll_map_v4(mbpoll, port):
-    """A result asking for a second look read, and LOOK written, by mbpoll (map version 4, ABCD)."""
+def mbpoll_calls(mbpoll, port):
+    """(run, wait_for_echo) for one mbpoll session on `port` (unit 1, 0-based, one poll each):
+    run(*args) -> (exit code, output, {register: value text}); wait_for_echo(job) -> whether
+    JOB_ID_ECHO reached `job` within 2 s."""
     base = [mbpoll, "-m", "tcp", "-p", str(port), "-a", "1", "-0", "-1"]
 
     def run(*args):
@@ -275,6 +277,13 @@ def mbpoll_map_v4(mbpoll, port):
                 return True
             time.sleep(0.02)
         return False
+
+    return run, wait_for_echo
+
+
+def mbpoll_map_v4(mbpoll, port):
+    """A result asking for a second look read, and LOOK written, by mbpoll (map version 4, ABCD)."""
+    run, wait_for_echo = mbpoll_calls(mbpoll, port)
 
     code, _, _ = run("-r", 0, "127.0.0.1", 1, 41, SIM_LOOK_RECIPE + 1, 0)
     check(code == 0 and wait_for_echo(41), "mbpoll: TRIGGER job 41 (second look wanted) done")
@@ -293,23 +302,7 @@ def mbpoll_map_v4(mbpoll, port):
 
 def mbpoll_map_v5(mbpoll, port):
     """CHECK_GRIP written, and its result read, by mbpoll (map version 5, ABCD)."""
-    base = [mbpoll, "-m", "tcp", "-p", str(port), "-a", "1", "-0", "-1"]
-
-    def run(*args):
-        out = subprocess.run(base + [str(a) for a in args], capture_output=True, text=True, timeout=20)
-        values = {}
-        for line in out.stdout.splitlines():
-            if line.startswith("["):
-                key, value = line.split(":", 1)
-                values[int(key.strip("[]"))] = value.strip()
-        return out.returncode, out.stdout + out.stderr, values
-
-    def wait_for_echo(job):
-        for _ in range(100):
-            if run("-r", JOB_ECHO, "-c", 1, "127.0.0.1")[2].get(JOB_ECHO) == str(job):
-                return True
-            time.sleep(0.02)
-        return False
+    run, wait_for_echo = mbpoll_calls(mbpoll, port)
 
     # Job 42 (mbpoll_map_v4's LOOK) left a pick in the registers: check it.
     code, _, _ = run("-r", 0, "127.0.0.1", CHECK_GRIP, 44, SIM_GRIP_RECIPE + 2, 0)
