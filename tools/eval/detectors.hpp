@@ -6,6 +6,7 @@
 #include "vision/camera/camera.hpp"
 #include "vision/camera/mfc_frames.hpp"
 #include "vision/pipeline/bin_picking_pipeline.hpp"
+#include "vision/pose/shading_check.hpp"
 
 #include <opencv2/core.hpp>
 
@@ -54,6 +55,12 @@ class Detector {
   // ranks its own hypotheses; detectors without such a measure return nothing.
   virtual std::optional<vision::PoseScore> score_pose(int /*obj_id*/, const cv::Matx33d& /*R*/,
                                                       const cv::Vec3d& /*t_mm*/) {
+    return std::nullopt;
+  }
+  // How the flashes' shares of light at a pose of part obj_id agree with `frames`'
+  // (vision/pose/shading_check.hpp); detectors without the part's mesh return nothing.
+  virtual std::optional<vision::ShadingAgreement> shading(const vision::MfcFrames& /*frames*/, int /*obj_id*/,
+                                                          const cv::Matx33d& /*R*/, const cv::Vec3d& /*t_mm*/) {
     return std::nullopt;
   }
   // Whether part obj_id at a pose shows a grasp feature, on top and facing the camera, on the

@@ -92,6 +92,9 @@ void add_detect_pipeline_options(CLI::App& cmd, DetectEvalOptions& o) {
       "--set view_stride=2; an unknown key lists the keys")
       ->type_name("KEY=VALUE");
   cmd.add_flag("--all-types", o.all_types, "also run FDCM once per image over all part types (best pick; timing)");
+  cmd.add_flag("--shading", o.shading,
+               "also compare the flashes' shares of light at each candidate's and each true\n"
+               "pose with the images' (vision/pose/shading_check.hpp): shading_error, shading_pixels");
   add_int(cmd, "--timing-repeats", o.timing_repeats,
           "run every fdcm detection (and --all-types run) N times on its image (1-10,\n"
           "default 1): its trial keeps the first run's result and times, and adds\n"

@@ -30,6 +30,7 @@ struct DetectEvalOptions {
   std::vector<double> distances_mm;
   std::vector<std::string> pipeline_settings;  // --set KEY=VALUE, applied in order; --floor's first
   bool all_types = false, quiet = false;
+  bool shading = false;  // --shading: each candidate's and each true pose's ShadingAgreement
   Line2dOptions line2d;
   Criterion criterion;
 };

@@ -411,6 +411,11 @@ int run_detect(const DetectEvalOptions& o) {
                 tj["grasp"] = {
                     {"estimated", estimated}, {"true", true_grasp(ref, j, g.gt[j])}, {"faces_camera", faces}};
             }
+          if (o.shading)
+            for (json& tj : truth)
+              if (const auto sh = det->shading(frames, obj_id, g.gt[tj["instance"].get<size_t>()].R,
+                                               g.gt[tj["instance"].get<size_t>()].t_mm))
+                tj.update({{"shading_error", sh->error}, {"shading_pixels", sh->pixels}});
           if (!truth.empty()) trial["truth_scores"] = truth;
           if (!d.estimates.empty())
             trial["best_rank_px"] = d.estimates[0].rank_px, trial["best_score"] = d.estimates[0].rank;
@@ -441,6 +446,9 @@ int run_detect(const DetectEvalOptions& o) {
             entry.update({{"correct", near.correct},
                           {"position_mm", near.error.position_mm},
                           {"rotation_deg", near.error.rotation_deg}});
+            if (o.shading)
+              if (const auto sh = det->shading(frames, e.obj_id, e.R, e.t_mm))
+                entry.update({{"shading_error", sh->error}, {"shading_pixels", sh->pixels}});
             listed.push_back(entry);
           }
           trial["candidates"] = listed;

@@ -3,11 +3,13 @@
 
 #include "tools/common/cli_numbers.hpp"
 #include "vision/pipeline/pipeline_parameters.hpp"
+#include "vision/templates/template_database.hpp"
 
 #include <opencv2/imgproc.hpp>
 
 #include <chrono>
 #include <cmath>
+#include <map>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -23,7 +25,7 @@ class PipelineDetector final : public Detector {
                    const std::vector<double>& distances_mm, int refine_candidates, bool fit_hypotheses,
                    const std::vector<std::string>& settings,
                    const std::vector<std::pair<int, vision::GraspFeature>>& grasp_features)
-      : name_(std::move(name)), cost_(cost) {
+      : name_(std::move(name)), cost_(cost), camera_(camera), templates_(templates) {
     const auto t0 = std::chrono::steady_clock::now();
     vision::PipelineConfig pc;
     pc.cost = cost;
@@ -101,6 +103,22 @@ class PipelineDetector final : public Detector {
     if (cost_ != vision::PipelineConfig::Cost::fdcm) return std::nullopt;
     return pipeline_->grasp_visibility(obj_id, R, t_mm, feature);
   }
+  std::optional<vision::ShadingAgreement> shading(const vision::MfcFrames& frames, int obj_id, const cv::Matx33d& R,
+                                                  const cv::Vec3d& t_mm) override {
+    if (!shading_) {
+      // A renderer of its own (the pipeline's keeps its camera and meshes), made on first use in
+      // this thread, with the parts' meshes from their template files.
+      shading_renderer_ = std::make_unique<vision::MfcRenderer>(camera_);
+      for (const auto& file : templates_) {
+        const vision::TemplateDatabase db = vision::load_template_database(file);
+        shading_models_[db.obj_id] = vision::pose_model(shading_renderer_->add_mesh(db.mesh), db.mesh);
+      }
+      shading_ = std::make_unique<vision::ShadingCheck>(*shading_renderer_);
+    }
+    const auto it = shading_models_.find(obj_id);
+    if (it == shading_models_.end()) return std::nullopt;
+    return shading_->compare(frames, camera_.camera, it->second, vision::RigidTransform{R, t_mm});
+  }
   std::optional<cv::Mat3b> overlay(int obj_id, const std::vector<DrawnPose>& poses) const override {
     const cv::Mat1b& edges = pipeline_->last_edges().edges;
     if (edges.empty()) return std::nullopt;
@@ -132,6 +150,11 @@ class PipelineDetector final : public Detector {
   vision::BinFloor floor_;  // the configured floor (its tolerance); set_floor_mm moves it
   vision::PipelineResult result_;
   double setup_s_ = 0;
+  vision::CameraConfig camera_;
+  std::vector<std::filesystem::path> templates_;
+  std::unique_ptr<vision::MfcRenderer> shading_renderer_;
+  std::map<int, vision::PoseModel> shading_models_;  // by obj_id
+  std::unique_ptr<vision::ShadingCheck> shading_;
 };
 
 }  // namespace

@@ -53,10 +53,9 @@ void occluding_edges(const cv::Mat1f& depth, float min_jump, float min_ratio, cv
   }
 }
 
-void ModelEdgeSampler::sample(const PoseModel& model, const RigidTransform& m2c, const PinholeCamera& camera,
-                              std::vector<ModelEdgePoint>& out) {
-  out.clear();
-  // Window: the projected bounding box plus a margin, limited to the image plus the margin.
+std::optional<cv::Rect> pose_window(const PinholeCamera& camera, const PoseModel& model, const RigidTransform& m2c,
+                                    int margin_px, const char* what) {
+  // The projected bounding box plus a margin, limited to the image plus the margin.
   double x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300;
   for (int c = 0; c < 8; ++c) {
     const cv::Vec3d corner((c & 1) ? model.bbox_max[0] : model.bbox_min[0],
@@ -64,7 +63,7 @@ void ModelEdgeSampler::sample(const PoseModel& model, const RigidTransform& m2c,
                            (c & 4) ? model.bbox_max[2] : model.bbox_min[2]);
     const cv::Vec3d p = m2c.apply(corner);
     if (!(p[2] > 1.0))
-      throw std::invalid_argument("model edges: part (mesh " + std::to_string(model.mesh_id) +
+      throw std::invalid_argument(std::string(what) + ": part (mesh " + std::to_string(model.mesh_id) +
                                   ") reaches behind the camera (bounding-box corner at z = " + std::to_string(p[2]) +
                                   " mm)");
     const cv::Point2d q = camera.project(p);
@@ -73,16 +72,25 @@ void ModelEdgeSampler::sample(const PoseModel& model, const RigidTransform& m2c,
     x1 = std::max(x1, q.x);
     y1 = std::max(y1, q.y);
   }
-  const int m = params_.margin_px;
+  const int m = margin_px;
   const int W = camera.image_size.width, H = camera.image_size.height;
   const int wx0 = std::max(static_cast<int>(std::floor(x0)) - m, -m);
   const int wy0 = std::max(static_cast<int>(std::floor(y0)) - m, -m);
   const int wx1 = std::min(static_cast<int>(std::ceil(x1)) + m, W + m);
   const int wy1 = std::min(static_cast<int>(std::ceil(y1)) + m, H + m);
-  if (wx1 - wx0 < 3 || wy1 - wy0 < 3) return;  // entirely outside the image
+  if (wx1 - wx0 < 3 || wy1 - wy0 < 3) return std::nullopt;  // entirely outside the image
   // Sizes rounded up to 32 px so that nearby poses reuse the renderer's framebuffer.
-  const int ww = (wx1 - wx0 + 31) / 32 * 32, wh = (wy1 - wy0 + 31) / 32 * 32;
-  window_ = cv::Rect(wx0, wy0, ww, wh);
+  return cv::Rect(wx0, wy0, (wx1 - wx0 + 31) / 32 * 32, (wy1 - wy0 + 31) / 32 * 32);
+}
+
+void ModelEdgeSampler::sample(const PoseModel& model, const RigidTransform& m2c, const PinholeCamera& camera,
+                              std::vector<ModelEdgePoint>& out) {
+  out.clear();
+  const std::optional<cv::Rect> window = pose_window(camera, model, m2c, params_.margin_px, "model edges");
+  if (!window) return;
+  window_ = *window;
+  const int W = camera.image_size.width, H = camera.image_size.height;
+  const int ww = window_.width, wh = window_.height;
   const PinholeCamera crop = camera.cropped(window_);
   renderer_.set_camera(crop);
   scene_[0].mesh_id = model.mesh_id;

@@ -19,6 +19,7 @@
 
 #include <opencv2/core.hpp>
 
+#include <optional>
 #include <vector>
 
 namespace mfcd::vision {
@@ -33,6 +34,13 @@ inline PoseModel pose_model(int mesh_id, const Mesh& mesh) {
   const cv::Vec3f lo = mesh.bbox_min(), hi = mesh.bbox_max();
   return {mesh_id, cv::Vec3d(lo[0], lo[1], lo[2]), cv::Vec3d(hi[0], hi[1], hi[2])};
 }
+
+// The window (full-image pixels) that holds `model` at `m2c`: its projected bounding box plus
+// `margin_px`, limited to the image plus the margin, its sizes rounded up to 32 px (so that nearby
+// poses reuse the renderer's framebuffer); none when the part is outside the image. Throws
+// std::invalid_argument, naming `what`, when the part reaches behind the camera.
+std::optional<cv::Rect> pose_window(const PinholeCamera& camera, const PoseModel& model, const RigidTransform& m2c,
+                                    int margin_px, const char* what);
 
 struct ModelEdgePoint {
   cv::Vec3d point_model;  // mm, model frame
