@@ -412,10 +412,11 @@ int run_detect(const DetectEvalOptions& o) {
                     {"estimated", estimated}, {"true", true_grasp(ref, j, g.gt[j])}, {"faces_camera", faces}};
             }
           if (o.shading)
-            for (json& tj : truth)
-              if (const auto sh = det->shading(frames, obj_id, g.gt[tj["instance"].get<size_t>()].R,
-                                               g.gt[tj["instance"].get<size_t>()].t_mm))
+            for (json& tj : truth) {
+              const auto& pose = g.gt[tj["instance"].get<size_t>()];
+              if (const auto sh = det->shading(frames, obj_id, pose.R, pose.t_mm))
                 tj.update({{"shading_error", sh->error}, {"shading_pixels", sh->pixels}});
+            }
           if (!truth.empty()) trial["truth_scores"] = truth;
           if (!d.estimates.empty())
             trial["best_rank_px"] = d.estimates[0].rank_px, trial["best_score"] = d.estimates[0].rank;

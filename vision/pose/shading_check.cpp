@@ -38,22 +38,22 @@ ShadingAgreement ShadingCheck::compare(const MfcFrames& frames, const PinholeCam
                                        const RigidTransform& m2c) {
   const std::optional<cv::Rect> window = pose_window(camera, model, m2c, params_.margin_px, "shading check");
   if (!window) return {};
-  renderer_.set_camera(camera.cropped(*window));
-  scene_[0].mesh_id = model.mesh_id;
-  scene_[0].R = m2c.R;
-  scene_[0].t_mm = m2c.t;
-  renderer_.render(scene_, render_);
+  render_at(camera.cropped(*window), model, m2c);
   return compare_in(frames, *window);
 }
 
 ShadingAgreement ShadingCheck::compare_whole_image(const MfcFrames& frames, const PinholeCamera& camera,
                                                    const PoseModel& model, const RigidTransform& m2c) {
+  render_at(camera, model, m2c);
+  return compare_in(frames, cv::Rect(0, 0, camera.image_size.width, camera.image_size.height));
+}
+
+void ShadingCheck::render_at(const PinholeCamera& camera, const PoseModel& model, const RigidTransform& m2c) {
   renderer_.set_camera(camera);
   scene_[0].mesh_id = model.mesh_id;
   scene_[0].R = m2c.R;
   scene_[0].t_mm = m2c.t;
   renderer_.render(scene_, render_);
-  return compare_in(frames, cv::Rect(0, 0, camera.image_size.width, camera.image_size.height));
 }
 
 // The rendered part's pixels of `window` (full-image coordinates; render_ is its size) against

@@ -64,6 +64,8 @@ class ShadingCheck {
                                        const RigidTransform& m2c);
 
  private:
+  // The part alone at `m2c` seen by `camera` (the window's or the whole image's) into render_.
+  void render_at(const PinholeCamera& camera, const PoseModel& model, const RigidTransform& m2c);
   ShadingAgreement compare_in(const MfcFrames& frames, const cv::Rect& window);
 
   MfcRenderer& renderer_;
