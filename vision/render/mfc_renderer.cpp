@@ -1,12 +1,12 @@
 #include "vision/render/mfc_renderer.hpp"
 
+#include "vision/render/egl_context.hpp"
 #include "vision/render/gl_matrices.hpp"
 #include "vision/render/render_shaders.hpp"
+#include "vision/render/sensor_capture.hpp"
 #include "vision/render/shadow_footprint.hpp"
 
 #define GL_GLEXT_PROTOTYPES 1
-#include <EGL/egl.h>
-#include <EGL/eglext.h>
 #include <GL/gl.h>
 #include <GL/glext.h>
 
@@ -15,6 +15,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <optional>
 #include <random>
 #include <stdexcept>
 #include <string>
@@ -26,39 +27,14 @@ namespace {
 using namespace gl_matrices;
 
 constexpr int kFlashes = 8;
+constexpr GLenum kAllAttachments[3] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1, GL_COLOR_ATTACHMENT2};
 
 [[noreturn]] void gl_fail(const std::string& what) { throw std::runtime_error("renderer: " + what); }
 
-const char* egl_error_name(EGLint e) {
-  switch (e) {
-    case EGL_SUCCESS:
-      return "EGL_SUCCESS";
-    case EGL_NOT_INITIALIZED:
-      return "EGL_NOT_INITIALIZED";
-    case EGL_BAD_ACCESS:
-      return "EGL_BAD_ACCESS";
-    case EGL_BAD_ALLOC:
-      return "EGL_BAD_ALLOC";
-    case EGL_BAD_ATTRIBUTE:
-      return "EGL_BAD_ATTRIBUTE";
-    case EGL_BAD_CONFIG:
-      return "EGL_BAD_CONFIG";
-    case EGL_BAD_CONTEXT:
-      return "EGL_BAD_CONTEXT";
-    case EGL_BAD_DISPLAY:
-      return "EGL_BAD_DISPLAY";
-    case EGL_BAD_MATCH:
-      return "EGL_BAD_MATCH";
-    case EGL_BAD_PARAMETER:
-      return "EGL_BAD_PARAMETER";
-    default:
-      return "EGL error";
-  }
-}
-
-GLuint compile(GLenum type, const char* src) {
+// One stage from its source pieces, in order.
+GLuint compile(GLenum type, std::initializer_list<const char*> pieces) {
   GLuint s = glCreateShader(type);
-  glShaderSource(s, 1, &src, nullptr);
+  glShaderSource(s, static_cast<GLsizei>(pieces.size()), pieces.begin(), nullptr);
   glCompileShader(s);
   GLint ok = 0;
   glGetShaderiv(s, GL_COMPILE_STATUS, &ok);
@@ -70,7 +46,7 @@ GLuint compile(GLenum type, const char* src) {
   return s;
 }
 
-GLuint link(const char* vs, const char* fs) {
+GLuint link(std::initializer_list<const char*> vs, std::initializer_list<const char*> fs) {
   GLuint p = glCreateProgram();
   GLuint v = compile(GL_VERTEX_SHADER, vs), f = compile(GL_FRAGMENT_SHADER, fs);
   glAttachShader(p, v);
@@ -91,12 +67,14 @@ GLuint link(const char* vs, const char* fs) {
 }  // namespace
 
 struct MfcRenderer::Gl {
-  EGLDisplay display = EGL_NO_DISPLAY;
-  EGLContext context = EGL_NO_CONTEXT;
-  GLuint scene_program = 0, depth_program = 0, shadow_program = 0;
+  EglContext context;  // first member: made before and destroyed after every GL object below
+  GLuint scene_program = 0, depth_program = 0, shadow_program = 0, surface_program = 0, shade_program = 0;
   GLuint shadow_tex = 0, shadow_fbo = 0;
   GLuint fbo = 0, depth_rb = 0;
   std::array<GLuint, 3> color_tex{};
+  GLuint surface_fbo = 0;               // the deferred pass's surfaces, sharing depth_rb
+  std::array<GLuint, 3> surface_tex{};  // position/id, normal/albedo, material
+  GLuint empty_vao = 0;                 // the full-screen triangle has no vertex data
   cv::Size fbo_size{0, 0};
   struct GpuMesh {
     GLuint vao = 0, vbo = 0;
@@ -105,41 +83,23 @@ struct MfcRenderer::Gl {
   };
   std::vector<GpuMesh> meshes;
 
-  void make_current() const {
-    if (!eglMakeCurrent(display, EGL_NO_SURFACE, EGL_NO_SURFACE, context))
-      gl_fail(std::string("eglMakeCurrent failed: ") + egl_error_name(eglGetError()));
-  }
+  void make_current() const { context.make_current(); }
 };
 
 MfcRenderer::MfcRenderer(const CameraConfig& config, const RenderOptions& options)
-    : config_(config), camera_(config.camera), options_(options), gl_(std::make_unique<Gl>()) {
+    : config_(config), camera_(config.camera), options_(options) {
   validate_camera_config(config_);
   if (config_.flashes.positions_mm.size() != kFlashes) gl_fail("the MFC renderer simulates exactly 8 LEDs");
-  auto get_platform_display =
-      reinterpret_cast<PFNEGLGETPLATFORMDISPLAYEXTPROC>(eglGetProcAddress("eglGetPlatformDisplayEXT"));
-  if (!get_platform_display)
-    gl_fail("EGL lacks eglGetPlatformDisplayEXT; install Mesa's EGL (libegl-mesa0, libgl1-mesa-dri)");
-  gl_->display = get_platform_display(EGL_PLATFORM_SURFACELESS_MESA, EGL_DEFAULT_DISPLAY, nullptr);
-  EGLint major = 0, minor = 0;
-  if (gl_->display == EGL_NO_DISPLAY || !eglInitialize(gl_->display, &major, &minor))
-    gl_fail(std::string("cannot initialise an EGL surfaceless display (") + egl_error_name(eglGetError()) +
-            "); install Mesa's EGL and DRI drivers (libegl-mesa0, libgl1-mesa-dri)");
-  if (!eglBindAPI(EGL_OPENGL_API)) gl_fail("EGL cannot bind the desktop OpenGL API");
-  const EGLint config_attribs[] = {EGL_SURFACE_TYPE, EGL_PBUFFER_BIT, EGL_RENDERABLE_TYPE, EGL_OPENGL_BIT, EGL_NONE};
-  EGLConfig egl_config = nullptr;
-  EGLint n = 0;
-  if (!eglChooseConfig(gl_->display, config_attribs, &egl_config, 1, &n) || n < 1) egl_config = nullptr;
-  const EGLint ctx_attribs[] = {
-      EGL_CONTEXT_MAJOR_VERSION,           3,       EGL_CONTEXT_MINOR_VERSION, 3, EGL_CONTEXT_OPENGL_PROFILE_MASK,
-      EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT, EGL_NONE};
-  gl_->context = eglCreateContext(gl_->display, egl_config, EGL_NO_CONTEXT, ctx_attribs);
-  if (gl_->context == EGL_NO_CONTEXT)
-    gl_fail(std::string("cannot create an OpenGL 3.3 core context (") + egl_error_name(eglGetError()) + ")");
+  gl_ = std::make_unique<Gl>();
   gl_->make_current();
 
-  gl_->scene_program = link(shaders::kSceneVs, shaders::kSceneFs);
-  gl_->depth_program = link(shaders::kSceneVs, shaders::kDepthFs);
-  gl_->shadow_program = link(shaders::kShadowVs, shaders::kShadowFs);
+  using namespace shaders;
+  gl_->scene_program = link({kVersion, kSceneVs}, {kVersion, kLighting, kSurface, kSceneFs});
+  gl_->depth_program = link({kVersion, kSceneVs}, {kVersion, kDepthFs});
+  gl_->shadow_program = link({kVersion, kShadowVs}, {kVersion, kShadowFs});
+  gl_->surface_program = link({kVersion, kSceneVs}, {kVersion, kSurface, kSurfaceFs});
+  gl_->shade_program = link({kVersion, kFullScreenVs}, {kVersion, kLighting, kShadeFs});
+  glGenVertexArrays(1, &gl_->empty_vao);
 
   const int S = options_.shadow_map_size;
   glGenTextures(1, &gl_->shadow_tex);
@@ -156,26 +116,23 @@ MfcRenderer::MfcRenderer(const CameraConfig& config, const RenderOptions& option
 }
 
 MfcRenderer::~MfcRenderer() {
-  if (!gl_ || gl_->display == EGL_NO_DISPLAY) return;
-  if (gl_->context != EGL_NO_CONTEXT) {
-    eglMakeCurrent(gl_->display, EGL_NO_SURFACE, EGL_NO_SURFACE, gl_->context);
-    for (auto& m : gl_->meshes) {
-      glDeleteBuffers(1, &m.vbo);
-      glDeleteVertexArrays(1, &m.vao);
-    }
-    glDeleteTextures(3, gl_->color_tex.data());
-    glDeleteRenderbuffers(1, &gl_->depth_rb);
-    glDeleteFramebuffers(1, &gl_->fbo);
-    glDeleteFramebuffers(1, &gl_->shadow_fbo);
-    glDeleteTextures(1, &gl_->shadow_tex);
-    glDeleteProgram(gl_->scene_program);
-    glDeleteProgram(gl_->depth_program);
-    glDeleteProgram(gl_->shadow_program);
-    eglMakeCurrent(gl_->display, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
-    eglDestroyContext(gl_->display, gl_->context);
+  if (!gl_) return;
+  gl_->make_current();
+  for (auto& m : gl_->meshes) {
+    glDeleteBuffers(1, &m.vbo);
+    glDeleteVertexArrays(1, &m.vao);
   }
-  // eglTerminate is deliberately not called: the display is shared by every renderer in
-  // the process, and terminating it would invalidate the others' contexts.
+  glDeleteTextures(3, gl_->color_tex.data());
+  glDeleteTextures(3, gl_->surface_tex.data());
+  glDeleteRenderbuffers(1, &gl_->depth_rb);
+  glDeleteFramebuffers(1, &gl_->fbo);
+  glDeleteFramebuffers(1, &gl_->surface_fbo);
+  glDeleteVertexArrays(1, &gl_->empty_vao);
+  glDeleteFramebuffers(1, &gl_->shadow_fbo);
+  glDeleteTextures(1, &gl_->shadow_tex);
+  for (GLuint prog :
+       {gl_->scene_program, gl_->depth_program, gl_->shadow_program, gl_->surface_program, gl_->shade_program})
+    glDeleteProgram(prog);
 }
 
 std::string MfcRenderer::gl_renderer() const {
@@ -250,26 +207,34 @@ void MfcRenderer::ensure_targets() {
   if (g.fbo_size == size) return;
   if (g.fbo) {
     glDeleteTextures(3, g.color_tex.data());
+    glDeleteTextures(3, g.surface_tex.data());
     glDeleteRenderbuffers(1, &g.depth_rb);
     glDeleteFramebuffers(1, &g.fbo);
-  }
-  glGenFramebuffers(1, &g.fbo);
-  glBindFramebuffer(GL_FRAMEBUFFER, g.fbo);
-  glGenTextures(3, g.color_tex.data());
-  for (int i = 0; i < 3; ++i) {
-    glBindTexture(GL_TEXTURE_2D, g.color_tex[static_cast<size_t>(i)]);
-    glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA32F, size.width, size.height, 0, GL_RGBA, GL_FLOAT, nullptr);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
-    glFramebufferTexture2D(GL_FRAMEBUFFER, static_cast<GLenum>(GL_COLOR_ATTACHMENT0 + i), GL_TEXTURE_2D,
-                           g.color_tex[static_cast<size_t>(i)], 0);
+    glDeleteFramebuffers(1, &g.surface_fbo);
   }
   glGenRenderbuffers(1, &g.depth_rb);
   glBindRenderbuffer(GL_RENDERBUFFER, g.depth_rb);
   glRenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT32F, size.width, size.height);
-  glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, g.depth_rb);
-  if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
-    gl_fail("float render target incomplete (" + std::to_string(size.width) + "x" + std::to_string(size.height) + ")");
+  // Three RGBA32F attachments read texel by texel, and the shared depth buffer.
+  auto make_target = [&](GLuint& fbo, std::array<GLuint, 3>& tex) {
+    glGenFramebuffers(1, &fbo);
+    glBindFramebuffer(GL_FRAMEBUFFER, fbo);
+    glGenTextures(3, tex.data());
+    for (int i = 0; i < 3; ++i) {
+      glBindTexture(GL_TEXTURE_2D, tex[static_cast<size_t>(i)]);
+      glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA32F, size.width, size.height, 0, GL_RGBA, GL_FLOAT, nullptr);
+      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+      glFramebufferTexture2D(GL_FRAMEBUFFER, static_cast<GLenum>(GL_COLOR_ATTACHMENT0 + i), GL_TEXTURE_2D,
+                             tex[static_cast<size_t>(i)], 0);
+    }
+    glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, g.depth_rb);
+    if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+      gl_fail("float render target incomplete (" + std::to_string(size.width) + "x" + std::to_string(size.height) +
+              ")");
+  };
+  make_target(g.fbo, g.color_tex);
+  make_target(g.surface_fbo, g.surface_tex);
   g.fbo_size = size;
 }
 
@@ -286,7 +251,8 @@ std::pair<double, double> MfcRenderer::depth_range(std::span<const ScenePart> pa
   return {std::max(lo, camera_near_mm()), std::min(hi, camera_far_mm())};
 }
 
-void MfcRenderer::draw_shadow_maps(std::span<const ScenePart> parts, std::span<cv::Matx44d, 8> unit_from_camera) {
+void MfcRenderer::draw_shadow_maps(std::span<const ScenePart> parts, const cv::Rect& region,
+                                   std::span<cv::Matx44d, 8> unit_from_camera) {
   Gl& g = *gl_;
   // One perspective shadow map per LED, looking along +z from the LED. Its field of view
   // covers the camera's frustum from the near plane on, whatever the LED's offset.
@@ -312,6 +278,10 @@ void MfcRenderer::draw_shadow_maps(std::span<const ScenePart> parts, std::span<c
   // Only the texels this render can read are filled (shadow_footprint.hpp): every visible
   // surface lies within the parts' depth range.
   const auto [z_near, z_far] = depth_range(parts);
+  // (A whole render copies no camera: it allocates nothing.)
+  std::optional<PinholeCamera> cropped;
+  if (region != cv::Rect(cv::Point(), camera_.image_size)) cropped = camera_.cropped(region);
+  const PinholeCamera& drawn = cropped ? *cropped : camera_;
   for (int i = 0; i < kFlashes; ++i) {
     const cv::Vec3d L = config_.flashes.positions_mm[static_cast<size_t>(i)];
     const double reach = std::hypot(L[0], L[1]) / n;
@@ -327,7 +297,7 @@ void MfcRenderer::draw_shadow_maps(std::span<const ScenePart> parts, std::span<c
                                          .z_far_mm = z_far,
                                          .led_mm = L,
                                          .offset_per_mm = normal_offset()};
-    const cv::Rect fill = options_.fill_whole_shadow_maps ? cv::Rect(0, 0, S, S) : shadow_footprint(footprint, camera_);
+    const cv::Rect fill = options_.fill_whole_shadow_maps ? cv::Rect(0, 0, S, S) : shadow_footprint(footprint, drawn);
     glFramebufferTextureLayer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, g.shadow_tex, 0, i);
     glScissor(fill.x, fill.y, fill.width, fill.height);
     glClear(GL_DEPTH_BUFFER_BIT);
@@ -370,7 +340,7 @@ void MfcRenderer::set_lights(unsigned prog, std::span<const cv::Matx44d, 8> unit
   glUniform1f(loc("u_normal_offset"), static_cast<float>(normal_offset()));
 }
 
-void MfcRenderer::draw_scene(std::span<const ScenePart> parts, bool shading) {
+void MfcRenderer::draw_scene(std::span<const ScenePart> parts, Shading shading, const cv::Rect& region) {
   Gl& g = *gl_;
   ensure_targets();
   for (const auto& p : parts)
@@ -382,49 +352,95 @@ void MfcRenderer::draw_scene(std::span<const ScenePart> parts, bool shading) {
   glDisable(GL_CULL_FACE);
   glEnable(GL_DEPTH_TEST);
   glDepthFunc(GL_LESS);
-  if (shading) draw_shadow_maps(parts, unit_from_camera);
+  if (shading != Shading::none) draw_shadow_maps(parts, region, unit_from_camera);
 
-  glBindFramebuffer(GL_FRAMEBUFFER, g.fbo);
+  glBindFramebuffer(GL_FRAMEBUFFER, shading == Shading::deferred ? g.surface_fbo : g.fbo);
   // Without shading only the ambient/depth/index attachment is drawn (and cleared).
-  const GLenum shaded[3] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1, GL_COLOR_ATTACHMENT2};
   const GLenum depth_only[3] = {GL_NONE, GL_NONE, GL_COLOR_ATTACHMENT2};
-  glDrawBuffers(3, shading ? shaded : depth_only);
+  glDrawBuffers(3, shading == Shading::none ? depth_only : kAllAttachments);
   const cv::Size size = camera_.image_size;
   glViewport(0, 0, size.width, size.height);
+  // Window coordinates count rows from the bottom, and clip_from_camera puts image row 0 there:
+  // the scissor box is the region as it stands. Nothing outside it is cleared, drawn or read.
+  glEnable(GL_SCISSOR_TEST);
+  glScissor(region.x, region.y, region.width, region.height);
   glClearColor(0, 0, 0, 0);
   glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
-  const GLuint prog = shading ? g.scene_program : g.depth_program;
+  switch (shading) {
+    case Shading::none:
+      draw_parts(parts, g.depth_program, nullptr);
+      break;
+    case Shading::forward:
+      draw_parts(parts, g.scene_program, &unit_from_camera);
+      break;
+    case Shading::deferred:
+      draw_parts(parts, g.surface_program, nullptr);
+      shade_surfaces(unit_from_camera);
+      break;
+  }
+  glDisable(GL_SCISSOR_TEST);
+  if (glGetError() != GL_NO_ERROR) gl_fail("OpenGL error while drawing the scene");
+}
+
+void MfcRenderer::draw_parts(std::span<const ScenePart> parts, unsigned prog,
+                             const std::array<cv::Matx44d, 8>* unit_from_camera) {
+  Gl& g = *gl_;
   glUseProgram(prog);
   auto loc = [prog](const char* name) { return glGetUniformLocation(prog, name); };
-  const Mat4 clip = to_gl(clip_from_camera(camera_.K, size, camera_near_mm(), camera_far_mm()));
+  const Mat4 clip = to_gl(clip_from_camera(camera_.K, camera_.image_size, camera_near_mm(), camera_far_mm()));
   glUniformMatrix4fv(loc("u_clip_from_camera"), 1, GL_FALSE, clip.data());
-  if (shading) set_lights(prog, unit_from_camera);
+  if (unit_from_camera) set_lights(prog, *unit_from_camera);
+  // Uniforms a program does not have are at location -1, where setting them does nothing.
   for (size_t k = 0; k < parts.size(); ++k) {
     const ScenePart& p = parts[k];
     const Mat4 m = to_gl(model_matrix(p.R, p.t_mm));
     glUniformMatrix4fv(loc("u_camera_from_model"), 1, GL_FALSE, m.data());
     glUniform1f(loc("u_part_id"), static_cast<float>(k + 1));
-    if (shading) {
-      const Material& mat = p.material;
-      glUniform1f(loc("u_albedo"), mat.albedo);
-      glUniform1f(loc("u_diffuse"), mat.diffuse);
-      glUniform1f(loc("u_specular"), mat.specular);
-      glUniform1f(loc("u_shininess"), mat.shininess);
-      glUniform1i(loc("u_paint"), static_cast<int>(mat.paint));
-      glUniform1f(loc("u_paint_period"), mat.paint_period_mm);
-      glUniform1f(loc("u_paint_albedo"), mat.paint_albedo);
-    }
+    const Material& mat = p.material;
+    glUniform1f(loc("u_albedo"), mat.albedo);
+    glUniform1f(loc("u_diffuse"), mat.diffuse);
+    glUniform1f(loc("u_specular"), mat.specular);
+    glUniform1f(loc("u_shininess"), mat.shininess);
+    glUniform1i(loc("u_paint"), static_cast<int>(mat.paint));
+    glUniform1f(loc("u_paint_period"), mat.paint_period_mm);
+    glUniform1f(loc("u_paint_albedo"), mat.paint_albedo);
     const auto& gm = g.meshes[static_cast<size_t>(p.mesh_id)];
     glBindVertexArray(gm.vao);
     glDrawArrays(GL_TRIANGLES, 0, gm.vertex_count);
   }
   glBindVertexArray(0);
-  if (glGetError() != GL_NO_ERROR) gl_fail("OpenGL error while drawing the scene");
+}
+
+void MfcRenderer::shade_surfaces(const std::array<cv::Matx44d, 8>& unit_from_camera) {
+  Gl& g = *gl_;
+  glBindFramebuffer(GL_FRAMEBUFFER, g.fbo);
+  glDrawBuffers(3, kAllAttachments);
+  glDisable(GL_DEPTH_TEST);
+  const GLuint prog = g.shade_program;
+  glUseProgram(prog);
+  set_lights(prog, unit_from_camera);  // texture unit 0: the shadow maps
+  const char* names[3] = {"u_pos_id", "u_normal_albedo", "u_material"};
+  for (int i = 0; i < 3; ++i) {
+    glActiveTexture(static_cast<GLenum>(GL_TEXTURE1 + i));
+    glBindTexture(GL_TEXTURE_2D, g.surface_tex[static_cast<size_t>(i)]);
+    glUniform1i(glGetUniformLocation(prog, names[i]), 1 + i);
+  }
+  glBindVertexArray(g.empty_vao);
+  glDrawArrays(GL_TRIANGLES, 0, 3);
+  glBindVertexArray(0);
+  // Every render starts from the same texture state: another would make llvmpipe compile
+  // another variant of the programs (and allocate) on the next render.
+  for (int i = 0; i < 3; ++i) {
+    glActiveTexture(static_cast<GLenum>(GL_TEXTURE1 + i));
+    glBindTexture(GL_TEXTURE_2D, 0);
+  }
+  glActiveTexture(GL_TEXTURE0);
+  glEnable(GL_DEPTH_TEST);
 }
 
 void MfcRenderer::render_depth(std::span<const ScenePart> parts, cv::Mat1f& depth_mm, cv::Mat1b& part_index) {
   gl_->make_current();
-  draw_scene(parts, false);
+  draw_scene(parts, Shading::none, cv::Rect(cv::Point(), camera_.image_size));
   const cv::Size size = camera_.image_size;
   const size_t n = static_cast<size_t>(size.area());
   readback_.resize(n * 4);
@@ -444,39 +460,53 @@ void MfcRenderer::render_depth(std::span<const ScenePart> parts, cv::Mat1f& dept
   }
 }
 
-void MfcRenderer::render(std::span<const ScenePart> parts, MfcRender& out, uint64_t noise_seed) {
+void MfcRenderer::render(std::span<const ScenePart> parts, MfcRender& out, uint64_t noise_seed, cv::Rect region) {
+  const cv::Rect whole(cv::Point(), camera_.image_size);
+  if (region.empty()) region = whole;
+  if ((region & whole) != region)
+    throw std::invalid_argument("render region " + std::to_string(region.width) + "x" + std::to_string(region.height) +
+                                " at (" + std::to_string(region.x) + ", " + std::to_string(region.y) +
+                                ") reaches outside the image");
   gl_->make_current();
-  draw_scene(parts, true);
+  draw_scene(parts, options_.shade_every_fragment ? Shading::forward : Shading::deferred, region);
+  read_back(region, out);
+  capture_frames(options_.noise, noise_seed, out, noise_);
+}
+
+void MfcRenderer::read_back(const cv::Rect& region, MfcRender& out) {
   const cv::Size size = camera_.image_size;
-  const size_t n = static_cast<size_t>(size.area());
+  const size_t n = static_cast<size_t>(region.area());
   readback_.resize(n * 12);
   glPixelStorei(GL_PACK_ALIGNMENT, 4);
   for (int a = 0; a < 3; ++a) {
     glReadBuffer(static_cast<GLenum>(GL_COLOR_ATTACHMENT0 + a));
-    glReadPixels(0, 0, size.width, size.height, GL_RGBA, GL_FLOAT, readback_.data() + n * 4 * static_cast<size_t>(a));
+    glReadPixels(region.x, region.y, region.width, region.height, GL_RGBA, GL_FLOAT,
+                 readback_.data() + n * 4 * static_cast<size_t>(a));
   }
-  out.frames.flash.resize(kFlashes);
   out.flash_linear.resize(kFlashes);
-  for (int i = 0; i < kFlashes; ++i) {
-    out.frames.flash[static_cast<size_t>(i)].create(size);
-    out.flash_linear[static_cast<size_t>(i)].create(size);
-  }
-  out.frames.ambient.create(size);
+  for (auto& f : out.flash_linear) f.create(size);
   out.ambient_linear.create(size);
   out.depth_mm.create(size);
   out.part_index.create(size);
+  if (region.size() != size) {  // what is not drawn reads as empty
+    for (auto& f : out.flash_linear) f.setTo(0);
+    out.ambient_linear.setTo(0);
+    out.depth_mm.setTo(0);
+    out.part_index.setTo(0);
+  }
 
   const float* p0 = readback_.data();
   const float* p1 = p0 + n * 4;
   const float* p2 = p1 + n * 4;
-  for (int y = 0; y < size.height; ++y) {
-    const size_t row = static_cast<size_t>(y) * static_cast<size_t>(size.width);
-    float* amb = out.ambient_linear.ptr<float>(y);
-    float* depth = out.depth_mm.ptr<float>(y);
-    uint8_t* id = out.part_index.ptr<uint8_t>(y);
+  for (int y = 0; y < region.height; ++y) {
+    const size_t row = static_cast<size_t>(y) * static_cast<size_t>(region.width);
+    const int iy = region.y + y;
+    float* amb = out.ambient_linear.ptr<float>(iy) + region.x;
+    float* depth = out.depth_mm.ptr<float>(iy) + region.x;
+    uint8_t* id = out.part_index.ptr<uint8_t>(iy) + region.x;
     std::array<float*, kFlashes> fl;
-    for (size_t i = 0; i < kFlashes; ++i) fl[i] = out.flash_linear[i].ptr<float>(y);
-    for (int x = 0; x < size.width; ++x) {
+    for (size_t i = 0; i < kFlashes; ++i) fl[i] = out.flash_linear[i].ptr<float>(iy) + region.x;
+    for (int x = 0; x < region.width; ++x) {
       const size_t k = (row + static_cast<size_t>(x)) * 4;
       const float ambient = p2[k];
       amb[x] = ambient;
@@ -489,39 +519,6 @@ void MfcRenderer::render(std::span<const ScenePart> parts, MfcRender& out, uint6
       }
     }
   }
-  // Sensor: shot noise (variance proportional to the signal) plus read noise, then 8-bit
-  // quantisation. cv::RNG with a fixed seed makes every render reproducible.
-  const SensorNoise& noise = options_.noise;
-  cv::RNG rng(noise_seed);
-  const auto read_var = static_cast<float>(noise.read_sigma_dn * noise.read_sigma_dn);
-  const auto shot = static_cast<float>(noise.shot_dn_per_electron);
-  auto capture = [&](const cv::Mat1f& signal, cv::Mat1b& image) {
-    if (!noise.enabled) {
-      signal.convertTo(image, CV_8U);  // rounds and saturates
-      return;
-    }
-    noise_.create(size);
-    // The same draws as one fill of the whole image (the generator runs through the pixels in
-    // order either way), in pieces of at most 256 values: cv::RNG::fill keeps a piece that small
-    // on the stack, and allocates a buffer for anything larger on every call.
-    constexpr int kPiece = 256;
-    for (int y = 0; y < size.height; ++y)
-      for (int x = 0; x < size.width; x += kPiece) {
-        cv::Mat1f piece = noise_(cv::Rect(x, y, std::min(kPiece, size.width - x), 1));
-        rng.fill(piece, cv::RNG::NORMAL, 0.0, 1.0);
-      }
-    for (int y = 0; y < size.height; ++y) {
-      const float* sg = signal.ptr<float>(y);
-      const float* nz = noise_.ptr<float>(y);
-      uint8_t* dst = image.ptr<uint8_t>(y);
-      for (int x = 0; x < size.width; ++x) {
-        const float v = sg[x] + std::sqrt(read_var + shot * std::max(sg[x], 0.f)) * nz[x];
-        dst[x] = static_cast<uint8_t>(std::clamp(std::nearbyint(v), 0.f, 255.f));
-      }
-    }
-  };
-  for (size_t i = 0; i < kFlashes; ++i) capture(out.flash_linear[i], out.frames.flash[i]);
-  capture(out.ambient_linear, out.frames.ambient);
 }
 
 }  // namespace mfcd::vision

@@ -10,6 +10,7 @@
 
 #include <opencv2/core.hpp>
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <span>
@@ -76,6 +77,11 @@ struct RenderOptions {
   // A render fills only the texels of each map that its window can read (the same values as
   // a whole fill; shadow_footprint.hpp). True fills every texel: the reference for tests.
   bool fill_whole_shadow_maps = false;
+  // Each pixel is lit once, from the nearest surface drawn there (deferred shading): the lit cost
+  // is per pixel, not per fragment of every triangle covering it, which llvmpipe pays dearly for
+  // the thin triangles of tessellated curves. True lights every fragment drawn (forward): the
+  // reference for tests, the same values.
+  bool shade_every_fragment = false;
   Illumination light;
   SensorNoise noise;
 };
@@ -109,7 +115,12 @@ class MfcRenderer {
   RenderOptions& options() { return options_; }
 
   // Renders all parts at once. Output images are reallocated only when the size changes.
-  void render(std::span<const ScenePart> parts, MfcRender& out, uint64_t noise_seed = 1);
+  // Only the pixels inside `region` (image coordinates; empty = the whole image) are drawn, lit
+  // and read back; every other pixel reads as if nothing were there (no part, depth 0, no light
+  // before the sensor's noise), and each pixel inside has exactly the values a whole render
+  // gives it. For a caller that knows all it needs lies inside: it costs about the region's
+  // share of the image.
+  void render(std::span<const ScenePart> parts, MfcRender& out, uint64_t noise_seed = 1, cv::Rect region = {});
   // Depth and visibility only (no shading, no shadow maps): faster.
   void render_depth(std::span<const ScenePart> parts, cv::Mat1f& depth_mm, cv::Mat1b& part_index);
 
@@ -121,9 +132,19 @@ class MfcRenderer {
   void ensure_targets();
   // Camera-frame depth range (mm) of the parts' bounding boxes, within the camera pass's.
   std::pair<double, double> depth_range(std::span<const ScenePart> parts) const;
-  void draw_shadow_maps(std::span<const ScenePart> parts, std::span<cv::Matx44d, 8> unit_from_camera);
+  // The shadow maps' texels that pixels of `region` read are filled (all with fill_whole_shadow_maps).
+  void draw_shadow_maps(std::span<const ScenePart> parts, const cv::Rect& region,
+                        std::span<cv::Matx44d, 8> unit_from_camera);
   void set_lights(unsigned program, std::span<const cv::Matx44d, 8> unit_from_camera);
-  void draw_scene(std::span<const ScenePart> parts, bool shading);
+  // The drawn region's pixels into `out` (sized to the image, zero elsewhere), in linear DN.
+  void read_back(const cv::Rect& region, MfcRender& out);
+  enum class Shading { none, forward, deferred };  // render_shaders.hpp
+  // Clears and draws `region` only (a non-empty rectangle of the image).
+  void draw_scene(std::span<const ScenePart> parts, Shading shading, const cv::Rect& region);
+  // Draws the parts with `prog`, lit with these shadow maps when given (the forward program).
+  void draw_parts(std::span<const ScenePart> parts, unsigned prog, const std::array<cv::Matx44d, 8>* unit_from_camera);
+  // The deferred second pass: lights every pixel of the scissor box from the drawn surfaces.
+  void shade_surfaces(const std::array<cv::Matx44d, 8>& unit_from_camera);
   // Near and far planes of the camera pass: they only bound what is drawn, as depth is
   // written as camera-frame z in float.
   double camera_near_mm() const { return 1.0; }

@@ -3,28 +3,29 @@
 // rendering only it costs a fraction of the whole image.
 
 #include "vision/camera/camera.hpp"
+#include "vision/model/mesh.hpp"
 
-#include <algorithm>
-#include <cmath>
+#include <opencv2/core.hpp>
 
 namespace mfcd::vision {
 
+// The widest shadow (px) any of the camera's flashes casts from an edge at depth `near_mm` onto
+// a surface at `far_mm`: baseline * f * (far - near) / (near * far) for the farthest LED.
+double widest_shadow_px(const CameraConfig& config, double near_mm, double far_mm);
+
 // Half the side of a square window that holds an object of image radius `object_px`, the widest
-// shadow any of the camera's flashes casts from depth `near_mm` onto a surface at `far_mm`
-// (baseline * f * (far - near) / (near * far) for the farthest LED) and an 8 px margin.
-inline int window_half_px(const CameraConfig& config, double object_px, double near_mm, double far_mm) {
-  const PinholeCamera& cam = config.camera;
-  const double f = std::max(cam.fx(), cam.fy());
-  double baseline = 0;
-  for (const auto& p : config.flashes.positions_mm) baseline = std::max(baseline, std::hypot(p[0], p[1]));
-  const double shadow = baseline * f * (far_mm - near_mm) / (near_mm * far_mm);
-  return static_cast<int>(std::ceil(object_px + shadow + 8));
-}
+// shadow it casts from depth `near_mm` onto a surface at `far_mm` and an 8 px margin.
+int window_half_px(const CameraConfig& config, double object_px, double near_mm, double far_mm);
 
 // The window of that half side around the principal point, clipped to the image.
-inline cv::Rect window_on_axis(const PinholeCamera& cam, int half) {
-  const cv::Point c(static_cast<int>(std::lround(cam.cx())), static_cast<int>(std::lround(cam.cy())));
-  return cv::Rect(c.x - half, c.y - half, 2 * half + 1, 2 * half + 1) & cv::Rect(cv::Point(0, 0), cam.image_size);
-}
+cv::Rect window_on_axis(const PinholeCamera& cam, int half);
+
+// The pixels of `camera`'s image that a render of `mesh` at p_camera = R * p_mesh + t, in front
+// of a surface at depth `far_mm`, can show the part or its shadows in: the box of its projected
+// vertices (the image of a triangle lies within its vertices') grown by the widest shadow cast
+// from its nearest vertex onto that surface and the 8 px margin window_half_px keeps, clipped to
+// the image. Depth edges need a 3x3 neighbourhood around them, which the margin holds.
+cv::Rect part_region(const CameraConfig& config, const PinholeCamera& camera, const Mesh& mesh, const cv::Matx33d& R,
+                     const cv::Vec3d& t, double far_mm);
 
 }  // namespace mfcd::vision

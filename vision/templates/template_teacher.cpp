@@ -211,6 +211,9 @@ TemplateDatabase teach_templates(const Mesh& mesh, const CameraConfig& camera, c
       const int part_id = renderer.add_mesh(mesh);
       const int plane_id = renderer.add_mesh(plane);
       DepthEdgeExtractor extractor(geo.cropped, camera.flashes, params.edges);
+      auto region_of = [&](const cv::Matx33d& R, const cv::Vec3d& t) {
+        return params.render_whole_window ? cv::Rect() : part_region(camera, geo.cropped, mesh, R, t, geo.plane_z_mm);
+      };
       MfcRender render, turned_render;
       DepthEdges edges, turned_edges;
       cv::Mat1b turned_back;
@@ -225,7 +228,7 @@ TemplateDatabase teach_templates(const Mesh& mesh, const CameraConfig& camera, c
         const ScenePart parts[2] = {
             {part_id, view.R_m2c, view.t_m2c_mm, Material::matte(0.7f)},
             {plane_id, cv::Matx33d::eye(), cv::Vec3d(0, 0, geo.plane_z_mm), Material::matte(0.6f), false}};
-        renderer.render(parts, render, 1);
+        renderer.render(parts, render, 1, region_of(view.R_m2c, view.t_m2c_mm));
         extractor.extract(render.frames, edges);
         // Edges with no part pixel next to them are features of the shadows on the template's
         // background plane (where two flashes' shadows meet), not of the part: a bin floor at
@@ -242,7 +245,7 @@ TemplateDatabase teach_templates(const Mesh& mesh, const CameraConfig& camera, c
             const cv::Matx33d R = rotation_about_z(theta) * view.R_m2c;
             const cv::Vec3d t = cv::Vec3d(0, 0, db.distance_mm) - R * db.center_mm;
             const ScenePart turned[2] = {{part_id, R, t, parts[0].material}, parts[1]};
-            renderer.render(turned, turned_render, 1);
+            renderer.render(turned, turned_render, 1, region_of(R, t));
             extractor.extract(turned_render.frames, turned_edges);
             drop_background_edges(turned_edges, turned_render);
             // Back into the view's image: the part centre images at the window's principal

@@ -37,6 +37,10 @@ struct TeachParams {
   int lighting_turns = 4;
   int lighting_min_turns = 4;
   int lighting_tolerance_px = 1;
+  // Each render draws only the box that can hold the part and its shadows (part_region) and
+  // leaves the rest of the window empty, which gives every edge the whole window's render gives
+  // (tested). True renders the whole window: the reference for tests.
+  bool render_whole_window = false;
   int threads = 0;      // rendering threads, each with its own GL context; 0 = cores
   LineFitParams lines;  // `oriented` is always set: templates carry edge polarity
   DepthEdgeParams edges;

@@ -47,6 +47,30 @@ BENCHMARK(BM_RenderMfcWindow)
     ->Args({256, 1})
     ->Unit(benchmark::kMillisecond);
 
+// A 401x401 window as the teacher renders it (the part first, a background plane that casts no
+// shadow), drawn whole or only in a centred region (MfcRenderer::render's `region`: the box
+// that can hold the part and its shadows), lit per pixel (deferred, 0) or per fragment
+// (forward, 1).
+void BM_RenderMfcRegion(benchmark::State& state) {
+  RenderOptions opt;
+  opt.noise.enabled = false;
+  opt.shade_every_fragment = state.range(1) != 0;
+  const CameraConfig cfg = load_camera_config(MFC_SOURCE_DIR "/config/camera-sim.yaml");
+  MfcRenderer r(cfg, opt);
+  std::vector<ScenePart> parts = scene(r);
+  parts[0].casts_shadows = false;
+  std::swap(parts[0], parts[1]);
+  constexpr int kWindow = 401;
+  r.set_camera(cfg.camera.cropped({320 - kWindow / 2, 240 - kWindow / 2, kWindow, kWindow}));
+  const int side = static_cast<int>(state.range(0));
+  const cv::Rect region((kWindow - side) / 2, (kWindow - side) / 2, side, side);
+  MfcRender out;
+  for (auto _ : state) r.render(parts, out, 1, region);
+  state.SetLabel(std::to_string(side) + "x" + std::to_string(side) + " region of a 401x401 window, " +
+                 (opt.shade_every_fragment ? "forward" : "deferred"));
+}
+BENCHMARK(BM_RenderMfcRegion)->ArgsProduct({{401, 283, 200}, {0, 1}})->Unit(benchmark::kMillisecond);
+
 void BM_RenderDepthOnly(benchmark::State& state) {
   MfcRenderer r(load_camera_config(MFC_SOURCE_DIR "/config/camera-sim.yaml"));
   const auto parts = scene(r);

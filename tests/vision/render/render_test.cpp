@@ -346,6 +346,68 @@ TEST(ShadowFootprint, HoldsEveryLookupOfTheWindowAndIsSmallerThanTheMap) {
   EXPECT_EQ(shadow_footprint(empty, cam), cv::Rect(0, 0, S, S));
 }
 
+// Parts of every material (matte, shiny, painted) overlapping in front of a plane, with thin
+// triangles (a finely tessellated cylinder) and back faces behind front ones.
+std::vector<ScenePart> mixed_scene(MfcRenderer& r) {
+  Material painted = Material::matte(0.8f);
+  painted.paint = Material::Paint::checker;
+  return {{r.add_mesh(make_box(40, 30, 30)), rotation(0.4, -0.3, 0.5), {-10, 5, 310}, painted},
+          {r.add_mesh(make_cylinder(6, 60, 96)), rotation(0.2, 0.1, 0), {5, -10, 290}, Material::shiny()},
+          {r.add_mesh(make_uv_sphere(12)), cv::Matx33d::eye(), {30, 20, 300}, Material::matte(0.5f)},
+          {r.add_mesh(make_plane(800)), cv::Matx33d::eye(), {0, 0, 330}, Material::matte(0.6f), false}};
+}
+
+// Deferred shading lights each pixel once from the nearest surface: the values forward
+// shading gives every fragment, the nearest kept.
+TEST(MfcRenderer, DeferredShadingEqualsForward) {
+  RenderOptions deferred_opt, forward_opt;
+  deferred_opt.noise.enabled = forward_opt.noise.enabled = false;
+  forward_opt.shade_every_fragment = true;
+  MfcRenderer deferred(sim_config(), deferred_opt), forward(sim_config(), forward_opt);
+  const auto a = mixed_scene(deferred), b = mixed_scene(forward);
+  MfcRender out_a, out_b;
+  deferred.render(a, out_a);
+  forward.render(b, out_b);
+  EXPECT_EQ(cv::norm(out_a.part_index, out_b.part_index, cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(out_a.depth_mm, out_b.depth_mm, cv::NORM_INF), 0.0);
+  EXPECT_LE(cv::norm(out_a.ambient_linear, out_b.ambient_linear, cv::NORM_INF), 1e-4);
+  double flash_sum = 0;
+  for (size_t i = 0; i < 8; ++i) {
+    EXPECT_LE(cv::norm(out_a.flash_linear[i], out_b.flash_linear[i], cv::NORM_INF), 1e-4) << "LED " << i;
+    EXPECT_EQ(cv::norm(out_a.frames.flash[i], out_b.frames.flash[i], cv::NORM_INF), 0.0) << "LED " << i;
+    flash_sum += cv::sum(out_b.flash_linear[i])[0];
+  }
+  EXPECT_GT(flash_sum, 0.0);
+  for (int k = 1; k <= 4; ++k) EXPECT_GT(cv::countNonZero(out_b.part_index == k), 100) << "part " << k;
+}
+
+// A render of a region: inside, exactly the whole render's values; outside, nothing there.
+TEST(MfcRenderer, RegionRenderEqualsTheWholeInsideAndIsEmptyOutside) {
+  RenderOptions opt;
+  opt.noise.enabled = false;
+  MfcRenderer r(sim_config(), opt);
+  const auto parts = mixed_scene(r);
+  MfcRender whole, part;
+  r.render(parts, whole);
+  const cv::Rect regions[] = {{250, 190, 120, 90}, {0, 0, 640, 480}, {600, 0, 40, 480}, {100, 300, 1, 1}};
+  for (const cv::Rect& region : regions) {
+    r.render(parts, part, 1, region);
+    cv::Mat1b outside(part.part_index.size(), uint8_t{255});
+    outside(region).setTo(0);
+    EXPECT_EQ(cv::norm(part.part_index(region), whole.part_index(region), cv::NORM_INF), 0.0) << region;
+    EXPECT_EQ(cv::norm(part.depth_mm(region), whole.depth_mm(region), cv::NORM_INF), 0.0) << region;
+    EXPECT_EQ(cv::norm(part.ambient_linear(region), whole.ambient_linear(region), cv::NORM_INF), 0.0) << region;
+    EXPECT_EQ(cv::countNonZero(part.part_index & outside), 0) << region;
+    EXPECT_EQ(cv::countNonZero((part.depth_mm != 0) & outside), 0) << region;
+    for (size_t i = 0; i < 8; ++i) {
+      EXPECT_EQ(cv::norm(part.flash_linear[i](region), whole.flash_linear[i](region), cv::NORM_INF), 0.0)
+          << region << " LED " << i;
+      EXPECT_EQ(cv::countNonZero((part.flash_linear[i] != 0) & outside), 0) << region << " LED " << i;
+    }
+  }
+  EXPECT_THROW(r.render(parts, part, 1, cv::Rect(600, 400, 41, 10)), std::invalid_argument);
+}
+
 TEST(MfcRenderer, SeveralPartsOccludeAndAreIndexed) {
   MfcRenderer r(sim_config());
   const int cube = r.add_mesh(make_box(30, 30, 30));

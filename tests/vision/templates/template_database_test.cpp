@@ -218,6 +218,34 @@ TEST(TemplateTeacher, LightingTurnsKeepTheOutlineAndDropOnlyEdgesSomeTurnsLack) 
   EXPECT_GT(turned_points, plain_points * 9 / 10);
 }
 
+// Each render draws only the box that can hold the part and its shadows: the same templates as
+// rendering the whole window, point for point.
+TEST(TemplateTeacher, RegionRendersTeachWhatWholeWindowRendersTeach) {
+  const TemplateDatabase& region = box_db();
+  ASSERT_FALSE(TeachParams{}.render_whole_window);
+  TeachParams p;
+  p.sphere_samples = 24;
+  p.threads = 2;
+  p.edge_offset_profiles = false;
+  p.render_whole_window = true;
+  const TemplateDatabase whole = teach_templates(make_box(40, 30, 20), sim_camera(), "box", 7, p);
+  ASSERT_EQ(region.views.size(), whole.views.size());
+  size_t points = 0;
+  for (size_t i = 0; i < whole.views.size(); ++i) {
+    const TemplateView& a = region.views[i];
+    const TemplateView& b = whole.views[i];
+    ASSERT_EQ(a.points.size(), b.points.size()) << "view " << i;
+    ASSERT_EQ(a.lines.lines.size(), b.lines.lines.size()) << "view " << i;
+    for (size_t k = 0; k < a.points.size(); ++k) {
+      EXPECT_EQ(a.points[k].pixel, b.points[k].pixel) << "view " << i;
+      EXPECT_EQ(a.points[k].model_mm, b.points[k].model_mm) << "view " << i;
+      EXPECT_EQ(a.points[k].direction, b.points[k].direction) << "view " << i;
+    }
+    points += a.points.size();
+  }
+  EXPECT_GT(points, 24u * 100);
+}
+
 TEST(TemplateTeacher, BadInputIsRefused) {
   TeachParams p;
   p.sphere_samples = 0;
