@@ -11,6 +11,7 @@
 #include <atomic>
 #include <cmath>
 #include <exception>
+#include <memory>
 #include <mutex>
 #include <numbers>
 #include <optional>
@@ -145,16 +146,8 @@ void trace_points(const DepthEdges& edges, const MfcRender& render, const Pinhol
     }
 }
 
-}  // namespace
-
-TemplateDatabase teach_templates(const Mesh& mesh, const CameraConfig& camera, const std::string& part_name, int obj_id,
-                                 const TeachParams& params, const TeachProgress& progress) {
-  validate_camera_config(camera, "teach camera");
-  // Templates always carry edge polarity (the view's shadow side is known exactly); a pipeline
-  // that searches without it drops it when it loads them (withoutPolarity).
-  LineFitParams line_params = params.lines;
-  line_params.oriented = true;
-  line_params.validate();
+// Throws std::invalid_argument naming the first bad input.
+void validate_teach_inputs(const Mesh& mesh, const TeachParams& params) {
   if (params.sphere_samples < 1 || params.sphere_samples > 100000)
     throw std::invalid_argument("sphere samples K = " + std::to_string(params.sphere_samples) +
                                 " out of range [1, 100000]");
@@ -166,6 +159,159 @@ TemplateDatabase teach_templates(const Mesh& mesh, const CameraConfig& camera, c
   if (params.lighting_tolerance_px < 0 || params.lighting_tolerance_px > 10)
     throw std::invalid_argument("teach: lighting tolerance " + std::to_string(params.lighting_tolerance_px) +
                                 " px out of range [0, 10]");
+}
+
+// What the views share: the part, where it stands, the window and its background plane.
+struct TeachSetup {
+  const Mesh& mesh;
+  const CameraConfig& camera;
+  const TeachParams& params;
+  LineFitParams lines;
+  ViewGeometry geo;
+  Mesh plane;
+  double distance_mm = 0;
+  cv::Vec3d center_mm;
+  double turn_period = 0;  // the LED ring's, rad
+};
+
+// One teaching worker's renderer, extractor and buffers (its own GL context): a view from a
+// direction, allocating only for what it returns once its buffers have their sizes.
+class ViewTeacher {
+ public:
+  explicit ViewTeacher(const TeachSetup& setup)
+      : s_(setup),
+        renderer_(setup.camera, template_render_options()),
+        extractor_(setup.geo.cropped, setup.camera.flashes, setup.params.edges) {
+    renderer_.set_camera(s_.geo.cropped);
+    part_id_ = renderer_.add_mesh(s_.mesh);
+    plane_id_ = renderer_.add_mesh(s_.plane);
+    const int k = 2 * s_.params.lighting_tolerance_px + 1;
+    tolerance_kernel_ = cv::getStructuringElement(cv::MORPH_RECT, cv::Size(k, k));
+  }
+
+  // The view from `direction`, or nothing when it shows too few edges to fit.
+  std::optional<TemplateView> teach(const cv::Vec3d& direction) {
+    TemplateView view;
+    view.view_direction = direction;
+    view.R_m2c = view_rotation(direction);
+    view.t_m2c_mm = placed(view.R_m2c);
+    render_edges(view.R_m2c, render_, edges_);
+    if (s_.params.lighting_turns > 1) keep_edges_every_turn_shows(view.R_m2c);
+    if (cv::countNonZero(edges_.edges) < s_.params.min_edge_pixels) return std::nullopt;
+    LineFitResult fit = fitLines(edges_.edges, s_.lines, &edges_.direction, &edges_.shadow);
+    if (fit.set.lines.empty()) return std::nullopt;
+    const cv::Point2f origin(static_cast<float>(s_.geo.cropped.cx()), static_cast<float>(s_.geo.cropped.cy()));
+    view.lines = std::move(fit.set);
+    view.lines.origin = origin;
+    trace_points(edges_, render_, s_.geo.cropped, view.R_m2c, view.t_m2c_mm, origin, view);
+    if (view.points.empty()) return std::nullopt;
+    view.box = cv::Rect2f(view.points.front().pixel, cv::Size2f(1.f, 1.f));
+    for (const auto& p : view.points) view.box |= cv::Rect2f(p.pixel, cv::Size2f(1.f, 1.f));
+    return view;
+  }
+
+ private:
+  static RenderOptions template_render_options() {
+    RenderOptions options;
+    options.noise.enabled = false;  // templates are the ideal appearance; the query carries the noise
+    return options;
+  }
+
+  // The part centre on the optical axis at the teaching distance.
+  cv::Vec3d placed(const cv::Matx33d& R) const { return cv::Vec3d(0, 0, s_.distance_mm) - R * s_.center_mm; }
+
+  // The depth edges of the part turned by R in front of the background plane.
+  void render_edges(const cv::Matx33d& R, MfcRender& render, DepthEdges& edges) {
+    const cv::Vec3d t = placed(R);
+    const ScenePart parts[2] = {
+        {part_id_, R, t, Material::matte(0.7f)},
+        {plane_id_, cv::Matx33d::eye(), cv::Vec3d(0, 0, s_.geo.plane_z_mm), Material::matte(0.6f), false}};
+    const cv::Rect region = s_.params.render_whole_window
+                                ? cv::Rect()
+                                : part_region(s_.camera, s_.geo.cropped, s_.mesh, R, t, s_.geo.plane_z_mm);
+    renderer_.render(parts, render, 1, region);
+    extractor_.extract(render.frames, edges);
+    // Edges with no part pixel next to them are features of the shadows on the template's
+    // background plane (where two flashes' shadows meet), not of the part: a bin floor at
+    // another distance would not show them, so they are removed before line fitting.
+    drop_background_edges(edges, render);
+  }
+
+  // The same view turned about the optical axis under the fixed LED ring: an edge that the
+  // turns do not all show depends on where the LEDs stand around the part, and the query's part
+  // stands at any turn.
+  void keep_edges_every_turn_shows(const cv::Matx33d& R_view) {
+    const TeachParams& params = s_.params;
+    support_.create(edges_.edges.size());
+    support_.setTo(1);  // the view itself
+    for (int k = 1; k < params.lighting_turns; ++k) {
+      const double theta = s_.turn_period * k / params.lighting_turns;
+      render_edges(rotation_about_z(theta) * R_view, turned_render_, turned_edges_);
+      // Back into the view's image: the part centre images at the window's principal point,
+      // about which the turn turned the image by theta.
+      const cv::Mat back = cv::getRotationMatrix2D(
+          cv::Point2f(static_cast<float>(s_.geo.cropped.cx()), static_cast<float>(s_.geo.cropped.cy())),
+          theta * 180.0 / std::numbers::pi, 1.0);
+      cv::warpAffine(turned_edges_.edges, turned_back_, back, turned_edges_.edges.size(), cv::INTER_LINEAR);
+      cv::dilate(turned_back_, turned_back_, tolerance_kernel_);
+      cv::add(support_, 1, support_, turned_back_);
+    }
+    edges_.edges.setTo(0, support_ < params.lighting_min_turns);
+  }
+
+  const TeachSetup& s_;
+  MfcRenderer renderer_;
+  DepthEdgeExtractor extractor_;
+  int part_id_ = -1, plane_id_ = -1;
+  cv::Mat tolerance_kernel_;
+  MfcRender render_, turned_render_;
+  DepthEdges edges_, turned_edges_;
+  cv::Mat1b turned_back_, support_;
+};
+
+// Runs `work(i)` for i in [0, total) on `threads` threads, each with its own `State` made by
+// `make_state()` on that thread; reports progress after each; the first exception stops the
+// rest and is rethrown.
+template <typename MakeState, typename Work>
+void for_each_view(int total, int threads, const TeachProgress& progress, MakeState make_state, Work work) {
+  std::atomic<int> next{0};
+  int done = 0;
+  std::mutex mutex;
+  std::exception_ptr error;
+  auto worker = [&]() {
+    try {
+      auto state = make_state();
+      for (int i = next++; i < total; i = next++) {
+        work(*state, i);
+        std::lock_guard<std::mutex> lock(mutex);
+        ++done;
+        if (progress) progress(done, total);
+      }
+    } catch (...) {
+      std::lock_guard<std::mutex> lock(mutex);
+      if (!error) error = std::current_exception();
+      next = total;
+    }
+  };
+  threads = std::clamp(threads, 1, std::max(1, total));
+  std::vector<std::thread> pool;
+  for (int k = 1; k < threads; ++k) pool.emplace_back(worker);
+  worker();
+  for (auto& th : pool) th.join();
+  if (error) std::rethrow_exception(error);
+}
+
+}  // namespace
+
+TemplateDatabase teach_templates(const Mesh& mesh, const CameraConfig& camera, const std::string& part_name, int obj_id,
+                                 const TeachParams& params, const TeachProgress& progress) {
+  validate_camera_config(camera, "teach camera");
+  // Templates always carry edge polarity (the view's shadow side is known exactly); a pipeline
+  // that searches without it drops it when it loads them (withoutPolarity).
+  LineFitParams line_params = params.lines;
+  line_params.oriented = true;
+  line_params.validate();
+  validate_teach_inputs(mesh, params);
 
   TemplateDatabase db;
   db.part_name = part_name;
@@ -190,110 +336,21 @@ TemplateDatabase teach_templates(const Mesh& mesh, const CameraConfig& camera, c
 
   const std::vector<cv::Vec3d> directions = template_view_directions(params.sphere_samples, db.views_symmetry);
   const ViewGeometry geo = view_geometry(camera, db.distance_mm, radius, params.background_gap_mm);
-  const cv::Point2f origin(static_cast<float>(geo.cropped.cx()), static_cast<float>(geo.cropped.cy()));
-  const Mesh plane = make_plane(geo.plane_size_mm);
-  const double turn_period = lighting_period(camera.flashes);
-
+  const TeachSetup setup{.mesh = mesh,
+                         .camera = camera,
+                         .params = params,
+                         .lines = line_params,
+                         .geo = geo,
+                         .plane = make_plane(geo.plane_size_mm),
+                         .distance_mm = db.distance_mm,
+                         .center_mm = db.center_mm,
+                         .turn_period = lighting_period(camera.flashes)};
   const int total = static_cast<int>(directions.size());
   std::vector<std::optional<TemplateView>> views(total);
-  std::atomic<int> next{0};
-  int done = 0;
-  std::mutex progress_mutex;
-  std::exception_ptr error;
-  std::mutex error_mutex;
-
-  auto worker = [&]() {
-    try {
-      RenderOptions options;
-      options.noise.enabled = false;  // templates are the ideal appearance; the query carries the noise
-      MfcRenderer renderer(camera, options);
-      renderer.set_camera(geo.cropped);
-      const int part_id = renderer.add_mesh(mesh);
-      const int plane_id = renderer.add_mesh(plane);
-      DepthEdgeExtractor extractor(geo.cropped, camera.flashes, params.edges);
-      auto region_of = [&](const cv::Matx33d& R, const cv::Vec3d& t) {
-        return params.render_whole_window ? cv::Rect() : part_region(camera, geo.cropped, mesh, R, t, geo.plane_z_mm);
-      };
-      MfcRender render, turned_render;
-      DepthEdges edges, turned_edges;
-      cv::Mat1b turned_back;
-      cv::Mat1b support;
-      const cv::Mat tolerance_kernel = cv::getStructuringElement(
-          cv::MORPH_RECT, cv::Size(2 * params.lighting_tolerance_px + 1, 2 * params.lighting_tolerance_px + 1));
-      for (int i = next++; i < total; i = next++) {
-        TemplateView view;
-        view.view_direction = directions[i];
-        view.R_m2c = view_rotation(directions[i]);
-        view.t_m2c_mm = cv::Vec3d(0, 0, db.distance_mm) - view.R_m2c * db.center_mm;
-        const ScenePart parts[2] = {
-            {part_id, view.R_m2c, view.t_m2c_mm, Material::matte(0.7f)},
-            {plane_id, cv::Matx33d::eye(), cv::Vec3d(0, 0, geo.plane_z_mm), Material::matte(0.6f), false}};
-        renderer.render(parts, render, 1, region_of(view.R_m2c, view.t_m2c_mm));
-        extractor.extract(render.frames, edges);
-        // Edges with no part pixel next to them are features of the shadows on the template's
-        // background plane (where two flashes' shadows meet), not of the part: a bin floor at
-        // another distance would not show them, so they are removed before line fitting.
-        drop_background_edges(edges, render);
-        if (params.lighting_turns > 1) {
-          // The same view turned about the optical axis under the fixed LED ring: an edge that
-          // the turns do not all show depends on where the LEDs stand around the part, and the
-          // query's part stands at any turn.
-          support.create(edges.edges.size());
-          support.setTo(1);  // the view itself
-          for (int k = 1; k < params.lighting_turns; ++k) {
-            const double theta = turn_period * k / params.lighting_turns;
-            const cv::Matx33d R = rotation_about_z(theta) * view.R_m2c;
-            const cv::Vec3d t = cv::Vec3d(0, 0, db.distance_mm) - R * db.center_mm;
-            const ScenePart turned[2] = {{part_id, R, t, parts[0].material}, parts[1]};
-            renderer.render(turned, turned_render, 1, region_of(R, t));
-            extractor.extract(turned_render.frames, turned_edges);
-            drop_background_edges(turned_edges, turned_render);
-            // Back into the view's image: the part centre images at the window's principal
-            // point, about which the turn turned the image by theta.
-            const cv::Mat back = cv::getRotationMatrix2D(
-                cv::Point2f(static_cast<float>(geo.cropped.cx()), static_cast<float>(geo.cropped.cy())),
-                theta * 180.0 / std::numbers::pi, 1.0);
-            cv::warpAffine(turned_edges.edges, turned_back, back, turned_edges.edges.size(), cv::INTER_LINEAR);
-            cv::dilate(turned_back, turned_back, tolerance_kernel);
-            cv::add(support, 1, support, turned_back);
-          }
-          edges.edges.setTo(0, support < params.lighting_min_turns);
-        }
-        if (cv::countNonZero(edges.edges) >= params.min_edge_pixels) {
-          LineFitResult fit = fitLines(edges.edges, line_params, &edges.direction, &edges.shadow);
-          if (!fit.set.lines.empty()) {
-            view.lines = std::move(fit.set);
-            view.lines.origin = origin;
-            trace_points(edges, render, geo.cropped, view.R_m2c, view.t_m2c_mm, origin, view);
-            cv::Rect2f box;
-            bool first = true;
-            for (const auto& p : view.points) {
-              const cv::Rect2f r(p.pixel.x, p.pixel.y, 1.f, 1.f);
-              box = first ? r : (box | r);
-              first = false;
-            }
-            view.box = box;
-            if (!view.points.empty()) views[i] = std::move(view);
-          }
-        }
-        std::lock_guard<std::mutex> lock(progress_mutex);
-        ++done;
-        if (progress) progress(done, total);
-      }
-    } catch (...) {
-      std::lock_guard<std::mutex> lock(error_mutex);
-      if (!error) error = std::current_exception();
-      next = total;
-    }
-  };
-
-  int threads = params.threads > 0 ? params.threads : static_cast<int>(std::thread::hardware_concurrency());
-  threads = std::clamp(threads, 1, std::max(1, total));
-  std::vector<std::thread> pool;
-  for (int k = 1; k < threads; ++k) pool.emplace_back(worker);
-  worker();
-  for (auto& th : pool) th.join();
-  if (error) std::rethrow_exception(error);
+  const int threads = params.threads > 0 ? params.threads : static_cast<int>(std::thread::hardware_concurrency());
+  for_each_view(
+      total, threads, progress, [&] { return std::make_unique<ViewTeacher>(setup); },
+      [&](ViewTeacher& teacher, int i) { views[i] = teacher.teach(directions[i]); });
 
   for (auto& v : views)
     if (v) {
