@@ -468,7 +468,7 @@ void MfcRenderer::render(std::span<const ScenePart> parts, MfcRender& out, uint6
                                 " at (" + std::to_string(region.x) + ", " + std::to_string(region.y) +
                                 ") reaches outside the image");
   gl_->make_current();
-  draw_scene(parts, options_.shade_every_fragment ? Shading::forward : Shading::deferred, region);
+  draw_scene(parts, options_.deferred_shading ? Shading::deferred : Shading::forward, region);
   read_back(region, out);
   capture_frames(options_.noise, noise_seed, out, noise_);
 }

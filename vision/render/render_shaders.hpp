@@ -2,11 +2,11 @@
 // GLSL sources of the MFC renderer's programs (OpenGL 3.3 core). Each stage's source is a list
 // of the pieces below, kVersion first.
 //
-// deferred, the default: `surface` draws the parts and keeps each pixel's nearest surface
-//         (position, normal, albedo, material) in three RGBA32F attachments; `shade` then lights
-//         every pixel once from them. The lit cost is per pixel, however many triangles (and
-//         thin slivers of tessellated curves) cover it.
-// scene:  forward, the reference: every drawn fragment lit, the nearest kept.
+// deferred (RenderOptions::deferred_shading): `surface` draws the parts and keeps each pixel's
+//         nearest surface (position, normal, albedo, material) in three RGBA32F attachments;
+//         `shade` then lights every pixel once from them. The lit cost is per pixel, however many
+//         triangles (and thin slivers of tessellated curves) cover it.
+// scene:  forward, the default: every drawn fragment lit, the nearest kept.
 // Both write the 8 flash images, the ambient image, camera-frame depth (mm) and the part index
 //         into three RGBA32F attachments (flash 0-3, flash 4-7, ambient/depth/id).
 // depth:  the scene program's vertex stage with only the third attachment written (ambient 0):

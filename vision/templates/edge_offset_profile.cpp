@@ -51,6 +51,7 @@ EdgeOffsetProfile measure_edge_offset_profile(const CameraConfig& camera, double
 
   RenderOptions options;
   options.noise.enabled = conditions.noise;
+  options.deferred_shading = true;  // as the views are rendered
   MfcRenderer renderer(camera, options);
   renderer.set_camera(view);
   const int plate = renderer.add_mesh(make_box(kSide, kSide, kHeight));

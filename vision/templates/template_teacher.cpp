@@ -214,6 +214,7 @@ class ViewTeacher {
   static RenderOptions template_render_options() {
     RenderOptions options;
     options.noise.enabled = false;  // templates are the ideal appearance; the query carries the noise
+    options.deferred_shading = true;
     return options;
   }
 

@@ -54,7 +54,7 @@ BENCHMARK(BM_RenderMfcWindow)
 void BM_RenderMfcRegion(benchmark::State& state) {
   RenderOptions opt;
   opt.noise.enabled = false;
-  opt.shade_every_fragment = state.range(1) != 0;
+  opt.deferred_shading = state.range(1) == 0;
   const CameraConfig cfg = load_camera_config(MFC_SOURCE_DIR "/config/camera-sim.yaml");
   MfcRenderer r(cfg, opt);
   std::vector<ScenePart> parts = scene(r);
@@ -67,7 +67,7 @@ void BM_RenderMfcRegion(benchmark::State& state) {
   MfcRender out;
   for (auto _ : state) r.render(parts, out, 1, region);
   state.SetLabel(std::to_string(side) + "x" + std::to_string(side) + " region of a 401x401 window, " +
-                 (opt.shade_every_fragment ? "forward" : "deferred"));
+                 (opt.deferred_shading ? "deferred" : "forward"));
 }
 BENCHMARK(BM_RenderMfcRegion)->ArgsProduct({{401, 283, 200}, {0, 1}})->Unit(benchmark::kMillisecond);
 

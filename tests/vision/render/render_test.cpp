@@ -362,7 +362,7 @@ std::vector<ScenePart> mixed_scene(MfcRenderer& r) {
 TEST(MfcRenderer, DeferredShadingEqualsForward) {
   RenderOptions deferred_opt, forward_opt;
   deferred_opt.noise.enabled = forward_opt.noise.enabled = false;
-  forward_opt.shade_every_fragment = true;
+  deferred_opt.deferred_shading = true;
   MfcRenderer deferred(sim_config(), deferred_opt), forward(sim_config(), forward_opt);
   const auto a = mixed_scene(deferred), b = mixed_scene(forward);
   MfcRender out_a, out_b;
@@ -382,9 +382,10 @@ TEST(MfcRenderer, DeferredShadingEqualsForward) {
 }
 
 // A render of a region: inside, exactly the whole render's values; outside, nothing there.
-TEST(MfcRenderer, RegionRenderEqualsTheWholeInsideAndIsEmptyOutside) {
+static void region_render_equals_the_whole(bool deferred) {
   RenderOptions opt;
   opt.noise.enabled = false;
+  opt.deferred_shading = deferred;
   MfcRenderer r(sim_config(), opt);
   const auto parts = mixed_scene(r);
   MfcRender whole, part;
@@ -406,6 +407,13 @@ TEST(MfcRenderer, RegionRenderEqualsTheWholeInsideAndIsEmptyOutside) {
     }
   }
   EXPECT_THROW(r.render(parts, part, 1, cv::Rect(600, 400, 41, 10)), std::invalid_argument);
+}
+
+TEST(MfcRenderer, RegionRenderEqualsTheWholeInsideAndIsEmptyOutside) {
+  for (const bool deferred : {false, true}) {
+    SCOPED_TRACE(deferred ? "deferred" : "forward");
+    region_render_equals_the_whole(deferred);
+  }
 }
 
 TEST(MfcRenderer, SeveralPartsOccludeAndAreIndexed) {
