@@ -72,10 +72,34 @@ struct MfcRenderer::Gl {
   GLuint shadow_tex = 0, shadow_fbo = 0;
   GLuint fbo = 0, depth_rb = 0;
   std::array<GLuint, 3> color_tex{};
-  GLuint surface_fbo = 0;               // the deferred pass's surfaces, sharing depth_rb
+  // The deferred pass's surfaces, sharing depth_rb; made by the first deferred render of a size.
+  GLuint surface_fbo = 0;
   std::array<GLuint, 3> surface_tex{};  // position/id, normal/albedo, material
   GLuint empty_vao = 0;                 // the full-screen triangle has no vertex data
   cv::Size fbo_size{0, 0};
+
+  // Three RGBA32F attachments of `size`, read texel by texel, and the shared depth buffer.
+  void make_target(GLuint& target, std::array<GLuint, 3>& tex, cv::Size size) const {
+    glGenFramebuffers(1, &target);
+    glBindFramebuffer(GL_FRAMEBUFFER, target);
+    glGenTextures(3, tex.data());
+    for (int i = 0; i < 3; ++i) {
+      glBindTexture(GL_TEXTURE_2D, tex[static_cast<size_t>(i)]);
+      glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA32F, size.width, size.height, 0, GL_RGBA, GL_FLOAT, nullptr);
+      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+      glFramebufferTexture2D(GL_FRAMEBUFFER, static_cast<GLenum>(GL_COLOR_ATTACHMENT0 + i), GL_TEXTURE_2D,
+                             tex[static_cast<size_t>(i)], 0);
+    }
+    glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depth_rb);
+    if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+      gl_fail("float render target incomplete (" + std::to_string(size.width) + "x" + std::to_string(size.height) +
+              ")");
+  }
+
+  void ensure_surfaces() {
+    if (!surface_fbo) make_target(surface_fbo, surface_tex, fbo_size);
+  }
   struct GpuMesh {
     GLuint vao = 0, vbo = 0;
     GLsizei vertex_count = 0;
@@ -215,26 +239,9 @@ void MfcRenderer::ensure_targets() {
   glGenRenderbuffers(1, &g.depth_rb);
   glBindRenderbuffer(GL_RENDERBUFFER, g.depth_rb);
   glRenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT32F, size.width, size.height);
-  // Three RGBA32F attachments read texel by texel, and the shared depth buffer.
-  auto make_target = [&](GLuint& fbo, std::array<GLuint, 3>& tex) {
-    glGenFramebuffers(1, &fbo);
-    glBindFramebuffer(GL_FRAMEBUFFER, fbo);
-    glGenTextures(3, tex.data());
-    for (int i = 0; i < 3; ++i) {
-      glBindTexture(GL_TEXTURE_2D, tex[static_cast<size_t>(i)]);
-      glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA32F, size.width, size.height, 0, GL_RGBA, GL_FLOAT, nullptr);
-      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
-      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
-      glFramebufferTexture2D(GL_FRAMEBUFFER, static_cast<GLenum>(GL_COLOR_ATTACHMENT0 + i), GL_TEXTURE_2D,
-                             tex[static_cast<size_t>(i)], 0);
-    }
-    glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, g.depth_rb);
-    if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
-      gl_fail("float render target incomplete (" + std::to_string(size.width) + "x" + std::to_string(size.height) +
-              ")");
-  };
-  make_target(g.fbo, g.color_tex);
-  make_target(g.surface_fbo, g.surface_tex);
+  g.make_target(g.fbo, g.color_tex, size);
+  g.surface_fbo = 0;  // the surfaces follow at the first deferred render
+  g.surface_tex = {};
   g.fbo_size = size;
 }
 
@@ -353,6 +360,7 @@ void MfcRenderer::draw_scene(std::span<const ScenePart> parts, Shading shading, 
   glEnable(GL_DEPTH_TEST);
   glDepthFunc(GL_LESS);
   if (shading != Shading::none) draw_shadow_maps(parts, region, unit_from_camera);
+  if (shading == Shading::deferred) g.ensure_surfaces();
 
   glBindFramebuffer(GL_FRAMEBUFFER, shading == Shading::deferred ? g.surface_fbo : g.fbo);
   // Without shading only the ambient/depth/index attachment is drawn (and cleared).
