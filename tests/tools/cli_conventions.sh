@@ -87,7 +87,7 @@ if [[ -n "${bin[mfc-eval]:-}" ]]; then
   expect 2 stderr "--timing-repeats must be in 1..10" -- "$b" detect --dataset "$T" --templates "$T" --out o.json \
     --timing-repeats=0
   expect 2 stderr "unknown option '--frobnicate'" -- "$b" refine --frobnicate
-  expect 2 stderr "unknown command 'frob' (detect, refine)" -- "$b" frob
+  expect 2 stderr "unknown command 'frob' (detect, refine, edges)" -- "$b" frob
 fi
 if [[ -n "${bin[mfc-sim]:-}" ]]; then
   b="${bin[mfc-sim]}"

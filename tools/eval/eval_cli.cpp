@@ -220,6 +220,42 @@ void check_detect(DetectEvalOptions& o) {
     throw UsageError("--max-position and --max-rotation must be positive");
 }
 
+void add_edge_options(CLI::App& cmd, EdgeEvalOptions& o) {
+  cmd.add_option("--dataset", o.dataset, "BOP-layout dataset with flash/, ambient/ and depth/ images")
+      ->type_name("DIR");
+  cmd.add_option("--split", o.split, "split folder (default test)")->type_name("NAME");
+  cmd.add_option("--out", o.out, "JSON to write")->type_name("FILE");
+  cmd.add_option("--overlay", o.overlay,
+                 "a PNG per image: truth jumps grey, creases blue, detected pixels on them green, others red")
+      ->type_name("DIR");
+  add_int(cmd, "--max-images", o.max_images, "images evaluated, in scene order (default 0: all)");
+  add_double(cmd, "--min-jump", o.min_jump_mm, "mm a depth jump needs (default 4)");
+  add_double(cmd, "--crease", o.crease_deg, "degrees a crease's normal turns (default 30)");
+  add_double(cmd, "--tolerance", o.tolerance_px, "px between a detected and a truth pixel (default 1)");
+  mfcd::tools::add_converted_list(
+      cmd, "--set", o.pipeline_settings,
+      [](const std::string&, const std::string& v) {
+        try {
+          vision::PipelineConfig probe;
+          apply_eval_setting(probe, v);
+        } catch (const std::invalid_argument& e) {
+          throw UsageError(std::string("--set: ") + e.what());
+        }
+        return v;
+      },
+      "a pipeline parameter (repeatable); the edges_* keys are the ones the extractor reads")
+      ->type_name("KEY=VALUE");
+  cmd.add_flag("--quiet", o.quiet, "no per-image lines");
+}
+
+void check_edges(const EdgeEvalOptions& o) {
+  if (o.dataset.empty()) throw UsageError("--dataset is required");
+  if (o.out.empty()) throw UsageError("--out is required");
+  if (o.max_images < 0) throw UsageError("--max-images must be >= 0");
+  if (!(o.min_jump_mm > 0) || !(o.crease_deg > 0) || !(o.tolerance_px >= 0))
+    throw UsageError("--min-jump and --crease must be positive, --tolerance >= 0");
+}
+
 void check_refine(const RefineEvalOptions& o) {
   if (o.templates.empty()) throw UsageError("--templates is required");
   if (o.out.empty()) throw UsageError("--out is required");
@@ -256,6 +292,11 @@ std::optional<int> parse_eval_command_line(int argc, char** argv, const std::fil
       "at the part). Needs the multi-view refiner (vision/pose/pose_refiner.hpp) in the build, --templates\n"
       "and --out.");
   add_refine_options(*refine, command.refine);
+  CLI::App* edges = app.add_subcommand(
+      "edges",
+      "The depth-edge extractor on a rendered dataset against each image's ground-truth depth: precision\n"
+      "against depth jumps and creases, recall against jumps, per image and pooled. Needs --dataset and --out.");
+  add_edge_options(*edges, command.edges);
   app.require_subcommand(1);
   // `mfc-eval help` is `mfc-eval --help`, as it always was.
   std::vector<const char*> args(argv, argv + argc);
@@ -265,6 +306,8 @@ std::optional<int> parse_eval_command_line(int argc, char** argv, const std::fil
   try {
     if (command.name == "detect")
       check_detect(command.detect);
+    else if (command.name == "edges")
+      check_edges(command.edges);
     else
       check_refine(command.refine);
   } catch (const UsageError& e) {

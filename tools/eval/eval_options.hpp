@@ -8,6 +8,7 @@
 
 #include "motion/pick_choice.hpp"
 #include "tools/eval/detectors.hpp"
+#include "tools/eval/edge_eval.hpp"
 #include "tools/eval/pose_error.hpp"
 #include "tools/eval/refine_eval.hpp"
 
@@ -37,9 +38,10 @@ struct DetectEvalOptions {
 
 // The command the command line asks for and its options.
 struct EvalCommand {
-  std::string name;  // "detect" or "refine"
+  std::string name;  // "detect", "refine" or "edges"
   DetectEvalOptions detect;
   RefineEvalOptions refine;
+  EdgeEvalOptions edges;
 };
 
 // Parses and checks mfc-eval's command line into `command`. Returns the exit status when the

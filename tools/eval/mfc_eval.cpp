@@ -600,6 +600,7 @@ int main(int argc, char** argv) {
     EvalCommand command;
     if (const auto code = parse_eval_command_line(argc, argv, MFC_SOURCE_DIR, command)) return *code;
     if (command.name == "detect") return run_detect(command.detect);
+    if (command.name == "edges") return run_edge_eval(command.edges);
     return run_refine_eval(command.refine);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "mfc-eval: %s\n", e.what());
