@@ -100,9 +100,9 @@ struct PipelineConfig {
   double floor_start_min_score_ratio = 0.8;  // of the free fit's score, for the floor start's fit to be kept
 
   // Candidates and refinement (Sec. 4.5, one view).
-  int max_candidates = 8;                // best first
-  double candidate_overlap = 0.3;        // search boxes overlapping more (IoU) are one part
-  double alternative_min_differ = 0.25;  // PoseCandidate::alternative_*
+  int max_candidates = 8;             // best first
+  double candidate_overlap = 0.3;     // search boxes overlapping more (IoU) are one part
+  double alternative_min_differ = 0;  // PoseCandidate::alternative_*
   // A candidate whose edges favour it over its alternative's by less than this share of the
   // points where the two differ is ambiguous (PoseCandidate::ambiguous).
   double ambiguous_support = 0.1;
@@ -142,11 +142,12 @@ struct PoseCandidate {
   double grasp_visibility = 1;
   cv::Rect2d box;  // image bounding box of the matched template
   // What the edges had to tell this pose from: the best-ranked other fitted hypothesis of the
-  // part at its place (search boxes overlapping as in the candidates' suppression) whose image
-  // differs from this pose's, i.e. at least alternative_min_differ of the two poses' edge points
-  // lie more than 3 px from any point of the other (a symmetric turn of the part images the same
-  // points and is not an alternative). None: no such hypothesis was fitted, or the deadline had
-  // passed.
+  // part at its place (search boxes overlapping as in the candidates' suppression) that is
+  // another answer: its centre kDistinctPositionMm or more away, or its orientation
+  // kDistinctRotationDeg or more over the part's exact symmetries (confidence.hpp), and at
+  // least alternative_min_differ of the two poses' edge points more than 3 px from any point
+  // of the other. A twin whose edges are this pose's own is an alternative the edges cannot
+  // tell apart. None: no such hypothesis was fitted, or the deadline had passed.
   bool has_alternative = false;
   double alternative_rank = 0;     // its fit_rank
   double alternative_differs = 0;  // share of the two poses' edge points that differ

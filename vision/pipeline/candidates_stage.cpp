@@ -28,6 +28,14 @@ void BinPickingPipeline::Impl::find_alternative(size_t index, PoseCandidate& c) 
     const Verified& u = verified[i];
     if (i == index || u.fit_score < 0 || u.below_floor || u.hit.part != v.hit.part) continue;
     if (iou(u.hit.box, v.hit.box) <= config.candidate_overlap) continue;
+    // Another answer: the part moved or turned beyond what the confidence calls right, over its
+    // symmetries. How much its edges differ is the evidence, not the test: a twin whose edges
+    // are this pose's own is what makes a pose ambiguous.
+    const cv::Vec3d centre = mine.pose.R * part.db.center_mm + mine.pose.t_mm;
+    const cv::Vec3d other = u.fitted.R * part.db.center_mm + u.fitted.t_mm;
+    if (cv::norm(centre - other) < kDistinctPositionMm &&
+        part.symmetries.angle_deg(mine.pose.R, u.fitted.R) < kDistinctRotationDeg)
+      continue;
     const TemplatePoseFit::Difference d = fitter.compare(part.db, mine, u.as_fit(), camera.camera, ws);
     const double points = static_cast<double>(ws.seen_a.size() + ws.seen_b.size());
     const double differs = points > 0 ? (d.only_a + d.only_b) / points : 0;

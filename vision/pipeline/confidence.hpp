@@ -9,6 +9,12 @@
 
 namespace mfcd::vision {
 
+// What "right" means above, and so which other fitted pose of a part at the same place is another
+// answer rather than the same one (PoseCandidate's alternative): its centre this far or more, or
+// its orientation this far or more over the part's symmetries.
+inline constexpr double kDistinctPositionMm = 5;
+inline constexpr double kDistinctRotationDeg = 10;
+
 // What the cycle measured of one candidate (PoseCandidate's fields of the same names).
 struct PoseEvidence {
   double fit_rank = 0;             // fit score less the unexplained-edge penalty, about 0..1

@@ -46,6 +46,7 @@ PartModel load_part_model(const std::filesystem::path& file, const CameraConfig&
     }
   }
   part.neighbours = view_neighbours(part.db, config.view_stride);
+  part.symmetries = SymmetryGroup(part.db.turns);
   part.searched.assign(part.db.views.size(), 0);
   return part;
 }

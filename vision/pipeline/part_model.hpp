@@ -3,6 +3,7 @@
 // at load (the search's digitised templates, the fine stage's view neighbours, the turn checks).
 
 #include "vision/camera/camera.hpp"
+#include "vision/model/symmetry_group.hpp"
 #include "vision/pipeline/bin_picking_pipeline.hpp"
 #include "vision/pipeline/turn_checks.hpp"
 #include "vision/search/oriented_template.hpp"
@@ -27,6 +28,8 @@ struct PartModel {
   // (symmetry-aware), nearest first.
   std::vector<std::vector<int>> neighbours;
   std::vector<uint8_t> searched;  // per view, this cycle
+  // Its exact symmetries from the mesh (db.turns): which two fitted poses are one answer.
+  SymmetryGroup symmetries;
   // The turns its leading hypotheses are checked against (turn_checks.hpp).
   using Turn = PoseTurn;
   std::vector<Turn> flips;

@@ -135,7 +135,7 @@ const PipelineParameter kParameters[] = {
      "search boxes overlapping by more than this (IoU) are one part: one candidate, one alternative place", true,
      MFC_FIELD(candidate_overlap)},
     {"alternative_min_differ", Type::number, 0, 1, "",
-     "share of edge points two poses must differ in for one to be the other's alternative", true,
+     "share of edge points a distinct pose (5 mm or 10 degrees away) must also differ in to be the alternative", true,
      MFC_FIELD(alternative_min_differ)},
     {"ambiguous_support", Type::number, -1, 1, "",
      "a candidate whose edges favour it over its alternative by less than this share of their differing points is "
