@@ -1,10 +1,9 @@
 #include "vision/model/mesh.hpp"
+#include "vision/model/obj_reader.hpp"
 #include "vision/model/ply_reader.hpp"
+#include "vision/model/stl_reader.hpp"
 
-#include <assimp/postprocess.h>
-#include <assimp/scene.h>
 #include <syslog.h>
-#include <assimp/Importer.hpp>
 
 #include <algorithm>
 #include <cctype>
@@ -47,8 +46,8 @@ double parse_unit_mm(const std::string& unit) {
 
 namespace {
 
-// STL stores each triangle's corners separately, and assimp keeps corners apart when their
-// normals differ, so connectivity is rebuilt from exactly equal positions.
+// STL stores each triangle's corners separately, and an OBJ may repeat a position under two
+// indices, so connectivity is rebuilt from exactly equal positions.
 void weld_identical_vertices(Mesh& mesh) {
   std::map<std::array<float, 3>, uint32_t> index;
   std::vector<cv::Vec3f> unique;
@@ -133,64 +132,16 @@ Mesh load_mesh(const std::filesystem::path& file, const MeshLoadOptions& options
   std::string ext = file.extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(),
                  [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-  if (ext == ".ply") return finish_loading(read_ply(file, static_cast<float>(options.unit_mm)), options, report, src);
+  const auto scale = static_cast<float>(options.unit_mm);
+  if (ext == ".ply") return finish_loading(read_ply(file, scale), options, report, src);
+  if (ext == ".stl") return finish_loading(read_stl(file, scale), options, report, src);
+  if (ext == ".obj") return finish_loading(read_obj(file, scale), options, report, src);
   if (ext == ".step" || ext == ".stp" || ext == ".iges" || ext == ".igs")
     throw std::runtime_error(src +
                              ": STEP and IGES parts are read by load_part (vision/model/cad_reader.hpp, OCCT), "
                              "as mfc-teach does");
-  // assimp reads some 40 formats, most of them never meant for a part model; only its STL and
-  // OBJ importers are used, chosen by the extension (assimp sniffs the content only for an
-  // extension no importer claims, and refuses a file its extension's importer cannot read).
-  if (ext != ".stl" && ext != ".obj")
-    throw std::runtime_error(src + ": unsupported mesh format '" + ext +
-                             "'; accepted: .stl, .obj, .ply, .step, .stp, .iges, .igs");
-  Assimp::Importer importer;
-  // ValidateDataStructure refuses a scene whose indices (faces into vertices, nodes into
-  // meshes) point outside their arrays; the walk below checks them again where it uses them.
-  const aiScene* scene =
-      importer.ReadFile(src, aiProcess_ValidateDataStructure | aiProcess_Triangulate | aiProcess_SortByPType);
-  if (!scene || !scene->mRootNode) throw std::runtime_error(src + ": cannot read mesh: " + importer.GetErrorString());
-  const int used = importer.GetPropertyInteger("importerIndex", -1);
-  if (used >= 0 && static_cast<size_t>(used) != importer.GetImporterIndex(ext.c_str()))
-    throw std::runtime_error(src + ": read by another importer than the one for '" + ext + "'");
-
-  Mesh mesh;
-  mesh.name = file.stem().string();
-  const auto scale = static_cast<float>(options.unit_mm);
-  // Walk the node tree so per-node transforms (OBJ groups) are applied.
-  struct Walker {
-    const aiScene* scene;
-    const std::string& src;
-    Mesh& out;
-    float scale;
-    void walk(const aiNode* node, const aiMatrix4x4& parent) {
-      const aiMatrix4x4 m = parent * node->mTransformation;
-      for (unsigned i = 0; i < node->mNumMeshes; ++i) {
-        if (node->mMeshes[i] >= scene->mNumMeshes) throw std::runtime_error(src + ": node names a missing mesh");
-        const aiMesh* am = scene->mMeshes[node->mMeshes[i]];
-        if (!(am->mPrimitiveTypes & aiPrimitiveType_TRIANGLE)) continue;
-        if (out.vertices.size() + am->mNumVertices > std::numeric_limits<uint32_t>::max())
-          throw std::runtime_error(src + ": more than 2^32 vertices");
-        const auto base = static_cast<uint32_t>(out.vertices.size());
-        for (unsigned v = 0; v < am->mNumVertices; ++v) {
-          const aiVector3D p = m * am->mVertices[v];
-          out.vertices.emplace_back(p.x * scale, p.y * scale, p.z * scale);
-        }
-        for (unsigned f = 0; f < am->mNumFaces; ++f) {
-          const aiFace& face = am->mFaces[f];
-          if (face.mNumIndices != 3) continue;
-          for (unsigned k = 0; k < 3; ++k)
-            if (face.mIndices[k] >= am->mNumVertices)
-              throw std::runtime_error(src + ": face " + std::to_string(f) + " names vertex " +
-                                       std::to_string(face.mIndices[k]) + " of " + std::to_string(am->mNumVertices));
-          out.triangles.push_back({base + face.mIndices[0], base + face.mIndices[1], base + face.mIndices[2]});
-        }
-      }
-      for (unsigned c = 0; c < node->mNumChildren; ++c) walk(node->mChildren[c], m);
-    }
-  };
-  Walker{scene, src, mesh, scale}.walk(scene->mRootNode, aiMatrix4x4());
-  return finish_loading(std::move(mesh), options, report, src);
+  throw std::runtime_error(src + ": unsupported mesh format '" + ext +
+                           "'; accepted: .stl, .obj, .ply, .step, .stp, .iges, .igs");
 }
 
 Mesh make_box(double sx, double sy, double sz) {

@@ -54,8 +54,8 @@ struct MeshReport {
   std::vector<std::string> warnings;
 };
 
-// Loads an STL (ASCII or binary) or OBJ with assimp, or a PLY (ASCII or binary) with read_ply
-// (vision/model/ply_reader.hpp), merges all its meshes into one, scales to mm, welds identical
+// Loads an STL (ASCII or binary, read_stl), OBJ (read_obj) or PLY (ASCII or binary, read_ply;
+// vision/model/*_reader.hpp), merges all its meshes into one, scales to mm, welds identical
 // vertices and validates. The extension (.stl, .obj, .ply, any case) picks the reader; any other is
 // refused (STEP and IGES with a pointer to load_part, vision/model/cad_reader.hpp: OCCT is a
 // library of its own, linked only by what reads a user's CAD). Throws std::runtime_error naming the file on an

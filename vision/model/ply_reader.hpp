@@ -1,8 +1,6 @@
 #pragma once
 // The project's own reader of PLY meshes (http://paulbourke.net/dataformats/ply/): ASCII,
-// binary little- and big-endian. BOP datasets ship their models as binary PLY, which the
-// assimp of Debian 12 misreads (its binary PLY faces come out shifted and its triangulation
-// aborts the process), so load_mesh reads PLY here and everything else with assimp.
+// binary little- and big-endian. BOP datasets ship their models as binary PLY.
 
 #include "vision/model/mesh.hpp"
 
