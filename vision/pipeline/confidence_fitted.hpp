@@ -1,6 +1,6 @@
 #pragma once
 // The confidence model's weights as tools/bench/fit_confidence.py fitted them (do not edit; run
-// it again): distinct2.json, 305 candidates (36 right), held-out AUC
+// it again): generalize-dev.json, 305 candidates (36 right), held-out AUC
 // 0.907, expected calibration error 0.050 (docs/tuning-log.md).
 #include "vision/pipeline/confidence.hpp"
 
