@@ -47,6 +47,23 @@ std::vector<std::string> parse_methods(const std::string&, const std::string& li
   return methods;
 }
 
+// --set KEY=VALUE (repeatable): each is refused here, before any dataset is read.
+CLI::Option* add_settings(CLI::App& cmd, std::vector<std::string>& into, const std::string& help) {
+  return mfcd::tools::add_converted_list(
+             cmd, "--set", into,
+             [](const std::string&, const std::string& v) {
+               try {
+                 vision::PipelineConfig probe;
+                 apply_eval_setting(probe, v);
+               } catch (const std::invalid_argument& e) {
+                 throw UsageError(std::string("--set: ") + e.what());
+               }
+               return v;
+             },
+             help)
+      ->type_name("KEY=VALUE");
+}
+
 // How the pipeline methods run: refinement, the bin floor, parameters, timing.
 void add_detect_pipeline_options(CLI::App& cmd, DetectEvalOptions& o) {
   add_converted(
@@ -75,22 +92,10 @@ void add_detect_pipeline_options(CLI::App& cmd, DetectEvalOptions& o) {
       "floor_distance_mm of its scene_render.json (the generalization bench's\n"
       "scenes, whose bins stand at different heights). Default 0: not known")
       ->type_name("MM|scene");
-  // Each is refused here, before any dataset is read.
-  mfcd::tools::add_converted_list(
-      cmd, "--set", o.pipeline_settings,
-      [](const std::string&, const std::string& v) {
-        try {
-          vision::PipelineConfig probe;
-          apply_eval_setting(probe, v);
-        } catch (const std::invalid_argument& e) {
-          throw UsageError(std::string("--set: ") + e.what());
-        }
-        return v;
-      },
-      "a pipeline parameter for the pipeline methods (repeatable; the keys of\n"
-      "docs/configuration.md's vision table, trace, floor_distance_mm), e.g.\n"
-      "--set view_stride=2; an unknown key lists the keys")
-      ->type_name("KEY=VALUE");
+  add_settings(cmd, o.pipeline_settings,
+               "a pipeline parameter for the pipeline methods (repeatable; the keys of\n"
+               "docs/configuration.md's vision table, trace, floor_distance_mm), e.g.\n"
+               "--set view_stride=2; an unknown key lists the keys");
   cmd.add_flag("--all-types", o.all_types, "also run FDCM once per image over all part types (best pick; timing)");
   cmd.add_flag("--shading", o.shading,
                "also compare the flashes' shares of light at each candidate's and each true\n"
@@ -232,19 +237,8 @@ void add_edge_options(CLI::App& cmd, EdgeEvalOptions& o) {
   add_double(cmd, "--min-jump", o.min_jump_mm, "mm a depth jump needs (default 4)");
   add_double(cmd, "--crease", o.crease_deg, "degrees a crease's normal turns (default 30)");
   add_double(cmd, "--tolerance", o.tolerance_px, "px between a detected and a truth pixel (default 1)");
-  mfcd::tools::add_converted_list(
-      cmd, "--set", o.pipeline_settings,
-      [](const std::string&, const std::string& v) {
-        try {
-          vision::PipelineConfig probe;
-          apply_eval_setting(probe, v);
-        } catch (const std::invalid_argument& e) {
-          throw UsageError(std::string("--set: ") + e.what());
-        }
-        return v;
-      },
-      "a pipeline parameter (repeatable); the edges_* keys are the ones the extractor reads")
-      ->type_name("KEY=VALUE");
+  add_settings(cmd, o.pipeline_settings,
+               "a pipeline parameter (repeatable); the edges_* keys are the ones the extractor reads");
   cmd.add_flag("--quiet", o.quiet, "no per-image lines");
 }
 

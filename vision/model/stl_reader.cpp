@@ -25,9 +25,15 @@ float little_endian_float(const char* p) {
   return f;
 }
 
-Mesh read_binary(const std::string& bytes, float scale) {
+// The triangle count a binary file's header states (little-endian, after the 80-byte header).
+uint32_t stated_count(const std::string& bytes) {
   uint32_t count = 0;
   for (int i = 3; i >= 0; --i) count = (count << 8) | static_cast<unsigned char>(bytes[80 + static_cast<size_t>(i)]);
+  return count;
+}
+
+// `bytes` holds exactly `count` triangles after the header.
+Mesh read_binary(const std::string& bytes, uint32_t count, float scale) {
   Mesh m;
   m.vertices.reserve(size_t{count} * 3);
   m.triangles.reserve(count);
@@ -80,18 +86,11 @@ Mesh read_stl(const std::filesystem::path& file, float scale) {
   std::ifstream f(file, std::ios::binary);
   if (!f) throw std::runtime_error(src + ": cannot open");
   const std::string bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
-  if (bytes.size() >= kBinaryHeader) {
-    uint32_t count = 0;
-    for (int i = 3; i >= 0; --i) count = (count << 8) | static_cast<unsigned char>(bytes[80 + static_cast<size_t>(i)]);
-    if (bytes.size() == kBinaryHeader + size_t{count} * kBinaryTriangle) {
-      Mesh m = read_binary(bytes, scale);
-      m.name = file.stem().string();
-      return m;
-    }
-  }
-  if (bytes.compare(0, 5, "solid") != 0)
+  const uint32_t count = bytes.size() >= kBinaryHeader ? stated_count(bytes) : 0;
+  const bool binary = bytes.size() >= kBinaryHeader && bytes.size() == kBinaryHeader + size_t{count} * kBinaryTriangle;
+  if (!binary && bytes.compare(0, 5, "solid") != 0)
     throw std::runtime_error(src + ": not an STL file (neither 84 + 50 bytes per triangle nor ASCII 'solid')");
-  Mesh m = read_ascii(bytes, src, scale);
+  Mesh m = binary ? read_binary(bytes, count, scale) : read_ascii(bytes, src, scale);
   m.name = file.stem().string();
   return m;
 }

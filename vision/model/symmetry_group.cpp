@@ -7,12 +7,6 @@ namespace mfcd::vision {
 
 namespace {
 
-cv::Matx33d turn_about(const cv::Vec3d& axis, double radians) {
-  const cv::Vec3d k = axis / cv::norm(axis);
-  const cv::Matx33d Kx(0, -k[2], k[1], k[2], 0, -k[0], -k[1], k[0], 0);
-  return cv::Matx33d::eye() + std::sin(radians) * Kx + (1 - std::cos(radians)) * Kx * Kx;
-}
-
 double angle_of(const cv::Matx33d& R) { return std::acos(std::clamp((cv::trace(R) - 1.0) / 2.0, -1.0, 1.0)); }
 
 // Found symmetries are exact to ~1e-6; two products this close are one rotation.
@@ -26,7 +20,7 @@ SymmetryGroup::SymmetryGroup(const MeshTurns& turns) {
     if (t.order == 0)
       continuous_.push_back(t.axis / cv::norm(t.axis));
     else if (t.order >= 2)
-      generators.push_back(turn_about(t.axis, 2 * CV_PI / t.order));
+      generators.push_back(axis_rotation(t.axis, 2 * CV_PI / t.order));
   }
   for (size_t i = 0; i < rotations_.size() && rotations_.size() < kMaxRotations; ++i)
     for (const cv::Matx33d& g : generators) {
