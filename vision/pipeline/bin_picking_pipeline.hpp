@@ -54,6 +54,12 @@ struct PipelineConfig {
   double search_polarity_penalty_px = 6.0;  // px; infinity: such an edge is as good as none
   int template_guides = 3;
   int query_guides = 60;
+  // A query line more than this times a template's longest guide is not the guide's edge: an
+  // edge of the part is at most as long as the template's line times the taught distance over
+  // the part's (1.5: a third nearer than the teach distance) and, fragmented by occlusion and
+  // noise, usually shorter. So in a bin of large and small parts the small ones slide along lines
+  // of their own size, not only along the large parts' outlines.
+  double max_query_to_guide = 1.5;
   double min_guide_overlap = 0.75;  // of the shorter line
   int slide_step = 2;               // px at the search's resolution
   int view_stride = 4;              // 1 = every view in one stage

@@ -53,6 +53,7 @@ void BinPickingPipeline::Impl::search(Cycle& cycle, const LineSet& query, const 
   lp.templateLines = m.config.template_guides;
   lp.queryLines = settings.query_guides;
   lp.minOverlap = m.config.min_guide_overlap;
+  lp.maxQueryToGuide = m.config.max_query_to_guide;
   lp.slideStep = m.config.slide_step;
   lp.keep = settings.keep_per_view;
   lp.separationPx = std::max(1, settings.keep_separation_px / down);

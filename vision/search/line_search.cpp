@@ -78,7 +78,7 @@ void lineSearchWith(const Matcher& matcher, At at, const std::vector<OrientedTem
   // side, and a counter written on every hypothesis in a cache line another thread writes too
   // made the whole search up to a third slower, depending on where the allocator put them.
   SearchStats stats;
-  const size_t nq = std::min<size_t>(queryLines.size(), std::max(0, params.queryLines));
+  const size_t nq = static_cast<size_t>(std::max(0, params.queryLines));
   const size_t keep = static_cast<size_t>(std::max(1, params.keep));
   const int sep = std::max(0, params.separationPx);
   std::vector<Candidate>& kept = ws.kept;  // Best mode: at most `keep`, pairwise more than `sep` apart
@@ -110,10 +110,20 @@ void lineSearchWith(const Matcher& matcher, At at, const std::vector<OrientedTem
       if (guides.size() > wanted) guides.pop_back();
     }
     at.prepare(t);
+    // The query guides: from the first query segment (longest first) the template's longest guide
+    // could lie on.
+    size_t q0 = 0;
+    if (!guides.empty() && std::isfinite(params.maxQueryToGuide)) {
+      const double cap = params.maxQueryToGuide * guides.front()->length();
+      q0 = static_cast<size_t>(std::partition_point(queryLines.begin(), queryLines.end(),
+                                                    [cap](const LineSegment& l) { return l.length() > cap; }) -
+                               queryLines.begin());
+    }
+    const size_t q1 = std::min(queryLines.size(), q0 + nq);
     // The slides: the guide laid on a query segment of the same channel.
     slides.clear();
     for (const LineSegment* g : guides) {
-      for (size_t qi = 0; qi < nq; ++qi) {
+      for (size_t qi = q0; qi < q1; ++qi) {
         const LineSegment& ql = queryLines[qi];
         if (ql.channel != g->channel) continue;
         // Unit direction shared by both segments; order endpoints along it.

@@ -18,6 +18,10 @@ namespace mfcd::vision {
 struct LineSearchParams {
   int templateLines = 5;  // longest template segments used as guides
   int queryLines = 40;    // longest query segments used as guides
+  // Query segments longer than this times the template's longest guide are passed over: at the
+  // template's scale none of the part's own edges is that long. The `queryLines` guides are the
+  // longest of the rest. Infinity: the longest query segments, whatever the template.
+  double maxQueryToGuide = std::numeric_limits<double>::infinity();
   // Only slide positions where the guide and the query segment overlap by at least this
   // fraction of the shorter of the two: under the right alignment one contains most of the
   // other (a fragment of an occluded edge lies inside the template line; a query line that

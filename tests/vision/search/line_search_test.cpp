@@ -1,5 +1,7 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <limits>
 #include <random>
 
 #include <opencv2/imgproc.hpp>
@@ -314,4 +316,44 @@ TEST(LineSearch, ReusedWorkspaceGivesTheSameResult) {
     }
   }
   EXPECT_GT(detected, 6u) << "Detect mode found (almost) nothing: the comparison would be empty";
+}
+
+// With a cap on the query lines' length, a template's guides slide along the longest query lines
+// not longer than the cap times its longest guide: the same as the uncapped search over the query
+// with the longer lines taken out (its slow twin), template by template.
+TEST(LineSearch, QueryLinesTooLongForTheTemplateAreNotItsGuides) {
+  std::mt19937 rng(91);
+  size_t dropped = 0, detected = 0;
+  for (int trial = 0; trial < 4; ++trial) {
+    const PlantedScene scene = plantedScene(rng);
+    const FdcmMatcher matcher(scene.idt);
+    const std::vector<LineSegment>& query = scene.fit.set.lines;
+    for (size_t o = 0; o < scene.templates.size(); o += 15) {
+      const std::vector<OrientedTemplate> one{scene.templates[o]};
+      LineSearchParams lp;
+      lp.mode = SearchMode::Detect;
+      lp.threshold = 12;
+      lp.queryLines = 12;
+      lp.templateLines = 3;
+      float longest = 0;
+      for (const LineSegment& l : one[0].lines) longest = std::max(longest, l.length());
+      lp.maxQueryToGuide = 0.4;
+      std::vector<LineSegment> short_enough;
+      for (const LineSegment& l : query)
+        if (l.length() <= lp.maxQueryToGuide * longest) short_enough.push_back(l);
+      dropped += query.size() - short_enough.size();
+      const SearchResult capped = lineSearch(matcher, one, query, lp);
+      lp.maxQueryToGuide = std::numeric_limits<double>::infinity();
+      const SearchResult twin = lineSearch(matcher, one, short_enough, lp);
+      ASSERT_EQ(capped.candidates.size(), twin.candidates.size()) << "trial " << trial << " template " << o;
+      for (size_t i = 0; i < capped.candidates.size(); ++i) {
+        const Candidate &a = capped.candidates[i], &b = twin.candidates[i];
+        EXPECT_TRUE(a.tx == b.tx && a.ty == b.ty && a.sum == b.sum) << "trial " << trial << " candidate " << i;
+      }
+      EXPECT_EQ(capped.stats.hypotheses, twin.stats.hypotheses);
+      detected += capped.candidates.size();
+    }
+  }
+  EXPECT_GT(dropped, 0u) << "no query line was longer than the cap: the test compares nothing";
+  EXPECT_GT(detected, 0u) << "nothing detected: the comparison would be empty";
 }
