@@ -79,13 +79,13 @@ BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfi
   m.thread_best.resize(static_cast<size_t>(threads));
   for (auto& h : m.thread_best)
     h.reserve(
-        std::max<size_t>(
-            {static_cast<size_t>(std::max(m.config.fit_candidates, m.config.round_hypotheses) * m.config.keep_per_view),
-             static_cast<size_t>(m.config.escalate_hypotheses * m.config.escalate_placements_per_view),
-             m.config.coarse_seeds * m.parts.size()}) +
+        std::max<size_t>({std::max(m.most_fitted(), static_cast<size_t>(m.config.round_hypotheses)) *
+                              static_cast<size_t>(m.config.keep_per_view),
+                          static_cast<size_t>(m.config.escalate_hypotheses * m.config.escalate_placements_per_view),
+                          m.config.coarse_seeds * m.parts.size()}) +
         1);
   m.hits.reserve(4096);
-  m.verified.reserve(static_cast<size_t>(m.config.fit_candidates) +
+  m.verified.reserve(m.most_fitted() +
                      static_cast<size_t>(m.config.search_rounds - 1) * static_cast<size_t>(m.config.round_hypotheses) +
                      (m.config.escalate_below > 0 ? static_cast<size_t>(m.config.escalate_hypotheses) : 0));
   m.fit_workspaces.resize(static_cast<size_t>(threads));
@@ -107,7 +107,7 @@ BinPickingPipeline::BinPickingPipeline(const CameraConfig& camera, PipelineConfi
   size_t views = 0;
   for (const auto& part : m.parts) views += part.db.views.size();
   m.jobs.reserve(views);
-  m.budget.emplace(m.config.fit_candidates, threads);
+  m.budget.emplace(threads);
   m.erased = cv::Mat1b::zeros(camera.camera.image_size);
   // The pick cycle, stage by stage (stage.hpp).
   for (auto make :

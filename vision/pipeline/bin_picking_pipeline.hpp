@@ -89,6 +89,11 @@ struct PipelineConfig {
   // fit score - unexplained_weight x (unexplained edge share) + evidence_weight x ln(found / 300).
   bool fit_hypotheses = true;
   int fit_candidates = 48;
+  // Hypotheses fitted in addition for each part type a cycle searches beyond the first: chamfer
+  // costs do not compare across templates (a template of a few straight lines lies cheaply on any
+  // bin's straight edges), so with a fixed count the hits of such a type take the fits the others'
+  // right placements need. The deadline still cuts the fit short.
+  int fit_candidates_per_type = 4;
   double fit_score_gate_px = 4.0;   // px (TemplateFitParams::score_gate_px)
   double fit_inlier_cost_px = 2.0;  // px (TemplateFitParams::inlier_cost_px), <= the gate
   bool edge_polarity = true;        // the fit's pairing by the depth edges' shadow side

@@ -16,11 +16,11 @@ double ms_between(CycleBudget::Clock::time_point a, CycleBudget::Clock::time_poi
   return std::chrono::duration<double, std::milli>(b - a).count();
 }
 
-CycleBudget::CycleBudget(int fit_candidates, int threads) : fit_ms_(2.0 * fit_candidates / std::max(1, threads)) {}
+CycleBudget::CycleBudget(int threads) : fit_ms_each_(2.0 / std::max(1, threads)) {}
 
-CycleBudget::Clock::time_point CycleBudget::search_deadline() const {
+CycleBudget::Clock::time_point CycleBudget::search_deadline(int wanted) const {
   const double left_ms = std::max(0.0, ms_between(Clock::now(), deadline_));
-  return deadline_ - milliseconds(std::min(1.5 * fit_ms_, 0.5 * left_ms));
+  return deadline_ - milliseconds(std::min(1.5 * fit_ms_each_ * wanted, 0.5 * left_ms));
 }
 
 bool CycleBudget::leaves_time_for(Optional stage) const {
@@ -28,8 +28,8 @@ bool CycleBudget::leaves_time_for(Optional stage) const {
   return Clock::now() + milliseconds(ms) <= deadline_;
 }
 
-void CycleBudget::record_fit(double ms, int fitted, int wanted) {
-  if (fitted > 0) fit_ms_ = ms * wanted / fitted;
+void CycleBudget::record_fit(double ms, int fitted) {
+  if (fitted > 0) fit_ms_each_ = ms / fitted;
 }
 
 }  // namespace mfcd::vision::detail

@@ -207,10 +207,10 @@ class FitStage final : public Stage {
     c.out->trace.clear();
     const auto start = Clock::now();
     if (c.cycle.fdcm && !m.hits.empty()) m.prepare_fitter();
-    m.verify(static_cast<size_t>(m.config.fit_candidates));
+    m.verify(m.fitted_in(c.cycle));
     m.fit(c.cycle, 0, c.cycle.fdcm ? &m.idt : nullptr);
     c.out->degraded = c.out->degraded || c.cycle.fit_late;
-    m.budget->record_fit(ms_between(start, Clock::now()), static_cast<int>(m.verified.size()), m.config.fit_candidates);
+    m.budget->record_fit(ms_between(start, Clock::now()), static_cast<int>(m.verified.size()));
     if (m.config.trace) m.trace(0, 1, *c.out);
   }
 };

@@ -185,7 +185,7 @@ struct BinPickingPipeline::Impl {
   std::vector<uint64_t> thread_hypotheses;
   std::vector<int> thread_views;
   std::vector<Hit> hits;
-  // Only the best fit_candidates hits of a cycle are used: each thread keeps a max-heap of its
+  // Only the best hits a cycle fits (fitted_in) are used: each thread keeps a max-heap of its
   // best that many, and the worst of a full heap bounds every search (SharedCostBound).
   std::vector<std::vector<Candidate>> thread_best;
   std::atomic<uint64_t> shared_bound{SharedCostBound::kNone};
@@ -282,6 +282,14 @@ struct BinPickingPipeline::Impl {
   void search(Cycle& cycle, const LineSet& query, const IntegralDistanceTransform* fdcm_idt, size_t wanted,
               const SearchSettings& settings, PipelineResult& out);
   void verify(size_t count);  // appends the best `count` new distinct hits to `verified`
+  // Hypotheses fitted in a cycle of `selected` part types (PipelineConfig::fit_candidates and
+  // fit_candidates_per_type), and in a cycle of every part.
+  size_t fitted_for(size_t selected) const {
+    return static_cast<size_t>(config.fit_candidates) +
+           static_cast<size_t>(config.fit_candidates_per_type) * (std::max<size_t>(selected, 1) - 1);
+  }
+  size_t fitted_in(const Cycle& cycle) const { return fitted_for(cycle.selected_parts); }
+  size_t most_fitted() const { return fitted_for(parts.size()); }
   void fit(Cycle& cycle, size_t first, const IntegralDistanceTransform* fdcm_idt);
   void trace(size_t first, int round, PipelineResult& out) const;
   void sort_verified(size_t first);

@@ -250,11 +250,10 @@ class SearchStage final : public Stage {
  public:
   SearchStage() : Stage("search", &StageTimes::search_ms) {}
   void run(BinPickingPipeline::Impl& m, CycleContext& c) override {
-    c.cycle.search_deadline = m.budget->search_deadline();
+    c.cycle.search_deadline = m.budget->search_deadline(static_cast<int>(m.fitted_in(c.cycle)));
     c.out->hypotheses = 0;
     c.out->views_searched = 0;
-    m.search(c.cycle, *c.query, c.cycle.fdcm ? &m.idt : nullptr, static_cast<size_t>(m.config.fit_candidates),
-             m.shipped_search(), *c.out);
+    m.search(c.cycle, *c.query, c.cycle.fdcm ? &m.idt : nullptr, m.fitted_in(c.cycle), m.shipped_search(), *c.out);
     c.out->degraded = c.cycle.late;
   }
 };

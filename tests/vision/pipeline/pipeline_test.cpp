@@ -471,6 +471,29 @@ TEST(Pipeline, ACycleNotDegradedIsTheFullCycle) {
   EXPECT_GT(whole, 0);
 }
 
+// A cycle fits fit_candidates hypotheses for one part type and fit_candidates_per_type more for
+// each further type it searches: six types 6 + 5 x 3, one type 6, all of that type.
+TEST(Pipeline, ACycleOfMoreTypesFitsMoreHypotheses) {
+  const CameraConfig cam = sim_camera();
+  const SixParts six = render_six_parts(cam);
+  PipelineConfig pc;
+  pc.template_files = six.files;
+  pc.escalate_below = 0;
+  pc.fit_candidates = 6;
+  pc.fit_candidates_per_type = 3;
+  pc.trace = true;
+  BinPickingPipeline pipeline(cam, pc);
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  PipelineResult all, one;
+  pipeline.process(six.render.frames, 0, deadline, all);
+  EXPECT_FALSE(all.degraded);
+  EXPECT_EQ(all.trace.size(), 21u);
+  const int knob = load_template_database(six.files[4]).obj_id;
+  pipeline.process(six.render.frames, knob, deadline, one);
+  EXPECT_EQ(one.trace.size(), 6u);
+  for (const HypothesisTrace& h : one.trace) EXPECT_EQ(h.obj_id, knob);
+}
+
 // The coarse-to-fine view search (every 4th view, then the views around the best coarse hits)
 // and the search bound shared by the threads, against their slow twins: every view searched and
 // no shared bound. The part is found the same, in fewer views; the shared bound changes nothing.
