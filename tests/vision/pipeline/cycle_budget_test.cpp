@@ -20,7 +20,8 @@ TEST(CycleBudget, SearchLeavesTheFitOneAndAHalfItsEstimateButAtMostHalfTheTimeLe
   b.record_fit(30, 12);  // a fit cut short at 12: 2.5 ms a hypothesis, 120 ms for 48
   EXPECT_NEAR(ms_before(deadline, b.search_deadline(48)), 180, 1e-6);
   EXPECT_NEAR(ms_before(deadline, b.search_deadline(96)), 360, 1e-6);  // a cycle of more types
-  b.record_fit(30, 0);                                                 // nothing fitted: the estimate stays
+  // Nothing fitted: the estimate stays.
+  b.record_fit(30, 0);
   EXPECT_NEAR(ms_before(deadline, b.search_deadline(48)), 180, 1e-6);
   const auto soon = Clock::now() + milliseconds(200);
   b.start(soon);
