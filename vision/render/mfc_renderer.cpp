@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -310,7 +311,7 @@ void MfcRenderer::shade_surfaces(const std::array<cv::Matx44d, 8>& unit_from_cam
   glBindVertexArray(0);
   // Every render starts from the same texture state: another would make llvmpipe compile
   // another variant of the programs (and allocate) on the next render.
-  for (int i = 0; i < 4; ++i) {
+  for (int i = 0; i < 3; ++i) {
     glActiveTexture(static_cast<GLenum>(GL_TEXTURE1 + i));
     glBindTexture(GL_TEXTURE_2D, 0);
   }
@@ -319,28 +320,37 @@ void MfcRenderer::shade_surfaces(const std::array<cv::Matx44d, 8>& unit_from_cam
   glEnable(GL_DEPTH_TEST);
 }
 
+int MfcRenderer::lit_tile_px(cv::Size image) {
+  int tile = 8;
+  while (((image.width + tile - 1) / tile) * ((image.height + tile - 1) / tile) > kMaxLitTiles) tile *= 2;
+  return tile;
+}
+
 void MfcRenderer::mark_lit_pixels(const cv::Mat1b& lit) {
   Gl& g = *gl_;
   // What is left unlit keeps the cleared value: nothing there (the scissor box is the region's).
   glClearStencil(0);
   glClear(GL_COLOR_BUFFER_BIT | GL_STENCIL_BUFFER_BIT);
-  glActiveTexture(GL_TEXTURE4);
-  if (!g.lit_tex) glGenTextures(1, &g.lit_tex);
-  glBindTexture(GL_TEXTURE_2D, g.lit_tex);
-  glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
-  glPixelStorei(GL_UNPACK_ROW_LENGTH, static_cast<GLint>(lit.step1()));
-  if (g.lit_size != lit.size()) {  // storage once per size
-    glTexImage2D(GL_TEXTURE_2D, 0, GL_R8, lit.cols, lit.rows, 0, GL_RED, GL_UNSIGNED_BYTE, lit.data);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
-    g.lit_size = lit.size();
-  } else {
-    glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, lit.cols, lit.rows, GL_RED, GL_UNSIGNED_BYTE, lit.data);
+  // The lit tiles as bits of a uniform array: a texture upload would make llvmpipe look into the
+  // other threads' contexts for the resource while they draw, which crashed it.
+  const int tile = lit_tile_px(lit.size());
+  const int shift = std::countr_zero(static_cast<unsigned>(tile));
+  const int per_row = (lit.cols + tile - 1) / tile;
+  g.lit_tiles.assign(kMaxLitTiles / 32, 0u);
+  for (int y = 0; y < lit.rows; ++y) {
+    const uint8_t* row = lit.ptr<uint8_t>(y);
+    const int base = (y >> shift) * per_row;
+    for (int x = 0; x < lit.cols; ++x)
+      if (row[x]) {
+        const int t = base + (x >> shift);
+        g.lit_tiles[static_cast<size_t>(t >> 5)] |= 1u << (t & 31);
+      }
   }
-  glPixelStorei(GL_UNPACK_ROW_LENGTH, 0);
-  glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
-  glUseProgram(g.lit_mask_program);
-  glUniform1i(glGetUniformLocation(g.lit_mask_program, "u_lit"), 4);
+  const GLuint prog = g.lit_mask_program;
+  glUseProgram(prog);
+  glUniform4uiv(glGetUniformLocation(prog, "u_tiles"), kMaxLitTiles / 128, g.lit_tiles.data());
+  glUniform1i(glGetUniformLocation(prog, "u_tile_shift"), shift);
+  glUniform1i(glGetUniformLocation(prog, "u_tiles_per_row"), per_row);
   glEnable(GL_STENCIL_TEST);
   glStencilFunc(GL_ALWAYS, 1, 0xff);
   glStencilOp(GL_KEEP, GL_KEEP, GL_REPLACE);

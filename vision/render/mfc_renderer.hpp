@@ -94,9 +94,10 @@ struct Lighting {
   // camera frame): the light the part gets when it is turned the opposite way under the fixed
   // ring, seen in its own image (no resampling).
   double ring_turn_rad = 0;
-  // Only the pixels where this image (the current camera's size) is not 0 are lit; the
-  // others read as if nothing were there, as pixels outside the region do. The cost of the
-  // lighting follows the lit pixels. Null: every pixel. Needs deferred shading.
+  // Only the pixels of the tiles (squares of MfcRenderer::lit_tile_px a side, from the image's
+  // corner) that hold a pixel where this image (the current camera's size) is not 0 are lit;
+  // the others read as if nothing were there, as pixels outside the region do. The cost of the
+  // lighting follows the lit tiles. Null: every pixel. Needs deferred shading.
   const cv::Mat1b* lit = nullptr;
 };
 
@@ -142,6 +143,11 @@ class MfcRenderer {
               const Lighting& lighting = {});
   // Depth and visibility only (no shading, no shadow maps): faster.
   void render_depth(std::span<const ScenePart> parts, cv::Mat1f& depth_mm, cv::Mat1b& part_index);
+
+  // The side (px) of the tiles a Lighting::lit mask lights in an image of `size`: 8, or larger
+  // for an image of more than kMaxLitTiles tiles.
+  static int lit_tile_px(cv::Size size);
+  static constexpr int kMaxLitTiles = 256 * 128;
 
   // The GL renderer string, e.g. "llvmpipe (LLVM 15.0.6, 256 bits)".
   std::string gl_renderer() const;

@@ -86,7 +86,6 @@ MfcRenderer::Gl::~Gl() {
   glDeleteVertexArrays(1, &empty_vao);
   glDeleteFramebuffers(1, &shadow_fbo);
   glDeleteTextures(1, &shadow_tex);
-  glDeleteTextures(1, &lit_tex);
   for (GLuint prog : {scene_program, depth_program, shadow_program, surface_program, shade_programs[0],
                       shade_programs[1], lit_mask_program})
     glDeleteProgram(prog);

@@ -14,6 +14,7 @@
 #include <opencv2/core.hpp>
 
 #include <array>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -36,8 +37,8 @@ struct MfcRenderer::Gl {
   GLuint scene_program = 0, depth_program = 0, shadow_program = 0, surface_program = 0;
   // The deferred second pass (render_shaders.hpp): [0] any material, [1] every part matte.
   std::array<GLuint, 2> shade_programs{};
-  GLuint lit_mask_program = 0, lit_tex = 0;  // Lighting::lit: the program and its R8 texture
-  cv::Size lit_size{0, 0};
+  GLuint lit_mask_program = 0;      // Lighting::lit into the stencil
+  std::vector<uint32_t> lit_tiles;  // its uniform: one bit per tile, row-major
   GLuint shadow_tex = 0, shadow_fbo = 0;
   GLuint fbo = 0, depth_rb = 0;
   std::array<GLuint, 3> color_tex{};

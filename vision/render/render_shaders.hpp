@@ -174,10 +174,16 @@ void main() {
 // The pixels to light (Lighting::lit) as the stencil the deferred second pass is tested
 // against: drawn with the full-screen triangle, stencil replaced where not discarded. Testing
 // the stencil happens before a fragment is shaded, which a discard in the lighting would not.
+// The lit tiles come as bits of a uniform array (MfcRenderer::kMaxLitTiles of them).
 inline constexpr const char* kLitMaskFs = R"(
-uniform sampler2D u_lit;  // R8, the image's size: 0 = not lit
+uniform uvec4 u_tiles[256];  // bit t (word t / 32, bit t % 32): tile t, row-major, is lit
+uniform int u_tile_shift;    // log2 of a tile's side in pixels
+uniform int u_tiles_per_row;
 void main() {
-  if (texelFetch(u_lit, ivec2(gl_FragCoord.xy), 0).r == 0.0) discard;
+  ivec2 tile = ivec2(gl_FragCoord.xy) >> u_tile_shift;
+  int t = tile.y * u_tiles_per_row + tile.x;
+  uint word = u_tiles[t >> 7][(t >> 5) & 3];
+  if (((word >> uint(t & 31)) & 1u) == 0u) discard;
 }
 )";
 

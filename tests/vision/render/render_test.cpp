@@ -416,8 +416,8 @@ TEST(MfcRenderer, RegionRenderEqualsTheWholeInsideAndIsEmptyOutside) {
   }
 }
 
-// A render lit only in a mask: where lit, exactly the whole render's values; elsewhere nothing
-// there, as outside a region. Lit again with the ring turned (its surfaces reused), or after
+// A render lit only in a mask: in every tile the mask touches, exactly the whole render's
+// values; elsewhere nothing there, as outside a region. Lit again with the ring turned (its surfaces reused), or after
 // another scene, it is what a renderer that never drew anything else gives.
 TEST(MfcRenderer, LitMaskRenderEqualsTheWholeWhereLitAndIsEmptyElsewhere) {
   RenderOptions opt;
@@ -446,7 +446,15 @@ TEST(MfcRenderer, LitMaskRenderEqualsTheWholeWhereLitAndIsEmptyElsewhere) {
     // What the mask and the region leave out reads as nothing there.
     const cv::Mat1b out_of_region(lit.size(), uint8_t{255});
     out_of_region(region).setTo(0);
-    const cv::Mat1b dark = (lit == 0) | out_of_region;
+    const int tile = MfcRenderer::lit_tile_px(lit.size());
+    ASSERT_EQ(tile, 8);
+    cv::Mat1b tiles_lit(lit.size(), uint8_t{0});
+    for (int y = 0; y < lit.rows; y += tile)
+      for (int x = 0; x < lit.cols; x += tile) {
+        const cv::Rect t = cv::Rect(x, y, tile, tile) & cv::Rect(cv::Point(), lit.size());
+        if (cv::countNonZero(lit(t)) > 0) tiles_lit(t).setTo(255);
+      }
+    const cv::Mat1b dark = (tiles_lit == 0) | out_of_region;
     for (auto* image : {&whole.ambient_linear, &whole.depth_mm}) image->setTo(0, dark);
     whole.part_index.setTo(0, dark);
     for (auto& f : whole.flash_linear) f.setTo(0, dark);
@@ -458,6 +466,8 @@ TEST(MfcRenderer, LitMaskRenderEqualsTheWholeWhereLitAndIsEmptyElsewhere) {
     expect_same(again, whole, "after another scene");
     EXPECT_GT(cv::countNonZero(part.part_index), 1000);
   }
+  EXPECT_EQ(MfcRenderer::lit_tile_px({1448, 1448}), 8);  // 181² tiles: 32,761
+  EXPECT_EQ(MfcRenderer::lit_tile_px({1449, 1448}), 16);
   MfcRender out;
   const cv::Mat1b small(100, 100, uint8_t{255});
   EXPECT_THROW(r.render(parts, out, 1, {}, Lighting{.lit = &small}), std::invalid_argument);
