@@ -2,7 +2,7 @@
 //   mfc-teach MODEL --camera CAMERA.yaml --out PART.tdb [--obj-id N] [--name NAME]
 //             [--unit mm|cm|m|in|<mm per unit>] [--chordal-tolerance MM] [--views K] [--symmetry none|z:N|z:inf]
 //             [--views-symmetry none|z:N|z:inf] [--distance MM] [--lighting-turns N[:M]] [--lighting-tolerance PX]
-//             [--threads N] [--quiet]
+//             [--lighting-band PX] [--threads N] [--quiet]
 // Exit status: 0 written, 1 refused (model, camera, symmetry), 2 usage.
 #include "tools/common/cli.hpp"
 #include "vision/model/cad_reader.hpp"
@@ -30,7 +30,7 @@ struct Options {
   std::string camera, out, name, unit = "mm", symmetry = "none", views_symmetry, preview;
   int obj_id = -1, views = 300, threads = 0;
   int lighting_turns = TeachParams{}.lighting_turns, lighting_min_turns = TeachParams{}.lighting_min_turns;
-  int lighting_tolerance = TeachParams{}.lighting_tolerance_px;
+  int lighting_tolerance = TeachParams{}.lighting_tolerance_px, lighting_band = TeachParams{}.lighting_band_px;
   double distance = 0;
   CadTessellation tessellation;
   bool quiet = false;
@@ -86,6 +86,9 @@ void add_options(CLI::App& app, Options& o) {
       ->type_name("N[:M]");
   mfcd::tools::add_int(app, "--lighting-tolerance", o.lighting_tolerance,
                        "how far from the view's edge a turned render's may lie\n(default 1)")
+      ->type_name("PX");
+  mfcd::tools::add_int(app, "--lighting-band", o.lighting_band,
+                       "light a turned render only this far from the view's edges\n(default 6; 0 = everywhere)")
       ->type_name("PX");
   mfcd::tools::add_int(app, "--threads", o.threads, "rendering threads (default: all cores)");
   app.add_option("--preview", o.preview, "also write a contact sheet of up to 64 views (lines over edge points)")
@@ -169,6 +172,7 @@ int main(int argc, char** argv) {
     tp.lighting_turns = o.lighting_turns;
     tp.lighting_min_turns = o.lighting_min_turns;
     tp.lighting_tolerance_px = o.lighting_tolerance;
+    tp.lighting_band_px = o.lighting_band;
     const auto t0 = std::chrono::steady_clock::now();
     auto seconds = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); };
     const bool bar = !o.quiet;

@@ -41,6 +41,11 @@ const char* egl_error_name(EGLint e) {
 
 }  // namespace
 
+std::unique_lock<std::mutex> lock_gl() {
+  static std::mutex gl_mutex;
+  return std::unique_lock<std::mutex>(gl_mutex);
+}
+
 EglContext::EglContext() {
   auto get_platform_display =
       reinterpret_cast<PFNEGLGETPLATFORMDISPLAYEXTPROC>(eglGetProcAddress("eglGetPlatformDisplayEXT"));

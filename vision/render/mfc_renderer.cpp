@@ -1,17 +1,14 @@
 #include "vision/render/mfc_renderer.hpp"
 
-#include "vision/render/egl_context.hpp"
+#include "vision/common/rotation.hpp"
 #include "vision/render/gl_matrices.hpp"
-#include "vision/render/render_shaders.hpp"
+#include "vision/render/render_gl.hpp"
 #include "vision/render/sensor_capture.hpp"
 #include "vision/render/shadow_footprint.hpp"
 
-#define GL_GLEXT_PROTOTYPES 1
-#include <GL/gl.h>
-#include <GL/glext.h>
-
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -29,137 +26,24 @@ using namespace gl_matrices;
 constexpr int kFlashes = 8;
 constexpr GLenum kAllAttachments[3] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1, GL_COLOR_ATTACHMENT2};
 
-[[noreturn]] void gl_fail(const std::string& what) { throw std::runtime_error("renderer: " + what); }
-
-// One stage from its source pieces, in order.
-GLuint compile(GLenum type, std::initializer_list<const char*> pieces) {
-  GLuint s = glCreateShader(type);
-  glShaderSource(s, static_cast<GLsizei>(pieces.size()), pieces.begin(), nullptr);
-  glCompileShader(s);
-  GLint ok = 0;
-  glGetShaderiv(s, GL_COMPILE_STATUS, &ok);
-  if (!ok) {
-    std::string log(4096, '\0');
-    glGetShaderInfoLog(s, static_cast<GLsizei>(log.size()), nullptr, log.data());
-    gl_fail("shader compile failed: " + log);
-  }
-  return s;
-}
-
-GLuint link(std::initializer_list<const char*> vs, std::initializer_list<const char*> fs) {
-  GLuint p = glCreateProgram();
-  GLuint v = compile(GL_VERTEX_SHADER, vs), f = compile(GL_FRAGMENT_SHADER, fs);
-  glAttachShader(p, v);
-  glAttachShader(p, f);
-  glLinkProgram(p);
-  glDeleteShader(v);
-  glDeleteShader(f);
-  GLint ok = 0;
-  glGetProgramiv(p, GL_LINK_STATUS, &ok);
-  if (!ok) {
-    std::string log(4096, '\0');
-    glGetProgramInfoLog(p, static_cast<GLsizei>(log.size()), nullptr, log.data());
-    gl_fail("shader link failed: " + log);
-  }
-  return p;
-}
-
 }  // namespace
-
-struct MfcRenderer::Gl {
-  EglContext context;  // first member: made before and destroyed after every GL object below
-  GLuint scene_program = 0, depth_program = 0, shadow_program = 0, surface_program = 0, shade_program = 0;
-  GLuint shadow_tex = 0, shadow_fbo = 0;
-  GLuint fbo = 0, depth_rb = 0;
-  std::array<GLuint, 3> color_tex{};
-  // The deferred pass's surfaces, sharing depth_rb; made by the first deferred render of a size.
-  GLuint surface_fbo = 0;
-  std::array<GLuint, 3> surface_tex{};  // position/id, normal/albedo, material
-  GLuint empty_vao = 0;                 // the full-screen triangle has no vertex data
-  cv::Size fbo_size{0, 0};
-
-  // Three RGBA32F attachments of `size`, read texel by texel, and the shared depth buffer.
-  void make_target(GLuint& target, std::array<GLuint, 3>& tex, cv::Size size) const {
-    glGenFramebuffers(1, &target);
-    glBindFramebuffer(GL_FRAMEBUFFER, target);
-    glGenTextures(3, tex.data());
-    for (int i = 0; i < 3; ++i) {
-      glBindTexture(GL_TEXTURE_2D, tex[static_cast<size_t>(i)]);
-      glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA32F, size.width, size.height, 0, GL_RGBA, GL_FLOAT, nullptr);
-      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
-      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
-      glFramebufferTexture2D(GL_FRAMEBUFFER, static_cast<GLenum>(GL_COLOR_ATTACHMENT0 + i), GL_TEXTURE_2D,
-                             tex[static_cast<size_t>(i)], 0);
-    }
-    glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depth_rb);
-    if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
-      gl_fail("float render target incomplete (" + std::to_string(size.width) + "x" + std::to_string(size.height) +
-              ")");
-  }
-
-  void ensure_surfaces() {
-    if (!surface_fbo) make_target(surface_fbo, surface_tex, fbo_size);
-  }
-  struct GpuMesh {
-    GLuint vao = 0, vbo = 0;
-    GLsizei vertex_count = 0;
-    cv::Vec3f lo, hi;  // bounding box in the mesh's own frame, mm
-  };
-  std::vector<GpuMesh> meshes;
-
-  void make_current() const { context.make_current(); }
-};
 
 MfcRenderer::MfcRenderer(const CameraConfig& config, const RenderOptions& options)
     : config_(config), camera_(config.camera), options_(options) {
   validate_camera_config(config_);
   if (config_.flashes.positions_mm.size() != kFlashes) gl_fail("the MFC renderer simulates exactly 8 LEDs");
-  gl_ = std::make_unique<Gl>();
-  gl_->make_current();
-
-  using namespace shaders;
-  gl_->scene_program = link({kVersion, kSceneVs}, {kVersion, kLighting, kSurface, kSceneFs});
-  gl_->depth_program = link({kVersion, kSceneVs}, {kVersion, kDepthFs});
-  gl_->shadow_program = link({kVersion, kShadowVs}, {kVersion, kShadowFs});
-  gl_->surface_program = link({kVersion, kSceneVs}, {kVersion, kSurface, kSurfaceFs});
-  gl_->shade_program = link({kVersion, kFullScreenVs}, {kVersion, kLighting, kShadeFs});
-  glGenVertexArrays(1, &gl_->empty_vao);
-
-  const int S = options_.shadow_map_size;
-  glGenTextures(1, &gl_->shadow_tex);
-  glBindTexture(GL_TEXTURE_2D_ARRAY, gl_->shadow_tex);
-  glTexImage3D(GL_TEXTURE_2D_ARRAY, 0, GL_DEPTH_COMPONENT32F, S, S, kFlashes, 0, GL_DEPTH_COMPONENT, GL_FLOAT, nullptr);
-  glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
-  glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
-  glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
-  glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
-  glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_COMPARE_MODE, GL_COMPARE_REF_TO_TEXTURE);
-  glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_COMPARE_FUNC, GL_LEQUAL);
-  glGenFramebuffers(1, &gl_->shadow_fbo);
-  if (glGetError() != GL_NO_ERROR) gl_fail("cannot allocate the shadow maps");
+  std::copy_n(config_.flashes.positions_mm.begin(), kFlashes, leds_.begin());
+  const auto gl_lock = lock_gl();
+  gl_ = std::make_unique<Gl>(options_.shadow_map_size);
 }
 
 MfcRenderer::~MfcRenderer() {
-  if (!gl_) return;
-  gl_->make_current();
-  for (auto& m : gl_->meshes) {
-    glDeleteBuffers(1, &m.vbo);
-    glDeleteVertexArrays(1, &m.vao);
-  }
-  glDeleteTextures(3, gl_->color_tex.data());
-  glDeleteTextures(3, gl_->surface_tex.data());
-  glDeleteRenderbuffers(1, &gl_->depth_rb);
-  glDeleteFramebuffers(1, &gl_->fbo);
-  glDeleteFramebuffers(1, &gl_->surface_fbo);
-  glDeleteVertexArrays(1, &gl_->empty_vao);
-  glDeleteFramebuffers(1, &gl_->shadow_fbo);
-  glDeleteTextures(1, &gl_->shadow_tex);
-  for (GLuint prog :
-       {gl_->scene_program, gl_->depth_program, gl_->shadow_program, gl_->surface_program, gl_->shade_program})
-    glDeleteProgram(prog);
+  const auto gl_lock = lock_gl();
+  gl_.reset();
 }
 
 std::string MfcRenderer::gl_renderer() const {
+  const auto gl_lock = lock_gl();
   gl_->make_current();
   const auto* s = reinterpret_cast<const char*>(glGetString(GL_RENDERER));
   return s ? s : "";
@@ -199,50 +83,14 @@ int MfcRenderer::add_mesh(const Mesh& mesh, double crease_deg) {
       data.insert(data.end(), {p[0], p[1], p[2], n[0], n[1], n[2]});
     }
   }
+  const auto gl_lock = lock_gl();
   gl_->make_current();
-  Gl::GpuMesh g;
-  glGenVertexArrays(1, &g.vao);
-  glBindVertexArray(g.vao);
-  glGenBuffers(1, &g.vbo);
-  glBindBuffer(GL_ARRAY_BUFFER, g.vbo);
-  glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(data.size() * sizeof(float)), data.data(), GL_STATIC_DRAW);
-  glEnableVertexAttribArray(0);
-  glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 6 * sizeof(float), nullptr);
-  glEnableVertexAttribArray(1);
-  glVertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, 6 * sizeof(float), reinterpret_cast<void*>(3 * sizeof(float)));
-  glBindVertexArray(0);
-  g.vertex_count = static_cast<GLsizei>(nt * 3);
-  g.lo = g.hi = mesh.vertices.front();
-  for (const cv::Vec3f& v : mesh.vertices)
-    for (int a = 0; a < 3; ++a) g.lo[a] = std::min(g.lo[a], v[a]), g.hi[a] = std::max(g.hi[a], v[a]);
-  if (glGetError() != GL_NO_ERROR) gl_fail("cannot upload mesh '" + mesh.name + "'");
-  gl_->meshes.push_back(g);
-  return static_cast<int>(gl_->meshes.size() - 1);
+  return gl_->upload_mesh(data, mesh);
 }
 
 void MfcRenderer::set_camera(const PinholeCamera& camera) {
   if (camera.image_size.width <= 0 || camera.image_size.height <= 0) gl_fail("camera image size must be positive");
   camera_ = camera;
-}
-
-void MfcRenderer::ensure_targets() {
-  Gl& g = *gl_;
-  const cv::Size size = camera_.image_size;
-  if (g.fbo_size == size) return;
-  if (g.fbo) {
-    glDeleteTextures(3, g.color_tex.data());
-    glDeleteTextures(3, g.surface_tex.data());
-    glDeleteRenderbuffers(1, &g.depth_rb);
-    glDeleteFramebuffers(1, &g.fbo);
-    glDeleteFramebuffers(1, &g.surface_fbo);
-  }
-  glGenRenderbuffers(1, &g.depth_rb);
-  glBindRenderbuffer(GL_RENDERBUFFER, g.depth_rb);
-  glRenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT32F, size.width, size.height);
-  g.make_target(g.fbo, g.color_tex, size);
-  g.surface_fbo = 0;  // the surfaces follow at the first deferred render
-  g.surface_tex = {};
-  g.fbo_size = size;
 }
 
 std::pair<double, double> MfcRenderer::depth_range(std::span<const ScenePart> parts) const {
@@ -290,7 +138,7 @@ void MfcRenderer::draw_shadow_maps(std::span<const ScenePart> parts, const cv::R
   if (region != cv::Rect(cv::Point(), camera_.image_size)) cropped = camera_.cropped(region);
   const PinholeCamera& drawn = cropped ? *cropped : camera_;
   for (int i = 0; i < kFlashes; ++i) {
-    const cv::Vec3d L = config_.flashes.positions_mm[static_cast<size_t>(i)];
+    const cv::Vec3d L = leds_[static_cast<size_t>(i)];
     const double reach = std::hypot(L[0], L[1]) / n;
     const double fs = (S / 2.0) / (std::max(tan_x, tan_y) + reach);
     const cv::Matx33d Ks(fs, 0, S / 2.0 - 0.5, 0, fs, S / 2.0 - 0.5, 0, 0, 1);
@@ -326,7 +174,7 @@ void MfcRenderer::draw_shadow_maps(std::span<const ScenePart> parts, const cv::R
 void MfcRenderer::set_lights(unsigned prog, std::span<const cv::Matx44d, 8> unit_from_camera) {
   auto loc = [prog](const char* name) { return glGetUniformLocation(prog, name); };
   for (int i = 0; i < kFlashes; ++i) {
-    const cv::Vec3d L = config_.flashes.positions_mm[static_cast<size_t>(i)];
+    const cv::Vec3d L = leds_[static_cast<size_t>(i)];
     char name[64];
     std::snprintf(name, sizeof name, "u_led[%d]", i);
     glUniform3f(loc(name), static_cast<float>(L[0]), static_cast<float>(L[1]), static_cast<float>(L[2]));
@@ -347,9 +195,30 @@ void MfcRenderer::set_lights(unsigned prog, std::span<const cv::Matx44d, 8> unit
   glUniform1f(loc("u_normal_offset"), static_cast<float>(normal_offset()));
 }
 
-void MfcRenderer::draw_scene(std::span<const ScenePart> parts, Shading shading, const cv::Rect& region) {
+namespace {
+
+bool same_material(const Material& a, const Material& b) {
+  return a.albedo == b.albedo && a.diffuse == b.diffuse && a.specular == b.specular && a.shininess == b.shininess &&
+         a.paint == b.paint && a.paint_period_mm == b.paint_period_mm && a.paint_albedo == b.paint_albedo;
+}
+
+bool same_part(const ScenePart& a, const ScenePart& b) {
+  return a.mesh_id == b.mesh_id && a.R == b.R && a.t_mm == b.t_mm && a.casts_shadows == b.casts_shadows &&
+         same_material(a.material, b.material);
+}
+
+}  // namespace
+
+bool MfcRenderer::surfaces_hold(std::span<const ScenePart> parts, const cv::Rect& region) const {
+  const auto& d = gl_->surfaces_drawn;
+  return gl_->surface_fbo && !d.region.empty() && (region & d.region) == region && d.K == camera_.K &&
+         std::equal(parts.begin(), parts.end(), d.parts.begin(), d.parts.end(), same_part);
+}
+
+void MfcRenderer::draw_scene(std::span<const ScenePart> parts, Shading shading, const cv::Rect& region,
+                             const cv::Mat1b* lit) {
   Gl& g = *gl_;
-  ensure_targets();
+  g.ensure_targets(camera_.image_size);
   for (const auto& p : parts)
     if (p.mesh_id < 0 || p.mesh_id >= static_cast<int>(g.meshes.size()))
       gl_fail("scene part refers to unknown mesh id " + std::to_string(p.mesh_id));
@@ -361,6 +230,8 @@ void MfcRenderer::draw_scene(std::span<const ScenePart> parts, Shading shading, 
   glDepthFunc(GL_LESS);
   if (shading != Shading::none) draw_shadow_maps(parts, region, unit_from_camera);
   if (shading == Shading::deferred) g.ensure_surfaces();
+  // The surfaces a deferred render needs may be drawn already, when only the lighting changed.
+  const bool surfaces_held = shading == Shading::deferred && surfaces_hold(parts, region);
 
   glBindFramebuffer(GL_FRAMEBUFFER, shading == Shading::deferred ? g.surface_fbo : g.fbo);
   // Without shading only the ambient/depth/index attachment is drawn (and cleared).
@@ -373,7 +244,7 @@ void MfcRenderer::draw_scene(std::span<const ScenePart> parts, Shading shading, 
   glEnable(GL_SCISSOR_TEST);
   glScissor(region.x, region.y, region.width, region.height);
   glClearColor(0, 0, 0, 0);
-  glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+  if (!surfaces_held) glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
   switch (shading) {
     case Shading::none:
       draw_parts(parts, g.depth_program, nullptr);
@@ -382,8 +253,15 @@ void MfcRenderer::draw_scene(std::span<const ScenePart> parts, Shading shading, 
       draw_parts(parts, g.scene_program, &unit_from_camera);
       break;
     case Shading::deferred:
-      draw_parts(parts, g.surface_program, nullptr);
-      shade_surfaces(unit_from_camera);
+      if (!surfaces_held) {
+        draw_parts(parts, g.surface_program, nullptr);
+        g.surfaces_drawn.parts.assign(parts.begin(), parts.end());
+        g.surfaces_drawn.K = camera_.K;
+        g.surfaces_drawn.region = region;
+      }
+      shade_surfaces(unit_from_camera, lit, std::all_of(parts.begin(), parts.end(), [](const ScenePart& p) {
+                       return p.material.specular == 0;
+                     }));
       break;
   }
   glDisable(GL_SCISSOR_TEST);
@@ -419,12 +297,13 @@ void MfcRenderer::draw_parts(std::span<const ScenePart> parts, unsigned prog,
   glBindVertexArray(0);
 }
 
-void MfcRenderer::shade_surfaces(const std::array<cv::Matx44d, 8>& unit_from_camera) {
+void MfcRenderer::shade_surfaces(const std::array<cv::Matx44d, 8>& unit_from_camera, const cv::Mat1b* lit, bool matte) {
   Gl& g = *gl_;
   glBindFramebuffer(GL_FRAMEBUFFER, g.fbo);
   glDrawBuffers(3, kAllAttachments);
   glDisable(GL_DEPTH_TEST);
-  const GLuint prog = g.shade_program;
+  if (lit) mark_lit_pixels(*lit);
+  const GLuint prog = g.shade_programs[matte ? 1 : 0];
   glUseProgram(prog);
   set_lights(prog, unit_from_camera);  // texture unit 0: the shadow maps
   const char* names[3] = {"u_pos_id", "u_normal_albedo", "u_material"};
@@ -443,10 +322,54 @@ void MfcRenderer::shade_surfaces(const std::array<cv::Matx44d, 8>& unit_from_cam
     glBindTexture(GL_TEXTURE_2D, 0);
   }
   glActiveTexture(GL_TEXTURE0);
+  glDisable(GL_STENCIL_TEST);
   glEnable(GL_DEPTH_TEST);
 }
 
+int MfcRenderer::lit_tile_px(cv::Size image) {
+  int tile = 8;
+  while (((image.width + tile - 1) / tile) * ((image.height + tile - 1) / tile) > kMaxLitTiles) tile *= 2;
+  return tile;
+}
+
+void MfcRenderer::mark_lit_pixels(const cv::Mat1b& lit) {
+  Gl& g = *gl_;
+  // What is left unlit keeps the cleared value: nothing there (the scissor box is the region's).
+  glClearStencil(0);
+  glClear(GL_COLOR_BUFFER_BIT | GL_STENCIL_BUFFER_BIT);
+  // The lit tiles as bits of a uniform array: a texture upload would make llvmpipe look into the
+  // other threads' contexts for the resource while they draw, which crashed it.
+  const int tile = lit_tile_px(lit.size());
+  const int shift = std::countr_zero(static_cast<unsigned>(tile));
+  const int per_row = (lit.cols + tile - 1) / tile;
+  g.lit_tiles.assign(kMaxLitTiles / 32, 0u);
+  for (int y = 0; y < lit.rows; ++y) {
+    const uint8_t* row = lit.ptr<uint8_t>(y);
+    const int base = (y >> shift) * per_row;
+    for (int x = 0; x < lit.cols; ++x)
+      if (row[x]) {
+        const int t = base + (x >> shift);
+        g.lit_tiles[static_cast<size_t>(t >> 5)] |= 1u << (t & 31);
+      }
+  }
+  const GLuint prog = g.lit_mask_program;
+  glUseProgram(prog);
+  glUniform4uiv(glGetUniformLocation(prog, "u_tiles"), kMaxLitTiles / 128, g.lit_tiles.data());
+  glUniform1i(glGetUniformLocation(prog, "u_tile_shift"), shift);
+  glUniform1i(glGetUniformLocation(prog, "u_tiles_per_row"), per_row);
+  glEnable(GL_STENCIL_TEST);
+  glStencilFunc(GL_ALWAYS, 1, 0xff);
+  glStencilOp(GL_KEEP, GL_KEEP, GL_REPLACE);
+  glColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
+  glBindVertexArray(g.empty_vao);
+  glDrawArrays(GL_TRIANGLES, 0, 3);
+  glColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+  glStencilFunc(GL_EQUAL, 1, 0xff);
+  glStencilOp(GL_KEEP, GL_KEEP, GL_KEEP);
+}
+
 void MfcRenderer::render_depth(std::span<const ScenePart> parts, cv::Mat1f& depth_mm, cv::Mat1b& part_index) {
+  const auto gl_lock = lock_gl();
   gl_->make_current();
   draw_scene(parts, Shading::none, cv::Rect(cv::Point(), camera_.image_size));
   const cv::Size size = camera_.image_size;
@@ -468,16 +391,29 @@ void MfcRenderer::render_depth(std::span<const ScenePart> parts, cv::Mat1f& dept
   }
 }
 
-void MfcRenderer::render(std::span<const ScenePart> parts, MfcRender& out, uint64_t noise_seed, cv::Rect region) {
+void MfcRenderer::render(std::span<const ScenePart> parts, MfcRender& out, uint64_t noise_seed, cv::Rect region,
+                         const Lighting& lighting) {
   const cv::Rect whole(cv::Point(), camera_.image_size);
   if (region.empty()) region = whole;
   if ((region & whole) != region)
     throw std::invalid_argument("render region " + std::to_string(region.width) + "x" + std::to_string(region.height) +
                                 " at (" + std::to_string(region.x) + ", " + std::to_string(region.y) +
                                 ") reaches outside the image");
-  gl_->make_current();
-  draw_scene(parts, options_.deferred_shading ? Shading::deferred : Shading::forward, region);
-  read_back(region, out);
+  if (lighting.lit && lighting.lit->size() != camera_.image_size)
+    throw std::invalid_argument(
+        "render: the lit mask is " + std::to_string(lighting.lit->cols) + "x" + std::to_string(lighting.lit->rows) +
+        ", the image " + std::to_string(camera_.image_size.width) + "x" + std::to_string(camera_.image_size.height));
+  if (lighting.lit && !options_.deferred_shading)
+    throw std::invalid_argument("render: a lit mask needs deferred shading");
+  const cv::Matx33d turn = rotation_about_z(lighting.ring_turn_rad);
+  for (size_t i = 0; i < leds_.size(); ++i)
+    leds_[i] = lighting.ring_turn_rad == 0 ? config_.flashes.positions_mm[i] : turn * config_.flashes.positions_mm[i];
+  {
+    const auto gl_lock = lock_gl();
+    gl_->make_current();
+    draw_scene(parts, options_.deferred_shading ? Shading::deferred : Shading::forward, region, lighting.lit);
+    read_back(region, out);
+  }
   capture_frames(options_.noise, noise_seed, out, noise_);
 }
 

@@ -87,6 +87,20 @@ struct RenderOptions {
   SensorNoise noise;
 };
 
+// How a render is lit, beyond its options: by default every pixel of its region, by the LEDs
+// where the configuration puts them.
+struct Lighting {
+  // The LED ring turned about the optical axis by this angle (rad, from +x towards +y of the
+  // camera frame): the light the part gets when it is turned the opposite way under the fixed
+  // ring, seen in its own image (no resampling).
+  double ring_turn_rad = 0;
+  // Only the pixels of the tiles (squares of MfcRenderer::lit_tile_px a side, from the image's
+  // corner) that hold a pixel where this image (the current camera's size) is not 0 are lit;
+  // the others read as if nothing were there, as pixels outside the region do. The cost of the
+  // lighting follows the lit tiles. Null: every pixel. Needs deferred shading.
+  const cv::Mat1b* lit = nullptr;
+};
+
 struct MfcRender {
   MfcFrames frames;                     // 8 flash images (each includes the ambient light) + ambient
   cv::Mat1f depth_mm;                   // z of the visible surface in the camera frame; 0 where no part
@@ -115,22 +129,31 @@ class MfcRenderer {
   const RenderOptions& options() const { return options_; }
   RenderOptions& options() { return options_; }
 
-  // Renders all parts at once. Output images are reallocated only when the size changes.
+  // Renders all parts at once. Output images are reallocated only when the size changes. With
+  // deferred shading, a render of the same parts from the same camera as the last one, within its
+  // region, reuses the surfaces it drew and only lights them again (e.g. with the ring turned).
   // Only the pixels inside `region` (image coordinates; empty = the whole image) are drawn, lit
   // and read back; every other pixel reads as if nothing were there (no part, depth 0, no light
   // before the sensor's noise), and each pixel inside has exactly the values a whole render
   // gives it. For a caller that knows all it needs lies inside: it costs about the region's
   // share of the image.
-  void render(std::span<const ScenePart> parts, MfcRender& out, uint64_t noise_seed = 1, cv::Rect region = {});
+  // Throws std::invalid_argument for a region outside the image, or a `lighting.lit` mask of
+  // another size or without deferred shading.
+  void render(std::span<const ScenePart> parts, MfcRender& out, uint64_t noise_seed = 1, cv::Rect region = {},
+              const Lighting& lighting = {});
   // Depth and visibility only (no shading, no shadow maps): faster.
   void render_depth(std::span<const ScenePart> parts, cv::Mat1f& depth_mm, cv::Mat1b& part_index);
+
+  // The side (px) of the tiles a Lighting::lit mask lights in an image of `size`: 8, or larger
+  // for an image of more than kMaxLitTiles tiles.
+  static int lit_tile_px(cv::Size size);
+  static constexpr int kMaxLitTiles = 256 * 128;
 
   // The GL renderer string, e.g. "llvmpipe (LLVM 15.0.6, 256 bits)".
   std::string gl_renderer() const;
 
  private:
-  struct Gl;
-  void ensure_targets();
+  struct Gl;  // render_gl.hpp
   // Camera-frame depth range (mm) of the parts' bounding boxes, within the camera pass's.
   std::pair<double, double> depth_range(std::span<const ScenePart> parts) const;
   // The shadow maps' texels that pixels of `region` read are filled (all with fill_whole_shadow_maps).
@@ -140,12 +163,19 @@ class MfcRenderer {
   // The drawn region's pixels into `out` (sized to the image, zero elsewhere), in linear DN.
   void read_back(const cv::Rect& region, MfcRender& out);
   enum class Shading { none, forward, deferred };  // render_shaders.hpp
-  // Clears and draws `region` only (a non-empty rectangle of the image).
-  void draw_scene(std::span<const ScenePart> parts, Shading shading, const cv::Rect& region);
+  // Whether the deferred surfaces hold `parts` as the current camera sees them, in all of `region`.
+  bool surfaces_hold(std::span<const ScenePart> parts, const cv::Rect& region) const;
+  // Clears and draws `region` only (a non-empty rectangle of the image); a deferred render whose
+  // surfaces are held already (surfaces_hold) only lights them.
+  void draw_scene(std::span<const ScenePart> parts, Shading shading, const cv::Rect& region,
+                  const cv::Mat1b* lit = nullptr);
   // Draws the parts with `prog`, lit with these shadow maps when given (the forward program).
   void draw_parts(std::span<const ScenePart> parts, unsigned prog, const std::array<cv::Matx44d, 8>* unit_from_camera);
   // The deferred second pass: lights every pixel of the scissor box from the drawn surfaces.
-  void shade_surfaces(const std::array<cv::Matx44d, 8>& unit_from_camera);
+  // `lit`: the pixels lit (Lighting::lit), or null for all; `matte`: every part has specular 0.
+  void shade_surfaces(const std::array<cv::Matx44d, 8>& unit_from_camera, const cv::Mat1b* lit, bool matte);
+  // Clears the lit target and sets the stencil test to pass only where `lit` is not 0.
+  void mark_lit_pixels(const cv::Mat1b& lit);
   // Near and far planes of the camera pass: they only bound what is drawn, as depth is
   // written as camera-frame z in float.
   double camera_near_mm() const { return 1.0; }
@@ -154,6 +184,8 @@ class MfcRenderer {
   // distance to the LED: about a texel, as a texel seen from the LED spans d / fs mm at d.
   double normal_offset() const { return 1.5 / options_.shadow_map_size; }
   CameraConfig config_;
+  // The LEDs of the render under way: the configuration's, turned by Lighting::ring_turn_rad.
+  std::array<cv::Vec3d, 8> leds_;
   PinholeCamera camera_;
   RenderOptions options_;
   std::unique_ptr<Gl> gl_;

@@ -37,6 +37,7 @@ void main() {
 // the 8 flash images' before the ambient light is added. `n` is the unit normal turned towards
 // the camera, `pos` the point in the camera frame (mm), `a` its albedo.
 inline constexpr const char* kVersion = "#version 330 core\n";
+inline constexpr const char* kMatte = "#define MFC_MATTE 1\n";
 
 inline constexpr const char* kLighting = R"(
 uniform vec3 u_led[8];
@@ -63,8 +64,12 @@ void flash_light(vec3 pos, vec3 n, float a, vec3 material, out vec4 flash0123, o
     float ndl = dot(n, l);
     float value = 0.0;
     if (ndl > 0.0) {
+#ifdef MFC_MATTE
+      float spec = 0.0;  // every part drawn has specular 0: the term below is 0 exactly
+#else
       vec3 h = normalize(l + view);
       float spec = material.y * pow(max(dot(n, h), 0.0), material.z);
+#endif
       float falloff = (u_working_distance * u_working_distance) / (d * d);
       // Offset along the normal (scaled with distance) against self-shadowing acne.
       vec4 s = u_shadow_from_camera[i] * vec4(pos + n * u_normal_offset * d, 1.0);
@@ -134,7 +139,9 @@ void main() {
 )";
 
 // Deferred, second pass: one triangle over the whole target, each pixel lit once from the
-// first pass's surfaces (kVersion + this; the fragment stage kVersion + kLighting + kShadeFs).
+// first pass's surfaces (kVersion + this; the fragment stage kVersion, its variant's defines,
+// kLighting, kShadeFs). MFC_MATTE leaves out the specular term, for scenes whose parts all have
+// specular 0 (the same values).
 inline constexpr const char* kFullScreenVs = R"(
 void main() {
   vec2 corner = vec2(float((gl_VertexID & 1) << 2), float((gl_VertexID & 2) << 1));
@@ -161,6 +168,22 @@ void main() {
   vec4 na = texelFetch(u_normal_albedo, px, 0);
   o_ambient_depth_id = vec4(room_light(na.xyz, na.w), pos_id.z, pos_id.w, 0.0);
   flash_light(pos_id.xyz, na.xyz, na.w, texelFetch(u_material, px, 0).xyz, o_flash0123, o_flash4567);
+}
+)";
+
+// The pixels to light (Lighting::lit) as the stencil the deferred second pass is tested
+// against: drawn with the full-screen triangle, stencil replaced where not discarded. Testing
+// the stencil happens before a fragment is shaded, which a discard in the lighting would not.
+// The lit tiles come as bits of a uniform array (MfcRenderer::kMaxLitTiles of them).
+inline constexpr const char* kLitMaskFs = R"(
+uniform uvec4 u_tiles[256];  // bit t (word t / 32, bit t % 32): tile t, row-major, is lit
+uniform int u_tile_shift;    // log2 of a tile's side in pixels
+uniform int u_tiles_per_row;
+void main() {
+  ivec2 tile = ivec2(gl_FragCoord.xy) >> u_tile_shift;
+  int t = tile.y * u_tiles_per_row + tile.x;
+  uint word = u_tiles[t >> 7][(t >> 5) & 3];
+  if (((word >> uint(t & 31)) & 1u) == 0u) discard;
 }
 )";
 

@@ -159,6 +159,9 @@ void validate_teach_inputs(const Mesh& mesh, const TeachParams& params) {
   if (params.lighting_tolerance_px < 0 || params.lighting_tolerance_px > 10)
     throw std::invalid_argument("teach: lighting tolerance " + std::to_string(params.lighting_tolerance_px) +
                                 " px out of range [0, 10]");
+  if (params.lighting_band_px < 0 || params.lighting_band_px > 100)
+    throw std::invalid_argument("teach: lighting band " + std::to_string(params.lighting_band_px) +
+                                " px out of range [0, 100]");
 }
 
 // What the views share: the part, where it stands, the window and its background plane.
@@ -187,6 +190,8 @@ class ViewTeacher {
     plane_id_ = renderer_.add_mesh(s_.plane);
     const int k = 2 * s_.params.lighting_tolerance_px + 1;
     tolerance_kernel_ = cv::getStructuringElement(cv::MORPH_RECT, cv::Size(k, k));
+    const int b = 2 * s_.params.lighting_band_px + 1;
+    band_kernel_ = cv::getStructuringElement(cv::MORPH_RECT, cv::Size(b, b));
   }
 
   // The view from `direction`, or nothing when it shows too few edges to fit.
@@ -221,16 +226,18 @@ class ViewTeacher {
   // The part centre on the optical axis at the teaching distance.
   cv::Vec3d placed(const cv::Matx33d& R) const { return cv::Vec3d(0, 0, s_.distance_mm) - R * s_.center_mm; }
 
-  // The depth edges of the part turned by R in front of the background plane.
-  void render_edges(const cv::Matx33d& R, MfcRender& render, DepthEdges& edges) {
+  // The depth edges of the part turned by R in front of the background plane, drawn in `region`
+  // (empty: where the part and its shadows can show, part_region).
+  void render_edges(const cv::Matx33d& R, MfcRender& render, DepthEdges& edges, const Lighting& lighting = {},
+                    cv::Rect region = {}) {
     const cv::Vec3d t = placed(R);
     const ScenePart parts[2] = {
         {part_id_, R, t, Material::matte(0.7f)},
         {plane_id_, cv::Matx33d::eye(), cv::Vec3d(0, 0, s_.geo.plane_z_mm), Material::matte(0.6f), false}};
-    const cv::Rect region = s_.params.render_whole_window
-                                ? cv::Rect()
-                                : part_region(s_.camera, s_.geo.cropped, s_.mesh, R, t, s_.geo.plane_z_mm);
-    renderer_.render(parts, render, 1, region);
+    if (region.empty() && !s_.params.render_whole_window)
+      region = part_region(s_.camera, s_.geo.cropped, s_.mesh, R, t, s_.geo.plane_z_mm);
+    region_ = region;
+    renderer_.render(parts, render, 1, region, lighting);
     extractor_.extract(render.frames, edges);
     // Edges with no part pixel next to them are features of the shadows on the template's
     // background plane (where two flashes' shadows meet), not of the part: a bin floor at
@@ -238,24 +245,29 @@ class ViewTeacher {
     drop_background_edges(edges, render);
   }
 
-  // The same view turned about the optical axis under the fixed LED ring: an edge that the
-  // turns do not all show depends on where the LEDs stand around the part, and the query's part
-  // stands at any turn.
+  // The view lit by the LED ring turned about the optical axis: an edge that the turns do not all
+  // show depends on where the LEDs stand around the part, and the query's part stands at any
+  // turn. Turning the ring the opposite way is turning the part, seen in the view's own pixels.
+  // A turned render lights only the pixels within lighting_band_px of the view's edges (0: all):
+  // an edge farther away cannot confirm one of them.
   void keep_edges_every_turn_shows(const cv::Matx33d& R_view) {
     const TeachParams& params = s_.params;
+    Lighting lighting;
+    cv::Rect region;  // the view's (its surfaces are lit again)
+    if (params.lighting_band_px > 0) {
+      cv::dilate(edges_.edges, band_, band_kernel_);
+      lighting.lit = &band_;
+      const cv::Rect view_region = region_.empty() ? cv::Rect(cv::Point(), band_.size()) : region_;
+      region = cv::boundingRect(band_) & view_region;
+      if (region.empty()) return;  // no edge to check
+    }
     support_.create(edges_.edges.size());
     support_.setTo(1);  // the view itself
     for (int k = 1; k < params.lighting_turns; ++k) {
-      const double theta = s_.turn_period * k / params.lighting_turns;
-      render_edges(rotation_about_z(theta) * R_view, turned_render_, turned_edges_);
-      // Back into the view's image: the part centre images at the window's principal point,
-      // about which the turn turned the image by theta.
-      const cv::Mat back = cv::getRotationMatrix2D(
-          cv::Point2f(static_cast<float>(s_.geo.cropped.cx()), static_cast<float>(s_.geo.cropped.cy())),
-          theta * 180.0 / std::numbers::pi, 1.0);
-      cv::warpAffine(turned_edges_.edges, turned_back_, back, turned_edges_.edges.size(), cv::INTER_LINEAR);
-      cv::dilate(turned_back_, turned_back_, tolerance_kernel_);
-      cv::add(support_, 1, support_, turned_back_);
+      lighting.ring_turn_rad = -s_.turn_period * k / params.lighting_turns;
+      render_edges(R_view, turned_render_, turned_edges_, lighting, region);
+      cv::dilate(turned_edges_.edges, turned_near_, tolerance_kernel_);
+      cv::add(support_, 1, support_, turned_near_);
     }
     edges_.edges.setTo(0, support_ < params.lighting_min_turns);
   }
@@ -264,10 +276,11 @@ class ViewTeacher {
   MfcRenderer renderer_;
   DepthEdgeExtractor extractor_;
   int part_id_ = -1, plane_id_ = -1;
-  cv::Mat tolerance_kernel_;
+  cv::Rect region_;  // of the last render_edges (empty: the whole window)
+  cv::Mat tolerance_kernel_, band_kernel_;
   MfcRender render_, turned_render_;
   DepthEdges edges_, turned_edges_;
-  cv::Mat1b turned_back_, support_;
+  cv::Mat1b band_, turned_near_, support_;
 };
 
 // Runs `work(i)` for i in [0, total) on `threads` threads, each with its own `State` made by
@@ -279,6 +292,7 @@ void for_each_view(int total, int threads, const TeachProgress& progress, MakeSt
   int done = 0;
   std::mutex mutex;
   std::exception_ptr error;
+  threads = std::clamp(threads, 1, std::max(1, total));
   auto worker = [&]() {
     try {
       auto state = make_state();
@@ -294,7 +308,6 @@ void for_each_view(int total, int threads, const TeachProgress& progress, MakeSt
       next = total;
     }
   };
-  threads = std::clamp(threads, 1, std::max(1, total));
   std::vector<std::thread> pool;
   for (int k = 1; k < threads; ++k) pool.emplace_back(worker);
   worker();

@@ -29,14 +29,18 @@ struct TeachParams {
   // Edges that depend on where the LEDs stand around the part. A fold between a face facing the
   // camera and one seen at a grazing angle is found for some turns of the part about the line of
   // sight relative to the LED ring and not for others, and the query's part lies at any turn.
-  // Each view is rendered `lighting_turns` times, turned about the optical axis by k /
-  // lighting_turns of the ring's period (k = 0 is the view itself), and an edge pixel of the view
-  // is kept when at least `lighting_min_turns` of those renders, turned back, show an edge within
-  // `lighting_tolerance_px` (the turn resamples the image). 1 turn = off. Four turns, all needed,
-  // measured best (docs/pose-experiments.md, "Session 30"); teaching takes ~3.5x as long.
+  // Each view is rendered `lighting_turns` times, with the LED ring turned about the optical axis
+  // by k / lighting_turns of its period (k = 0 is the view itself; turning the ring one way is
+  // turning the part the other), and an edge pixel of the view is kept when at least
+  // `lighting_min_turns` of those renders show an edge within `lighting_tolerance_px`. 1 turn =
+  // off. Four turns, all needed, measured best (docs/pose-experiments.md, "Session 30"). A turned
+  // render lights only the pixels within `lighting_band_px` of the view's edges (0 = every
+  // pixel): wider than the tolerance plus the extractor's 3x3 reach, so that what the band cuts
+  // off cannot reach an edge it checks.
   int lighting_turns = 4;
   int lighting_min_turns = 4;
   int lighting_tolerance_px = 1;
+  int lighting_band_px = 6;
   // Each render draws only the box that can hold the part and its shadows (part_region) and
   // leaves the rest of the window empty, which gives every edge the whole window's render gives
   // (tested). True renders the whole window: the reference for tests.

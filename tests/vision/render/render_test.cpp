@@ -416,6 +416,111 @@ TEST(MfcRenderer, RegionRenderEqualsTheWholeInsideAndIsEmptyOutside) {
   }
 }
 
+// A render lit only in a mask: in every tile the mask touches, exactly the whole render's
+// values; elsewhere nothing there, as outside a region. Lit again with the ring turned (its surfaces reused), or after
+// another scene, it is what a renderer that never drew anything else gives.
+TEST(MfcRenderer, LitMaskRenderEqualsTheWholeWhereLitAndIsEmptyElsewhere) {
+  RenderOptions opt;
+  opt.noise.enabled = false;
+  opt.deferred_shading = true;
+  MfcRenderer r(sim_config(), opt), fresh(sim_config(), opt);
+  const auto parts = mixed_scene(r);
+  const auto fresh_parts = mixed_scene(fresh);
+  cv::Mat1b lit(r.camera().image_size, uint8_t{0});
+  cv::circle(lit, {320, 240}, 90, 255, -1);
+  cv::rectangle(lit, cv::Rect(0, 0, 640, 7), 255, -1);
+  lit(cv::Rect(300, 230, 10, 10)).setTo(0);
+  const cv::Rect region(250, 0, 300, 400);
+  auto expect_same = [](const MfcRender& a, const MfcRender& b, const char* what) {
+    EXPECT_EQ(cv::norm(a.part_index, b.part_index, cv::NORM_INF), 0.0) << what;
+    EXPECT_EQ(cv::norm(a.depth_mm, b.depth_mm, cv::NORM_INF), 0.0) << what;
+    EXPECT_EQ(cv::norm(a.ambient_linear, b.ambient_linear, cv::NORM_INF), 0.0) << what;
+    for (size_t i = 0; i < 8; ++i)
+      EXPECT_EQ(cv::norm(a.flash_linear[i], b.flash_linear[i], cv::NORM_INF), 0.0) << what << " LED " << i;
+  };
+  for (const double turn : {0.0, 0.3}) {
+    SCOPED_TRACE(turn);
+    const Lighting masked{.ring_turn_rad = turn, .lit = &lit}, all_lit{.ring_turn_rad = turn};
+    MfcRender whole, part, again;
+    fresh.render(fresh_parts, whole, 1, region, all_lit);
+    // What the mask and the region leave out reads as nothing there.
+    const cv::Mat1b out_of_region(lit.size(), uint8_t{255});
+    out_of_region(region).setTo(0);
+    const int tile = MfcRenderer::lit_tile_px(lit.size());
+    ASSERT_EQ(tile, 8);
+    cv::Mat1b tiles_lit(lit.size(), uint8_t{0});
+    for (int y = 0; y < lit.rows; y += tile)
+      for (int x = 0; x < lit.cols; x += tile) {
+        const cv::Rect t = cv::Rect(x, y, tile, tile) & cv::Rect(cv::Point(), lit.size());
+        if (cv::countNonZero(lit(t)) > 0) tiles_lit(t).setTo(255);
+      }
+    const cv::Mat1b dark = (tiles_lit == 0) | out_of_region;
+    for (auto* image : {&whole.ambient_linear, &whole.depth_mm}) image->setTo(0, dark);
+    whole.part_index.setTo(0, dark);
+    for (auto& f : whole.flash_linear) f.setTo(0, dark);
+    r.render(parts, part, 1, region, Lighting{.ring_turn_rad = 1.0});  // other lighting first
+    r.render(parts, part, 1, region, masked);
+    expect_same(part, whole, "lit again");
+    r.render(std::span(parts).first(2), again, 1, region);  // another scene between
+    r.render(parts, again, 1, region, masked);
+    expect_same(again, whole, "after another scene");
+    EXPECT_GT(cv::countNonZero(part.part_index), 1000);
+  }
+  EXPECT_EQ(MfcRenderer::lit_tile_px({1448, 1448}), 8);  // 181² tiles: 32,761
+  EXPECT_EQ(MfcRenderer::lit_tile_px({1449, 1448}), 16);
+  MfcRender out;
+  const cv::Mat1b small(100, 100, uint8_t{255});
+  EXPECT_THROW(r.render(parts, out, 1, {}, Lighting{.lit = &small}), std::invalid_argument);
+  RenderOptions forward_opt = opt;
+  forward_opt.deferred_shading = false;
+  MfcRenderer forward(sim_config(), forward_opt);
+  const auto forward_parts = mixed_scene(forward);
+  EXPECT_THROW(forward.render(forward_parts, out, 1, {}, Lighting{.lit = &lit}), std::invalid_argument);
+}
+
+// Turning a regular ring by its step puts every LED where the next one was: each flash image
+// is the next LED's of the unturned ring (to rounding in the shadow maps' placement).
+TEST(MfcRenderer, RingTurnedByItsStepLightsAsTheNextLed) {
+  const CameraConfig cfg = sim_config();
+  ASSERT_TRUE(cfg.flashes.ring);
+  for (const bool deferred : {false, true}) {
+    SCOPED_TRACE(deferred ? "deferred" : "forward");
+    RenderOptions opt;
+    opt.noise.enabled = false;
+    opt.deferred_shading = deferred;
+    MfcRenderer r(cfg, opt);
+    const auto parts = mixed_scene(r);
+    MfcRender plain, turned;
+    r.render(parts, plain);
+    r.render(parts, turned, 1, {}, Lighting{.ring_turn_rad = cfg.flashes.ring->step_deg * CV_PI / 180});
+    for (size_t i = 0; i < 8; ++i) {
+      const cv::Mat1f diff = cv::abs(turned.flash_linear[i] - plain.flash_linear[(i + 1) % 8]);
+      EXPECT_LT(cv::countNonZero(diff > 0.5f), 30) << "LED " << i;  // of 307,200 pixels
+      EXPECT_GT(cv::norm(turned.flash_linear[i], plain.flash_linear[i], cv::NORM_L1), 1e5) << "LED " << i;
+    }
+    EXPECT_EQ(cv::norm(turned.ambient_linear, plain.ambient_linear, cv::NORM_INF), 0.0);
+  }
+}
+
+// Parts all matte are lit by a program without the specular term: the same values.
+TEST(MfcRenderer, MatteScenesLightAsForward) {
+  RenderOptions deferred_opt, forward_opt;
+  deferred_opt.noise.enabled = forward_opt.noise.enabled = false;
+  deferred_opt.deferred_shading = true;
+  MfcRenderer deferred(sim_config(), deferred_opt), forward(sim_config(), forward_opt);
+  auto matte = [](MfcRenderer& r) {
+    return std::vector<ScenePart>{
+        {r.add_mesh(make_box(40, 30, 30)), rotation(0.4, -0.3, 0.5), {-10, 5, 310}, Material::matte(0.8f)},
+        {r.add_mesh(make_plane(800)), cv::Matx33d::eye(), {0, 0, 330}, Material::matte(0.6f), false}};
+  };
+  const auto a = matte(deferred), b = matte(forward);
+  MfcRender out_a, out_b;
+  deferred.render(a, out_a);
+  forward.render(b, out_b);
+  for (size_t i = 0; i < 8; ++i)
+    EXPECT_LE(cv::norm(out_a.flash_linear[i], out_b.flash_linear[i], cv::NORM_INF), 1e-4) << "LED " << i;
+}
+
 TEST(MfcRenderer, SeveralPartsOccludeAndAreIndexed) {
   MfcRenderer r(sim_config());
   const int cube = r.add_mesh(make_box(30, 30, 30));

@@ -7,10 +7,12 @@
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
 
+#include <algorithm>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <limits>
 #include <set>
 
@@ -216,6 +218,38 @@ TEST(TemplateTeacher, LightingTurnsKeepTheOutlineAndDropOnlyEdgesSomeTurnsLack) 
   EXPECT_GE(all_outline_kept, 0.98 * all_outline);
   EXPECT_LT(turned_points, plain_points) << "no view had an edge that only some turns show";
   EXPECT_GT(turned_points, plain_points * 9 / 10);
+}
+
+// A turned render lights only the pixels near the view's edges (lighting_band_px): what lies
+// farther cannot confirm an edge, so the views keep what turned renders lit everywhere keep.
+// Not point for point: hysteresis may join a weak edge inside the band to a strong one beyond
+// it, which the band cuts off.
+TEST(TemplateTeacher, TurnsLitNearTheViewsEdgesKeepWhatTurnsLitEverywhereKeep) {
+  ASSERT_GT(TeachParams{}.lighting_band_px, 0);
+  const Mesh meshes[] = {make_box(40, 30, 20), make_cylinder(15, 40, 48)};
+  for (const Mesh& mesh : meshes) {
+    TeachParams p;
+    p.sphere_samples = 24;
+    p.threads = 2;
+    p.edge_offset_profiles = false;
+    const TemplateDatabase band = teach_templates(mesh, sim_camera(), "part", 1, p);
+    p.lighting_band_px = 0;
+    const TemplateDatabase everywhere = teach_templates(mesh, sim_camera(), "part", 1, p);
+    ASSERT_EQ(band.views.size(), everywhere.views.size());
+    size_t points = 0, differing = 0;
+    for (size_t i = 0; i < band.views.size(); ++i) {
+      std::set<std::pair<float, float>> a, b;
+      for (const auto& q : band.views[i].points) a.insert({q.pixel.x, q.pixel.y});
+      for (const auto& q : everywhere.views[i].points) b.insert({q.pixel.x, q.pixel.y});
+      std::vector<std::pair<float, float>> diff;
+      std::set_symmetric_difference(a.begin(), a.end(), b.begin(), b.end(), std::back_inserter(diff));
+      points += b.size();
+      differing += diff.size();
+    }
+    std::printf("%zu of %zu points differ\n", differing, points);
+    EXPECT_GT(points, 24u * 100);
+    EXPECT_LE(differing, points / 1000);
+  }
 }
 
 // Each render draws only the box that can hold the part and its shadows: the same templates as
