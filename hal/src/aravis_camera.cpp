@@ -572,6 +572,7 @@ void AravisCamera::configure() {
   join_releaser();
   state_ = State::Unconfigured;
   gone_ = restart_ = false;
+  silent_triggers_ = 0;
   try {
     open_session();
   } catch (...) {
@@ -753,10 +754,18 @@ void AravisCamera::read(Image& out, FrameInfo& info) {
     // Waits in slices of at most 100 ms so that a lost heartbeat ends the wait early.
     const auto wait_us = static_cast<guint64>(std::min<std::int64_t>(remaining_ns / 1000 + 1, 100'000));
     ArvBuffer* buffer = arv_stream_timeout_pop_buffer(session_->stream.get(), wait_us);
-    if (buffer && session_->deliver(buffer, out, info, trigger_ns)) return;
+    if (buffer && session_->deliver(buffer, out, info, trigger_ns)) {
+      silent_triggers_ = 0;
+      return;
+    }
     if (control_lost_) lost("while waiting for a frame");
   }
   ++stats_.timeouts;
+  if (++silent_triggers_ >= kSilentTriggersBeforeReopen) {
+    silent_triggers_ = 0;
+    mark_gone(describe() + ": no frame for " + std::to_string(kSilentTriggersBeforeReopen) +
+              " software triggers in a row, across acquisition restarts (the stream is lost); reopening the camera");
+  }
   restart_ = true;
   throw HalError(ErrorCode::StreamTimeout,
                  describe() + ": no frame within " + std::to_string(config_.frame_timeout.count()) +

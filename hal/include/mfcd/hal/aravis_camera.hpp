@@ -75,6 +75,11 @@ constexpr std::uint64_t gev_frames_missed_between(std::uint64_t previous, std::u
 class AravisCamera final : public Camera {
  public:
   static constexpr int kNoLed = -1;
+  // Triggers in a row without a frame, each after an acquisition restart, after which read()
+  // reopens the camera (DeviceGone, then reconnect with backoff): a stream that stays silent
+  // across restarts is a lost stream channel (the camera rebooted and forgot its destination, or
+  // the stream goes to another NIC's address), which only a new connection sets up again.
+  static constexpr int kSilentTriggersBeforeReopen = 3;
 
   explicit AravisCamera(AravisCameraConfig config);
   ~AravisCamera() override;  // stops, releases; waits for a lost connection's release still running
@@ -150,6 +155,7 @@ class AravisCamera final : public Camera {
   bool have_frame_id_ = false;
   std::uint64_t last_frame_id_ = 0;
   std::uint64_t discarded_frames_ = 0;
+  int silent_triggers_ = 0;  // frame timeouts since the last frame
   CameraStats stats_;
   // Reconnection. A lost connection is released on releaser_ (Aravis waits out its GVCP retries
   // for every command to the absent camera, about 10 s with 0.8's defaults), off the frame path;
