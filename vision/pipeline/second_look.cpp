@@ -51,6 +51,15 @@ bool same_rotation(const MeshTurns& turns, const cv::Matx33d& a, const cv::Matx3
 
 }  // namespace
 
+BinFloor floor_after(const BinFloor& floor, const RigidTransform& motion) {
+  if (!floor.known()) return floor;
+  BinFloor moved = floor;
+  moved.normal = motion.R * floor.normal;
+  moved.distance_mm = floor.distance_mm + moved.normal.dot(motion.t);
+  if (moved.normal[2] <= 0 || moved.distance_mm <= 0) moved.distance_mm = 0;
+  return moved;
+}
+
 SecondLook::SecondLook(const CameraConfig& camera, const PipelineConfig& config, const SecondLookParams& params)
     : params_(params) {
   params_.validate();
@@ -82,6 +91,8 @@ RigidTransform SecondLook::suggest_motion(const PoseCandidate& candidate) const 
 void SecondLook::fuse(const PipelineResult& first_result, const MfcFrames& second_frames, const RigidTransform& motion,
                       int obj_id, std::chrono::steady_clock::time_point deadline, SecondLookResult& out) {
   out.candidates.clear();
+  // The second search keeps its poses above the same floor as the first, seen from where it looks.
+  second_->set_floor(floor_after(first_->impl_->config.floor, motion));
   second_->process(second_frames, obj_id, deadline, out.second);
   BinPickingPipeline::Impl& a = *first_->impl_;
   BinPickingPipeline::Impl& b = *second_->impl_;

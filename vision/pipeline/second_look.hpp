@@ -61,6 +61,11 @@ struct SecondLookResult {
   bool degraded = false;  // the deadline cut the second cycle or the fusion short: fewer candidates fused
 };
 
+// The bin floor as a camera sees it after `motion` (first camera's frame -> the moved camera's): the
+// plane n . X = d becomes (R n) . X' = d + (R n) . t. Unknown (distance 0) where the moved camera
+// would see it edge-on or from below, which BinFloor cannot state; unknown stays unknown.
+BinFloor floor_after(const BinFloor& floor, const RigidTransform& motion);
+
 class SecondLook {
  public:
   // Throws as BinPickingPipeline's constructor, or std::invalid_argument for bad params.
