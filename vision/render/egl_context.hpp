@@ -8,9 +8,8 @@ namespace mfcd::vision {
 
 // Held around every use of OpenGL in the process (one renderer's render, its making and its
 // destruction): llvmpipe, the renderer of machines without a GPU, is not safe with two contexts
-// working at once in one process. Mapping a resource (a readback, an upload) looks into every
-// context of the process while their threads draw, and crashed teaching runs whose threads each
-// rendered with a context of their own. Rendering in one context at a time still uses every core
+// working at once in one process: mapping a resource (a readback, an upload) looks into every
+// context of the process while their threads may be drawing. Rendering in one context at a time still uses every core
 // (llvmpipe rasterizes on threads of its own); the callers' work between renders overlaps.
 [[nodiscard]] std::unique_lock<std::mutex> lock_gl();
 

@@ -337,8 +337,8 @@ void MfcRenderer::mark_lit_pixels(const cv::Mat1b& lit) {
   // What is left unlit keeps the cleared value: nothing there (the scissor box is the region's).
   glClearStencil(0);
   glClear(GL_COLOR_BUFFER_BIT | GL_STENCIL_BUFFER_BIT);
-  // The lit tiles as bits of a uniform array: a texture upload would make llvmpipe look into the
-  // other threads' contexts for the resource while they draw, which crashed it.
+  // The lit tiles as bits of a uniform array: no texture upload per render, so no resource
+  // mapping (egl_context.hpp, lock_gl, says why llvmpipe's mappings are to be kept few).
   const int tile = lit_tile_px(lit.size());
   const int shift = std::countr_zero(static_cast<unsigned>(tile));
   const int per_row = (lit.cols + tile - 1) / tile;
